@@ -1,0 +1,33 @@
+//! Footlight: a live, physically grounded picture of a theatre stage as a
+//! lighting desk plays it.
+//!
+//! The renderer follows Vierjahn, Meik, Mostafawy and Bohn, "Improving
+//! Photon Mapping Towards an Interactive Stage Lighting Framework" (EGVE
+//! 2010): every light gets its own buffer rendered with a unit-intensity
+//! source, and the picture is the weighted sum I = Σ k_i · buffer_i (eq. 5),
+//! so a dimmer or colour change costs a composite, not a re-render.
+//!
+//! # Layout (in data-flow order)
+//! * [`patch`]: the patch file: fixtures, positions, default look.
+//! * [`fixture`]: lights as the tracer sees them, with emission patterns.
+//! * [`scene`]: glTF import, materials, camera, BVH.
+//! * [`render`]: G-buffer, Whitted per-light buffers, anti-aliasing,
+//!   composite, display.
+//! * [`bench`]: `footlight bench`, the paper's figure 6 as same-run ratios.
+#![deny(missing_docs)]
+
+pub mod bench;
+pub mod fixture;
+pub mod patch;
+pub mod render;
+pub mod scene;
+
+pub use fixture::{Beam, Light};
+pub use patch::Patch;
+pub use render::{RenderSettings, Sampling};
+pub use scene::Scene;
+
+/// Path of the bundled default stage, relative to the repository root.
+pub const DEFAULT_SCENE: &str = "scenes/stage.glb";
+/// Path of the bundled default patch, relative to the repository root.
+pub const DEFAULT_PATCH: &str = "patch/default.toml";

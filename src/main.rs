@@ -1,0 +1,176 @@
+//! `footlight` command line: thin clap front over the library. Only this
+//! file uses `anyhow` and decides exit codes.
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Parser, Subcommand};
+use footlight::render::display::{Display, check_finite, write_png};
+use footlight::render::still::{LightJob, render_still};
+use footlight::render::{RecursionLimits, RenderSettings, Sampling};
+use footlight::scene::Camera;
+use footlight::{Patch, Scene, bench};
+use glam::Vec3;
+use std::path::{Path, PathBuf};
+
+#[derive(Parser)]
+#[command(name = "footlight", version, about = "Live, physically grounded stage-lighting preview (Vierjahn et al. 2010)")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a still of the scene lit by the patch's default look.
+    Render(RenderArgs),
+    /// Measure the paper's figure 6 ratios and anti-aliasing error; writes a report.
+    Bench(BenchArgs),
+}
+
+/// Scene, patch and image options shared by `render` and `bench`.
+#[derive(Args, Clone)]
+struct SceneArgs {
+    /// glTF 2.0 scene (.gltf/.glb).
+    #[arg(long, default_value = footlight::DEFAULT_SCENE)]
+    scene: PathBuf,
+    /// Patch file (TOML).
+    #[arg(long, default_value = footlight::DEFAULT_PATCH)]
+    patch: PathBuf,
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    #[command(flatten)]
+    input: SceneArgs,
+    /// Image width in pixels.
+    #[arg(long, default_value_t = 800)]
+    width: u32,
+    /// Image height in pixels.
+    #[arg(long, default_value_t = 500)]
+    height: u32,
+    /// Maximum Whitted recursion depth (reflection/transmission bounces).
+    #[arg(long, default_value_t = 5)]
+    depth: u32,
+    /// Sampling: one, geometry, adaptive (the paper's) or nine.
+    #[arg(long, value_enum, default_value_t = Sampling::Adaptive)]
+    sampling: Sampling,
+    /// Anti-aliasing gradient threshold on the 0-255 scale (paper: 15-25).
+    #[arg(long, default_value_t = 20.0)]
+    aa_threshold: f32,
+    /// Illuminance (lx) on a white Lambert surface shown as display white.
+    #[arg(long, default_value_t = 1000.0)]
+    white_lux: f32,
+    /// Output PNG.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(Args)]
+struct BenchArgs {
+    #[command(flatten)]
+    input: SceneArgs,
+    /// CI-sized run: 200×125, one repetition.
+    #[arg(long)]
+    quick: bool,
+    /// Output folder (default bench/runs/<date>-<host>/).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+fn main() -> Result<()> {
+    tracing_subscriber::fmt()
+        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()))
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Render(args) => render(args),
+        Command::Bench(args) => {
+            let (scene, patch) = load_inputs(&args.input)?;
+            let camera = choose_camera(&scene, &patch);
+            let out = args.out.unwrap_or_else(bench::default_out_dir);
+            let report = bench::run(&scene, &patch, camera, &bench::BenchConfig::new(args.quick), &out)?;
+            println!("{}", report.summary());
+            println!("report written to {}", out.display());
+            Ok(())
+        }
+    }
+}
+
+/// Finds a bundled file relative to the working directory, else relative to
+/// the source checkout the binary was built from.
+fn resolve(path: &Path) -> PathBuf {
+    if path.exists() || path.is_absolute() {
+        return path.to_path_buf();
+    }
+    let from_checkout = Path::new(env!("CARGO_MANIFEST_DIR")).join(path);
+    if from_checkout.exists() { from_checkout } else { path.to_path_buf() }
+}
+
+fn load_inputs(args: &SceneArgs) -> Result<(Scene, Patch)> {
+    let scene_path = resolve(&args.scene);
+    let t = std::time::Instant::now();
+    let scene = footlight::scene::load(&scene_path)?;
+    tracing::info!(
+        "{}: {} triangles, {:.1} % specular, {} materials, loaded in {:.0} ms",
+        scene_path.display(),
+        scene.triangle_count(),
+        scene.specular_fraction() * 100.0,
+        scene.materials.len(),
+        t.elapsed().as_secs_f64() * 1e3
+    );
+    let patch = Patch::load(&resolve(&args.patch))?;
+    tracing::info!("{}: {} fixtures", patch.path.display(), patch.fixtures.len());
+    Ok((scene, patch))
+}
+
+/// Patch camera first, then the scene's, then a seat in the stalls.
+fn choose_camera(scene: &Scene, patch: &Patch) -> Camera {
+    patch
+        .camera
+        .or(scene.camera)
+        .unwrap_or_else(|| Camera::look_at(Vec3::new(0.0, 1.7, 14.0), Vec3::new(0.0, 1.5, 0.0), 40f32.to_radians()))
+}
+
+fn render(args: RenderArgs) -> Result<()> {
+    if args.width == 0 || args.height == 0 || args.width > 16384 || args.height > 16384 {
+        bail!("--width and --height must be between 1 and 16384 (got {}×{})", args.width, args.height);
+    }
+    if !(args.aa_threshold.is_finite() && args.aa_threshold >= 0.0) {
+        bail!("--aa-threshold must be a number >= 0");
+    }
+    if args.depth > 64 {
+        bail!("--depth {} is past the supported 64 bounces", args.depth);
+    }
+    let (scene, patch) = load_inputs(&args.input)?;
+    let camera = choose_camera(&scene, &patch);
+    let settings = RenderSettings {
+        width: args.width,
+        height: args.height,
+        limits: RecursionLimits { max_depth: args.depth, ..RecursionLimits::default() },
+        sampling: args.sampling,
+        aa_threshold: args.aa_threshold,
+        display: Display::for_white_lux(args.white_lux),
+    };
+    let jobs: Vec<LightJob> = patch
+        .fixtures
+        .iter()
+        .map(|f| LightJob { light: f.light.clone(), k_full: f.colour * f.intensity, k: f.k() })
+        .collect();
+    let still = render_still(&scene, camera, &jobs, &settings)?;
+    if let Err((i, v)) = check_finite(&still.linear) {
+        bail!("composite pixel {i} is {v}: this is a bug, please report it");
+    }
+    write_png(&args.out, settings.width, settings.height, settings.display.to_srgb8(&still.linear))
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    let t = &still.timings;
+    tracing::info!(
+        "view {:.0} ms, {} light buffers {:.0} ms ({} pixels re-shaded for anti-aliasing), composite {:.1} ms",
+        t.view.as_secs_f64() * 1e3,
+        still.buffers.len(),
+        t.lights.as_secs_f64() * 1e3,
+        still.reshaded,
+        t.composite.as_secs_f64() * 1e3
+    );
+    println!("wrote {}", args.out.display());
+    Ok(())
+}

@@ -1,0 +1,160 @@
+//! Per-light intensity buffers I_h,ε_i (eq. 5) stored as sparse tiles.
+//!
+//! A stage light lights a part of the picture; the rest of its buffer is
+//! zero. Buffers keep only the 16×16 tiles with any non-zero pixel, so
+//! memory and composite time scale with what the beams reach (a 600-fixture
+//! rig at 1920×1080 would need 15 GB as dense RGB f32 buffers).
+
+use glam::Vec3;
+
+/// Tile edge in pixels.
+pub const TILE: usize = 16;
+const TILE_PIXELS: usize = TILE * TILE;
+const EMPTY: u32 = u32::MAX;
+
+/// One light's unit-intensity RGB buffer, in cd/m² per cd of the source.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightBuffer {
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    tiles_x: usize,
+    /// Per tile: index into `data` (in tiles), or EMPTY.
+    slot: Vec<u32>,
+    /// Occupied tiles, TILE×TILE row-major each (edge tiles padded with 0).
+    data: Vec<Vec3>,
+}
+
+/// A NaN/Inf or negative value found in a buffer, with where it is.
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error("buffer value {value} at pixel ({x}, {y}) is not a finite non-negative number")]
+pub struct BadValue {
+    /// Pixel column.
+    pub x: u32,
+    /// Pixel row.
+    pub y: u32,
+    /// The offending value.
+    pub value: Vec3,
+}
+
+impl LightBuffer {
+    /// An all-zero buffer (a light that reaches nothing in view).
+    pub fn empty(width: u32, height: u32) -> Self {
+        let tiles_x = (width as usize).div_ceil(TILE);
+        let tiles_y = (height as usize).div_ceil(TILE);
+        Self { width, height, tiles_x, slot: vec![EMPTY; tiles_x * tiles_y], data: Vec::new() }
+    }
+
+    /// Packs a dense row-major buffer, keeping tiles with any non-zero pixel.
+    pub fn from_dense(width: u32, height: u32, dense: &[Vec3]) -> Self {
+        let mut buf = Self::empty(width, height);
+        let (w, h) = (width as usize, height as usize);
+        assert_eq!(dense.len(), w * h, "dense buffer size");
+        let tiles_y = h.div_ceil(TILE);
+        for ty in 0..tiles_y {
+            for tx in 0..buf.tiles_x {
+                let rows = (ty * TILE)..((ty + 1) * TILE).min(h);
+                let cols = (tx * TILE)..((tx + 1) * TILE).min(w);
+                let any = rows.clone().any(|y| dense[y * w + cols.start..y * w + cols.end].iter().any(|p| *p != Vec3::ZERO));
+                if !any {
+                    continue;
+                }
+                buf.slot[ty * buf.tiles_x + tx] = (buf.data.len() / TILE_PIXELS) as u32;
+                let start = buf.data.len();
+                buf.data.resize(start + TILE_PIXELS, Vec3::ZERO);
+                for y in rows.clone() {
+                    for x in cols.clone() {
+                        buf.data[start + (y - ty * TILE) * TILE + (x - tx * TILE)] = dense[y * w + x];
+                    }
+                }
+            }
+        }
+        buf
+    }
+
+    /// Value at pixel (x, y).
+    pub fn get(&self, x: u32, y: u32) -> Vec3 {
+        let (x, y) = (x as usize, y as usize);
+        match self.slot[(y / TILE) * self.tiles_x + x / TILE] {
+            EMPTY => Vec3::ZERO,
+            s => self.data[s as usize * TILE_PIXELS + (y % TILE) * TILE + x % TILE],
+        }
+    }
+
+    /// The tile at tile coordinates (tx, ty), if occupied.
+    pub fn tile(&self, tx: usize, ty: usize) -> Option<&[Vec3]> {
+        match self.slot[ty * self.tiles_x + tx] {
+            EMPTY => None,
+            s => Some(&self.data[s as usize * TILE_PIXELS..(s as usize + 1) * TILE_PIXELS]),
+        }
+    }
+
+    /// Number of occupied tiles.
+    pub fn occupied_tiles(&self) -> usize {
+        self.data.len() / TILE_PIXELS
+    }
+
+    /// Total number of tiles in the image.
+    pub fn total_tiles(&self) -> usize {
+        self.slot.len()
+    }
+
+    /// Bytes of pixel data held.
+    pub fn bytes(&self) -> usize {
+        self.data.len() * std::mem::size_of::<Vec3>() + self.slot.len() * 4
+    }
+
+    /// Expands to a dense row-major buffer.
+    pub fn to_dense(&self) -> Vec<Vec3> {
+        let mut out = Vec::with_capacity((self.width * self.height) as usize);
+        for y in 0..self.height {
+            for x in 0..self.width {
+                out.push(self.get(x, y));
+            }
+        }
+        out
+    }
+
+    /// Checks every stored value is finite and non-negative. Called on each
+    /// finished buffer: a NaN is a bug to report, never to clamp away.
+    pub fn check(&self) -> Result<(), BadValue> {
+        for (i, v) in self.data.iter().enumerate() {
+            if !v.is_finite() || v.min_element() < 0.0 {
+                let tile = self.slot.iter().position(|&s| s as usize == i / TILE_PIXELS).unwrap_or(0);
+                let x = (tile % self.tiles_x * TILE + (i % TILE_PIXELS) % TILE) as u32;
+                let y = (tile / self.tiles_x * TILE + (i % TILE_PIXELS) / TILE) as u32;
+                return Err(BadValue { x, y, value: *v });
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trips_and_drops_zero_tiles() {
+        let (w, h) = (37u32, 21u32);
+        let mut dense = vec![Vec3::ZERO; (w * h) as usize];
+        dense[(20 * w + 36) as usize] = Vec3::new(1.0, 2.0, 3.0);
+        dense[3] = Vec3::splat(0.5);
+        let b = LightBuffer::from_dense(w, h, &dense);
+        assert_eq!(b.occupied_tiles(), 2);
+        assert_eq!(b.total_tiles(), 3 * 2);
+        assert_eq!(b.to_dense(), dense);
+        assert_eq!(b.get(36, 20), Vec3::new(1.0, 2.0, 3.0));
+        assert!(b.check().is_ok());
+    }
+
+    #[test]
+    fn check_reports_nan_position() {
+        let (w, h) = (40u32, 40u32);
+        let mut dense = vec![Vec3::ZERO; (w * h) as usize];
+        dense[(33 * w + 17) as usize] = Vec3::new(f32::NAN, 0.0, 0.0);
+        let err = LightBuffer::from_dense(w, h, &dense).check().unwrap_err();
+        assert_eq!((err.x, err.y), (17, 33));
+    }
+}

@@ -1,0 +1,93 @@
+//! From linear luminance to display pixels: white balance, exposure, sRGB.
+//!
+//! Exposure is a fixed user setting, never automatic: by default a white
+//! Lambert surface under 1000 lx (luminance 1000/π cd/m²) is display white.
+//! Values above white clip at the display, like an overexposed camera; a
+//! non-finite value is an error found before this step ([`check_finite`]),
+//! never clamped away here.
+
+use glam::Vec3;
+
+/// Illuminance (lx) on a white Lambert surface that maps to display white by default.
+pub const DEFAULT_WHITE_LUX: f32 = 1000.0;
+
+/// Display settings applied after the composite (paper section 3.3).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Display {
+    /// Linear multiplier from cd/m² to display units (1 = white).
+    pub exposure: f32,
+    /// Per-channel white-balance gains (1 = none).
+    pub white_balance: Vec3,
+}
+
+impl Default for Display {
+    fn default() -> Self {
+        Self::for_white_lux(DEFAULT_WHITE_LUX)
+    }
+}
+
+impl Display {
+    /// Exposure such that a white Lambert surface under `lux` is display white.
+    pub fn for_white_lux(lux: f32) -> Self {
+        let lux = if lux.is_finite() && lux > 0.0 { lux } else { DEFAULT_WHITE_LUX };
+        Self { exposure: std::f32::consts::PI / lux, white_balance: Vec3::ONE }
+    }
+
+    /// Linear cd/m² to display-linear RGB (before the transfer function).
+    pub fn scale(&self) -> Vec3 {
+        self.white_balance * self.exposure
+    }
+
+    /// Encodes a linear image to 8-bit sRGB, row-major RGB triplets.
+    pub fn to_srgb8(&self, linear: &[Vec3]) -> Vec<u8> {
+        let s = self.scale();
+        linear.iter().flat_map(|&l| (srgb_encode(l * s) * 255.0 + 0.5).to_array().map(|c| c as u8)).collect()
+    }
+}
+
+/// sRGB transfer function (IEC 61966-2-1) per channel, input clamped to [0, 1].
+pub fn srgb_encode(linear: Vec3) -> Vec3 {
+    let f = |c: f32| {
+        let c = c.clamp(0.0, 1.0);
+        if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 }
+    };
+    Vec3::new(f(linear.x), f(linear.y), f(linear.z))
+}
+
+/// First pixel index holding NaN, Inf or a negative value.
+pub fn check_finite(linear: &[Vec3]) -> Result<(), (usize, Vec3)> {
+    match linear.iter().position(|v| !v.is_finite() || v.min_element() < 0.0) {
+        None => Ok(()),
+        Some(i) => Err((i, linear[i])),
+    }
+}
+
+/// Writes an 8-bit sRGB PNG.
+pub fn write_png(path: &std::path::Path, width: u32, height: u32, rgb8: Vec<u8>) -> Result<(), image::ImageError> {
+    let img = image::RgbImage::from_raw(width, height, rgb8).ok_or_else(|| {
+        image::ImageError::Parameter(image::error::ParameterError::from_kind(image::error::ParameterErrorKind::DimensionMismatch))
+    })?;
+    img.save(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn white_lambert_at_reference_lux_is_white() {
+        let d = Display::default();
+        let l = DEFAULT_WHITE_LUX / std::f32::consts::PI;
+        assert_eq!(d.to_srgb8(&[Vec3::splat(l)]), vec![255, 255, 255]);
+        assert_eq!(d.to_srgb8(&[Vec3::ZERO]), vec![0, 0, 0]);
+        // 18 % grey card -> sRGB ~118.
+        let grey = d.to_srgb8(&[Vec3::splat(0.18 * l)]);
+        assert!((grey[0] as i32 - 118).abs() <= 1, "{grey:?}");
+    }
+
+    #[test]
+    fn finite_check_finds_nan() {
+        assert_eq!(check_finite(&[Vec3::ONE, Vec3::new(0.0, f32::NAN, 0.0)]).unwrap_err().0, 1);
+        assert!(check_finite(&[Vec3::ZERO]).is_ok());
+    }
+}

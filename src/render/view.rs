@@ -1,0 +1,247 @@
+//! A [`View`] is everything that depends on the camera and the geometry but
+//! not on any light: the 9-sample G-buffer and the camera paths expanded
+//! through mirrors and glass. It is built once and reused for every light
+//! until the camera moves (Vierjahn 2010, section 3.4).
+//!
+//! [`View::render_light`] produces one light's unit-intensity buffer
+//! I_h,ε_i (eq. 5) from it, with the paper's adaptive anti-aliasing of the
+//! illumination: where the displayed value jumps by more than a threshold
+//! (0-255 scale) to a neighbour, the pixel and its 8 neighbours are re-shaded
+//! with all 9 samples. The decision uses the light's buffer at dimmer 1 through
+//! exposure and sRGB, so dimming never changes the sample set.
+
+use super::buffer::LightBuffer;
+use super::display::srgb_encode;
+use super::gbuffer::{GBuffer, NO_HIT, SAMPLES_PER_PIXEL, bin_samples, CENTRE_SAMPLE};
+use super::whitted::{RecursionLimits, ShadingVertex, direct, expand};
+use crate::fixture::Light;
+use crate::scene::{Camera, Hit, Scene};
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Which primary samples a pixel is shaded with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SampleSet {
+    /// Only the pixel-centre sample (1 sample per pixel, no anti-aliasing).
+    Centre,
+    /// One shade per triangle-ID bin (geometry anti-aliasing).
+    Binned,
+    /// All 9 samples, each weighted 1/9 (the 9× oversampled reference).
+    All,
+}
+
+/// How a light's buffer is sampled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Sampling {
+    /// One sample per pixel.
+    One,
+    /// Triangle-ID bins only (anti-aliases geometry edges).
+    Geometry,
+    /// Bins plus gradient re-shading with all 9 samples (the paper's method).
+    Adaptive,
+    /// All 9 samples everywhere (reference).
+    Nine,
+}
+
+impl Sampling {
+    /// The sample set shaded first (before any adaptive re-shading).
+    pub fn base_set(self) -> SampleSet {
+        match self {
+            Sampling::One => SampleSet::Centre,
+            Sampling::Geometry | Sampling::Adaptive => SampleSet::Binned,
+            Sampling::Nine => SampleSet::All,
+        }
+    }
+}
+
+/// Adaptive anti-aliasing parameters for one light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AaParams {
+    /// Linear factor from the unit buffer to display units at dimmer 1:
+    /// k_i(v = 1) · exposure · white balance.
+    pub display_scale: Vec3,
+    /// Gradient threshold on the 0-255 display scale (paper: 15-25).
+    pub threshold: f32,
+}
+
+/// Expanded camera paths of every pixel for one sample set, stored as a
+/// compressed row list (pixel i owns vertices[start[i]..start[i+1]]).
+pub struct ShadingSet {
+    /// Which samples were expanded.
+    pub set: SampleSet,
+    start: Vec<u32>,
+    vertices: Vec<ShadingVertex>,
+}
+
+impl ShadingSet {
+    /// Vertices of pixel `index` (row-major).
+    pub fn pixel(&self, index: usize) -> &[ShadingVertex] {
+        &self.vertices[self.start[index] as usize..self.start[index + 1] as usize]
+    }
+
+    /// Total number of vertices (shadow rays per light at most).
+    pub fn vertex_count(&self) -> usize {
+        self.vertices.len()
+    }
+}
+
+/// Camera-dependent, light-independent state reused across lights and rebuilds.
+pub struct View {
+    /// 9 primary samples per pixel.
+    pub gbuffer: GBuffer,
+    /// Expanded camera paths for the base sample set.
+    pub shading: ShadingSet,
+    /// Sampling mode the view was built for.
+    pub sampling: Sampling,
+    /// Recursion limits used for every path.
+    pub limits: RecursionLimits,
+}
+
+impl View {
+    /// Traces primary samples and expands camera paths for `sampling`.
+    pub fn build(scene: &Scene, camera: Camera, width: u32, height: u32, sampling: Sampling, limits: RecursionLimits) -> Self {
+        Self::from_gbuffer(scene, GBuffer::build(scene, camera, width, height), sampling, limits)
+    }
+
+    /// Expands camera paths over an existing G-buffer (e.g. to switch the
+    /// sampling mode without re-tracing primary rays).
+    pub fn from_gbuffer(scene: &Scene, gbuffer: GBuffer, sampling: Sampling, limits: RecursionLimits) -> Self {
+        let shading = Self::expand_all(scene, &gbuffer, sampling.base_set(), limits);
+        Self { gbuffer, shading, sampling, limits }
+    }
+
+    /// Image width.
+    pub fn width(&self) -> u32 {
+        self.gbuffer.width
+    }
+
+    /// Image height.
+    pub fn height(&self) -> u32 {
+        self.gbuffer.height
+    }
+
+    /// Expands every pixel's camera paths for `set` (parallel over rows).
+    pub fn expand_all(scene: &Scene, gbuffer: &GBuffer, set: SampleSet, limits: RecursionLimits) -> ShadingSet {
+        let w = gbuffer.width as usize;
+        let rows: Vec<(Vec<u32>, Vec<ShadingVertex>)> = (0..gbuffer.height as usize)
+            .into_par_iter()
+            .map(|y| {
+                let mut counts = Vec::with_capacity(w);
+                let mut verts = Vec::new();
+                for x in 0..w {
+                    let before = verts.len();
+                    expand_pixel(scene, gbuffer, y * w + x, set, limits, &mut verts);
+                    counts.push((verts.len() - before) as u32);
+                }
+                (counts, verts)
+            })
+            .collect();
+        let mut start = Vec::with_capacity(w * gbuffer.height as usize + 1);
+        let mut vertices = Vec::with_capacity(rows.iter().map(|r| r.1.len()).sum());
+        start.push(0u32);
+        for (counts, verts) in rows {
+            for c in counts {
+                let last = *start.last().unwrap_or(&0);
+                start.push(last + c);
+            }
+            vertices.extend(verts);
+        }
+        ShadingSet { set, start, vertices }
+    }
+
+    /// Renders light `light`'s unit-intensity buffer I_h,ε_i (eq. 5). With
+    /// `aa` set and adaptive sampling, high-gradient pixels are re-shaded
+    /// with all 9 samples. Returns the buffer and the number of re-shaded pixels.
+    pub fn render_light(&self, scene: &Scene, light: &Light, aa: Option<AaParams>) -> (LightBuffer, usize) {
+        let (w, h) = (self.width() as usize, self.height() as usize);
+        let mut dense = vec![Vec3::ZERO; w * h];
+        dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            for (x, out) in row.iter_mut().enumerate() {
+                *out = shade(scene, light, self.shading.pixel(y * w + x));
+            }
+        });
+        let mut reshaded = 0;
+        if let (Sampling::Adaptive, Some(aa)) = (self.sampling, aa) {
+            let flags = gradient_flags(&dense, w, h, aa);
+            reshaded = flags.iter().filter(|&&f| f).count();
+            dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+                let mut scratch = Vec::new();
+                for (x, out) in row.iter_mut().enumerate() {
+                    if flags[y * w + x] {
+                        scratch.clear();
+                        expand_pixel(scene, &self.gbuffer, y * w + x, SampleSet::All, self.limits, &mut scratch);
+                        *out = shade(scene, light, &scratch);
+                    }
+                }
+            });
+        }
+        (LightBuffer::from_dense(w as u32, h as u32, &dense), reshaded)
+    }
+}
+
+/// Σ over a pixel's vertices of path weight ⊙ direct light.
+fn shade(scene: &Scene, light: &Light, vertices: &[ShadingVertex]) -> Vec3 {
+    vertices.iter().map(|v| v.weight * direct(scene, light, v)).sum()
+}
+
+/// Appends the camera-path vertices of pixel `index` for sample set `set`.
+pub fn expand_pixel(scene: &Scene, gbuffer: &GBuffer, index: usize, set: SampleSet, limits: RecursionLimits, out: &mut Vec<ShadingVertex>) {
+    let samples = &gbuffer.samples[index];
+    let cam = gbuffer.camera.position;
+    let mut one = |triangle: u32, u: f32, v: f32, weight: f32| {
+        if triangle == NO_HIT || weight <= 0.0 {
+            return;
+        }
+        let p = scene.point_on(triangle, u, v);
+        let Some(dir) = (p - cam).try_normalize() else { return };
+        let surface = scene.surface(&Hit { triangle, t: p.distance(cam), u, v });
+        expand(scene, surface, dir, Vec3::splat(weight), limits, out);
+    };
+    match set {
+        SampleSet::Centre => {
+            let s = samples[CENTRE_SAMPLE];
+            one(s.triangle, s.u, s.v, 1.0);
+        }
+        SampleSet::Binned => {
+            for b in bin_samples(samples).as_slice() {
+                one(b.triangle, b.u, b.v, b.weight);
+            }
+        }
+        SampleSet::All => {
+            for s in samples {
+                one(s.triangle, s.u, s.v, 1.0 / SAMPLES_PER_PIXEL as f32);
+            }
+        }
+    }
+}
+
+/// Marks pixels whose display value differs from a right or lower neighbour
+/// by more than the threshold in any channel, plus their 8 neighbours.
+fn gradient_flags(dense: &[Vec3], w: usize, h: usize, aa: AaParams) -> Vec<bool> {
+    let display: Vec<Vec3> = dense.par_iter().map(|&l| srgb_encode(l * aa.display_scale) * 255.0).collect();
+    let mut flags = vec![false; w * h];
+    let mut mark = |x: usize, y: usize| {
+        for yy in y.saturating_sub(1)..(y + 2).min(h) {
+            for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                flags[yy * w + xx] = true;
+            }
+        }
+    };
+    for y in 0..h {
+        for x in 0..w {
+            let here = display[y * w + x];
+            let right = (x + 1 < w) && (display[y * w + x + 1] - here).abs().max_element() > aa.threshold;
+            let down = (y + 1 < h) && (display[(y + 1) * w + x] - here).abs().max_element() > aa.threshold;
+            if right {
+                mark(x, y);
+                mark(x + 1, y);
+            }
+            if down {
+                mark(x, y);
+                mark(x, y + 1);
+            }
+        }
+    }
+    flags
+}

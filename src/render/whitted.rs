@@ -1,0 +1,191 @@
+//! Whitted recursion (Vierjahn 2010, eq. 1) split the way eq. 5 needs it.
+//!
+//! The secondary rays of eq. 1 (k_R reflection, k_T transmission, up to the
+//! depth limit) do not depend on any light: they depend on the camera and the
+//! geometry only. So instead of re-tracing them for every light as the paper
+//! does, [`expand`] follows them once and records every surface point a
+//! camera path reaches as a [`ShadingVertex`] carrying the path's weight
+//! (the product of k_R/k_T along it and the sample's bin weight). A light's
+//! intensity buffer I_h,ε_i (eq. 5, unit source) is then the weighted sum of
+//! [`direct`] over those vertices: one shadow ray per vertex, nothing else.
+//! This is exact for eq. 1 at every finite depth (same rays, same order of
+//! operations per vertex), which the linearity test checks against an
+//! independent single-pass eq. 1 renderer ([`super::reference`]).
+
+use crate::fixture::Light;
+use crate::scene::{Scene, SurfacePoint, bvh::offset_origin};
+use glam::Vec3;
+
+/// A surface point seen by the camera, directly or through mirrors/glass.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadingVertex {
+    /// World position.
+    pub position: Vec3,
+    /// Shading normal, flipped to the side the view ray came from.
+    pub normal: Vec3,
+    /// Geometric normal on the same side (for offsets and horizon tests).
+    pub geometric_normal: Vec3,
+    /// Unit direction toward the viewer (reverse of the arriving ray).
+    pub wo: Vec3,
+    /// Material index.
+    pub material: u32,
+    /// Path weight: bin weight times the k_R/k_T products along the path.
+    pub weight: Vec3,
+}
+
+/// Limits of the recursion.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RecursionLimits {
+    /// Maximum number of secondary bounces (paper: 5). 0 = primary hits only.
+    pub max_depth: u32,
+    /// Paths whose weight falls below this (in every channel) are not
+    /// followed further: their contribution is below display precision.
+    pub min_weight: f32,
+}
+
+impl Default for RecursionLimits {
+    fn default() -> Self {
+        Self { max_depth: 5, min_weight: 1e-3 }
+    }
+}
+
+/// Pending secondary ray in the explicit recursion stack.
+struct Pending {
+    surface: SurfacePoint,
+    dir: Vec3,
+    weight: Vec3,
+    depth: u32,
+}
+
+/// Follows one camera path from its first surface hit through every mirror
+/// and transmission bounce allowed by `limits`, appending a vertex for each
+/// surface that has a non-zero Phong BRDF.
+pub fn expand(scene: &Scene, first: SurfacePoint, dir: Vec3, weight: Vec3, limits: RecursionLimits, out: &mut Vec<ShadingVertex>) {
+    let mut stack = vec![Pending { surface: first, dir, weight, depth: 0 }];
+    while let Some(Pending { surface, dir, weight, depth }) = stack.pop() {
+        let m = &scene.materials[surface.material as usize];
+        // Orient normals toward the arriving ray (two-sided surfaces).
+        let front = surface.geometric_normal.dot(dir) < 0.0;
+        let (ng, ns) = if front {
+            (surface.geometric_normal, surface.shading_normal)
+        } else {
+            (-surface.geometric_normal, -surface.shading_normal)
+        };
+        if m.diffuse.max_element() > 0.0 || m.specular.max_element() > 0.0 {
+            out.push(ShadingVertex { position: surface.position, normal: ns, geometric_normal: ng, wo: -dir, material: surface.material, weight });
+        }
+        if depth >= limits.max_depth {
+            continue;
+        }
+        let mut reflect_weight = m.k_r;
+        // Transmission: Snell refraction about the facing shading normal;
+        // total internal reflection hands its k_T to the mirror ray.
+        if m.k_t.max_element() > 0.0 {
+            let eta = if front { 1.0 / m.ior } else { m.ior };
+            match refract(dir, ns, eta) {
+                Some(t) if t.dot(ng) < 0.0 => {
+                    let w = weight * m.k_t;
+                    if w.max_element() >= limits.min_weight
+                        && let Some(next) = trace(scene, offset_origin(surface.position, -ng), t)
+                    {
+                        stack.push(Pending { surface: next, dir: t, weight: w, depth: depth + 1 });
+                    }
+                }
+                _ => reflect_weight += m.k_t,
+            }
+        }
+        if reflect_weight.max_element() > 0.0 {
+            let w = weight * reflect_weight;
+            if w.max_element() >= limits.min_weight {
+                let mut r = reflect(dir, ns);
+                if r.dot(ng) <= 0.0 {
+                    // Interpolated normals can send the mirror ray under the surface.
+                    r = reflect(dir, ng);
+                }
+                if let Some(next) = trace(scene, offset_origin(surface.position, ng), r) {
+                    stack.push(Pending { surface: next, dir: r, weight: w, depth: depth + 1 });
+                }
+            }
+        }
+    }
+}
+
+fn trace(scene: &Scene, origin: Vec3, dir: Vec3) -> Option<SurfacePoint> {
+    scene.accel.intersect(origin, dir, f32::INFINITY).map(|h| scene.surface(&h))
+}
+
+/// Mirror direction of incoming `d` about normal `n`.
+pub fn reflect(d: Vec3, n: Vec3) -> Vec3 {
+    (d - 2.0 * d.dot(n) * n).normalize_or(n)
+}
+
+/// Refracted direction of incoming unit `d` through a surface with unit normal
+/// `n` facing the incoming side, relative index `eta` = n_from / n_to; `None`
+/// on total internal reflection.
+pub fn refract(d: Vec3, n: Vec3, eta: f32) -> Option<Vec3> {
+    let cos_i = (-d.dot(n)).clamp(0.0, 1.0);
+    let sin2_t = eta * eta * (1.0 - cos_i * cos_i);
+    if sin2_t > 1.0 {
+        return None;
+    }
+    let t = eta * d + (eta * cos_i - (1.0 - sin2_t).sqrt()) * n;
+    t.try_normalize()
+}
+
+/// Direct light from one unit-intensity source (1 cd, eq. 5's ε0 = 1) at a
+/// vertex, as the luminance (cd/m²) it sends toward the viewer:
+/// f_P(wi, wo) · f_ε(P_i → x') · cos θ / r² · g(P_i → x') (eq. 1's light term).
+/// Zero behind the surface, outside the beam, or in shadow.
+pub fn direct(scene: &Scene, light: &Light, v: &ShadingVertex) -> Vec3 {
+    let to_light = light.position - v.position;
+    let dist2 = to_light.length_squared();
+    if dist2.is_nan() || dist2 <= 1e-12 || dist2.is_infinite() {
+        return Vec3::ZERO;
+    }
+    let dist = dist2.sqrt();
+    let wi = to_light / dist;
+    if wi.dot(v.geometric_normal) <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let cos = wi.dot(v.normal);
+    if cos <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let f_e = light.pattern_toward(-wi);
+    if f_e <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let origin = offset_origin(v.position, v.geometric_normal);
+    let shadow_len = (light.position - origin).length() * (1.0 - 1e-5);
+    if scene.accel.occluded(origin, wi, shadow_len) {
+        return Vec3::ZERO;
+    }
+    let m = &scene.materials[v.material as usize];
+    m.brdf(v.normal, wi, v.wo) * (f_e * cos / dist2)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refraction_obeys_snell_and_total_internal_reflection() {
+        let n = Vec3::Y;
+        let theta = 30f32.to_radians();
+        let d = Vec3::new(theta.sin(), -theta.cos(), 0.0);
+        let t = refract(d, n, 1.0 / 1.5).unwrap();
+        let sin_t = t.x;
+        assert!((sin_t - theta.sin() / 1.5).abs() < 1e-5);
+        // From inside glass at 60°: sin 60° · 1.5 > 1 -> TIR.
+        let steep = 60f32.to_radians();
+        assert!(refract(Vec3::new(steep.sin(), -steep.cos(), 0.0), n, 1.5).is_none());
+        // Normal incidence passes straight through.
+        assert!((refract(Vec3::NEG_Y, n, 1.0 / 1.5).unwrap() - Vec3::NEG_Y).length() < 1e-6);
+    }
+
+    #[test]
+    fn reflection_mirrors_about_the_normal() {
+        let r = reflect(Vec3::new(1.0, -1.0, 0.0).normalize(), Vec3::Y);
+        assert!((r - Vec3::new(1.0, 1.0, 0.0).normalize()).length() < 1e-6);
+    }
+}

@@ -1,0 +1,153 @@
+//! Ray queries against the scene's triangles through an `obvhs` compressed
+//! wide BVH (CWBVH, Ylitie et al. 2017).
+//!
+//! obvhs's own triangle test is not watertight on back-side hits, so the
+//! callers offset secondary-ray origins along the geometric normal (see
+//! [`offset_origin`]) and the test here is two-sided.
+
+use glam::{Vec3, Vec3A};
+use obvhs::{
+    BvhBuildParams,
+    cwbvh::{CwBvh, builder::build_cwbvh_from_tris},
+    ray::{Ray, RayHit},
+    triangle::Triangle,
+};
+use std::time::Duration;
+
+/// A closest-hit result: which triangle, how far, and where on it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Index into the scene's triangle list.
+    pub triangle: u32,
+    /// Distance along the (unit) ray direction.
+    pub t: f32,
+    /// Barycentric coordinates (u, v) of the hit: p = (1-u-v)·v0 + u·v1 + v·v2.
+    pub u: f32,
+    /// See `u`.
+    pub v: f32,
+}
+
+/// Acceleration structure over a triangle soup. Empty scenes have no BVH and
+/// every query misses.
+pub struct Accel {
+    bvh: Option<CwBvh>,
+    /// Triangles in BVH order, so a leaf's primitive id indexes them directly.
+    ordered: Vec<Triangle>,
+    /// Maps BVH primitive order back to the scene's triangle index.
+    original: Vec<u32>,
+}
+
+impl Accel {
+    /// Builds the BVH (PLOC + CWBVH conversion, obvhs "medium" preset).
+    pub fn build(triangles: &[[Vec3; 3]]) -> Self {
+        if triangles.is_empty() {
+            return Self { bvh: None, ordered: Vec::new(), original: Vec::new() };
+        }
+        let tris: Vec<Triangle> = triangles
+            .iter()
+            .map(|t| Triangle { v0: t[0].into(), v1: t[1].into(), v2: t[2].into() })
+            .collect();
+        let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut Duration::default());
+        let original = bvh.primitive_indices.clone();
+        let ordered = original.iter().map(|&i| tris[i as usize]).collect();
+        Self { bvh: Some(bvh), ordered, original }
+    }
+
+    /// Closest hit along `origin + t·dir` for t in (0, `t_max`); `dir` must be unit.
+    pub fn intersect(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<Hit> {
+        let bvh = self.bvh.as_ref()?;
+        if !origin.is_finite() || !dir.is_finite() {
+            return None;
+        }
+        let ray = Ray::new(origin.into(), dir.into(), 0.0, t_max);
+        let mut hit = RayHit::none();
+        if !bvh.ray_traverse(ray, &mut hit, |ray, id| self.ordered[id].intersect(ray)) {
+            return None;
+        }
+        let id = hit.primitive_id as usize;
+        let tri = &self.ordered[id];
+        let (u, v) = barycentric(tri, origin.into(), dir.into());
+        Some(Hit { triangle: self.original[id], t: hit.t, u, v })
+    }
+
+    /// True when anything blocks the segment `origin + t·dir`, t in (0, `t_max`).
+    pub fn occluded(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        let Some(bvh) = self.bvh.as_ref() else { return false };
+        if !origin.is_finite() || !dir.is_finite() || t_max <= 0.0 {
+            return false;
+        }
+        let ray = Ray::new(origin.into(), dir.into(), 0.0, t_max);
+        !bvh.ray_traverse_miss(ray, |ray, id| self.ordered[id].intersect(ray))
+    }
+}
+
+/// Barycentrics of the ray's hit on the triangle's plane (Möller–Trumbore,
+/// same orientation as obvhs: p = (1-u-v)·v0 + u·v1 + v·v2), clamped into the
+/// triangle so float noise on an edge stays on the triangle.
+fn barycentric(tri: &Triangle, origin: Vec3A, dir: Vec3A) -> (f32, f32) {
+    let e1 = tri.v1 - tri.v0;
+    let e2 = tri.v2 - tri.v0;
+    let p = dir.cross(e2);
+    let det = e1.dot(p);
+    if det.abs() < f32::MIN_POSITIVE {
+        return (1.0 / 3.0, 1.0 / 3.0);
+    }
+    let inv = 1.0 / det;
+    let s = origin - tri.v0;
+    let u = s.dot(p) * inv;
+    let q = s.cross(e1);
+    let v = dir.dot(q) * inv;
+    let u = if u.is_finite() { u.clamp(0.0, 1.0) } else { 1.0 / 3.0 };
+    let v = if v.is_finite() { v.clamp(0.0, 1.0 - u) } else { 1.0 / 3.0 };
+    (u, v)
+}
+
+/// Moves a ray origin off a surface along the geometric normal `n_g` (facing
+/// the side the new ray leaves from), scaled with the coordinates' magnitude
+/// so it works from millimetre models to kilometre ones.
+pub fn offset_origin(p: Vec3, n_g: Vec3) -> Vec3 {
+    let scale = p.abs().max_element().max(1e-3);
+    p + n_g * (scale * 2e-5 + 1e-6)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad() -> Vec<[Vec3; 3]> {
+        let a = Vec3::new(-1.0, 0.0, -1.0);
+        let b = Vec3::new(1.0, 0.0, -1.0);
+        let c = Vec3::new(1.0, 0.0, 1.0);
+        let d = Vec3::new(-1.0, 0.0, 1.0);
+        vec![[a, c, b], [a, d, c]]
+    }
+
+    #[test]
+    fn hits_both_sides_and_reports_position() {
+        let accel = Accel::build(&quad());
+        let from_above = accel.intersect(Vec3::new(0.3, 2.0, 0.2), Vec3::NEG_Y, f32::INFINITY).unwrap();
+        assert!((from_above.t - 2.0).abs() < 1e-5);
+        let from_below = accel.intersect(Vec3::new(0.3, -2.0, 0.2), Vec3::Y, f32::INFINITY).unwrap();
+        assert!((from_below.t - 2.0).abs() < 1e-5);
+        assert!(accel.occluded(Vec3::new(0.0, 1.0, 0.0), Vec3::NEG_Y, 2.0));
+        assert!(!accel.occluded(Vec3::new(0.0, 1.0, 0.0), Vec3::NEG_Y, 0.5));
+    }
+
+    #[test]
+    fn empty_scene_misses() {
+        let accel = Accel::build(&[]);
+        assert!(accel.intersect(Vec3::ZERO, Vec3::Z, f32::INFINITY).is_none());
+        assert!(!accel.occluded(Vec3::ZERO, Vec3::Z, 1.0));
+    }
+
+    #[test]
+    fn barycentrics_reconstruct_the_hit() {
+        let tris = quad();
+        let accel = Accel::build(&tris);
+        let o = Vec3::new(0.25, 3.0, -0.5);
+        let h = accel.intersect(o, Vec3::NEG_Y, f32::INFINITY).unwrap();
+        let t = tris[h.triangle as usize];
+        let p = t[0] * (1.0 - h.u - h.v) + t[1] * h.u + t[2] * h.v;
+        assert!((p - Vec3::new(0.25, 0.0, -0.5)).length() < 1e-5, "{p}");
+    }
+}

@@ -1,0 +1,218 @@
+//! The stage: triangles, materials, a camera and the BVH over them.
+//!
+//! Data comes from a glTF 2.0 file ([`gltf_import`]) or is built in code
+//! ([`SceneBuilder`], used by tests). Every triangle is checked once on the
+//! way in: triangles with non-finite vertices or (near) zero area are dropped
+//! and counted, so the ray loops never meet NaN geometry.
+
+pub mod bvh;
+pub mod camera;
+pub mod gltf_import;
+pub mod material;
+
+pub use bvh::{Accel, Hit};
+pub use camera::Camera;
+pub use gltf_import::{SceneError, load};
+pub use material::Material;
+
+use glam::Vec3;
+
+/// A surface point found by a ray, with everything shading needs.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfacePoint {
+    /// World position.
+    pub position: Vec3,
+    /// Geometric (face) normal, unit, as wound in the file (not flipped).
+    pub geometric_normal: Vec3,
+    /// Interpolated vertex normal, unit, on the same side as `geometric_normal`.
+    pub shading_normal: Vec3,
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+    /// Triangle index (the paper's triangle ID).
+    pub triangle: u32,
+}
+
+/// Counts of what the importer had to drop, reported to the user.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ImportReport {
+    /// Triangles dropped because a vertex was NaN/Inf.
+    pub non_finite: usize,
+    /// Triangles dropped because their area was (numerically) zero.
+    pub degenerate: usize,
+}
+
+/// Triangle mesh scene with materials, an optional camera and its BVH.
+pub struct Scene {
+    /// Vertex positions per triangle.
+    pub positions: Vec<[Vec3; 3]>,
+    /// Vertex normals per triangle (unit; equal to the face normal when the file had none).
+    pub normals: Vec<[Vec3; 3]>,
+    /// Face normal per triangle (unit, from the winding).
+    pub face_normals: Vec<Vec3>,
+    /// Material index per triangle.
+    pub material_of: Vec<u32>,
+    /// Material table; index 0 always exists (a neutral grey default).
+    pub materials: Vec<Material>,
+    /// Camera from the file, if it had one.
+    pub camera: Option<Camera>,
+    /// What the importer dropped.
+    pub report: ImportReport,
+    /// Ray queries.
+    pub accel: Accel,
+}
+
+impl Scene {
+    /// Number of triangles kept.
+    pub fn triangle_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Resolves a BVH hit into a full surface point.
+    pub fn surface(&self, hit: &Hit) -> SurfacePoint {
+        let i = hit.triangle as usize;
+        let [a, b, c] = self.positions[i];
+        let w = 1.0 - hit.u - hit.v;
+        let position = a * w + b * hit.u + c * hit.v;
+        let ng = self.face_normals[i];
+        let [na, nb, nc] = self.normals[i];
+        let mut ns = (na * w + nb * hit.u + nc * hit.v).normalize_or_zero();
+        if ns == Vec3::ZERO {
+            ns = ng;
+        } else if ns.dot(ng) < 0.0 {
+            // Normals pointing against the winding: trust the winding's side.
+            ns = -ns;
+        }
+        SurfacePoint { position, geometric_normal: ng, shading_normal: ns, material: self.material_of[i], triangle: hit.triangle }
+    }
+
+    /// Position at barycentrics (u, v) on triangle `tri`.
+    pub fn point_on(&self, tri: u32, u: f32, v: f32) -> Vec3 {
+        let [a, b, c] = self.positions[tri as usize];
+        a * (1.0 - u - v) + b * u + c * v
+    }
+
+    /// Share of triangles whose material spawns secondary rays (the paper's
+    /// "specular" share: 24 % in its test scene).
+    pub fn specular_fraction(&self) -> f32 {
+        if self.material_of.is_empty() {
+            return 0.0;
+        }
+        let n = self.material_of.iter().filter(|&&m| self.materials[m as usize].is_specular()).count();
+        n as f32 / self.material_of.len() as f32
+    }
+
+    /// True when any material needs secondary rays; scenes without can skip them.
+    pub fn has_specular(&self) -> bool {
+        self.materials.iter().any(Material::is_specular)
+    }
+}
+
+/// Collects triangles and materials, validating each triangle, then builds
+/// the BVH. Used by the glTF importer and by tests that build scenes in code.
+pub struct SceneBuilder {
+    positions: Vec<[Vec3; 3]>,
+    normals: Vec<[Vec3; 3]>,
+    face_normals: Vec<Vec3>,
+    material_of: Vec<u32>,
+    materials: Vec<Material>,
+    camera: Option<Camera>,
+    report: ImportReport,
+}
+
+impl Default for SceneBuilder {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl SceneBuilder {
+    /// An empty builder whose material 0 is a neutral 50 % grey Lambert.
+    pub fn new() -> Self {
+        Self {
+            positions: Vec::new(),
+            normals: Vec::new(),
+            face_normals: Vec::new(),
+            material_of: Vec::new(),
+            materials: vec![Material::lambert("default grey", Vec3::splat(0.5))],
+            camera: None,
+            report: ImportReport::default(),
+        }
+    }
+
+    /// Adds a material and returns its index.
+    pub fn add_material(&mut self, m: Material) -> u32 {
+        self.materials.push(m);
+        (self.materials.len() - 1) as u32
+    }
+
+    /// Sets the scene camera.
+    pub fn set_camera(&mut self, camera: Camera) {
+        self.camera = Some(camera);
+    }
+
+    /// Adds one triangle; `normals` may be `None` for flat shading. Returns
+    /// false (and counts why) when the triangle was dropped.
+    pub fn add_triangle(&mut self, p: [Vec3; 3], normals: Option<[Vec3; 3]>, material: u32) -> bool {
+        if !p.iter().all(|v| v.is_finite()) {
+            self.report.non_finite += 1;
+            return false;
+        }
+        let cross = (p[1] - p[0]).cross(p[2] - p[0]);
+        let scale = (p[1] - p[0]).length().max((p[2] - p[0]).length()).max((p[2] - p[1]).length());
+        // Relative test: an area below (1e-7 · longest edge)² is a sliver that
+        // has no usable normal in f32.
+        let area2 = cross.length();
+        if area2.is_nan() || area2 <= 1e-7 * scale * scale || scale == 0.0 {
+            self.report.degenerate += 1;
+            return false;
+        }
+        let ng = cross.normalize();
+        let ns = normals.map(|n| n.map(|v| if v.is_finite() { v.normalize_or(ng) } else { ng })).unwrap_or([ng; 3]);
+        let material = if (material as usize) < self.materials.len() { material } else { 0 };
+        self.positions.push(p);
+        self.normals.push(ns);
+        self.face_normals.push(ng);
+        self.material_of.push(material);
+        true
+    }
+
+    /// Adds an axis-free quad a-b-c-d (counter-clockwise seen from its front) as two triangles.
+    pub fn add_quad(&mut self, a: Vec3, b: Vec3, c: Vec3, d: Vec3, material: u32) {
+        self.add_triangle([a, b, c], None, material);
+        self.add_triangle([a, c, d], None, material);
+    }
+
+    /// Builds the BVH and returns the finished scene.
+    pub fn build(self) -> Scene {
+        let accel = Accel::build(&self.positions);
+        Scene {
+            positions: self.positions,
+            normals: self.normals,
+            face_normals: self.face_normals,
+            material_of: self.material_of,
+            materials: self.materials,
+            camera: self.camera,
+            report: self.report,
+            accel,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn drops_nan_and_zero_area_triangles() {
+        let mut b = SceneBuilder::new();
+        assert!(!b.add_triangle([Vec3::ZERO, Vec3::X, Vec3::new(f32::NAN, 0.0, 0.0)], None, 0));
+        assert!(!b.add_triangle([Vec3::ZERO, Vec3::X, Vec3::X * 2.0], None, 0));
+        assert!(!b.add_triangle([Vec3::ONE; 3], None, 0));
+        assert!(b.add_triangle([Vec3::ZERO, Vec3::X, Vec3::Y], Some([Vec3::NAN, Vec3::Z, Vec3::ZERO]), 99));
+        let s = b.build();
+        assert_eq!(s.report, ImportReport { non_finite: 1, degenerate: 2 });
+        assert_eq!(s.triangle_count(), 1);
+        assert_eq!(s.material_of[0], 0);
+        assert!(s.normals[0].iter().all(|n| (n.length() - 1.0).abs() < 1e-5));
+    }
+}
