@@ -96,7 +96,10 @@ pub struct Report {
 impl Report {
     /// A plain-text table for the terminal.
     pub fn summary(&self) -> String {
-        let mut s = format!("footlight bench: {}×{}, {} triangles, {} threads\n", self.width, self.height, self.triangles, self.threads);
+        let mut s = format!(
+            "footlight bench: {}×{}, {} triangles, {} threads\n",
+            self.width, self.height, self.triangles, self.threads
+        );
         for r in &self.ratios {
             let paper = r.paper.map(|p| format!("{p:.2}")).unwrap_or_else(|| "-".into());
             s += &format!("  {:<58} ours {:>9.2}   paper {:>7}\n", r.name, r.ours, paper);
@@ -144,7 +147,9 @@ impl Report {
 /// Default output folder: `bench/runs/<date>-<host>/`.
 pub fn default_out_dir() -> PathBuf {
     let host = std::fs::read_to_string("/etc/hostname").map(|h| h.trim().to_string()).unwrap_or_else(|_| "host".into());
-    let days = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs() / 86_400).unwrap_or(0) as i64;
+    let days =
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs() / 86_400).unwrap_or(0)
+            as i64;
     let (y, m, d) = civil_from_days(days);
     PathBuf::from(format!("bench/runs/{y:04}-{m:02}-{d:02}-{host}"))
 }
@@ -207,7 +212,8 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     let n = cfg.repeats;
     let mut timings = Vec::new();
     let mut ratios = Vec::new();
-    let fixture = patch.fixtures.first().ok_or_else(|| std::io::Error::other("the patch has no fixtures to benchmark"))?;
+    let fixture =
+        patch.fixtures.first().ok_or_else(|| std::io::Error::other("the patch has no fixtures to benchmark"))?;
     let light = &fixture.light;
     let k_full = fixture.colour * fixture.intensity;
     let aa = AaParams { display_scale: k_full * display.scale(), threshold: cfg.aa_threshold };
@@ -221,7 +227,8 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         name: "primary: 9-sample G-buffer time / 1-sample ray casting".into(),
         ours: t_gbuf / t_single,
         paper: Some(0.5),
-        note: "paper rasterised its G-buffer on the GPU (2× faster than 1-sample ray casting); ours is CPU BVH, 9 rays".into(),
+        note: "paper rasterised its G-buffer on the GPU (2× faster than 1-sample ray casting); ours is CPU BVH, 9 rays"
+            .into(),
     });
 
     // Illumination for one light: path expansion + shading, per sampling mode.
@@ -229,16 +236,30 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     let mut images = Vec::new();
     for sampling in [Sampling::One, Sampling::Adaptive, Sampling::Nine] {
         // The G-buffer clone is outside the timed region; only expansion and shading count.
-        let (t, (buffer, reshaded)) = time_ms_with(n, || gbuffer.clone(), |g| {
-            let view = View::from_gbuffer(scene, g, sampling, cfg.limits);
-            view.render_light(scene, light, Some(aa))
-        });
+        let (t, (buffer, reshaded)) = time_ms_with(
+            n,
+            || gbuffer.clone(),
+            |g| {
+                let view = View::from_gbuffer(scene, g, sampling, cfg.limits);
+                view.render_light(scene, light, Some(aa))
+            },
+        );
         timings.push((format!("illumination, {sampling:?} (expand + shade)"), t));
         illum.push(t);
         images.push((sampling, buffer.to_dense(), reshaded));
     }
-    ratios.push(Ratio { name: "illumination: adaptive AA / 1 sample (%)".into(), ours: illum[1] / illum[0] * 100.0, paper: Some(119.0), note: "".into() });
-    ratios.push(Ratio { name: "illumination: 9× / 1 sample (%)".into(), ours: illum[2] / illum[0] * 100.0, paper: Some(900.0), note: "".into() });
+    ratios.push(Ratio {
+        name: "illumination: adaptive AA / 1 sample (%)".into(),
+        ours: illum[1] / illum[0] * 100.0,
+        paper: Some(119.0),
+        note: "".into(),
+    });
+    ratios.push(Ratio {
+        name: "illumination: 9× / 1 sample (%)".into(),
+        ours: illum[2] / illum[0] * 100.0,
+        paper: Some(900.0),
+        note: "".into(),
+    });
 
     // Threads: adaptive illumination on 1 and 2 threads.
     let adaptive_view = View::build(scene, camera, w, h, Sampling::Adaptive, cfg.limits);
@@ -246,7 +267,12 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     let (t2, _) = time_ms(n, || pool(2).install(|| adaptive_view.render_light(scene, light, Some(aa))));
     timings.push(("shade one light, 1 thread".into(), t1));
     timings.push(("shade one light, 2 threads".into(), t2));
-    ratios.push(Ratio { name: "threads: 1-thread time / 2-thread time".into(), ours: t1 / t2, paper: Some(1.4), note: "".into() });
+    ratios.push(Ratio {
+        name: "threads: 1-thread time / 2-thread time".into(),
+        ours: t1 / t2,
+        paper: Some(1.4),
+        note: "".into(),
+    });
 
     // Updates: full re-render of one light, illumination-only, composite.
     let (t_full, _) = time_ms(n, || {
@@ -257,7 +283,18 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     let buffers: Vec<LightBuffer> = patch
         .fixtures
         .iter()
-        .map(|f| adaptive_view.render_light(scene, &f.light, Some(AaParams { display_scale: f.colour * f.intensity * display.scale(), threshold: cfg.aa_threshold })).0)
+        .map(|f| {
+            adaptive_view
+                .render_light(
+                    scene,
+                    &f.light,
+                    Some(AaParams {
+                        display_scale: f.colour * f.intensity * display.scale(),
+                        threshold: cfg.aa_threshold,
+                    }),
+                )
+                .0
+        })
         .collect();
     let refs: Vec<&LightBuffer> = buffers.iter().collect();
     let k: Vec<Vec3> = patch.fixtures.iter().map(|f| f.k()).collect();
@@ -269,7 +306,8 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     });
     // Many lights: cycle the patch's buffers to the target count, each with its own k.
     let many: Vec<&LightBuffer> = (0..cfg.composite_lights).map(|i| refs[i % refs.len()]).collect();
-    let many_k: Vec<Vec3> = (0..cfg.composite_lights).map(|i| k[i % k.len()] * (0.5 + (i as f32 * 0.37).fract())).collect();
+    let many_k: Vec<Vec3> =
+        (0..cfg.composite_lights).map(|i| k[i % k.len()] * (0.5 + (i as f32 * 0.37).fract())).collect();
     let (t_comp_many, _) = time_ms(reps, || {
         composite_into(&many, &many_k, w, h, &mut frame);
         display.to_srgb8(&frame)
@@ -278,9 +316,24 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     timings.push(("illumination-only re-render of one light (shade)".into(), t_relight));
     timings.push((format!("composite + sRGB, {} patch lights", refs.len()), t_comp));
     timings.push((format!("composite + sRGB, {} lights", cfg.composite_lights), t_comp_many));
-    ratios.push(Ratio { name: "update: full re-render / illumination-only re-render".into(), ours: t_full / t_relight, paper: Some(1.5), note: "moved light: camera paths are reused".into() });
-    ratios.push(Ratio { name: "update: full re-render / composite (colour change)".into(), ours: t_full / t_comp, paper: Some(125.0), note: format!("composite of all {} patch lights", refs.len()) });
-    ratios.push(Ratio { name: "update: illumination-only / composite".into(), ours: t_relight / t_comp, paper: Some(83.0), note: "".into() });
+    ratios.push(Ratio {
+        name: "update: full re-render / illumination-only re-render".into(),
+        ours: t_full / t_relight,
+        paper: Some(1.5),
+        note: "moved light: camera paths are reused".into(),
+    });
+    ratios.push(Ratio {
+        name: "update: full re-render / composite (colour change)".into(),
+        ours: t_full / t_comp,
+        paper: Some(125.0),
+        note: format!("composite of all {} patch lights", refs.len()),
+    });
+    ratios.push(Ratio {
+        name: "update: illumination-only / composite".into(),
+        ours: t_relight / t_comp,
+        paper: Some(83.0),
+        note: "".into(),
+    });
     ratios.push(Ratio {
         name: format!("composite of {} lights: ms per frame", cfg.composite_lights),
         ours: t_comp_many,
@@ -304,7 +357,14 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     let geo_buffers: Vec<LightBuffer> = lights.iter().map(|l| geo_view.render_light(scene, l, None).0).collect();
     let geo_refs: Vec<&LightBuffer> = geo_buffers.iter().collect();
     let comp = crate::render::composite(&geo_refs, &k, w, h);
-    let eq1 = crate::render::reference::render_eq1(scene, &geo_view.gbuffer, &lights, &k, Sampling::Geometry.base_set(), cfg.limits);
+    let eq1 = crate::render::reference::render_eq1(
+        scene,
+        &geo_view.gbuffer,
+        &lights,
+        &k,
+        Sampling::Geometry.base_set(),
+        cfg.limits,
+    );
     let linearity_max_rel_error = comp
         .iter()
         .zip(&eq1)

@@ -12,7 +12,11 @@ use glam::Vec3;
 use std::path::{Path, PathBuf};
 
 #[derive(Parser)]
-#[command(name = "footlight", version, about = "Live, physically grounded stage-lighting preview (Vierjahn et al. 2010)")]
+#[command(
+    name = "footlight",
+    version,
+    about = "Live, physically grounded stage-lighting preview (Vierjahn et al. 2010)"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

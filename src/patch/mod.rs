@@ -174,8 +174,11 @@ pub struct Patch {
 impl Patch {
     /// Reads and validates a patch file.
     pub fn load(path: &Path) -> Result<Self, PatchError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| PatchError { path: path.to_path_buf(), line: 0, message: format!("cannot read: {e}") })?;
+        let text = std::fs::read_to_string(path).map_err(|e| PatchError {
+            path: path.to_path_buf(),
+            line: 0,
+            message: format!("cannot read: {e}"),
+        })?;
         Self::parse(path, &text)
     }
 
@@ -191,7 +194,11 @@ impl Patch {
 
     /// Second stage: validates the plain structs and builds lights.
     pub fn from_file(path: &Path, text: &str, file: PatchFile) -> Result<Self, PatchError> {
-        let err = |span: Range<usize>, message: String| PatchError { path: path.to_path_buf(), line: line_of(text, span.start), message };
+        let err = |span: Range<usize>, message: String| PatchError {
+            path: path.to_path_buf(),
+            line: line_of(text, span.start),
+            message,
+        };
         let camera = match file.camera {
             None => None,
             Some(c) => {

@@ -56,7 +56,8 @@ impl LightBuffer {
             for tx in 0..buf.tiles_x {
                 let rows = (ty * TILE)..((ty + 1) * TILE).min(h);
                 let cols = (tx * TILE)..((tx + 1) * TILE).min(w);
-                let any = rows.clone().any(|y| dense[y * w + cols.start..y * w + cols.end].iter().any(|p| *p != Vec3::ZERO));
+                let any =
+                    rows.clone().any(|y| dense[y * w + cols.start..y * w + cols.end].iter().any(|p| *p != Vec3::ZERO));
                 if !any {
                     continue;
                 }

@@ -65,7 +65,9 @@ pub fn check_finite(linear: &[Vec3]) -> Result<(), (usize, Vec3)> {
 /// Writes an 8-bit sRGB PNG.
 pub fn write_png(path: &std::path::Path, width: u32, height: u32, rgb8: Vec<u8>) -> Result<(), image::ImageError> {
     let img = image::RgbImage::from_raw(width, height, rgb8).ok_or_else(|| {
-        image::ImageError::Parameter(image::error::ParameterError::from_kind(image::error::ParameterErrorKind::DimensionMismatch))
+        image::ImageError::Parameter(image::error::ParameterError::from_kind(
+            image::error::ParameterErrorKind::DimensionMismatch,
+        ))
     })?;
     img.save(path)
 }

@@ -7,7 +7,7 @@
 //! the primary sample positions, the material BRDF and the shadow-ray query,
 //! so `composite(per-light buffers) == reference` checks eq. 5 end to end.
 
-use super::gbuffer::{GBuffer, NO_HIT, SAMPLES_PER_PIXEL, bin_samples, CENTRE_SAMPLE};
+use super::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT, SAMPLES_PER_PIXEL, bin_samples};
 use super::view::SampleSet;
 use super::whitted::{RecursionLimits, ShadingVertex, direct, reflect, refract};
 use crate::fixture::Light;
@@ -16,7 +16,14 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 /// Renders all `lights` with weights `k` in one pass (eq. 1), row-major linear RGB.
-pub fn render_eq1(scene: &Scene, gbuffer: &GBuffer, lights: &[Light], k: &[Vec3], set: SampleSet, limits: RecursionLimits) -> Vec<Vec3> {
+pub fn render_eq1(
+    scene: &Scene,
+    gbuffer: &GBuffer,
+    lights: &[Light],
+    k: &[Vec3],
+    set: SampleSet,
+    limits: RecursionLimits,
+) -> Vec<Vec3> {
     let w = gbuffer.width as usize;
     let mut out = vec![Vec3::ZERO; w * gbuffer.height as usize];
     out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
@@ -28,8 +35,12 @@ pub fn render_eq1(scene: &Scene, gbuffer: &GBuffer, lights: &[Light], k: &[Vec3]
                     let s = samples[CENTRE_SAMPLE];
                     weighted.push((s.triangle, s.u, s.v, 1.0));
                 }
-                SampleSet::Binned => weighted.extend(bin_samples(samples).as_slice().iter().map(|b| (b.triangle, b.u, b.v, b.weight))),
-                SampleSet::All => weighted.extend(samples.iter().map(|s| (s.triangle, s.u, s.v, 1.0 / SAMPLES_PER_PIXEL as f32))),
+                SampleSet::Binned => {
+                    weighted.extend(bin_samples(samples).as_slice().iter().map(|b| (b.triangle, b.u, b.v, b.weight)))
+                }
+                SampleSet::All => {
+                    weighted.extend(samples.iter().map(|s| (s.triangle, s.u, s.v, 1.0 / SAMPLES_PER_PIXEL as f32)))
+                }
             }
             for (tri, u, v, weight) in weighted {
                 if tri == NO_HIT {
@@ -48,13 +59,30 @@ pub fn render_eq1(scene: &Scene, gbuffer: &GBuffer, lights: &[Light], k: &[Vec3]
 /// Eq. 1 at one surface point, recursively. `path_weight` only decides, as
 /// in the per-light renderer, when a path is too faint to follow.
 #[allow(clippy::too_many_arguments)]
-fn radiance(scene: &Scene, lights: &[Light], k: &[Vec3], s: SurfacePoint, dir: Vec3, path_weight: Vec3, depth: u32, limits: RecursionLimits) -> Vec3 {
+fn radiance(
+    scene: &Scene,
+    lights: &[Light],
+    k: &[Vec3],
+    s: SurfacePoint,
+    dir: Vec3,
+    path_weight: Vec3,
+    depth: u32,
+    limits: RecursionLimits,
+) -> Vec3 {
     let m = &scene.materials[s.material as usize];
     let front = s.geometric_normal.dot(dir) < 0.0;
-    let (ng, ns) = if front { (s.geometric_normal, s.shading_normal) } else { (-s.geometric_normal, -s.shading_normal) };
+    let (ng, ns) =
+        if front { (s.geometric_normal, s.shading_normal) } else { (-s.geometric_normal, -s.shading_normal) };
     let mut total = Vec3::ZERO;
     if m.diffuse.max_element() > 0.0 || m.specular.max_element() > 0.0 {
-        let v = ShadingVertex { position: s.position, normal: ns, geometric_normal: ng, wo: -dir, material: s.material, weight: Vec3::ONE };
+        let v = ShadingVertex {
+            position: s.position,
+            normal: ns,
+            geometric_normal: ng,
+            wo: -dir,
+            material: s.material,
+            weight: Vec3::ONE,
+        };
         for (light, k) in lights.iter().zip(k) {
             total += *k * direct(scene, light, &v);
         }
@@ -70,7 +98,8 @@ fn radiance(scene: &Scene, lights: &[Light], k: &[Vec3], s: SurfacePoint, dir: V
                 if (path_weight * m.k_t).max_element() >= limits.min_weight
                     && let Some(h) = scene.accel.intersect(offset_origin(s.position, -ng), t, f32::INFINITY)
                 {
-                    total += m.k_t * radiance(scene, lights, k, scene.surface(&h), t, path_weight * m.k_t, depth + 1, limits);
+                    total += m.k_t
+                        * radiance(scene, lights, k, scene.surface(&h), t, path_weight * m.k_t, depth + 1, limits);
                 }
             }
             _ => k_reflect += m.k_t,
@@ -82,7 +111,8 @@ fn radiance(scene: &Scene, lights: &[Light], k: &[Vec3], s: SurfacePoint, dir: V
             r = reflect(dir, ng);
         }
         if let Some(h) = scene.accel.intersect(offset_origin(s.position, ng), r, f32::INFINITY) {
-            total += k_reflect * radiance(scene, lights, k, scene.surface(&h), r, path_weight * k_reflect, depth + 1, limits);
+            total += k_reflect
+                * radiance(scene, lights, k, scene.surface(&h), r, path_weight * k_reflect, depth + 1, limits);
         }
     }
     total

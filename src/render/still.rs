@@ -3,10 +3,10 @@
 //! `footlight render` and the benchmarks use this; the live daemon uses the
 //! same pieces with a scheduler in between.
 
+use super::RenderSettings;
 use super::buffer::{BadValue, LightBuffer};
 use super::composite::composite;
 use super::view::{AaParams, View};
-use super::RenderSettings;
 use crate::fixture::Light;
 use crate::scene::{Camera, Scene};
 use glam::Vec3;
@@ -60,7 +60,12 @@ pub struct Still {
 }
 
 /// Renders `jobs` over `scene` from `camera`.
-pub fn render_still(scene: &Scene, camera: Camera, jobs: &[LightJob], settings: &RenderSettings) -> Result<Still, RenderError> {
+pub fn render_still(
+    scene: &Scene,
+    camera: Camera,
+    jobs: &[LightJob],
+    settings: &RenderSettings,
+) -> Result<Still, RenderError> {
     let t0 = Instant::now();
     let view = View::build(scene, camera, settings.width, settings.height, settings.sampling, settings.limits);
     let t1 = Instant::now();
@@ -78,5 +83,11 @@ pub fn render_still(scene: &Scene, camera: Camera, jobs: &[LightJob], settings: 
     let k: Vec<Vec3> = jobs.iter().map(|j| j.k).collect();
     let linear = composite(&refs, &k, settings.width.max(1), settings.height.max(1));
     let t3 = Instant::now();
-    Ok(Still { view, buffers, linear, reshaded, timings: StillTimings { view: t1 - t0, lights: t2 - t1, composite: t3 - t2 } })
+    Ok(Still {
+        view,
+        buffers,
+        linear,
+        reshaded,
+        timings: StillTimings { view: t1 - t0, lights: t2 - t1, composite: t3 - t2 },
+    })
 }

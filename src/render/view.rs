@@ -12,7 +12,7 @@
 
 use super::buffer::LightBuffer;
 use super::display::srgb_encode;
-use super::gbuffer::{GBuffer, NO_HIT, SAMPLES_PER_PIXEL, bin_samples, CENTRE_SAMPLE};
+use super::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT, SAMPLES_PER_PIXEL, bin_samples};
 use super::whitted::{RecursionLimits, ShadingVertex, direct, expand};
 use crate::fixture::Light;
 use crate::scene::{Camera, Hit, Scene};
@@ -100,7 +100,14 @@ pub struct View {
 
 impl View {
     /// Traces primary samples and expands camera paths for `sampling`.
-    pub fn build(scene: &Scene, camera: Camera, width: u32, height: u32, sampling: Sampling, limits: RecursionLimits) -> Self {
+    pub fn build(
+        scene: &Scene,
+        camera: Camera,
+        width: u32,
+        height: u32,
+        sampling: Sampling,
+        limits: RecursionLimits,
+    ) -> Self {
         Self::from_gbuffer(scene, GBuffer::build(scene, camera, width, height), sampling, limits)
     }
 
@@ -186,7 +193,14 @@ fn shade(scene: &Scene, light: &Light, vertices: &[ShadingVertex]) -> Vec3 {
 }
 
 /// Appends the camera-path vertices of pixel `index` for sample set `set`.
-pub fn expand_pixel(scene: &Scene, gbuffer: &GBuffer, index: usize, set: SampleSet, limits: RecursionLimits, out: &mut Vec<ShadingVertex>) {
+pub fn expand_pixel(
+    scene: &Scene,
+    gbuffer: &GBuffer,
+    index: usize,
+    set: SampleSet,
+    limits: RecursionLimits,
+    out: &mut Vec<ShadingVertex>,
+) {
     let samples = &gbuffer.samples[index];
     let cam = gbuffer.camera.position;
     let mut one = |triangle: u32, u: f32, v: f32, weight: f32| {

@@ -60,7 +60,14 @@ struct Pending {
 /// Follows one camera path from its first surface hit through every mirror
 /// and transmission bounce allowed by `limits`, appending a vertex for each
 /// surface that has a non-zero Phong BRDF.
-pub fn expand(scene: &Scene, first: SurfacePoint, dir: Vec3, weight: Vec3, limits: RecursionLimits, out: &mut Vec<ShadingVertex>) {
+pub fn expand(
+    scene: &Scene,
+    first: SurfacePoint,
+    dir: Vec3,
+    weight: Vec3,
+    limits: RecursionLimits,
+    out: &mut Vec<ShadingVertex>,
+) {
     let mut stack = vec![Pending { surface: first, dir, weight, depth: 0 }];
     while let Some(Pending { surface, dir, weight, depth }) = stack.pop() {
         let m = &scene.materials[surface.material as usize];
@@ -72,7 +79,14 @@ pub fn expand(scene: &Scene, first: SurfacePoint, dir: Vec3, weight: Vec3, limit
             (-surface.geometric_normal, -surface.shading_normal)
         };
         if m.diffuse.max_element() > 0.0 || m.specular.max_element() > 0.0 {
-            out.push(ShadingVertex { position: surface.position, normal: ns, geometric_normal: ng, wo: -dir, material: surface.material, weight });
+            out.push(ShadingVertex {
+                position: surface.position,
+                normal: ns,
+                geometric_normal: ng,
+                wo: -dir,
+                material: surface.material,
+                weight,
+            });
         }
         if depth >= limits.max_depth {
             continue;

@@ -43,10 +43,8 @@ impl Accel {
         if triangles.is_empty() {
             return Self { bvh: None, ordered: Vec::new(), original: Vec::new() };
         }
-        let tris: Vec<Triangle> = triangles
-            .iter()
-            .map(|t| Triangle { v0: t[0].into(), v1: t[1].into(), v2: t[2].into() })
-            .collect();
+        let tris: Vec<Triangle> =
+            triangles.iter().map(|t| Triangle { v0: t[0].into(), v1: t[1].into(), v2: t[2].into() }).collect();
         let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut Duration::default());
         let original = bvh.primitive_indices.clone();
         let ordered = original.iter().map(|&i| tris[i as usize]).collect();

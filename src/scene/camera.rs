@@ -55,11 +55,7 @@ impl Camera {
 
 /// Keeps the field of view inside (0.1°, 179°); non-finite input becomes 40°.
 fn sanitize_fov(yfov: f32) -> f32 {
-    if yfov.is_finite() {
-        yfov.clamp(0.1f32.to_radians(), 179f32.to_radians())
-    } else {
-        40f32.to_radians()
-    }
+    if yfov.is_finite() { yfov.clamp(0.1f32.to_radians(), 179f32.to_radians()) } else { 40f32.to_radians() }
 }
 
 #[cfg(test)]

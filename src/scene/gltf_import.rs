@@ -23,6 +23,15 @@ pub enum SceneError {
         /// What the gltf crate reported.
         source: gltf::Error,
     },
+    /// The gltf crate panicked while validating the file (gltf-json 1.4.1
+    /// indexes accessors unchecked in its POSITION min/max hook).
+    #[error("{path}: malformed glTF (the validator failed: {message}); check accessor and buffer indices")]
+    Malformed {
+        /// The scene file.
+        path: PathBuf,
+        /// The panic message.
+        message: String,
+    },
     /// A mesh primitive's data is inconsistent (e.g. an index past the vertex count).
     #[error("{path}: mesh {mesh:?} primitive {primitive}: {what}")]
     BadPrimitive {
@@ -39,8 +48,19 @@ pub enum SceneError {
 
 /// Loads a glTF/GLB file into a [`Scene`] with its BVH.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    let (doc, buffers, _images) =
-        gltf::import(path).map_err(|source| SceneError::Gltf { path: path.to_path_buf(), source })?;
+    // gltf-json 1.4.1 panics on some out-of-range indices during validation
+    // (mesh.rs indexes `root.accessors[...]` before checking it). A broken
+    // file must be an error, not a crash, so the import runs under
+    // catch_unwind; nothing shared is mutated inside, so unwinding is safe.
+    let imported = std::panic::catch_unwind(|| gltf::import(path)).map_err(|panic| SceneError::Malformed {
+        path: path.to_path_buf(),
+        message: panic
+            .downcast_ref::<String>()
+            .cloned()
+            .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+            .unwrap_or_else(|| "unknown panic".into()),
+    })?;
+    let (doc, buffers, _images) = imported.map_err(|source| SceneError::Gltf { path: path.to_path_buf(), source })?;
     let mut builder = SceneBuilder::new();
 
     // Material table: glTF material i -> our index (0 is the default grey).
@@ -55,7 +75,14 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
         let transmission = m.transmission().map(|t| t.transmission_factor()).unwrap_or(0.0);
         let ior = m.ior().unwrap_or(1.5);
         let name = m.name().map(str::to_string).unwrap_or_else(|| format!("material {}", m.index().unwrap_or(0)));
-        let mat = Material::from_pbr(&name, Vec3::new(r, g, b), pbr.metallic_factor(), pbr.roughness_factor(), transmission, ior);
+        let mat = Material::from_pbr(
+            &name,
+            Vec3::new(r, g, b),
+            pbr.metallic_factor(),
+            pbr.roughness_factor(),
+            transmission,
+            ior,
+        );
         material_index.push(builder.add_material(mat));
     }
     if textured > 0 {

@@ -63,14 +63,7 @@ impl Material {
     ///
     /// All inputs are clamped into their glTF ranges first, so absurd files
     /// cannot produce energy gain or NaN.
-    pub fn from_pbr(
-        name: &str,
-        base: Vec3,
-        metallic: f32,
-        roughness: f32,
-        transmission: f32,
-        ior: f32,
-    ) -> Self {
+    pub fn from_pbr(name: &str, base: Vec3, metallic: f32, roughness: f32, transmission: f32, ior: f32) -> Self {
         let base = sanitize_colour(base);
         let metallic = clamp01(metallic);
         let roughness = clamp01(roughness);
@@ -84,15 +77,7 @@ impl Material {
         let k_t = base * (transmission * (1.0 - metallic));
         // Energy: the diffuse part only gets what is neither mirrored nor transmitted.
         let diffuse = base * ((1.0 - metallic) * (1.0 - transmission));
-        Self {
-            name: name.to_string(),
-            diffuse,
-            specular: f0,
-            exponent,
-            k_r: f0 * gloss,
-            k_t,
-            ior,
-        }
+        Self { name: name.to_string(), diffuse, specular: f0, exponent, k_r: f0 * gloss, k_t, ior }
     }
 
     /// True when the material spawns secondary rays (k_R or k_T non-zero):
@@ -120,8 +105,7 @@ impl Material {
         if cos_alpha <= 0.0 {
             return lambert;
         }
-        let lobe = (self.exponent + 2.0) * 0.5 * std::f32::consts::FRAC_1_PI
-            * cos_alpha.powf(self.exponent);
+        let lobe = (self.exponent + 2.0) * 0.5 * std::f32::consts::FRAC_1_PI * cos_alpha.powf(self.exponent);
         lambert + self.specular * lobe
     }
 }
@@ -176,7 +160,8 @@ mod tests {
     fn phong_lobe_is_normalised() {
         // Integrate the lobe times cos over the hemisphere for normal incidence:
         // must not exceed ρ_s (energy conservation), and approach it for large n.
-        let m = Material { specular: Vec3::ONE, diffuse: Vec3::ZERO, exponent: 20.0, ..Material::lambert("x", Vec3::ZERO) };
+        let m =
+            Material { specular: Vec3::ONE, diffuse: Vec3::ZERO, exponent: 20.0, ..Material::lambert("x", Vec3::ZERO) };
         let n = Vec3::Z;
         let wi = Vec3::Z;
         let steps = 400;

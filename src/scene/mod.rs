@@ -82,7 +82,13 @@ impl Scene {
             // Normals pointing against the winding: trust the winding's side.
             ns = -ns;
         }
-        SurfacePoint { position, geometric_normal: ng, shading_normal: ns, material: self.material_of[i], triangle: hit.triangle }
+        SurfacePoint {
+            position,
+            geometric_normal: ng,
+            shading_normal: ns,
+            material: self.material_of[i],
+            triangle: hit.triangle,
+        }
     }
 
     /// Position at barycentrics (u, v) on triangle `tri`.

@@ -1,0 +1,82 @@
+//! Shared helpers: small scenes built in code, a seeded RNG, image metrics.
+
+#![allow(dead_code)]
+
+use footlight::fixture::{Beam, Light, SpotBeam};
+use footlight::render::RecursionLimits;
+use footlight::render::view::{Sampling, View};
+use footlight::scene::{Camera, Material, Scene, SceneBuilder};
+use glam::Vec3;
+use std::path::PathBuf;
+
+/// Repository root (for bundled scenes and patches).
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The bundled stage, loaded once per test that needs it.
+pub fn stage() -> Scene {
+    footlight::scene::load(&root().join(footlight::DEFAULT_SCENE)).expect("bundled stage loads")
+}
+
+/// The bundled default patch.
+pub fn default_patch() -> footlight::Patch {
+    footlight::Patch::load(&root().join(footlight::DEFAULT_PATCH)).expect("default patch loads")
+}
+
+/// Adds an axis-aligned horizontal square at height `y`, facing +Y.
+pub fn floor(b: &mut SceneBuilder, half: f32, y: f32, material: u32) {
+    let (a, c) = (-half, half);
+    b.add_quad(Vec3::new(a, y, c), Vec3::new(c, y, c), Vec3::new(c, y, a), Vec3::new(a, y, a), material);
+}
+
+/// Adds a closed axis-aligned box (outward-facing).
+pub fn cube(b: &mut SceneBuilder, min: Vec3, max: Vec3, material: u32) {
+    let p = |x: bool, y: bool, z: bool| {
+        Vec3::new(if x { max.x } else { min.x }, if y { max.y } else { min.y }, if z { max.z } else { min.z })
+    };
+    // Each face counter-clockwise seen from outside.
+    b.add_quad(p(false, false, true), p(true, false, true), p(true, true, true), p(false, true, true), material); // +Z
+    b.add_quad(p(true, false, false), p(false, false, false), p(false, true, false), p(true, true, false), material); // -Z
+    b.add_quad(p(true, false, true), p(true, false, false), p(true, true, false), p(true, true, true), material); // +X
+    b.add_quad(p(false, false, false), p(false, false, true), p(false, true, true), p(false, true, false), material); // -X
+    b.add_quad(p(false, true, true), p(true, true, true), p(true, true, false), p(false, true, false), material); // +Y
+    b.add_quad(p(false, false, false), p(true, false, false), p(true, false, true), p(false, false, true), material); // -Y
+}
+
+/// A 1 cd omnidirectional point light.
+pub fn omni(position: Vec3) -> Light {
+    Light::aimed(position, position + Vec3::NEG_Y, Beam::Spot(SpotBeam::from_beam_field(360.0, 360.0)))
+}
+
+/// A view with the given sampling and depth.
+pub fn view(scene: &Scene, camera: Camera, w: u32, h: u32, sampling: Sampling, depth: u32) -> View {
+    View::build(scene, camera, w, h, sampling, RecursionLimits { max_depth: depth, min_weight: 0.0 })
+}
+
+/// A Lambert material index.
+pub fn lambert(b: &mut SceneBuilder, rho: f32) -> u32 {
+    b.add_material(Material::lambert("lambert", Vec3::splat(rho)))
+}
+
+/// SplitMix64: a seeded, dependency-free RNG for test inputs.
+pub struct Rng(pub u64);
+
+impl Rng {
+    /// Next value in [0, 1).
+    pub fn next_f32(&mut self) -> f32 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+/// Asserts every value is finite and non-negative.
+pub fn assert_finite(img: &[Vec3], what: &str) {
+    for (i, v) in img.iter().enumerate() {
+        assert!(v.is_finite() && v.min_element() >= 0.0, "{what}: pixel {i} = {v}");
+    }
+}

@@ -1,0 +1,52 @@
+//! The default render at full size (800×500) against a checked-in golden
+//! image. The golden was made by this renderer (on the CPU, 2026-11), so it
+//! only guards against unintended change; correctness is tested against
+//! closed forms and the eq. 1 reference elsewhere. On failure the test writes
+//! the actual image and an amplified difference image under
+//! `target/golden/`. Re-bless with `FOOTLIGHT_BLESS=1 cargo test golden`.
+
+use crate::common::*;
+use footlight::render::RenderSettings;
+use footlight::render::display::check_finite;
+use footlight::render::still::{LightJob, render_still};
+use std::path::PathBuf;
+
+#[test]
+fn default_render_matches_golden() {
+    let scene = stage();
+    let patch = default_patch();
+    let settings = RenderSettings::default();
+    let jobs: Vec<LightJob> = patch
+        .fixtures
+        .iter()
+        .map(|f| LightJob { light: f.light.clone(), k_full: f.colour * f.intensity, k: f.k() })
+        .collect();
+    let still = render_still(&scene, scene.camera.unwrap(), &jobs, &settings).expect("finite buffers");
+    check_finite(&still.linear).expect("finite composite");
+    let actual = settings.display.to_srgb8(&still.linear);
+    let golden_path = root().join("tests/golden/default.png");
+    if std::env::var_os("FOOTLIGHT_BLESS").is_some() {
+        footlight::render::display::write_png(&golden_path, settings.width, settings.height, actual).unwrap();
+        return;
+    }
+    let golden = image::open(&golden_path).expect("tests/golden/default.png (bless with FOOTLIGHT_BLESS=1)").to_rgb8();
+    assert_eq!(golden.dimensions(), (settings.width, settings.height));
+    let diffs: Vec<u8> = golden.as_raw().iter().zip(&actual).map(|(a, b)| a.abs_diff(*b)).collect();
+    let mean = diffs.iter().map(|&d| d as f64).sum::<f64>() / diffs.len() as f64;
+    let large = diffs.iter().filter(|&&d| d > 8).count() as f64 / diffs.len() as f64;
+    if mean > 0.5 || large > 0.001 {
+        let dir = root().join("target/golden");
+        std::fs::create_dir_all(&dir).unwrap();
+        let actual_path: PathBuf = dir.join("default.actual.png");
+        let diff_path = dir.join("default.diff.png");
+        footlight::render::display::write_png(&actual_path, settings.width, settings.height, actual).unwrap();
+        let amplified = diffs.iter().map(|&d| d.saturating_mul(8)).collect();
+        footlight::render::display::write_png(&diff_path, settings.width, settings.height, amplified).unwrap();
+        panic!(
+            "default render differs from golden: mean |Δ| {mean:.3}/255, {:.3} % of values off by > 8; see {} and {}",
+            large * 100.0,
+            actual_path.display(),
+            diff_path.display()
+        );
+    }
+}

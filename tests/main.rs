@@ -1,0 +1,20 @@
+//! Integration tests, one binary (ripgrep's tests/tests.rs layout).
+//! Every reference here comes from an independent path: closed forms, the
+//! single-pass eq. 1 renderer, or the 9× oversampled render.
+
+mod common;
+
+// Closed forms: point light over a Lambert plane, candela -> lux -> display.
+mod analytic;
+// Eq. 5 composite == single-pass eq. 1 render, for random k_i.
+mod linearity;
+// Mirror, glass and the recursion depth limit against closed forms.
+mod recursion;
+// Adaptive anti-aliasing against 9× oversampling on the bundled stage.
+mod antialiasing;
+// NaN vertices, zero-area triangles, empty scenes, lights and cameras inside geometry.
+mod degenerate;
+// Full-size golden image of the default render (guards against change).
+mod golden;
+// The command line as a user runs it.
+mod cli;
