@@ -38,11 +38,43 @@ impl Display {
         self.white_balance * self.exposure
     }
 
-    /// Encodes a linear image to 8-bit sRGB, row-major RGB triplets.
+    /// Encodes a linear image to 8-bit sRGB, row-major RGB triplets. Runs
+    /// every display frame, so it uses a 64 Ki-entry table instead of `powf`
+    /// (≤ 1 code value from the exact curve, checked in the tests).
     pub fn to_srgb8(&self, linear: &[Vec3]) -> Vec<u8> {
-        let s = self.scale();
-        linear.iter().flat_map(|&l| (srgb_encode(l * s) * 255.0 + 0.5).to_array().map(|c| c as u8)).collect()
+        let mut out = vec![0u8; linear.len() * 3];
+        self.to_srgb8_into(linear, &mut out);
+        out
     }
+
+    /// As [`Display::to_srgb8`], into an existing RGB8 buffer (3 bytes per pixel).
+    pub fn to_srgb8_into(&self, linear: &[Vec3], out: &mut [u8]) {
+        use rayon::prelude::*;
+        assert_eq!(out.len(), linear.len() * 3, "output size");
+        let s = self.scale() * (SRGB_LUT_SIZE - 1) as f32;
+        let lut = srgb_lut();
+        out.par_chunks_mut(3 * 4096).zip(linear.par_chunks(4096)).for_each(|(o, l)| {
+            for (px, v) in o.chunks_exact_mut(3).zip(l) {
+                let idx = (*v * s).clamp(Vec3::ZERO, Vec3::splat((SRGB_LUT_SIZE - 1) as f32)) + 0.5;
+                // NaN casts to 0: never reached for checked buffers, and never a panic.
+                px[0] = lut[idx.x as usize];
+                px[1] = lut[idx.y as usize];
+                px[2] = lut[idx.z as usize];
+            }
+        });
+    }
+}
+
+const SRGB_LUT_SIZE: usize = 1 << 16;
+
+/// Linear [0, 1] in 65536 steps to 8-bit sRGB.
+fn srgb_lut() -> &'static [u8] {
+    static LUT: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    LUT.get_or_init(|| {
+        (0..SRGB_LUT_SIZE)
+            .map(|i| (srgb_encode(Vec3::splat(i as f32 / (SRGB_LUT_SIZE - 1) as f32)).x * 255.0 + 0.5) as u8)
+            .collect()
+    })
 }
 
 /// sRGB transfer function (IEC 61966-2-1) per channel, input clamped to [0, 1].
@@ -85,6 +117,20 @@ mod tests {
         // 18 % grey card -> sRGB ~118.
         let grey = d.to_srgb8(&[Vec3::splat(0.18 * l)]);
         assert!((grey[0] as i32 - 118).abs() <= 1, "{grey:?}");
+    }
+
+    #[test]
+    fn table_matches_the_exact_curve() {
+        let d = Display { exposure: 1.0, white_balance: Vec3::ONE };
+        let mut worst = 0;
+        for i in 0..=20_000 {
+            let x = (i as f32 / 20_000.0).powi(3) * 1.2;
+            let exact = (srgb_encode(Vec3::splat(x)).x * 255.0 + 0.5) as i32;
+            let got = d.to_srgb8(&[Vec3::splat(x)])[0] as i32;
+            worst = worst.max((exact - got).abs());
+        }
+        assert!(worst <= 1, "worst {worst}");
+        assert_eq!(d.to_srgb8(&[Vec3::new(f32::NAN, -1.0, f32::INFINITY)]), vec![0, 0, 255]);
     }
 
     #[test]
