@@ -1,0 +1,1 @@
+//! DMX input for Footlight (being built).

@@ -1,0 +1,1 @@
+//! Photometry for Footlight (being built).
