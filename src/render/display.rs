@@ -67,6 +67,15 @@ impl Display {
 
 const SRGB_LUT_SIZE: usize = 1 << 16;
 
+/// 8-bit sRGB code values of a display-linear colour (1 = white), through
+/// the same table as [`Display::to_srgb8`].
+pub fn srgb8(display_linear: Vec3) -> [u8; 3] {
+    let lut = srgb_lut();
+    let max = (SRGB_LUT_SIZE - 1) as f32;
+    let idx = (display_linear * max).clamp(Vec3::ZERO, Vec3::splat(max)) + 0.5;
+    [lut[idx.x as usize], lut[idx.y as usize], lut[idx.z as usize]]
+}
+
 /// Linear [0, 1] in 65536 steps to 8-bit sRGB.
 fn srgb_lut() -> &'static [u8] {
     static LUT: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();

@@ -11,13 +11,15 @@
 //! exposure and sRGB, so dimming never changes the sample set.
 
 use super::buffer::LightBuffer;
-use super::display::srgb_encode;
+use super::display::srgb8;
 use super::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT, SAMPLES_PER_PIXEL, bin_samples};
 use super::whitted::{RecursionLimits, ShadingVertex, direct, expand};
 use crate::fixture::Light;
 use crate::scene::{Camera, Hit, Scene};
 use glam::Vec3;
 use rayon::prelude::*;
+use std::sync::OnceLock;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Which primary samples a pixel is shaded with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -86,6 +88,10 @@ impl ShadingSet {
     }
 }
 
+/// Byte budget for cached 9-sample expansions of re-shaded pixels (see
+/// [`View::render_light`]); past it, expansions are recomputed per use.
+pub const NINE_SAMPLE_CACHE_BYTES: usize = 256 << 20;
+
 /// Camera-dependent, light-independent state reused across lights and rebuilds.
 pub struct View {
     /// 9 primary samples per pixel.
@@ -96,6 +102,11 @@ pub struct View {
     pub sampling: Sampling,
     /// Recursion limits used for every path.
     pub limits: RecursionLimits,
+    /// 9-sample expansions of pixels some light re-shaded, kept for the
+    /// next light or rebuild that re-shades the same pixel (its secondary
+    /// rays are the expensive part and depend only on the camera).
+    nine_cache: Vec<OnceLock<Box<[ShadingVertex]>>>,
+    nine_cache_bytes: AtomicUsize,
 }
 
 impl View {
@@ -115,7 +126,8 @@ impl View {
     /// sampling mode without re-tracing primary rays).
     pub fn from_gbuffer(scene: &Scene, gbuffer: GBuffer, sampling: Sampling, limits: RecursionLimits) -> Self {
         let shading = Self::expand_all(scene, &gbuffer, sampling.base_set(), limits);
-        Self { gbuffer, shading, sampling, limits }
+        let nine_cache = (0..gbuffer.samples.len()).map(|_| OnceLock::new()).collect();
+        Self { gbuffer, shading, sampling, limits, nine_cache, nine_cache_bytes: AtomicUsize::new(0) }
     }
 
     /// Image width.
@@ -176,14 +188,35 @@ impl View {
                 let mut scratch = Vec::new();
                 for (x, out) in row.iter_mut().enumerate() {
                     if flags[y * w + x] {
-                        scratch.clear();
-                        expand_pixel(scene, &self.gbuffer, y * w + x, SampleSet::All, self.limits, &mut scratch);
-                        *out = shade(scene, light, &scratch);
+                        *out = shade(scene, light, self.nine_samples(scene, y * w + x, &mut scratch));
                     }
                 }
             });
         }
         (LightBuffer::from_dense(w as u32, h as u32, &dense), reshaded)
+    }
+}
+
+impl View {
+    /// The 9-sample camera paths of pixel `index`, from the cache or freshly
+    /// expanded (into `scratch` once the cache budget is spent).
+    fn nine_samples<'a>(
+        &'a self,
+        scene: &Scene,
+        index: usize,
+        scratch: &'a mut Vec<ShadingVertex>,
+    ) -> &'a [ShadingVertex] {
+        if let Some(v) = self.nine_cache[index].get() {
+            return v;
+        }
+        scratch.clear();
+        expand_pixel(scene, &self.gbuffer, index, SampleSet::All, self.limits, scratch);
+        let bytes = std::mem::size_of_val(&scratch[..]);
+        if self.nine_cache_bytes.fetch_add(bytes, Ordering::Relaxed) + bytes <= NINE_SAMPLE_CACHE_BYTES {
+            return self.nine_cache[index].get_or_init(|| scratch.clone().into_boxed_slice());
+        }
+        self.nine_cache_bytes.fetch_sub(bytes, Ordering::Relaxed);
+        scratch
     }
 }
 
@@ -233,7 +266,8 @@ pub fn expand_pixel(
 /// Marks pixels whose display value differs from a right or lower neighbour
 /// by more than the threshold in any channel, plus their 8 neighbours.
 fn gradient_flags(dense: &[Vec3], w: usize, h: usize, aa: AaParams) -> Vec<bool> {
-    let display: Vec<Vec3> = dense.par_iter().map(|&l| srgb_encode(l * aa.display_scale) * 255.0).collect();
+    let display: Vec<Vec3> =
+        dense.par_iter().map(|&l| Vec3::from_array(srgb8(l * aa.display_scale).map(f32::from))).collect();
     let mut flags = vec![false; w * h];
     let mut mark = |x: usize, y: usize| {
         for yy in y.saturating_sub(1)..(y + 2).min(h) {

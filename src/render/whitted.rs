@@ -49,17 +49,10 @@ impl Default for RecursionLimits {
     }
 }
 
-/// Pending secondary ray in the explicit recursion stack.
-struct Pending {
-    surface: SurfacePoint,
-    dir: Vec3,
-    weight: Vec3,
-    depth: u32,
-}
-
 /// Follows one camera path from its first surface hit through every mirror
 /// and transmission bounce allowed by `limits`, appending a vertex for each
-/// surface that has a non-zero Phong BRDF.
+/// surface that has a non-zero Phong BRDF. Recursive (depth ≤ the limit), so
+/// no allocation per path.
 pub fn expand(
     scene: &Scene,
     first: SurfacePoint,
@@ -68,57 +61,67 @@ pub fn expand(
     limits: RecursionLimits,
     out: &mut Vec<ShadingVertex>,
 ) {
-    let mut stack = vec![Pending { surface: first, dir, weight, depth: 0 }];
-    while let Some(Pending { surface, dir, weight, depth }) = stack.pop() {
-        let m = &scene.materials[surface.material as usize];
-        // Orient normals toward the arriving ray (two-sided surfaces).
-        let front = surface.geometric_normal.dot(dir) < 0.0;
-        let (ng, ns) = if front {
-            (surface.geometric_normal, surface.shading_normal)
-        } else {
-            (-surface.geometric_normal, -surface.shading_normal)
-        };
-        if m.diffuse.max_element() > 0.0 || m.specular.max_element() > 0.0 {
-            out.push(ShadingVertex {
-                position: surface.position,
-                normal: ns,
-                geometric_normal: ng,
-                wo: -dir,
-                material: surface.material,
-                weight,
-            });
-        }
-        if depth >= limits.max_depth {
-            continue;
-        }
-        let mut reflect_weight = m.k_r;
-        // Transmission: Snell refraction about the facing shading normal;
-        // total internal reflection hands its k_T to the mirror ray.
-        if m.k_t.max_element() > 0.0 {
-            let eta = if front { 1.0 / m.ior } else { m.ior };
-            match refract(dir, ns, eta) {
-                Some(t) if t.dot(ng) < 0.0 => {
-                    let w = weight * m.k_t;
-                    if w.max_element() >= limits.min_weight
-                        && let Some(next) = trace(scene, offset_origin(surface.position, -ng), t)
-                    {
-                        stack.push(Pending { surface: next, dir: t, weight: w, depth: depth + 1 });
-                    }
+    expand_at(scene, first, dir, weight, 0, limits, out);
+}
+
+#[allow(clippy::too_many_arguments)]
+fn expand_at(
+    scene: &Scene,
+    surface: SurfacePoint,
+    dir: Vec3,
+    weight: Vec3,
+    depth: u32,
+    limits: RecursionLimits,
+    out: &mut Vec<ShadingVertex>,
+) {
+    let m = &scene.materials[surface.material as usize];
+    // Orient normals toward the arriving ray (two-sided surfaces).
+    let front = surface.geometric_normal.dot(dir) < 0.0;
+    let (ng, ns) = if front {
+        (surface.geometric_normal, surface.shading_normal)
+    } else {
+        (-surface.geometric_normal, -surface.shading_normal)
+    };
+    if m.diffuse.max_element() > 0.0 || m.specular.max_element() > 0.0 {
+        out.push(ShadingVertex {
+            position: surface.position,
+            normal: ns,
+            geometric_normal: ng,
+            wo: -dir,
+            material: surface.material,
+            weight,
+        });
+    }
+    if depth >= limits.max_depth {
+        return;
+    }
+    let mut reflect_weight = m.k_r;
+    // Transmission: Snell refraction about the facing shading normal;
+    // total internal reflection hands its k_T to the mirror ray.
+    if m.k_t.max_element() > 0.0 {
+        let eta = if front { 1.0 / m.ior } else { m.ior };
+        match refract(dir, ns, eta) {
+            Some(t) if t.dot(ng) < 0.0 => {
+                let w = weight * m.k_t;
+                if w.max_element() >= limits.min_weight
+                    && let Some(next) = trace(scene, offset_origin(surface.position, -ng), t)
+                {
+                    expand_at(scene, next, t, w, depth + 1, limits, out);
                 }
-                _ => reflect_weight += m.k_t,
             }
+            _ => reflect_weight += m.k_t,
         }
-        if reflect_weight.max_element() > 0.0 {
-            let w = weight * reflect_weight;
-            if w.max_element() >= limits.min_weight {
-                let mut r = reflect(dir, ns);
-                if r.dot(ng) <= 0.0 {
-                    // Interpolated normals can send the mirror ray under the surface.
-                    r = reflect(dir, ng);
-                }
-                if let Some(next) = trace(scene, offset_origin(surface.position, ng), r) {
-                    stack.push(Pending { surface: next, dir: r, weight: w, depth: depth + 1 });
-                }
+    }
+    if reflect_weight.max_element() > 0.0 {
+        let w = weight * reflect_weight;
+        if w.max_element() >= limits.min_weight {
+            let mut r = reflect(dir, ns);
+            if r.dot(ng) <= 0.0 {
+                // Interpolated normals can send the mirror ray under the surface.
+                r = reflect(dir, ng);
+            }
+            if let Some(next) = trace(scene, offset_origin(surface.position, ng), r) {
+                expand_at(scene, next, r, w, depth + 1, limits, out);
             }
         }
     }
