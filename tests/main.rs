@@ -16,5 +16,7 @@ mod antialiasing;
 mod degenerate;
 // Full-size golden image of the default render (guards against change).
 mod golden;
+// Per-light photon maps: energy, linearity, caustics, progressive refinement.
+mod photons;
 // The command line as a user runs it.
 mod cli;

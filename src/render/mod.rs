@@ -7,6 +7,8 @@
 //!   vertices once per camera; direct Phong light from one unit source.
 //! * [`view`]: the camera-dependent state and per-light buffer rendering
 //!   with adaptive anti-aliasing of the illumination (§3.4).
+//! * [`photon`]: per-light photon maps for the indirect term (eq. 3),
+//!   progressive refinement, and the path-traced reference.
 //! * [`buffer`]: sparse tiled per-light buffers.
 //! * [`composite`]: I = Σ k_i ⊙ buffer_i (eq. 5, §3.3) on the CPU.
 //! * [`display`]: exposure, white balance, sRGB, PNG.
@@ -17,6 +19,7 @@ pub mod buffer;
 pub mod composite;
 pub mod display;
 pub mod gbuffer;
+pub mod photon;
 pub mod reference;
 pub mod still;
 pub mod view;
@@ -43,6 +46,9 @@ pub struct RenderSettings {
     pub aa_threshold: f32,
     /// Exposure and white balance.
     pub display: Display,
+    /// Photon mapping for the indirect term; `None` renders direct light
+    /// (and Whitted recursion) only.
+    pub photons: Option<photon::PhotonSettings>,
 }
 
 impl Default for RenderSettings {
@@ -54,6 +60,7 @@ impl Default for RenderSettings {
             sampling: Sampling::Adaptive,
             aa_threshold: 20.0,
             display: Display::default(),
+            photons: Some(photon::PhotonSettings::default()),
         }
     }
 }

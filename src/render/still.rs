@@ -6,6 +6,7 @@
 use super::RenderSettings;
 use super::buffer::{BadValue, LightBuffer};
 use super::composite::composite;
+use super::photon::{PhotonSettings, trace_photons};
 use super::view::{AaParams, View};
 use crate::fixture::Light;
 use crate::scene::{Camera, Scene};
@@ -39,8 +40,10 @@ pub struct RenderError {
 pub struct StillTimings {
     /// G-buffer and camera-path expansion.
     pub view: Duration,
-    /// All light buffers.
+    /// All light buffers (direct and Whitted terms).
     pub lights: Duration,
+    /// Photon tracing and indirect estimates.
+    pub photons: Duration,
     /// Composite.
     pub composite: Duration,
 }
@@ -59,6 +62,11 @@ pub struct Still {
     pub timings: StillTimings,
 }
 
+/// Photon seed of light `index`: distinct, reproducible streams per light.
+pub fn light_seed(seed: u64, index: usize) -> u64 {
+    seed ^ (index as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+}
+
 /// Renders `jobs` over `scene` from `camera`.
 pub fn render_still(
     scene: &Scene,
@@ -71,9 +79,21 @@ pub fn render_still(
     let t1 = Instant::now();
     let mut buffers = Vec::with_capacity(jobs.len());
     let mut reshaded = 0;
+    let mut photon_time = Duration::ZERO;
     for (i, job) in jobs.iter().enumerate() {
         let aa = AaParams { display_scale: job.k_full * settings.display.scale(), threshold: settings.aa_threshold };
-        let (buffer, n) = view.render_light(scene, &job.light, Some(aa));
+        let (mut dense, n) = view.render_direct(scene, &job.light, Some(aa));
+        if let Some(photons) = &settings.photons {
+            let tp = Instant::now();
+            let light_settings = PhotonSettings { seed: light_seed(photons.seed, i), ..*photons };
+            let maps = trace_photons(scene, &job.light, &light_settings);
+            let indirect = view.render_indirect(scene, &maps);
+            for (d, a) in dense.iter_mut().zip(&indirect) {
+                *d += *a; // buffer_i = D_i + A_i, both scaled by k_i (eq. 5)
+            }
+            photon_time += tp.elapsed();
+        }
+        let buffer = LightBuffer::from_dense(view.width(), view.height(), &dense);
         buffer.check().map_err(|source| RenderError { light: i, source })?;
         reshaded += n;
         buffers.push(buffer);
@@ -88,6 +108,11 @@ pub fn render_still(
         buffers,
         linear,
         reshaded,
-        timings: StillTimings { view: t1 - t0, lights: t2 - t1, composite: t3 - t2 },
+        timings: StillTimings {
+            view: t1 - t0,
+            lights: t2 - t1 - photon_time,
+            photons: photon_time,
+            composite: t3 - t2,
+        },
     })
 }

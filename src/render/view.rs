@@ -13,6 +13,7 @@
 use super::buffer::LightBuffer;
 use super::display::srgb8;
 use super::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT, SAMPLES_PER_PIXEL, bin_samples};
+use super::photon::{PhotonMaps, Progressive};
 use super::whitted::{RecursionLimits, ShadingVertex, direct, expand};
 use crate::fixture::Light;
 use crate::scene::{Camera, Hit, Scene};
@@ -85,6 +86,16 @@ impl ShadingSet {
     /// Total number of vertices (shadow rays per light at most).
     pub fn vertex_count(&self) -> usize {
         self.vertices.len()
+    }
+
+    /// All vertices, pixel after pixel.
+    pub fn vertices(&self) -> &[ShadingVertex] {
+        &self.vertices
+    }
+
+    /// Range of `vertices()` belonging to pixel `index`.
+    pub fn pixel_range(&self, index: usize) -> std::ops::Range<usize> {
+        self.start[index] as usize..self.start[index + 1] as usize
     }
 }
 
@@ -173,6 +184,12 @@ impl View {
     /// `aa` set and adaptive sampling, high-gradient pixels are re-shaded
     /// with all 9 samples. Returns the buffer and the number of re-shaded pixels.
     pub fn render_light(&self, scene: &Scene, light: &Light, aa: Option<AaParams>) -> (LightBuffer, usize) {
+        let (dense, reshaded) = self.render_direct(scene, light, aa);
+        (LightBuffer::from_dense(self.width(), self.height(), &dense), reshaded)
+    }
+
+    /// As [`View::render_light`], returning the dense row-major direct buffer.
+    pub fn render_direct(&self, scene: &Scene, light: &Light, aa: Option<AaParams>) -> (Vec<Vec3>, usize) {
         let (w, h) = (self.width() as usize, self.height() as usize);
         let mut dense = vec![Vec3::ZERO; w * h];
         dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
@@ -193,11 +210,55 @@ impl View {
                 }
             });
         }
-        (LightBuffer::from_dense(w as u32, h as u32, &dense), reshaded)
+        (dense, reshaded)
     }
 }
 
 impl View {
+    /// The indirect buffer I_h,ε_A,i (eq. 3, 5) of a light from its photon
+    /// maps: Σ over each pixel's vertices of path weight ⊙ ρ_d/π ⊙ E(x).
+    /// Indirect light is smooth, so it is evaluated on the base sample set
+    /// only (anti-aliasing re-shades the direct term).
+    pub fn render_indirect(&self, scene: &Scene, maps: &PhotonMaps) -> Vec<Vec3> {
+        self.dense_from_vertices(scene, |_, v| maps.irradiance(v.position, v.normal))
+    }
+
+    /// The indirect buffer from progressive photon mapping state.
+    pub fn render_progressive(&self, scene: &Scene, sppm: &Progressive) -> Vec<Vec3> {
+        let e = sppm.irradiance();
+        self.dense_from_vertices(scene, |i, _| e[i])
+    }
+
+    /// Per pixel Σ_v w_v ⊙ ρ_d/π ⊙ irradiance(v) over the base sample set.
+    /// `irradiance` gets the vertex's index in `shading.vertices()` and the vertex.
+    fn dense_from_vertices(
+        &self,
+        scene: &Scene,
+        irradiance: impl Fn(usize, &ShadingVertex) -> Vec3 + Sync,
+    ) -> Vec<Vec3> {
+        let (w, h) = (self.width() as usize, self.height() as usize);
+        let vertices = self.shading.vertices();
+        let mut dense = vec![Vec3::ZERO; w * h];
+        dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            for (x, out) in row.iter_mut().enumerate() {
+                *out = self
+                    .shading
+                    .pixel_range(y * w + x)
+                    .map(|i| {
+                        let v = &vertices[i];
+                        let rho = scene.materials[v.material as usize].diffuse;
+                        if rho.max_element() <= 0.0 {
+                            Vec3::ZERO
+                        } else {
+                            v.weight * rho * std::f32::consts::FRAC_1_PI * irradiance(i, v)
+                        }
+                    })
+                    .sum();
+            }
+        });
+        dense
+    }
+
     /// The 9-sample camera paths of pixel `index`, from the cache or freshly
     /// expanded (into `scratch` once the cache budget is spent).
     fn nine_samples<'a>(

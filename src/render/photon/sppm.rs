@@ -1,0 +1,108 @@
+//! Stochastic progressive photon mapping (Hachisuka & Jensen 2009) at the
+//! view's shading vertices: while the machine is idle, each pass traces a
+//! fresh batch of photons and shrinks every vertex's gather radius, so the
+//! indirect estimate's error keeps falling toward zero (bias and variance
+//! both vanish as passes grow). A geometry change of the light restarts it.
+//!
+//! Per visible point: R_{i+1}² = R_i² (N_i + α M)/(N_i + M),
+//! N_{i+1} = N_i + α M, τ_{i+1} = (τ_i + Φ_M) R_{i+1}²/R_i², and
+//! E = τ / (π R² · passes) with photon powers normalised per pass.
+
+use super::PhotonSettings;
+use super::map::{Photon, PhotonMap};
+use super::trace::{PhotonMaps, trace_chunk};
+use crate::fixture::{BeamSampler, Light};
+use crate::render::view::View;
+use crate::scene::Scene;
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// SPPM radius reduction parameter α (Hachisuka & Jensen use 0.7).
+pub const ALPHA: f32 = 0.7;
+
+/// Progressive state of one light over one view.
+pub struct Progressive {
+    radius2: Vec<f32>,
+    count: Vec<f32>,
+    tau: Vec<Vec3>,
+    passes: u32,
+    settings: PhotonSettings,
+}
+
+impl Progressive {
+    /// Starts from the light's first photon maps: each diffuse vertex's
+    /// initial radius is its kNN gather radius in those maps.
+    pub fn new(scene: &Scene, view: &View, maps: &PhotonMaps) -> Self {
+        let default_r = maps.max_radius * 0.2;
+        let radius2 = view
+            .shading
+            .vertices()
+            .par_iter()
+            .map(|v| {
+                if scene.materials[v.material as usize].diffuse.max_element() <= 0.0 {
+                    return 0.0;
+                }
+                let e = maps.global.estimate(v.position, v.normal, maps.settings.estimate.min(50), maps.max_radius);
+                let r = if e.count > 0 { e.radius } else { default_r };
+                r * r
+            })
+            .collect::<Vec<f32>>();
+        let n = radius2.len();
+        Self { radius2, count: vec![0.0; n], tau: vec![Vec3::ZERO; n], passes: 0, settings: maps.settings }
+    }
+
+    /// Passes done so far.
+    pub fn passes(&self) -> u32 {
+        self.passes
+    }
+
+    /// Traces one pass of photons (seeded by the pass number) and updates
+    /// every vertex.
+    pub fn pass(&mut self, scene: &Scene, view: &View, light: &Light) {
+        let sampler = BeamSampler::new(&light.beam);
+        let chunks = self.settings.stored.div_ceil(2048).max(1) as u64;
+        let mut pass_settings = self.settings;
+        pass_settings.seed =
+            self.settings.seed ^ (0xA5A5_0000_0000 + u64::from(self.passes + 1)).wrapping_mul(0x2545_F491_4F6C_DD1D);
+        let batches: Vec<(Vec<Photon>, Vec<Photon>)> =
+            (0..chunks).into_par_iter().map(|c| trace_chunk(scene, light, &sampler, &pass_settings, c)).collect();
+        let emitted = chunks as f32 * 2048.0;
+        let photons: Vec<Photon> = batches
+            .into_iter()
+            .flat_map(|(g, c)| g.into_iter().chain(c))
+            .map(|mut p| {
+                p.power /= emitted;
+                p
+            })
+            .collect();
+        let map = PhotonMap::new(photons);
+        let vertices = view.shading.vertices();
+        self.radius2.par_iter_mut().zip(&mut self.count).zip(&mut self.tau).zip(vertices).for_each(
+            |(((r2, n), tau), v)| {
+                if *r2 <= 0.0 {
+                    return;
+                }
+                let (phi, m) = map.gather(v.position, v.normal, *r2);
+                if m == 0 {
+                    return;
+                }
+                let m = m as f32;
+                let shrink = (*n + ALPHA * m) / (*n + m);
+                *n += ALPHA * m;
+                *tau = (*tau + phi) * shrink;
+                *r2 *= shrink;
+            },
+        );
+        self.passes += 1;
+    }
+
+    /// Indirect irradiance at every shading vertex after the passes so far.
+    pub fn irradiance(&self) -> Vec<Vec3> {
+        let passes = self.passes.max(1) as f32;
+        self.tau
+            .iter()
+            .zip(&self.radius2)
+            .map(|(tau, r2)| if *r2 > 0.0 { *tau / (std::f32::consts::PI * r2 * passes) } else { Vec3::ZERO })
+            .collect()
+    }
+}

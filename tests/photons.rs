@@ -1,0 +1,203 @@
+//! Photon maps (issue 6): energy against the closed-box closed form,
+//! linearity of per-light maps, a mirror caustic against its image source,
+//! progressive refinement against a path-traced reference, degenerate cases.
+
+use crate::common::*;
+use footlight::fixture::{Beam, Light, SpotBeam};
+use footlight::render::photon::map::PhotonMap;
+use footlight::render::photon::pathtrace::indirect_irradiance;
+use footlight::render::photon::{IrradianceCache, PhotonSettings, Progressive, trace_photons};
+use footlight::render::view::Sampling;
+use footlight::scene::{Camera, Material, Scene, SceneBuilder};
+use glam::Vec3;
+
+fn settings(stored: usize, seed: u64) -> PhotonSettings {
+    PhotonSettings { stored, seed, ..PhotonSettings::default() }
+}
+
+/// A closed 4 m box of albedo `rho` around the origin.
+fn box_scene(rho: f32) -> Scene {
+    let mut b = SceneBuilder::new();
+    let m = lambert(&mut b, rho);
+    cube(&mut b, Vec3::splat(-2.0), Vec3::splat(2.0), m);
+    b.build()
+}
+
+/// Points on a uniform grid over the box's six inner faces, with inward normals.
+fn face_grid(n: usize) -> Vec<(Vec3, Vec3)> {
+    let mut pts = Vec::new();
+    for axis in 0..3 {
+        for side in [-1.0f32, 1.0] {
+            for i in 0..n {
+                for j in 0..n {
+                    let a = -2.0 + 4.0 * (i as f32 + 0.5) / n as f32;
+                    let b = -2.0 + 4.0 * (j as f32 + 0.5) / n as f32;
+                    let mut p = [0.0; 3];
+                    p[axis] = 2.0 * side;
+                    p[(axis + 1) % 3] = a;
+                    p[(axis + 2) % 3] = b;
+                    let mut nrm = [0.0; 3];
+                    nrm[axis] = -side;
+                    pts.push((Vec3::from(p), Vec3::from(nrm)));
+                }
+            }
+        }
+    }
+    pts
+}
+
+#[test]
+fn closed_box_indirect_energy_matches_closed_form() {
+    // Every photon hits a wall; each bounce keeps ρ of the power, so the
+    // indirect power is Φ ρ/(1−ρ) and, over the whole area, mean indirect
+    // irradiance = ρ/(1−ρ) · mean direct irradiance.
+    let rho = 0.5;
+    let scene = box_scene(rho);
+    let light = omni(Vec3::new(0.3, -0.2, 0.1));
+    let maps = trace_photons(&scene, &light, &settings(200_000, 11));
+    let total: Vec3 = maps.global.photons.iter().map(|p| p.power).sum();
+    let expected = maps.flux * rho / (1.0 - rho);
+    assert!((total.x - expected).abs() < 0.02 * expected, "stored indirect power {} vs {expected}", total.x);
+    assert!(maps.caustic.is_empty(), "no specular surfaces, no caustic photons");
+
+    let grid = face_grid(24);
+    let mut direct = 0.0;
+    let mut indirect = 0.0;
+    for (x, n) in &grid {
+        let d = light.position - *x;
+        direct += (d.normalize().dot(*n)).max(0.0) / d.length_squared();
+        indirect += maps.irradiance(*x, *n).x;
+    }
+    let ratio = indirect / direct;
+    assert!((ratio - rho / (1.0 - rho)).abs() < 0.05, "mean indirect / mean direct = {ratio}");
+}
+
+#[test]
+fn per_light_maps_add_up_to_one_shared_map() {
+    let scene = box_scene(0.6);
+    let lights = [omni(Vec3::new(-1.0, 0.5, 0.0)), omni(Vec3::new(1.2, -0.8, 0.6))];
+    let maps: Vec<_> =
+        lights.iter().enumerate().map(|(i, l)| trace_photons(&scene, l, &settings(60_000, 100 + i as u64))).collect();
+    let all: Vec<_> = maps.iter().flat_map(|m| m.global.photons.iter().copied()).collect();
+    let shared = PhotonMap::new(all);
+    let shared_cache = IrradianceCache::build(&shared, 150, 4, maps[0].max_radius);
+    let mut sum_separate = 0.0;
+    let mut sum_shared = 0.0;
+    let mut abs_diff = 0.0;
+    for (x, n) in face_grid(16) {
+        let separate = maps[0].irradiance(x, n).x + maps[1].irradiance(x, n).x;
+        let together = shared_cache.lookup(x, n).x;
+        sum_separate += separate;
+        sum_shared += together;
+        abs_diff += (separate - together).abs();
+    }
+    assert!((sum_separate - sum_shared).abs() < 0.03 * sum_shared, "{sum_separate} vs {sum_shared}");
+    assert!(abs_diff < 0.15 * sum_shared, "per-point difference {abs_diff} of {sum_shared}");
+}
+
+#[test]
+fn mirror_caustic_lands_where_the_image_source_puts_it() {
+    // A narrow spot straight down onto a 45° mirror (k_R = 0.9) throws its
+    // beam horizontally onto a wall 5 m from the light's mirror image:
+    // E = k_R · I / d² at the centre of the reflected spot.
+    let mut b = SceneBuilder::new();
+    let mirror = b.add_material(Material { k_r: Vec3::splat(0.9), ..Material::lambert("mirror", Vec3::ZERO) });
+    let wall = lambert(&mut b, 0.5);
+    let n = Vec3::new(0.0, 1.0, 1.0).normalize();
+    let c = Vec3::new(0.0, 1.0, 0.0);
+    let (t, bt) = (Vec3::X, n.cross(Vec3::X));
+    let q = |u: f32, v: f32| c + t * u + bt * v;
+    b.add_quad(q(-1.0, -1.0), q(1.0, -1.0), q(1.0, 1.0), q(-1.0, 1.0), mirror);
+    b.add_quad(
+        Vec3::new(3.0, -2.0, 3.0),
+        Vec3::new(-3.0, -2.0, 3.0),
+        Vec3::new(-3.0, 4.0, 3.0),
+        Vec3::new(3.0, 4.0, 3.0),
+        wall,
+    );
+    let scene = b.build();
+    let light = Light::aimed(Vec3::new(0.0, 3.0, 0.0), c, Beam::Spot(SpotBeam::from_beam_field(10.0, 14.0)));
+    let maps = trace_photons(&scene, &light, &settings(40_000, 7));
+    assert!(maps.caustic.len() > 30_000, "caustic photons {}", maps.caustic.len());
+    let centre = Vec3::new(0.0, 1.0, 3.0);
+    let e = maps.caustic.estimate(centre, Vec3::NEG_Z, 60, 0.5).irradiance.x;
+    let expected = 0.9 / 25.0;
+    assert!((e - expected).abs() < 0.1 * expected, "caustic {e} vs {expected}");
+    let off = maps.caustic.estimate(Vec3::new(2.0, 3.0, 3.0), Vec3::NEG_Z, 60, 0.5).irradiance.x;
+    assert!(off < 0.01 * expected, "caustic outside the reflected spot: {off}");
+}
+
+#[test]
+fn progressive_error_falls_against_path_traced_reference() {
+    let scene = box_scene(0.6);
+    let light = Light::aimed(
+        Vec3::new(0.0, 1.5, 0.0),
+        Vec3::new(0.5, -2.0, 0.0),
+        Beam::Spot(SpotBeam::from_beam_field(50.0, 70.0)),
+    );
+    let cam = Camera::look_at(Vec3::new(0.0, 0.0, 1.9), Vec3::new(0.0, -0.5, -2.0), 80f32.to_radians());
+    let v = view(&scene, cam, 16, 10, Sampling::One, 0);
+    let verts = v.shading.vertices();
+    let reference: Vec<f32> = verts
+        .iter()
+        .enumerate()
+        .map(|(i, vx)| indirect_irradiance(&scene, &light, vx.position, vx.normal, 1500, 900 + i as u64).x)
+        .collect();
+    let maps = trace_photons(&scene, &light, &settings(4_000, 3));
+    let mut sppm = Progressive::new(&scene, &v, &maps);
+    let mse = |sppm: &Progressive| {
+        let e = sppm.irradiance();
+        e.iter().zip(&reference).map(|(a, b)| ((a.x - b) as f64).powi(2)).sum::<f64>() / reference.len() as f64
+    };
+    let mut errors = Vec::new();
+    for target in [1, 4, 32] {
+        while sppm.passes() < target {
+            sppm.pass(&scene, &v, &light);
+        }
+        errors.push(mse(&sppm));
+    }
+    assert!(errors[1] < errors[0] && errors[2] < 0.5 * errors[1], "MSE over passes {errors:?}");
+    let mean_ref = reference.iter().sum::<f32>() / reference.len() as f32;
+    assert!(errors[2].sqrt() < 0.2 * mean_ref as f64, "RMSE {} vs mean {mean_ref}", errors[2].sqrt());
+}
+
+#[test]
+fn degenerate_photon_cases_stay_finite() {
+    // No photons at all.
+    let scene = box_scene(0.5);
+    let light = omni(Vec3::ZERO);
+    let none = trace_photons(&scene, &light, &settings(0, 1));
+    assert!(none.global.is_empty() && none.emitted == 0);
+    let v = view(&scene, Camera::look_at(Vec3::new(0.0, 0.0, 1.5), Vec3::ZERO, 1.0), 12, 8, Sampling::One, 2);
+    assert!(v.render_indirect(&scene, &none).iter().all(|p| *p == Vec3::ZERO));
+
+    // A light inside a small closed box seen from outside: all indirect light stays inside.
+    let mut b = SceneBuilder::new();
+    let m = lambert(&mut b, 0.8);
+    cube(&mut b, Vec3::splat(-0.5), Vec3::splat(0.5), m);
+    floor(&mut b, 5.0, -0.6, m);
+    let boxed = b.build();
+    let maps = trace_photons(&boxed, &omni(Vec3::ZERO), &settings(20_000, 2));
+    let outside =
+        view(&boxed, Camera::look_at(Vec3::new(0.0, 2.0, 4.0), Vec3::ZERO, 1.0), 24, 16, Sampling::Geometry, 2);
+    let img = outside.render_indirect(&boxed, &maps);
+    assert_finite(&img, "boxed light");
+    assert!(img.iter().all(|p| *p == Vec3::ZERO), "indirect light leaked out of the closed box");
+
+    // Only mirrors: photons bounce until the limit and nothing is stored.
+    let mut b = SceneBuilder::new();
+    let mirror = b.add_material(Material { k_r: Vec3::ONE, ..Material::lambert("mirror", Vec3::ZERO) });
+    cube(&mut b, Vec3::splat(-1.0), Vec3::splat(1.0), mirror);
+    let mirrors = b.build();
+    let maps = trace_photons(&mirrors, &omni(Vec3::new(0.1, 0.2, 0.3)), &settings(1000, 3));
+    assert!(maps.global.is_empty() && maps.caustic.is_empty());
+    assert!(maps.emitted > 0);
+
+    // A beam pointing away from everything is not traced at all.
+    let away = Light::aimed(
+        Vec3::new(0.0, 10.0, 0.0),
+        Vec3::new(0.0, 20.0, 0.0),
+        Beam::Spot(SpotBeam::from_beam_field(10.0, 15.0)),
+    );
+    assert_eq!(trace_photons(&scene, &away, &settings(1000, 4)).emitted, 0);
+}
