@@ -92,6 +92,41 @@ pub struct Report {
     /// Composite linearity check: max relative difference between the
     /// composite of per-light buffers and their eq. 1 single-pass render.
     pub linearity_max_rel_error: f64,
+    /// Photon maps: timings, errors against the converged reference, curves.
+    pub photons: PhotonReport,
+}
+
+/// One point of a run-time-versus-error curve.
+#[derive(Clone, Debug, Serialize)]
+pub struct CurvePoint {
+    /// The swept setting's value (photons stored, or SPPM passes).
+    pub setting: f64,
+    /// Wall time to produce the estimate, ms.
+    pub ms: f64,
+    /// Display-space MSE per RGB channel against the converged reference.
+    pub mse: [f64; 3],
+}
+
+/// Photon-map measurements for one light.
+#[derive(Clone, Debug, Serialize)]
+pub struct PhotonReport {
+    /// Photons stored per map (paper: 50,000) and in the estimate (paper: 150).
+    pub stored: usize,
+    /// k of the kNN estimate.
+    pub estimate: usize,
+    /// Tracing + map build (incl. precomputed irradiance) for one light, ms.
+    pub trace_and_build_ms: f64,
+    /// Evaluating the indirect buffer at the view's vertices, ms.
+    pub indirect_buffer_ms: f64,
+    /// SPPM passes behind the converged reference.
+    pub reference_passes: u32,
+    /// Baseline: MSE between two renders differing only in the photon seed
+    /// (paper: 0.005, 0.003, 0.003 for two 9× renders).
+    pub seed_to_seed_mse: [f64; 3],
+    /// Error vs time over the number of photons stored (first estimate).
+    pub photon_count_curve: Vec<CurvePoint>,
+    /// Error vs time over SPPM passes after the first estimate.
+    pub sppm_curve: Vec<CurvePoint>,
 }
 
 impl Report {
@@ -137,6 +172,31 @@ impl Report {
             self.adaptive_reshaded_share * 100.0,
             self.linearity_max_rel_error
         );
+        let p = &self.photons;
+        s += &format!(
+            "\n## Photon maps (one light, {} stored, {} in the estimate)\n\nTrace + build {:.1} ms, indirect buffer {:.1} ms. \
+             Reference: the first estimate refined by {} SPPM passes. Seed-to-seed MSE (same settings, other photon seed): \
+             R {:.6} G {:.6} B {:.6} (paper, two 9× renders: 0.005 0.003 0.003).\n",
+            p.stored,
+            p.estimate,
+            p.trace_and_build_ms,
+            p.indirect_buffer_ms,
+            p.reference_passes,
+            p.seed_to_seed_mse[0],
+            p.seed_to_seed_mse[1],
+            p.seed_to_seed_mse[2]
+        );
+        for (title, curve, unit) in
+            [("photons stored", &p.photon_count_curve, "photons"), ("SPPM passes", &p.sppm_curve, "passes")]
+        {
+            s += &format!(
+                "\n### Error vs time: {title}\n\n| {unit} | ms | MSE R | MSE G | MSE B |\n|---:|---:|---:|---:|---:|\n"
+            );
+            for c in curve {
+                s +=
+                    &format!("| {} | {:.1} | {:.6} | {:.6} | {:.6} |\n", c.setting, c.ms, c.mse[0], c.mse[1], c.mse[2]);
+            }
+        }
         s += "\n## Raw timings (ms)\n\n| stage | ms |\n|---|---:|\n";
         for (n, t) in &self.timings_ms {
             s += &format!("| {n} | {t:.3} |\n");
@@ -226,6 +286,77 @@ pub fn mse_display(a: &[Vec3], b: &[Vec3], display: &Display) -> [f64; 3] {
         }
     }
     acc.map(|c| c / a.len().max(1) as f64)
+}
+
+/// Photon maps for `light` over `view`: timings at the paper's settings, the
+/// seed-to-seed baseline, and error-vs-time curves against an SPPM-converged
+/// reference (all in display space of the light at full, direct included).
+fn photon_section(
+    scene: &Scene,
+    view: &View,
+    light: &crate::Light,
+    k_full: Vec3,
+    display: &Display,
+    cfg: &BenchConfig,
+) -> PhotonReport {
+    use crate::render::photon::{PhotonSettings, Progressive, trace_photons};
+    let paper = PhotonSettings::default();
+    let (direct, _) = view.render_direct(scene, light, None);
+    let shown =
+        |indirect: &[Vec3]| -> Vec<Vec3> { direct.iter().zip(indirect).map(|(d, a)| (*d + *a) * k_full).collect() };
+    let (t_trace, maps) = time_ms(cfg.repeats, || trace_photons(scene, light, &paper));
+    let (t_indirect, first) = time_ms(cfg.repeats, || view.render_indirect(scene, &maps));
+    let other = trace_photons(scene, light, &PhotonSettings { seed: paper.seed ^ 0xDEAD_BEEF, ..paper });
+    let seed_to_seed_mse = mse_display(&shown(&first), &shown(&view.render_indirect(scene, &other)), display);
+
+    // Converged reference: the first estimate refined by many SPPM passes.
+    let reference_passes = if cfg.quick { 24 } else { 64 };
+    let mut reference = Progressive::new(scene, view, &maps);
+    for _ in 0..reference_passes {
+        reference.pass(scene, view, light);
+    }
+    let reference_img = shown(&view.render_progressive(scene, &reference));
+
+    let mut photon_count_curve = Vec::new();
+    for factor in [0.125, 0.25, 0.5, 1.0, 2.0] {
+        let settings =
+            PhotonSettings { stored: (paper.stored as f64 * factor) as usize, seed: paper.seed ^ 0x5151, ..paper };
+        let t = Instant::now();
+        let m = trace_photons(scene, light, &settings);
+        let img = view.render_indirect(scene, &m);
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        photon_count_curve.push(CurvePoint {
+            setting: settings.stored as f64,
+            ms,
+            mse: mse_display(&shown(&img), &reference_img, display),
+        });
+    }
+    let mut sppm_curve = Vec::new();
+    let other_seed = PhotonSettings { seed: paper.seed ^ 0x7777, ..paper };
+    let t0 = Instant::now();
+    let start = trace_photons(scene, light, &other_seed);
+    let mut sppm = Progressive::new(scene, view, &start);
+    for target in [1u32, 2, 4, 8, 16] {
+        while sppm.passes() < target {
+            sppm.pass(scene, view, light);
+        }
+        let img = view.render_progressive(scene, &sppm);
+        sppm_curve.push(CurvePoint {
+            setting: target as f64,
+            ms: t0.elapsed().as_secs_f64() * 1e3,
+            mse: mse_display(&shown(&img), &reference_img, display),
+        });
+    }
+    PhotonReport {
+        stored: paper.stored,
+        estimate: paper.estimate,
+        trace_and_build_ms: t_trace,
+        indirect_buffer_ms: t_indirect,
+        reference_passes,
+        seed_to_seed_mse,
+        photon_count_curve,
+        sppm_curve,
+    }
 }
 
 /// Runs the benchmark and writes the report into `out`.
@@ -435,6 +566,8 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         .map(|(a, b)| ((*a - *b).abs().max_element() / b.abs().max_element().max(1e-3)) as f64)
         .fold(0.0, f64::max);
 
+    let photons = photon_section(scene, &adaptive_view, light, k_full, &display, cfg);
+
     let report = Report {
         width: w,
         height: h,
@@ -446,6 +579,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         mse_vs_nine,
         adaptive_reshaded_share,
         linearity_max_rel_error,
+        photons,
     };
     std::fs::write(out.join("report.md"), report.markdown())?;
     std::fs::write(out.join("report.json"), serde_json::to_string_pretty(&report).map_err(std::io::Error::other)?)?;
