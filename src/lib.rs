@@ -17,13 +17,14 @@
 #![deny(missing_docs)]
 
 pub mod bench;
-pub mod fixture;
-pub mod patch;
 pub mod render;
 pub mod scene;
 
-pub use fixture::{Beam, Light};
-pub use patch::Patch;
+/// Lights for the tracer and their emission patterns (crate `footlight-fixture`).
+pub use footlight_fixture as fixture;
+/// The patch file (crate `footlight-fixture`).
+pub use footlight_fixture::patch;
+pub use footlight_fixture::{Beam, Light, Patch};
 pub use render::{RenderSettings, Sampling};
 pub use scene::Scene;
 

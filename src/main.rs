@@ -138,6 +138,7 @@ fn load_inputs(args: &SceneArgs) -> Result<(Scene, Patch)> {
 fn choose_camera(scene: &Scene, patch: &Patch) -> Camera {
     patch
         .camera
+        .map(|c| Camera::look_at(c.position, c.look_at, c.fov_y))
         .or(scene.camera)
         .unwrap_or_else(|| Camera::look_at(Vec3::new(0.0, 1.7, 14.0), Vec3::new(0.0, 1.5, 0.0), 40f32.to_radians()))
 }

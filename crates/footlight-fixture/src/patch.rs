@@ -25,8 +25,7 @@
 //! [`PatchFile`] structs, then [`Patch::from_file`] validates and builds the
 //! lights. Every error names the file and the line.
 
-use crate::fixture::{Beam, Light, SpotBeam};
-use crate::scene::Camera;
+use crate::{Beam, Light, SpotBeam};
 use glam::{Quat, Vec3};
 use serde::Deserialize;
 use std::ops::Range;
@@ -160,13 +159,24 @@ impl Fixture {
     }
 }
 
+/// A camera from the patch: eye, target, vertical field of view.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraSpec {
+    /// Eye position.
+    pub position: Vec3,
+    /// Point looked at (distinct from `position`).
+    pub look_at: Vec3,
+    /// Vertical field of view in radians.
+    pub fov_y: f32,
+}
+
 /// A validated patch.
 #[derive(Clone, Debug)]
 pub struct Patch {
     /// Where it was read from.
     pub path: PathBuf,
     /// Camera override.
-    pub camera: Option<Camera>,
+    pub camera: Option<CameraSpec>,
     /// Fixtures in file order.
     pub fixtures: Vec<Fixture>,
 }
@@ -211,7 +221,7 @@ impl Patch {
                 if !(c.fov_y > 0.0 && c.fov_y < 179.0) {
                     return Err(err(span, format!("camera fov_y {} must be between 0 and 179 degrees", c.fov_y)));
                 }
-                Some(Camera::look_at(p, t, c.fov_y.to_radians()))
+                Some(CameraSpec { position: p, look_at: t, fov_y: c.fov_y.to_radians() })
             }
         };
         let mut fixtures: Vec<Fixture> = Vec::new();
