@@ -370,7 +370,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     let fixture =
         patch.fixtures.first().ok_or_else(|| std::io::Error::other("the patch has no fixtures to benchmark"))?;
     let light = &fixture.light;
-    let k_full = fixture.colour * fixture.intensity;
+    let k_full = fixture.k_full();
     let aa = AaParams { display_scale: k_full * display.scale(), threshold: cfg.aa_threshold };
 
     // Primary intersections: single-sample ray casting vs the 9-sample G-buffer.
@@ -459,10 +459,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
                 .render_light(
                     scene,
                     &f.light,
-                    Some(AaParams {
-                        display_scale: f.colour * f.intensity * display.scale(),
-                        threshold: cfg.aa_threshold,
-                    }),
+                    Some(AaParams { display_scale: f.k_full() * display.scale(), threshold: cfg.aa_threshold }),
                 )
                 .0
         })

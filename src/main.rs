@@ -168,11 +168,8 @@ fn render(args: RenderArgs) -> Result<()> {
             ..PhotonSettings::default()
         }),
     };
-    let jobs: Vec<LightJob> = patch
-        .fixtures
-        .iter()
-        .map(|f| LightJob { light: f.light.clone(), k_full: f.colour * f.intensity, k: f.k() })
-        .collect();
+    let jobs: Vec<LightJob> =
+        patch.fixtures.iter().map(|f| LightJob { light: f.light.clone(), k_full: f.k_full(), k: f.k() }).collect();
     let still = render_still(&scene, camera, &jobs, &settings)?;
     if let Err((i, v)) = check_finite(&still.linear) {
         bail!("composite pixel {i} is {v}: this is a bug, please report it");

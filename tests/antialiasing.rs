@@ -15,7 +15,7 @@ fn adaptive_aa_beats_one_sample_against_nine_times_oversampling() {
     let (w, h) = (200, 125);
     let mut total = [[0f64; 3]; 3];
     for f in &patch.fixtures[..2] {
-        let k_full = f.colour * f.intensity;
+        let k_full = f.k_full();
         let aa = AaParams { display_scale: k_full * display.scale(), threshold: 20.0 };
         let mut imgs = Vec::new();
         for sampling in [Sampling::One, Sampling::Adaptive, Sampling::Nine] {

@@ -157,6 +157,13 @@ impl Fixture {
     pub fn k(&self) -> Vec3 {
         self.colour * (self.level * self.intensity)
     }
+
+    /// k_i with the dimmer at full and everything else as in the default
+    /// look: the scale adaptive anti-aliasing decides on (so dimming never
+    /// changes a light's sample set).
+    pub fn k_full(&self) -> Vec3 {
+        self.colour * self.intensity
+    }
 }
 
 /// A camera from the patch: eye, target, vertical field of view.
