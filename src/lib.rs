@@ -13,12 +13,16 @@
 //! * [`scene`]: glTF import, materials, camera, BVH.
 //! * [`render`]: G-buffer, Whitted per-light buffers, anti-aliasing,
 //!   composite, display.
+//! * [`live`]: the daemon: frame clock, background tracer, geometry cache.
+//! * [`serve`]: the HTTP preview.
 //! * [`bench`]: `footlight bench`, the paper's figure 6 as same-run ratios.
 #![deny(missing_docs)]
 
 pub mod bench;
+pub mod live;
 pub mod render;
 pub mod scene;
+pub mod serve;
 
 /// Lights for the tracer and their emission patterns (crate `footlight-fixture`).
 pub use footlight_fixture as fixture;

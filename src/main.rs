@@ -27,8 +27,34 @@ struct Cli {
 enum Command {
     /// Render a still of the scene lit by the patch's default look.
     Render(RenderArgs),
+    /// Run the live daemon: DMX in, background tracer, composite every frame, preview over HTTP.
+    Run(RunArgs),
     /// Measure the paper's figure 6 ratios and anti-aliasing error; writes a report.
     Bench(BenchArgs),
+}
+
+#[derive(Args)]
+struct RunArgs {
+    #[command(flatten)]
+    input: SceneArgs,
+    /// Picture width in pixels.
+    #[arg(long, default_value_t = 800)]
+    width: u32,
+    /// Picture height in pixels.
+    #[arg(long, default_value_t = 500)]
+    height: u32,
+    /// Display frame rate (Hz).
+    #[arg(long, default_value_t = 60.0)]
+    fps: f64,
+    /// Address of the HTTP preview (127.0.0.1 by default: nothing is exposed to the network).
+    #[arg(long, default_value = "127.0.0.1:8080")]
+    http: std::net::SocketAddr,
+    /// Photons stored per light (0 = direct light only).
+    #[arg(long, default_value_t = 50_000)]
+    photons: usize,
+    /// Illuminance (lx) on a white Lambert surface shown as display white.
+    #[arg(long, default_value_t = 1000.0)]
+    white_lux: f32,
 }
 
 /// Scene, patch and image options shared by `render` and `bench`.
@@ -95,6 +121,7 @@ fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Render(args) => render(args),
+        Command::Run(args) => run(args),
         Command::Bench(args) => {
             let (scene, patch) = load_inputs(&args.input)?;
             let camera = choose_camera(&scene, &patch);
@@ -141,6 +168,60 @@ fn choose_camera(scene: &Scene, patch: &Patch) -> Camera {
         .map(|c| Camera::look_at(c.position, c.look_at, c.fov_y))
         .or(scene.camera)
         .unwrap_or_else(|| Camera::look_at(Vec3::new(0.0, 1.7, 14.0), Vec3::new(0.0, 1.5, 0.0), 40f32.to_radians()))
+}
+
+fn run(args: RunArgs) -> Result<()> {
+    use footlight::live::{DefaultLook, LiveConfig, TracerSettings, Universes};
+    use std::sync::Arc;
+    if args.width == 0 || args.height == 0 || args.width > 16384 || args.height > 16384 {
+        bail!("--width and --height must be between 1 and 16384 (got {}×{})", args.width, args.height);
+    }
+    let (scene, patch) = load_inputs(&args.input)?;
+    let camera = choose_camera(&scene, &patch);
+    let display = Display::for_white_lux(args.white_lux);
+    let photons = (args.photons > 0).then(|| PhotonSettings { stored: args.photons, ..PhotonSettings::default() });
+    let config = LiveConfig {
+        width: args.width,
+        height: args.height,
+        fps: args.fps,
+        http: args.http,
+        display,
+        limits: RecursionLimits::default(),
+        tracer: TracerSettings { display_scale: display.scale(), photons, ..TracerSettings::default() },
+    };
+    let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
+    runtime.block_on(async move {
+        let listener = footlight::live::bind_http(config.http).await?;
+        println!("Footlight preview: http://{}/", listener.local_addr()?);
+        let (_inputs_tx, inputs) = tokio::sync::watch::channel(Arc::new(Universes::new()));
+        let decoder = Arc::new(DefaultLook::new(&patch));
+        let status: footlight::serve::StatusFn = Arc::new(|| serde_json::json!({}));
+        footlight::live::run(Arc::new(scene), camera, decoder, inputs, listener, config, status, shutdown_signal())
+            .await?;
+        Ok::<(), anyhow::Error>(())
+    })
+}
+
+/// Completes on Ctrl-C or SIGTERM.
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        let _ = tokio::signal::ctrl_c().await;
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! {
+        _ = ctrl_c => {}
+        _ = term => {}
+    }
 }
 
 fn render(args: RenderArgs) -> Result<()> {

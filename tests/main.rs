@@ -18,5 +18,7 @@ mod degenerate;
 mod golden;
 // Per-light photon maps: energy, linearity, caustics, progressive refinement.
 mod photons;
+// The live daemon: frame clock, staged rebuilds, cache, HTTP preview.
+mod live;
 // The command line as a user runs it.
 mod cli;

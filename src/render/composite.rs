@@ -106,6 +106,16 @@ impl Compositor {
         Self { width, height, display, linear: vec![Vec3::ZERO; n], srgb: vec![0; n * 3], seen: Vec::new() }
     }
 
+    /// Frame width.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Frame height.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
     /// The current linear frame (cd/m²).
     pub fn linear(&self) -> &[Vec3] {
         &self.linear

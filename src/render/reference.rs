@@ -82,6 +82,7 @@ fn radiance(
             wo: -dir,
             material: s.material,
             weight: Vec3::ONE,
+            depth,
         };
         for (light, k) in lights.iter().zip(k) {
             total += *k * direct(scene, light, &v);

@@ -188,6 +188,26 @@ impl View {
         (LightBuffer::from_dense(self.width(), self.height(), &dense), reshaded)
     }
 
+    /// The first build stage of a moved light: direct light at the surfaces
+    /// the camera sees directly (no mirrors, no glass, no anti-aliasing
+    /// re-shading), so a moving light is seen moving within one cheap pass.
+    pub fn render_primary_direct(&self, scene: &Scene, light: &Light) -> Vec<Vec3> {
+        let w = self.width() as usize;
+        let mut dense = vec![Vec3::ZERO; w * self.height() as usize];
+        dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            for (x, out) in row.iter_mut().enumerate() {
+                *out = self
+                    .shading
+                    .pixel(y * w + x)
+                    .iter()
+                    .filter(|v| v.depth == 0)
+                    .map(|v| v.weight * direct(scene, light, v))
+                    .sum();
+            }
+        });
+        dense
+    }
+
     /// As [`View::render_light`], returning the dense row-major direct buffer.
     pub fn render_direct(&self, scene: &Scene, light: &Light, aa: Option<AaParams>) -> (Vec<Vec3>, usize) {
         let (w, h) = (self.width() as usize, self.height() as usize);

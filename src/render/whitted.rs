@@ -31,6 +31,8 @@ pub struct ShadingVertex {
     pub material: u32,
     /// Path weight: bin weight times the k_R/k_T products along the path.
     pub weight: Vec3,
+    /// Bounces before this vertex (0 = seen directly by the camera).
+    pub depth: u32,
 }
 
 /// Limits of the recursion.
@@ -90,6 +92,7 @@ fn expand_at(
             wo: -dir,
             material: surface.material,
             weight,
+            depth,
         });
     }
     if depth >= limits.max_depth {

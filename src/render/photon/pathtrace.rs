@@ -50,6 +50,7 @@ fn radiance_along(scene: &Scene, light: &Light, origin: Vec3, dir: Vec3, rng: &m
         wo: -dir,
         material: s.material,
         weight: Vec3::ONE,
+        depth: 0,
     };
     let mut l = direct(scene, light, &v);
     // Continue: diffuse bounce or mirror, chosen by Russian roulette.

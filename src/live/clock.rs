@@ -1,0 +1,153 @@
+//! The frame clock: at the display rate it takes the latest DMX state,
+//! decodes every fixture, computes every k_i (eq. 4), hands geometry
+//! changes to the tracer, composites (eq. 5) and publishes the frame.
+//!
+//! A dimmer or colour change therefore reaches the very next frame; a
+//! geometry change reaches the picture as soon as the tracer publishes its
+//! first stage. The clock never waits for the tracer: it only reads the
+//! buffers the tracer has published.
+
+use super::tracer::{Published, Stage, Tracer};
+use crate::Light;
+use crate::render::composite::{CompositeInput, Compositor, UpdateStats};
+use glam::Vec3;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Merged DMX levels per patch universe (1-based, as desks count).
+pub type Universes = BTreeMap<u16, [u8; 512]>;
+
+/// One fixture's state as the renderer needs it, decoded from DMX.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightInput {
+    /// Display name.
+    pub name: String,
+    /// Geometry and beam (a change here means a rebuild).
+    pub light: Light,
+    /// k_i now (eq. 4).
+    pub k: Vec3,
+    /// k_i with the dimmer at full (anti-aliasing scale).
+    pub k_full: Vec3,
+    /// The fixture's DMX slots, for the status page.
+    pub dmx: Vec<u8>,
+}
+
+/// Turns DMX universes into fixture states. The patch implements it; tests
+/// and the default look implement it without DMX.
+pub trait Decode: Send + Sync {
+    /// Number of lights (fixed for the life of the daemon).
+    fn len(&self) -> usize;
+    /// True when there are no lights.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Every light's state for these universes, in a fixed order.
+    fn decode(&self, universes: &Universes) -> Vec<LightInput>;
+}
+
+/// A published frame.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    /// Frame number (0 = the first).
+    pub number: u64,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// 8-bit sRGB, row-major RGB.
+    pub rgb: Arc<Vec<u8>>,
+    /// Per-light state shown on the status page.
+    pub lights: Arc<Vec<LightStatus>>,
+    /// Composite time of this frame.
+    pub composite_time: Duration,
+    /// What the incremental composite did.
+    pub update: UpdateStats,
+}
+
+/// A light on the status page.
+#[derive(Clone, Debug, Serialize)]
+pub struct LightStatus {
+    /// Display name.
+    pub name: String,
+    /// DMX values of its footprint.
+    pub dmx: Vec<u8>,
+    /// Build state of its buffer.
+    pub stage: Stage,
+    /// Last full build time, ms.
+    pub last_build_ms: Option<f64>,
+    /// Time from the geometry change to its first visible stage, ms.
+    pub first_stage_ms: Option<f64>,
+    /// Luminance weight of k_i (cd), 0 when dark.
+    pub intensity: f32,
+}
+
+/// Frame state carried from tick to tick.
+pub struct FrameClock {
+    decoder: Arc<dyn Decode>,
+    tracer: Arc<Tracer>,
+    compositor: Compositor,
+    last: Vec<Option<Light>>,
+    number: u64,
+}
+
+/// Relative luminance of linear sRGB (Rec. 709 weights).
+fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+impl FrameClock {
+    /// A clock over `tracer`'s lights compositing into `compositor`.
+    pub fn new(decoder: Arc<dyn Decode>, tracer: Arc<Tracer>, compositor: Compositor) -> Self {
+        let n = decoder.len();
+        Self { decoder, tracer, compositor, last: vec![None; n], number: 0 }
+    }
+
+    /// One frame: decode, request rebuilds for changed geometry, composite, publish.
+    pub fn tick(&mut self, universes: &Universes) -> Frame {
+        let t0 = Instant::now();
+        let inputs = self.decoder.decode(universes);
+        let mut published: Vec<Published> = Vec::with_capacity(inputs.len());
+        for (i, input) in inputs.iter().enumerate().take(self.tracer.len()) {
+            let priority = luminance(input.k_full).max(0.0)
+                * (0.1 + luminance(input.k).max(0.0) / luminance(input.k_full).max(1e-6));
+            if self.last[i].as_ref() != Some(&input.light) {
+                self.tracer.request(i, input.light.clone(), input.k_full, priority);
+                self.last[i] = Some(input.light.clone());
+            } else {
+                self.tracer.set_priority(i, priority);
+            }
+            published.push(self.tracer.published(i));
+        }
+        let lights: Vec<CompositeInput> = published
+            .iter()
+            .zip(&inputs)
+            .map(|(p, input)| CompositeInput { buffer: &p.buffer, generation: p.generation, k: input.k })
+            .collect();
+        let update = self.compositor.update(&lights);
+        let status = published
+            .iter()
+            .zip(&inputs)
+            .map(|(p, input)| LightStatus {
+                name: input.name.clone(),
+                dmx: input.dmx.clone(),
+                stage: p.stage,
+                last_build_ms: p.last_build.map(|d| d.as_secs_f64() * 1e3),
+                first_stage_ms: p.first_stage.map(|d| d.as_secs_f64() * 1e3),
+                intensity: luminance(input.k),
+            })
+            .collect();
+        let frame = Frame {
+            number: self.number,
+            width: self.compositor.width(),
+            height: self.compositor.height(),
+            rgb: Arc::new(self.compositor.srgb8().to_vec()),
+            lights: Arc::new(status),
+            composite_time: t0.elapsed(),
+            update,
+        };
+        self.number += 1;
+        frame
+    }
+}

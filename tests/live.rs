@@ -1,0 +1,238 @@
+//! The live daemon: frame numbers under paused time, staged rebuilds of a
+//! moved light, the geometry cache, and the HTTP preview on loopback.
+
+use crate::common::*;
+use footlight::live::{
+    Decode, Frame, FrameClock, LightInput, LiveConfig, Stage, Tracer, TracerSettings, Universes, run_clock,
+};
+use footlight::render::composite::Compositor;
+use footlight::render::{Display, RecursionLimits, Sampling, View};
+use footlight::scene::{Camera, Scene, SceneBuilder};
+use glam::Vec3;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tokio::sync::watch;
+
+/// Universe 1: slot 1 = dimmer (0-255), slot 2 = light x position (0-255 → −2..2 m).
+struct TestDecoder;
+
+impl Decode for TestDecoder {
+    fn len(&self) -> usize {
+        1
+    }
+    fn decode(&self, u: &Universes) -> Vec<LightInput> {
+        let slots = u.get(&1).copied().unwrap_or([0; 512]);
+        let v = slots[0] as f32 / 255.0;
+        let x = -2.0 + 4.0 * slots[1] as f32 / 255.0;
+        let light = footlight::Light::aimed(
+            Vec3::new(x, 2.0, 0.0),
+            Vec3::new(x, 0.0, 0.0),
+            footlight::Beam::Spot(footlight::fixture::SpotBeam::from_beam_field(30.0, 40.0)),
+        );
+        vec![LightInput {
+            name: "test".into(),
+            light,
+            k: Vec3::splat(1000.0 * v),
+            k_full: Vec3::splat(1000.0),
+            dmx: slots[..2].to_vec(),
+        }]
+    }
+}
+
+fn small_stage() -> (Arc<Scene>, Camera) {
+    let mut b = SceneBuilder::new();
+    let m = lambert(&mut b, 0.8);
+    floor(&mut b, 10.0, 0.0, m);
+    (Arc::new(b.build()), Camera::look_at(Vec3::new(0.0, 6.0, 0.01), Vec3::ZERO, 70f32.to_radians()))
+}
+
+fn tracer(scene: &Arc<Scene>, camera: Camera, w: u32, h: u32) -> Arc<Tracer> {
+    let view = View::build(scene, camera, w, h, Sampling::Adaptive, RecursionLimits::default());
+    let settings = TracerSettings { photons: None, threads: 1, ..TracerSettings::default() };
+    Arc::new(Tracer::new(scene.clone(), Arc::new(view), 1, settings))
+}
+
+fn wait_for(tracer: &Tracer, what: impl Fn(Stage) -> bool) {
+    let t = Instant::now();
+    while !what(tracer.published(0).stage) {
+        assert!(t.elapsed() < Duration::from_secs(60), "tracer stuck at {:?}", tracer.published(0).stage);
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+fn universes(dimmer: u8, x: u8) -> Universes {
+    let mut s = [0u8; 512];
+    s[0] = dimmer;
+    s[1] = x;
+    Universes::from([(1, s)])
+}
+
+fn centre_brightness(f: &Frame, x: u32) -> u8 {
+    let i = ((f.height / 2 * f.width + x) * 3) as usize;
+    f.rgb[i]
+}
+
+#[tokio::test(start_paused = true)]
+async fn dimmer_packet_shows_in_the_next_frame() {
+    let (scene, cam) = small_stage();
+    let tracer = tracer(&scene, cam, 40, 40);
+    let mut clock = FrameClock::new(Arc::new(TestDecoder), tracer.clone(), Compositor::new(40, 40, Display::default()));
+    clock.tick(&universes(255, 128)); // requests the first build
+    let t = tracer.clone();
+    tokio::task::spawn_blocking(move || wait_for(&t, |s| s == Stage::Ready)).await.unwrap();
+
+    let (in_tx, in_rx) = watch::channel(Arc::new(universes(255, 128)));
+    let first = Arc::new(clock.tick(&universes(255, 128)));
+    let (out_tx, mut out_rx) = watch::channel(first);
+    let (_stop_tx, stop_rx) = watch::channel(false);
+    tokio::spawn(run_clock(clock, 50.0, in_rx, out_tx, Arc::new(std::sync::Mutex::new(0.0)), stop_rx));
+    let period = Duration::from_millis(20);
+    // Let the clock settle on a frame at full.
+    tokio::time::sleep(period * 3).await;
+    let before = out_rx.borrow_and_update().clone();
+    assert!(centre_brightness(&before, 20) > 100, "lit at full: {}", centre_brightness(&before, 20));
+    // The desk pulls the fader to 0 between two frames.
+    in_tx.send(Arc::new(universes(0, 128))).unwrap();
+    out_rx.changed().await.unwrap();
+    let next = out_rx.borrow_and_update().clone();
+    assert_eq!(next.number, before.number + 1, "the change must land in the very next frame");
+    assert_eq!(centre_brightness(&next, 20), 0);
+    assert_eq!(next.update.changed_lights, 1);
+    // And back up: again frame n+1, and the picture is what it was.
+    in_tx.send(Arc::new(universes(255, 128))).unwrap();
+    out_rx.changed().await.unwrap();
+    let back = out_rx.borrow_and_update().clone();
+    assert_eq!(back.number, next.number + 1);
+    assert_eq!(back.rgb, before.rgb);
+}
+
+#[test]
+fn moved_light_shows_its_direct_stage_then_converges_and_presets_come_from_cache() {
+    let (scene, cam) = small_stage();
+    let (w, h) = (64, 64);
+    let tracer = tracer(&scene, cam, w, h);
+    let mut clock = FrameClock::new(Arc::new(TestDecoder), tracer.clone(), Compositor::new(w, h, Display::default()));
+    clock.tick(&universes(255, 40)); // light at the left
+    wait_for(&tracer, |s| s == Stage::Ready);
+    let left = clock.tick(&universes(255, 40));
+    // x = −1.37 m and +1.37 m on the floor (slots 40 and 215) at pixel columns ≈ 0.34 w and 0.66 w.
+    let lx = (w as f32 * 0.34) as u32;
+    let rx = (w as f32 * 0.66) as u32;
+    assert!(centre_brightness(&left, lx) > centre_brightness(&left, rx));
+
+    // Pan to the right: the first frame after the packet still shows the old
+    // buffer (the clock never waits), then the direct stage arrives.
+    let t0 = Instant::now();
+    let generation = tracer.published(0).generation;
+    clock.tick(&universes(255, 215));
+    while tracer.published(0).generation == generation {
+        assert!(t0.elapsed() < Duration::from_secs(60), "no stage published");
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let frame = clock.tick(&universes(255, 215));
+    assert!(centre_brightness(&frame, rx) > centre_brightness(&frame, lx), "moved light visible after the first stage");
+    wait_for(&tracer, |s| s == Stage::Ready);
+    let built = t0.elapsed();
+    // Two stages were published: direct light first, then the full Whitted buffer.
+    assert_eq!(tracer.published(0).generation, generation + 2);
+    assert!(tracer.published(0).first_stage.is_some());
+
+    // Back to the left preset: served from the geometry cache at once.
+    let t1 = Instant::now();
+    clock.tick(&universes(255, 40));
+    assert_eq!(tracer.published(0).stage, Stage::Ready, "preset recalled from the cache");
+    let recalled = clock.tick(&universes(255, 40));
+    assert!(t1.elapsed() < built);
+    assert_eq!(recalled.rgb, left.rgb);
+}
+
+/// Minimal HTTP/1.1 GET over loopback (no client dependency needed).
+fn http_get(addr: std::net::SocketAddr, path: &str) -> (String, Vec<u8>) {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    write!(s, "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").unwrap();
+    let mut raw = Vec::new();
+    s.read_to_end(&mut raw).unwrap();
+    let split = raw.windows(4).position(|w| w == b"\r\n\r\n").expect("header end") + 4;
+    let head = String::from_utf8_lossy(&raw[..split]).to_string();
+    let mut body = raw[split..].to_vec();
+    if head.to_ascii_lowercase().contains("transfer-encoding: chunked") {
+        body = dechunk(&body);
+    }
+    (head, body)
+}
+
+fn dechunk(mut b: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    loop {
+        let line_end = b.windows(2).position(|w| w == b"\r\n").unwrap();
+        let size = usize::from_str_radix(std::str::from_utf8(&b[..line_end]).unwrap().trim(), 16).unwrap();
+        if size == 0 {
+            return out;
+        }
+        out.extend_from_slice(&b[line_end + 2..line_end + 2 + size]);
+        b = &b[line_end + 2 + size + 2..];
+    }
+}
+
+#[test]
+fn preview_serves_page_status_and_frames_on_loopback_and_refuses_a_taken_port() {
+    let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+    let (scene, cam) = small_stage();
+    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let (addr_tx, addr_rx) = std::sync::mpsc::channel();
+    let daemon = std::thread::spawn(move || {
+        rt.block_on(async move {
+            let listener = footlight::live::bind_http("127.0.0.1:0".parse().unwrap()).await.unwrap();
+            let addr = listener.local_addr().unwrap();
+            // A second daemon on the same port is refused with a clear error.
+            let err = footlight::live::bind_http(addr).await.unwrap_err().to_string();
+            assert!(err.contains("another footlight"), "{err}");
+            addr_tx.send(addr).unwrap();
+            let (_tx, inputs) = watch::channel(Arc::new(universes(255, 128)));
+            let config = LiveConfig {
+                width: 48,
+                height: 32,
+                fps: 30.0,
+                http: addr,
+                display: Display::default(),
+                limits: RecursionLimits::default(),
+                tracer: TracerSettings { photons: None, threads: 1, ..TracerSettings::default() },
+            };
+            let status: footlight::serve::StatusFn = Arc::new(|| serde_json::json!({"packets": 0, "malformed": 0}));
+            footlight::live::run(scene, cam, Arc::new(TestDecoder), inputs, listener, config, status, async {
+                let _ = stop_rx.await;
+            })
+            .await
+            .unwrap();
+        })
+    });
+    let addr = addr_rx.recv_timeout(Duration::from_secs(60)).unwrap();
+    let (head, page) = http_get(addr, "/");
+    assert!(head.starts_with("HTTP/1.1 200"), "{head}");
+    assert!(String::from_utf8_lossy(&page).contains("/api/frame.png"));
+    // Wait until the light is built and the picture lit.
+    let t = Instant::now();
+    loop {
+        let (_, body) = http_get(addr, "/api/status");
+        let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
+        if v["lights"][0]["stage"] == "ready" {
+            assert_eq!(v["lights"][0]["dmx"], serde_json::json!([255, 128]));
+            assert!(v["frame"].as_u64().unwrap() > 0);
+            break;
+        }
+        assert!(t.elapsed() < Duration::from_secs(60), "never ready: {v}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    std::thread::sleep(Duration::from_millis(100));
+    let (head, png) = http_get(addr, "/api/frame.png");
+    assert!(head.contains("image/png"), "{head}");
+    let img = image::load_from_memory(&png).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (48, 32));
+    assert!(img.get_pixel(24, 16).0[0] > 100, "lit centre");
+    stop_tx.send(()).unwrap();
+    daemon.join().unwrap();
+    // After shutdown the port is free again.
+    std::net::TcpListener::bind(addr).expect("port released on shutdown");
+}
