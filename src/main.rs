@@ -126,7 +126,8 @@ fn main() -> Result<()> {
             let (scene, patch) = load_inputs(&args.input)?;
             let camera = choose_camera(&scene, &patch);
             let out = args.out.unwrap_or_else(bench::default_out_dir);
-            let report = bench::run(&scene, &patch, camera, &bench::BenchConfig::new(args.quick), &out)?;
+            let config = bench::BenchConfig::new(args.quick, resolve(&args.input.scene));
+            let report = bench::run(&scene, &patch, camera, &config, &out)?;
             println!("{}", report.summary());
             println!("report written to {}", out.display());
             Ok(())

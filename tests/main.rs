@@ -20,5 +20,7 @@ mod golden;
 mod photons;
 // The live daemon: frame clock, staged rebuilds, cache, HTTP preview.
 mod live;
+// Numerical stress matrix: extremes stay finite and bounded.
+mod stress;
 // The command line as a user runs it.
 mod cli;

@@ -6,6 +6,11 @@
 //! figure is an MSE against the 9× oversampled render of the same state.
 //! Writes `report.md` and `report.json` into the output folder.
 
+#[cfg(feature = "plots")]
+pub mod plots;
+pub mod stress;
+pub mod sweeps;
+
 use crate::Patch;
 use crate::render::buffer::LightBuffer;
 use crate::render::buffer::TILE;
@@ -37,11 +42,13 @@ pub struct BenchConfig {
     pub aa_threshold: f32,
     /// Shrunk settings for CI.
     pub quick: bool,
+    /// The scene file (re-loaded for the no-specular comparison).
+    pub scene_path: PathBuf,
 }
 
 impl BenchConfig {
     /// The paper's settings, or CI-sized ones with `quick`.
-    pub fn new(quick: bool) -> Self {
+    pub fn new(quick: bool, scene_path: PathBuf) -> Self {
         let s = RenderSettings::default();
         Self {
             width: if quick { 200 } else { s.width },
@@ -51,6 +58,7 @@ impl BenchConfig {
             limits: s.limits,
             aa_threshold: s.aa_threshold,
             quick,
+            scene_path,
         }
     }
 }
@@ -92,8 +100,16 @@ pub struct Report {
     /// Composite linearity check: max relative difference between the
     /// composite of per-light buffers and their eq. 1 single-pass render.
     pub linearity_max_rel_error: f64,
-    /// Photon maps: timings, errors against the converged reference, curves.
+    /// Photon maps: timings and errors against the converged reference.
     pub photons: PhotonReport,
+    /// Run time against error: photon count, SPPM passes, AA threshold, depth.
+    pub curves: Vec<sweeps::Curve>,
+    /// Work skipped when a scene does not need it, as same-run ratios.
+    pub skips: Vec<Ratio>,
+    /// Section 4.1: adaptive AA vs 9×, and the photon-seed baseline, over ten renders.
+    pub accuracy: sweeps::Accuracy,
+    /// The numerical stress matrix.
+    pub stress: Vec<stress::StressCase>,
 }
 
 /// One point of a run-time-versus-error curve.
@@ -123,10 +139,6 @@ pub struct PhotonReport {
     /// Baseline: MSE between two renders differing only in the photon seed
     /// (paper: 0.005, 0.003, 0.003 for two 9× renders).
     pub seed_to_seed_mse: [f64; 3],
-    /// Error vs time over the number of photons stored (first estimate).
-    pub photon_count_curve: Vec<CurvePoint>,
-    /// Error vs time over SPPM passes after the first estimate.
-    pub sppm_curve: Vec<CurvePoint>,
 }
 
 impl Report {
@@ -186,16 +198,56 @@ impl Report {
             p.seed_to_seed_mse[1],
             p.seed_to_seed_mse[2]
         );
-        for (title, curve, unit) in
-            [("photons stored", &p.photon_count_curve, "photons"), ("SPPM passes", &p.sppm_curve, "passes")]
-        {
+        for c in &self.curves {
             s += &format!(
-                "\n### Error vs time: {title}\n\n| {unit} | ms | MSE R | MSE G | MSE B |\n|---:|---:|---:|---:|---:|\n"
+                "\n### Error vs time: {}\n\nPaper's operating point: {} = {}. Settings that dominate it (no slower, no \
+                 less accurate): {}.\n\n| {} | ms | MSE R | MSE G | MSE B |\n|---:|---:|---:|---:|---:|\n",
+                c.name,
+                c.setting,
+                c.paper_setting,
+                if c.dominating.is_empty() {
+                    "none".to_string()
+                } else {
+                    c.dominating.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(", ")
+                },
+                c.setting
             );
-            for c in curve {
-                s +=
-                    &format!("| {} | {:.1} | {:.6} | {:.6} | {:.6} |\n", c.setting, c.ms, c.mse[0], c.mse[1], c.mse[2]);
+            for p in &c.points {
+                let mark = if p.setting == c.paper_setting { " (paper)" } else { "" };
+                s += &format!(
+                    "| {}{mark} | {:.1} | {:.3e} | {:.3e} | {:.3e} |\n",
+                    p.setting, p.ms, p.mse[0], p.mse[1], p.mse[2]
+                );
             }
+        }
+        let a = &self.accuracy;
+        s += &format!(
+            "\n## Accuracy over {} renders (paper section 4.1)\n\n| MSE | R | G | B |\n|---|---:|---:|---:|\n\
+             | adaptive vs 9× (ours) | {:.2e} | {:.2e} | {:.2e} |\n| adaptive vs 9× (paper) | 0.006 | 0.004 | 0.0004 |\n\
+             | 9× vs 9×, other photon seed (ours) | {:.2e} | {:.2e} | {:.2e} |\n| 9× vs 9×, other photon seed (paper) | 0.005 | 0.003 | 0.003 |\n",
+            a.renders,
+            a.adaptive_vs_nine[0],
+            a.adaptive_vs_nine[1],
+            a.adaptive_vs_nine[2],
+            a.nine_seed_baseline[0],
+            a.nine_seed_baseline[1],
+            a.nine_seed_baseline[2]
+        );
+        s += "\n## Skipping what the scene does not need\n\n| measurement | ratio | note |\n|---|---:|---|\n";
+        for r in &self.skips {
+            s += &format!("| {} | {:.2} | {} |\n", r.name, r.ours, r.note);
+        }
+        s += "\n## Numerical stress matrix\n\n| case | result | max (cd/m²) | bound | detail |\n|---|---|---:|---:|---|\n";
+        for c in &self.stress {
+            let bound = c.bound.map(|b| format!("{b:.3e}")).unwrap_or_else(|| "–".into());
+            s += &format!(
+                "| {} | {} | {:.3e} | {} | {} |\n",
+                c.name,
+                if c.ok { "ok" } else { "FAIL" },
+                c.max_value,
+                bound,
+                c.detail
+            );
         }
         s += "\n## Raw timings (ms)\n\n| stage | ms |\n|---|---:|\n";
         for (n, t) in &self.timings_ms {
@@ -298,7 +350,7 @@ fn photon_section(
     k_full: Vec3,
     display: &Display,
     cfg: &BenchConfig,
-) -> PhotonReport {
+) -> (PhotonReport, Vec<sweeps::Curve>) {
     use crate::render::photon::{PhotonSettings, Progressive, trace_photons};
     let paper = PhotonSettings::default();
     let (direct, _) = view.render_direct(scene, light, None);
@@ -347,16 +399,19 @@ fn photon_section(
             mse: mse_display(&shown(&img), &reference_img, display),
         });
     }
-    PhotonReport {
+    let report = PhotonReport {
         stored: paper.stored,
         estimate: paper.estimate,
         trace_and_build_ms: t_trace,
         indirect_buffer_ms: t_indirect,
         reference_passes,
         seed_to_seed_mse,
-        photon_count_curve,
-        sppm_curve,
-    }
+    };
+    let curves = vec![
+        sweeps::Curve::new("photons stored (first estimate)", "photons", paper.stored as f64, photon_count_curve),
+        sweeps::Curve::new("SPPM passes after the first estimate", "passes", 0.0, sppm_curve),
+    ];
+    (report, curves)
 }
 
 /// Runs the benchmark and writes the report into `out`.
@@ -372,6 +427,12 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     let light = &fixture.light;
     let k_full = fixture.k_full();
     let aa = AaParams { display_scale: k_full * display.scale(), threshold: cfg.aa_threshold };
+    let progress = indicatif::ProgressBar::new(7).with_style(
+        indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    progress.enable_steady_tick(std::time::Duration::from_millis(200));
+    progress.set_message("primary intersections and illumination");
 
     // Primary intersections: single-sample ray casting vs the 9-sample G-buffer.
     let (t_single, _) = time_ms(n, || GBuffer::trace_centre_only(scene, camera, w, h));
@@ -445,6 +506,8 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         note: "".into(),
     });
 
+    progress.set_message("updates and composites");
+    progress.inc(1);
     // Updates: full re-render of one light, illumination-only, composite.
     let (t_full, _) = time_ms(n, || {
         let v = View::build(scene, camera, w, h, Sampling::Adaptive, cfg.limits);
@@ -563,7 +626,33 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         .map(|(a, b)| ((*a - *b).abs().max_element() / b.abs().max_element().max(1e-3)) as f64)
         .fold(0.0, f64::max);
 
-    let photons = photon_section(scene, &adaptive_view, light, k_full, &display, cfg);
+    progress.set_message("photon maps and SPPM");
+    progress.inc(1);
+    let (photons, mut curves) = photon_section(scene, &adaptive_view, light, k_full, &display, cfg);
+    progress.set_message("AA threshold and depth sweeps");
+    progress.inc(1);
+    curves.push(sweeps::aa_threshold_curve(scene, &gbuffer, light, k_full, &display, cfg.limits, n));
+    curves.push(sweeps::depth_curve(scene, &gbuffer, light, k_full, &display, n));
+    progress.set_message("skip measurements");
+    progress.inc(1);
+    let mut plain = crate::scene::load(&cfg.scene_path).map_err(std::io::Error::other)?;
+    for m in &mut plain.materials {
+        *m = crate::scene::Material::lambert(&m.name, m.diffuse + m.k_r + m.k_t);
+    }
+    let skip_lights = many_lights(16);
+    let skips = sweeps::skips(scene, &plain, &gbuffer, &skip_lights, k_full, &display, cfg.limits, n);
+    progress.set_message("accuracy over ten renders");
+    progress.inc(1);
+    let accuracy_photons = if cfg.quick {
+        crate::render::photon::PhotonSettings { stored: 5_000, ..Default::default() }
+    } else {
+        crate::render::photon::PhotonSettings::default()
+    };
+    let accuracy = sweeps::accuracy(scene, &gbuffer, &many_lights(10), k_full, &display, cfg.limits, accuracy_photons);
+    progress.set_message("stress matrix");
+    progress.inc(1);
+    let stress = stress::run_matrix(if cfg.quick { 2_000 } else { 20_000 });
+    progress.finish_and_clear();
 
     let report = Report {
         width: w,
@@ -577,7 +666,13 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         adaptive_reshaded_share,
         linearity_max_rel_error,
         photons,
+        curves,
+        skips,
+        accuracy,
+        stress,
     };
+    #[cfg(feature = "plots")]
+    plots::write(&report, out)?;
     std::fs::write(out.join("report.md"), report.markdown())?;
     std::fs::write(out.join("report.json"), serde_json::to_string_pretty(&report).map_err(std::io::Error::other)?)?;
     Ok(report)
