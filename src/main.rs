@@ -29,14 +29,69 @@ enum Command {
     Render(RenderArgs),
     /// Run the live daemon: DMX in, background tracer, composite every frame, preview over HTTP.
     Run(RunArgs),
+    /// Record the DMX that arrives (Art-Net, sACN, USB Pro) to a pcapng file until Ctrl-C.
+    Record(RecordArgs),
     /// Measure the paper's figure 6 ratios and anti-aliasing error; writes a report.
     Bench(BenchArgs),
+}
+
+/// Where DMX comes from.
+#[derive(Args, Clone)]
+struct DmxArgs {
+    /// Art-Net bind address, or `off`.
+    #[arg(long, default_value = "0.0.0.0:6454")]
+    artnet: String,
+    /// sACN (E1.31) bind address, or `off`. Joins the multicast groups of the patched universes.
+    #[arg(long, default_value = "0.0.0.0:5568")]
+    sacn: String,
+    /// Serial port of an Enttec DMX USB Pro (e.g. /dev/ttyUSB0).
+    #[arg(long)]
+    usbpro: Option<String>,
+}
+
+impl DmxArgs {
+    /// The input configuration for patch universes `universes`.
+    fn config(&self, universes: Vec<u16>) -> Result<footlight_dmx::InputConfig> {
+        use footlight_dmx::{artnet::ArtNetConfig, sacn::SacnConfig, usbpro::UsbProConfig};
+        let parse = |what: &str, v: &str| -> Result<Option<std::net::SocketAddr>> {
+            if v.eq_ignore_ascii_case("off") {
+                return Ok(None);
+            }
+            v.parse().map(Some).with_context(|| format!("--{what} {v:?}: expected an address like 0.0.0.0:6454, or off"))
+        };
+        Ok(footlight_dmx::InputConfig {
+            artnet: parse("artnet", &self.artnet)?.map(|bind| ArtNetConfig { bind, ..ArtNetConfig::default() }),
+            sacn: parse("sacn", &self.sacn)?.map(|bind| SacnConfig { bind, ..SacnConfig::default() }),
+            usbpro: self.usbpro.as_ref().map(UsbProConfig::new),
+            patch: footlight_dmx::InputPatch { universes, ..footlight_dmx::InputPatch::default() },
+        })
+    }
+}
+
+#[derive(Args)]
+struct RecordArgs {
+    #[command(flatten)]
+    dmx: DmxArgs,
+    /// Patch universes to listen to (sACN multicast joins), e.g. 1,2,3.
+    #[arg(long, value_delimiter = ',', default_value = "1")]
+    universes: Vec<u16>,
+    /// Output file (pcapng; Wireshark opens it).
+    #[arg(long)]
+    out: PathBuf,
 }
 
 #[derive(Args)]
 struct RunArgs {
     #[command(flatten)]
     input: SceneArgs,
+    #[command(flatten)]
+    dmx: DmxArgs,
+    /// Play this recording (pcapng/pcap of Art-Net or sACN) instead of listening to the network.
+    #[arg(long)]
+    replay: Option<PathBuf>,
+    /// Replay speed (1 = real time).
+    #[arg(long, default_value_t = 1.0)]
+    speed: f64,
     /// Picture width in pixels.
     #[arg(long, default_value_t = 800)]
     width: u32,
@@ -122,6 +177,7 @@ fn main() -> Result<()> {
     match cli.command {
         Command::Render(args) => render(args),
         Command::Run(args) => run(args),
+        Command::Record(args) => record(args),
         Command::Bench(args) => {
             let (scene, patch) = load_inputs(&args.input)?;
             let camera = choose_camera(&scene, &patch);
@@ -194,12 +250,99 @@ fn run(args: RunArgs) -> Result<()> {
     runtime.block_on(async move {
         let listener = footlight::live::bind_http(config.http).await?;
         println!("Footlight preview: http://{}/", listener.local_addr()?);
-        let (_inputs_tx, inputs) = tokio::sync::watch::channel(Arc::new(Universes::new()));
+        let (inputs_tx, inputs) = tokio::sync::watch::channel(Arc::new(Universes::new()));
         let decoder = Arc::new(DefaultLook::new(&patch));
-        let status: footlight::serve::StatusFn = Arc::new(|| serde_json::json!({}));
+        let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
+        let stopped = |mut rx: tokio::sync::watch::Receiver<bool>| async move {
+            let _ = rx.wait_for(|s| *s).await;
+        };
+        let universes: Vec<u16> = (1..=patch_universes(&patch)).collect();
+        let (status, input_task): (footlight::serve::StatusFn, tokio::task::JoinHandle<Result<()>>) = match &args.replay {
+            Some(path) => {
+                let recording = footlight_dmx::Recording::open(path)?;
+                println!("replaying {} ({:.1} s) at {}×", path.display(), recording.duration().as_secs_f64(), args.speed);
+                let options = footlight_dmx::ReplayOptions {
+                    speed: args.speed,
+                    start: std::time::Duration::ZERO,
+                    patch: footlight_dmx::InputPatch::default(),
+                };
+                let stop = stopped(stop_rx.clone());
+                let task = tokio::spawn(async move {
+                    let mut current = Universes::new();
+                    let summary = footlight_dmx::replay(
+                        &recording,
+                        &options,
+                        |frame| {
+                            current.insert(frame.universe, frame.slots);
+                            let _ = inputs_tx.send(Arc::new(current.clone()));
+                        },
+                        stop,
+                    )
+                    .await?;
+                    tracing::info!("replay finished: {} DMX packets", summary.packets);
+                    Ok(())
+                });
+                (Arc::new(|| serde_json::json!({"input": "replay"})), task)
+            }
+            None => {
+                let input = footlight_dmx::DmxInput::bind(args.dmx.config(universes)?).await?;
+                let addrs = input.local_addrs();
+                println!("listening for DMX: Art-Net {:?}, sACN {:?}", addrs.artnet, addrs.sacn);
+                let stats = input.stats();
+                let mut frames = input.frames();
+                let forward = async move {
+                    while frames.changed().await.is_ok() {
+                        let u: Universes = frames.borrow_and_update().iter().map(|f| (f.universe, f.slots)).collect();
+                        if inputs_tx.send(Arc::new(u)).is_err() {
+                            break;
+                        }
+                    }
+                };
+                let stop = stopped(stop_rx.clone());
+                let task = tokio::spawn(async move {
+                    tokio::spawn(forward);
+                    input.run(stop).await?;
+                    Ok(())
+                });
+                let status: footlight::serve::StatusFn = Arc::new(move || {
+                    let s = stats.snapshot();
+                    let packets = s.artnet.received + s.sacn.received + s.usbpro.received;
+                    let malformed = s.artnet.malformed + s.sacn.malformed + s.usbpro.malformed;
+                    serde_json::json!({"input": "network", "packets": packets, "malformed": malformed})
+                });
+                (status, task)
+            }
+        };
         footlight::live::run(Arc::new(scene), camera, decoder, inputs, listener, config, status, shutdown_signal())
             .await?;
+        let _ = stop_tx.send(true);
+        match input_task.await {
+            Ok(result) => result?,
+            Err(e) => bail!("DMX input task failed: {e}"),
+        }
         Ok::<(), anyhow::Error>(())
+    })
+}
+
+/// Highest patch universe any fixture uses (at least 1).
+fn patch_universes(patch: &footlight::Patch) -> u16 {
+    patch.fixtures.iter().filter_map(|f| f.dmx.map(|(u, _)| u)).max().unwrap_or(1)
+}
+
+fn record(args: RecordArgs) -> Result<()> {
+    let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
+    runtime.block_on(async move {
+        let config = args.dmx.config(args.universes.clone())?;
+        println!("recording DMX to {} until Ctrl-C", args.out.display());
+        let summary = footlight_dmx::record(&args.out, config, shutdown_signal()).await?;
+        println!(
+            "wrote {} packets ({:.1} s, {} lost) to {}",
+            summary.packets,
+            summary.duration.as_secs_f64(),
+            summary.lost,
+            args.out.display()
+        );
+        Ok(())
     })
 }
 
