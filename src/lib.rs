@@ -13,12 +13,14 @@
 //! * [`scene`]: glTF import, materials, camera, BVH.
 //! * [`render`]: G-buffer, Whitted per-light buffers, anti-aliasing,
 //!   composite, display.
+//! * [`gpu`]: the GPU compositor adapter (crate `footlight-gpu`).
 //! * [`live`]: the daemon: frame clock, background tracer, geometry cache.
 //! * [`serve`]: the HTTP preview.
 //! * [`bench`]: `footlight bench`, the paper's figure 6 as same-run ratios.
 #![deny(missing_docs)]
 
 pub mod bench;
+pub mod gpu;
 pub mod live;
 pub mod render;
 pub mod scene;

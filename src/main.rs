@@ -57,7 +57,9 @@ impl DmxArgs {
             if v.eq_ignore_ascii_case("off") {
                 return Ok(None);
             }
-            v.parse().map(Some).with_context(|| format!("--{what} {v:?}: expected an address like 0.0.0.0:6454, or off"))
+            v.parse()
+                .map(Some)
+                .with_context(|| format!("--{what} {v:?}: expected an address like 0.0.0.0:6454, or off"))
         };
         Ok(footlight_dmx::InputConfig {
             artnet: parse("artnet", &self.artnet)?.map(|bind| ArtNetConfig { bind, ..ArtNetConfig::default() }),
@@ -110,6 +112,9 @@ struct RunArgs {
     /// Illuminance (lx) on a white Lambert surface shown as display white.
     #[arg(long, default_value_t = 1000.0)]
     white_lux: f32,
+    /// Compositor: auto (GPU if a hardware adapter exists), cpu, or gpu.
+    #[arg(long, value_enum, default_value_t = footlight::gpu::CompositorChoice::Auto)]
+    compositor: footlight::gpu::CompositorChoice,
 }
 
 /// Scene, patch and image options shared by `render` and `bench`.
@@ -245,6 +250,7 @@ fn run(args: RunArgs) -> Result<()> {
         display,
         limits: RecursionLimits::default(),
         tracer: TracerSettings { display_scale: display.scale(), photons, ..TracerSettings::default() },
+        compositor: args.compositor,
     };
     let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
     runtime.block_on(async move {
@@ -257,10 +263,16 @@ fn run(args: RunArgs) -> Result<()> {
             let _ = rx.wait_for(|s| *s).await;
         };
         let universes: Vec<u16> = (1..=patch_universes(&patch)).collect();
-        let (status, input_task): (footlight::serve::StatusFn, tokio::task::JoinHandle<Result<()>>) = match &args.replay {
+        let (status, input_task): (footlight::serve::StatusFn, tokio::task::JoinHandle<Result<()>>) = match &args.replay
+        {
             Some(path) => {
                 let recording = footlight_dmx::Recording::open(path)?;
-                println!("replaying {} ({:.1} s) at {}×", path.display(), recording.duration().as_secs_f64(), args.speed);
+                println!(
+                    "replaying {} ({:.1} s) at {}×",
+                    path.display(),
+                    recording.duration().as_secs_f64(),
+                    args.speed
+                );
                 let options = footlight_dmx::ReplayOptions {
                     speed: args.speed,
                     start: std::time::Duration::ZERO,

@@ -199,6 +199,7 @@ fn preview_serves_page_status_and_frames_on_loopback_and_refuses_a_taken_port() 
                 display: Display::default(),
                 limits: RecursionLimits::default(),
                 tracer: TracerSettings { photons: None, threads: 1, ..TracerSettings::default() },
+                compositor: footlight::gpu::CompositorChoice::Cpu,
             };
             let status: footlight::serve::StatusFn = Arc::new(|| serde_json::json!({"packets": 0, "malformed": 0}));
             footlight::live::run(scene, cam, Arc::new(TestDecoder), inputs, listener, config, status, async {

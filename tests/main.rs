@@ -22,5 +22,7 @@ mod photons;
 mod live;
 // Numerical stress matrix: extremes stay finite and bounded.
 mod stress;
+// GPU compositor == CPU compositor (lavapipe in CI).
+mod gpu;
 // The command line as a user runs it.
 mod cli;

@@ -88,6 +88,7 @@ pub struct FrameClock {
     decoder: Arc<dyn Decode>,
     tracer: Arc<Tracer>,
     compositor: Compositor,
+    gpu: Option<crate::gpu::GpuFrames>,
     last: Vec<Option<Light>>,
     number: u64,
 }
@@ -101,7 +102,18 @@ impl FrameClock {
     /// A clock over `tracer`'s lights compositing into `compositor`.
     pub fn new(decoder: Arc<dyn Decode>, tracer: Arc<Tracer>, compositor: Compositor) -> Self {
         let n = decoder.len();
-        Self { decoder, tracer, compositor, last: vec![None; n], number: 0 }
+        Self { decoder, tracer, compositor, gpu: None, last: vec![None; n], number: 0 }
+    }
+
+    /// Composites on the GPU from now on (falls back to the CPU on a GPU error).
+    pub fn with_gpu(mut self, gpu: Option<crate::gpu::GpuFrames>) -> Self {
+        self.gpu = gpu;
+        self
+    }
+
+    /// The GPU adapter in use, if any.
+    pub fn gpu_adapter(&self) -> Option<String> {
+        self.gpu.as_ref().map(|g| g.adapter().to_string())
     }
 
     /// One frame: decode, request rebuilds for changed geometry, composite, publish.
@@ -125,7 +137,17 @@ impl FrameClock {
             .zip(&inputs)
             .map(|(p, input)| CompositeInput { buffer: &p.buffer, generation: p.generation, k: input.k })
             .collect();
-        let update = self.compositor.update(&lights);
+        let mut gpu_rgb = None;
+        if let Some(gpu) = &mut self.gpu {
+            match gpu.frame(&lights) {
+                Ok(rgb) => gpu_rgb = Some(rgb),
+                Err(e) => {
+                    tracing::error!("GPU composite failed ({e}); compositing on the CPU from now on");
+                    self.gpu = None;
+                }
+            }
+        }
+        let update = if gpu_rgb.is_none() { self.compositor.update(&lights) } else { UpdateStats::default() };
         let status = published
             .iter()
             .zip(&inputs)
@@ -142,7 +164,7 @@ impl FrameClock {
             number: self.number,
             width: self.compositor.width(),
             height: self.compositor.height(),
-            rgb: Arc::new(self.compositor.srgb8().to_vec()),
+            rgb: Arc::new(gpu_rgb.unwrap_or_else(|| self.compositor.srgb8().to_vec())),
             lights: Arc::new(status),
             composite_time: t0.elapsed(),
             update,

@@ -46,6 +46,8 @@ pub struct LiveConfig {
     pub limits: RecursionLimits,
     /// Tracer settings.
     pub tracer: TracerSettings,
+    /// CPU or GPU compositing.
+    pub compositor: crate::gpu::CompositorChoice,
 }
 
 /// Why the daemon could not start.
@@ -98,7 +100,13 @@ pub async fn run(
         view.shading.vertex_count()
     );
     let tracer = Arc::new(Tracer::new(scene, Arc::new(view), decoder.len(), config.tracer));
-    let mut clock = FrameClock::new(decoder, tracer.clone(), Compositor::new(w, h, config.display));
+    let (choice, display) = (config.compositor, config.display);
+    let gpu = tokio::task::spawn_blocking(move || crate::gpu::GpuFrames::open(choice, w, h, display))
+        .await
+        .map_err(|e| LiveError::Task(e.to_string()))?
+        .map_err(|e| LiveError::Task(format!("GPU compositor: {e}")))?;
+    let mut clock = FrameClock::new(decoder, tracer.clone(), Compositor::new(w, h, config.display)).with_gpu(gpu);
+    let compositor_name = clock.gpu_adapter().map(|a| format!("GPU: {a}")).unwrap_or_else(|| "CPU".into());
     let first = Arc::new(clock.tick(&inputs.borrow().clone()));
     let (frames_tx, frames_rx) = watch::channel(first);
 
@@ -111,6 +119,7 @@ pub async fn run(
             let mut v = status();
             if let Some(o) = v.as_object_mut() {
                 o.insert("fps".into(), (*fps.lock().expect("fps lock")).into());
+                o.insert("compositor".into(), compositor_name.clone().into());
             }
             v
         })

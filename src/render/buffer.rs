@@ -91,6 +91,12 @@ impl LightBuffer {
         }
     }
 
+    /// The raw storage: occupied tiles (TILE×TILE row-major each) and the
+    /// per-tile slot table (`u32::MAX` = empty), for the GPU compositor.
+    pub fn raw(&self) -> (&[Vec3], &[u32]) {
+        (&self.data, &self.slot)
+    }
+
     /// Number of occupied tiles.
     pub fn occupied_tiles(&self) -> usize {
         self.data.len() / TILE_PIXELS

@@ -1,0 +1,81 @@
+//! The GPU side of the real-time update (Vierjahn 2010, section 3.3): an
+//! adapter from the renderer's sparse [`LightBuffer`]s to the
+//! `footlight-gpu` compute compositor. Per-light buffers are uploaded only
+//! when a light was rebuilt (its generation changed); each frame sends only
+//! the k_i. The CPU compositor ([`crate::render::composite`]) is the
+//! reference it matches, and the fallback when no adapter exists.
+
+use crate::render::Display;
+use crate::render::composite::CompositeInput;
+use footlight_gpu::{CompositorOptions, DisplayParams, GpuCompositor, GpuContext, GpuError, LightTiles};
+
+/// Which compositor the daemon uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum CompositorChoice {
+    /// The GPU when a hardware adapter exists, else the CPU (with a log line).
+    Auto,
+    /// Always the CPU.
+    Cpu,
+    /// The GPU, software adapters (lavapipe) included; an error without one.
+    Gpu,
+}
+
+/// GPU compositor plus the generations of the buffers it holds.
+pub struct GpuFrames {
+    context: GpuContext,
+    compositor: GpuCompositor,
+    generations: Vec<Option<u64>>,
+    display: DisplayParams,
+}
+
+impl GpuFrames {
+    /// Opens an adapter (honouring `choice`) and a compositor of `width`×`height`.
+    /// `Ok(None)` means: use the CPU compositor (and the reason was logged).
+    pub fn open(choice: CompositorChoice, width: u32, height: u32, display: Display) -> Result<Option<Self>, GpuError> {
+        if choice == CompositorChoice::Cpu {
+            return Ok(None);
+        }
+        let context = match GpuContext::new() {
+            Ok(c) => c,
+            Err(e) if choice == CompositorChoice::Auto => {
+                tracing::info!("no GPU adapter ({e}); compositing on the CPU");
+                return Ok(None);
+            }
+            Err(e) => return Err(e),
+        };
+        if choice == CompositorChoice::Auto && context.is_software() {
+            tracing::info!(
+                "GPU adapter {:?} is a software rasteriser; compositing on the CPU (faster here)",
+                context.adapter_info().name
+            );
+            return Ok(None);
+        }
+        let compositor =
+            GpuCompositor::new(context.device(), context.queue(), width, height, CompositorOptions::default())?;
+        tracing::info!("compositing on the GPU: {}", context.adapter_info().name);
+        let display = DisplayParams { exposure: display.exposure, white_balance: display.white_balance.to_array() };
+        Ok(Some(Self { context, compositor, generations: Vec::new(), display }))
+    }
+
+    /// Adapter name, for the status page.
+    pub fn adapter(&self) -> &str {
+        &self.context.adapter_info().name
+    }
+
+    /// Uploads rebuilt lights, composites with the current k_i and returns
+    /// the frame as 8-bit sRGB RGB.
+    pub fn frame(&mut self, lights: &[CompositeInput]) -> Result<Vec<u8>, GpuError> {
+        if self.generations.len() != lights.len() {
+            self.generations = vec![None; lights.len()];
+        }
+        for (i, l) in lights.iter().enumerate() {
+            if self.generations[i] != Some(l.generation) {
+                let (tiles, slots) = l.buffer.raw();
+                self.compositor.set_light(i, LightTiles { tiles: bytemuck::cast_slice(tiles), slots })?;
+                self.generations[i] = Some(l.generation);
+            }
+        }
+        let k: Vec<[f32; 3]> = lights.iter().map(|l| l.k.to_array()).collect();
+        Ok(self.compositor.composite(&k, &self.display)?.rgb8())
+    }
+}

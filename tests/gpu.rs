@@ -1,0 +1,53 @@
+//! The GPU compositor against the CPU reference on the bundled stage's
+//! light buffers (lavapipe in CI). Skips with a message when no adapter
+//! exists, unless FOOTLIGHT_REQUIRE_GPU is set (CI sets it).
+
+use crate::common::*;
+use footlight::gpu::{CompositorChoice, GpuFrames};
+use footlight::render::composite::{CompositeInput, Compositor};
+use footlight::render::{Display, LightBuffer, Sampling};
+use glam::Vec3;
+
+#[test]
+fn gpu_composite_matches_cpu_composite() {
+    let (w, h) = (160, 100);
+    let display = Display::for_white_lux(300.0);
+    let mut gpu = match GpuFrames::open(CompositorChoice::Gpu, w, h, display) {
+        Ok(Some(g)) => g,
+        other => {
+            let why = match other {
+                Err(e) => e.to_string(),
+                _ => "no compositor".into(),
+            };
+            assert!(std::env::var_os("FOOTLIGHT_REQUIRE_GPU").is_none(), "GPU required but unavailable: {why}");
+            eprintln!("skipping: no GPU adapter ({why})");
+            return;
+        }
+    };
+    let scene = stage();
+    let patch = default_patch();
+    let v = view(&scene, scene.camera.unwrap(), w, h, Sampling::Geometry, 5);
+    let buffers: Vec<LightBuffer> = patch.fixtures.iter().map(|f| v.render_light(&scene, &f.light, None).0).collect();
+    let mut rng = Rng(0x6_9_0);
+    let mut cpu = Compositor::new(w, h, display);
+    for frame in 0..3 {
+        // Random k per light, one of them dark.
+        let k: Vec<Vec3> =
+            (0..buffers.len())
+                .map(|i| {
+                    if i == frame {
+                        Vec3::ZERO
+                    } else {
+                        Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8e4
+                    }
+                })
+                .collect();
+        let inputs: Vec<CompositeInput> =
+            buffers.iter().zip(&k).map(|(b, k)| CompositeInput { buffer: b, generation: 0, k: *k }).collect();
+        cpu.update(&inputs);
+        let g = gpu.frame(&inputs).expect("GPU frame");
+        let worst = g.iter().zip(cpu.srgb8()).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
+        assert!(worst <= 1, "frame {frame}: GPU and CPU differ by {worst} code values");
+        assert!(g.iter().any(|&c| c > 50), "frame {frame} is lit");
+    }
+}
