@@ -1,0 +1,357 @@
+//! Fixture types: what one model of stage light is, read from
+//! `patch/fixtures/<name>.toml` (schema: `docs/patch-format.md`; the
+//! library and its sources: `docs/fixtures.md`).
+//!
+//! A type gives the lamp (kind and CCT, for c_I), the optics (a zoom/profile
+//! spot, a Fresnel/PC with Hermite spot and flood patterns, or measured
+//! photometry) with Î from the datasheet, an optional pan/tilt yoke, and
+//! DMX modes with their channels. From a mode and 512 slots it decodes a
+//! [`FixtureState`] in real units, and from a state it gives the beam
+//! geometry, Î and the lamp for k_i (Vierjahn 2010, eq. 4).
+//!
+//! ```toml
+//! name = "Example zoom profile"
+//! [lamp]
+//! kind = "tungsten"
+//! cct = 3200
+//! source = "estimated"
+//! [beam]
+//! model = "spot"
+//! zoom = [15, 40]          # field angle at zoom DMX 0 and full
+//! beam_ratio = [0.7, 0.5]  # beam/field at focus 0 (hard) and 1 (soft)
+//! intensity = 170000       # Î in cd at the narrowest field, hard edge
+//! source = "estimated"
+//! [[mode]]
+//! name = "1ch"
+//! [[mode.channel]]
+//! attribute = "dimmer"
+//! offset = 1
+//! ```
+
+mod load;
+
+pub use load::load_type;
+
+use crate::beam::{Beam, HermiteBeam, HermitePattern, MeasuredBeam, PhotometricTable, SpotBeam};
+use crate::state::{FixtureState, MAX_MIX};
+use footlight_photometry::{DimmerCurve, Lamp, Scroller};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+/// A validated fixture type.
+#[derive(Clone, Debug)]
+pub struct FixtureType {
+    /// Model name as the maker writes it.
+    pub name: String,
+    /// The maker ("generic" for generic types).
+    pub maker: String,
+    /// The file it was read from.
+    pub path: PathBuf,
+    /// The lamp at full with no colour mixing (LED emitters at full, CMY flags out).
+    pub lamp: Lamp,
+    /// Names of the colour-mix attributes in [`FixtureState::mix`] order.
+    pub mix_names: Vec<String>,
+    /// The optics.
+    pub optics: Optics,
+    /// Pan/tilt yoke, for moving heads.
+    pub movement: Option<Movement>,
+    /// DMX modes, in file order.
+    pub modes: Vec<Mode>,
+}
+
+/// A fixture's optical system.
+#[derive(Clone, Debug)]
+pub enum Optics {
+    /// Profile/zoom spot (also PARs and moving-head spots): cone + penumbra.
+    Spot(SpotOptics),
+    /// Fresnel/PC: spot and flood Hermite patterns mixed by focus.
+    Hermite(HermiteOptics),
+    /// Measured photometry from an IES or EULUMDAT file.
+    Measured(Arc<PhotometricTable>),
+}
+
+/// Zoom/profile spot optics (all angles full angles in degrees).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpotOptics {
+    /// Field angle at zoom DMX 0 and at full (equal for a fixed-field fixture).
+    pub zoom: [f32; 2],
+    /// Beam/field ratio at focus 0 (hard edge) and 1 (soft edge).
+    pub beam_ratio: [f32; 2],
+    /// Î in candela at `intensity_field`, focus 0, iris open.
+    pub intensity: f32,
+    /// The field angle at which `intensity` holds.
+    pub intensity_field: f32,
+    /// Smallest iris diameter fraction, if the fixture has an iris.
+    pub iris_min: Option<f32>,
+    /// ∫f dω of the reference beam, steradians.
+    reference_solid_angle: f32,
+}
+
+impl SpotOptics {
+    /// Optics with the reference solid angle computed.
+    pub fn new(
+        zoom: [f32; 2],
+        beam_ratio: [f32; 2],
+        intensity: f32,
+        intensity_field: f32,
+        iris_min: Option<f32>,
+    ) -> Self {
+        let mut o = Self { zoom, beam_ratio, intensity, intensity_field, iris_min, reference_solid_angle: 0.0 };
+        o.reference_solid_angle = o.open_beam(intensity_field, 0.0).solid_angle();
+        o
+    }
+
+    /// Narrowest and widest field angles.
+    pub fn field_range(&self) -> (f32, f32) {
+        (self.zoom[0].min(self.zoom[1]), self.zoom[0].max(self.zoom[1]))
+    }
+
+    /// The un-irised beam at field angle `field` and focus `focus`.
+    pub fn open_beam(&self, field: f32, focus: f32) -> SpotBeam {
+        let (lo, hi) = self.field_range();
+        let field = if field.is_finite() { field.clamp(lo, hi) } else { lo };
+        let f = if focus.is_finite() { focus.clamp(0.0, 1.0) } else { 0.0 };
+        let ratio = self.beam_ratio[0] + (self.beam_ratio[1] - self.beam_ratio[0]) * f;
+        SpotBeam::from_beam_field(field * ratio, field)
+    }
+
+    /// Î at a field angle and focus: the flux stays constant, so Î ∝ 1/∫f dω
+    /// (Vierjahn 2010, section 3.2: Î "varies while altering the zoom value").
+    pub fn intensity_at(&self, field: f32, focus: f32) -> f32 {
+        let omega = self.open_beam(field, focus).solid_angle();
+        if omega > 0.0 { self.intensity * self.reference_solid_angle / omega } else { 0.0 }
+    }
+}
+
+/// Fresnel/PC optics.
+#[derive(Clone, Debug)]
+pub struct HermiteOptics {
+    /// Full-spot pattern.
+    pub spot: Arc<HermitePattern>,
+    /// Î at full spot, cd.
+    pub spot_cd: f32,
+    /// Full-flood pattern.
+    pub flood: Arc<HermitePattern>,
+    /// Î at full flood, cd.
+    pub flood_cd: f32,
+}
+
+/// A moving head's yoke: full pan and tilt ranges in degrees, centred on 0.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Movement {
+    /// Full pan range (e.g. 540).
+    pub pan: f32,
+    /// Full tilt range (e.g. 270).
+    pub tilt: f32,
+}
+
+/// What a DMX channel controls.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Attribute {
+    /// Intensity: v through the channel's dimmer curve.
+    Dimmer,
+    /// Pan, degrees.
+    Pan,
+    /// Tilt, degrees.
+    Tilt,
+    /// Zoom: field angle, degrees.
+    Zoom,
+    /// Focus 0..1.
+    Focus,
+    /// Iris: fraction of the open diameter.
+    Iris,
+    /// Colour-scroller frame position.
+    Scroller,
+    /// Colour mix: LED emitter or CMY flag, by index into [`FixtureState::mix`].
+    Mix(u8),
+    /// Something Footlight does not model (strobe, gobo, control…): decoded and ignored.
+    Other,
+}
+
+/// One channel of a mode.
+#[derive(Clone, Debug)]
+pub struct Channel {
+    /// What it controls.
+    pub attribute: Attribute,
+    /// The attribute's name as written.
+    pub name: String,
+    /// Offset of the (coarse) slot from the start address, 0-based.
+    pub offset: u16,
+    /// Offset of the fine slot for 16-bit control, 0-based.
+    pub fine: Option<u16>,
+    /// DMX value at power-up (0-255, or 0-65535 for a 16-bit pair).
+    pub default: u16,
+    /// Dimmer curve (dimmer channels).
+    pub curve: DimmerCurve,
+    /// Real-unit values at DMX 0 and at full (continuous attributes).
+    pub range: [f32; 2],
+    /// Frames on the scroller string (scroller channels).
+    pub scroller: Option<Scroller>,
+    /// Line of the channel in its type file.
+    pub line: usize,
+}
+
+impl Channel {
+    /// The channel's raw value and full scale from `slot(offset)`.
+    pub fn raw(&self, slot: &dyn Fn(u16) -> u8) -> (u16, u16) {
+        match self.fine {
+            Some(f) => (u16::from(slot(self.offset)) << 8 | u16::from(slot(f)), u16::MAX),
+            None => (u16::from(slot(self.offset)), 255),
+        }
+    }
+
+    /// The slots this channel writes for a raw `value` (coarse, then fine).
+    pub fn slots_for(&self, value: u16) -> Vec<(u16, u8)> {
+        match self.fine {
+            Some(f) => vec![(self.offset, (value >> 8) as u8), (f, (value & 0xff) as u8)],
+            None => vec![(self.offset, value.min(255) as u8)],
+        }
+    }
+
+    /// Largest raw value (255 or 65535).
+    pub fn full_scale(&self) -> u16 {
+        if self.fine.is_some() { u16::MAX } else { 255 }
+    }
+}
+
+/// A DMX mode: a named channel list.
+#[derive(Clone, Debug)]
+pub struct Mode {
+    /// Name as the fixture's menu shows it.
+    pub name: String,
+    /// Channels in file order.
+    pub channels: Vec<Channel>,
+    /// Slots used from the start address (highest offset + 1).
+    pub footprint: u16,
+    /// Line of the `[[mode]]` entry.
+    pub line: usize,
+}
+
+impl Mode {
+    /// The channel controlling `attribute`, if any.
+    pub fn channel(&self, attribute: Attribute) -> Option<&Channel> {
+        self.channels.iter().find(|c| c.attribute == attribute)
+    }
+
+    /// The channel named `name` (as written in the type file), if any.
+    pub fn channel_named(&self, name: &str) -> Option<&Channel> {
+        self.channels.iter().find(|c| c.name.eq_ignore_ascii_case(name))
+    }
+}
+
+/// Values set by hand for attributes a mode has no channel for (a manual
+/// zoom or focus knob), in real units.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Manual {
+    /// Field angle, degrees.
+    pub zoom: Option<f32>,
+    /// Focus 0..1.
+    pub focus: Option<f32>,
+    /// Iris fraction.
+    pub iris: Option<f32>,
+    /// Pan, degrees.
+    pub pan: Option<f32>,
+    /// Tilt, degrees.
+    pub tilt: Option<f32>,
+}
+
+impl FixtureType {
+    /// The mode named `name` (case-insensitive).
+    pub fn mode(&self, name: &str) -> Option<usize> {
+        self.modes.iter().position(|m| m.name.eq_ignore_ascii_case(name))
+    }
+
+    /// The state with no DMX: manual values, else each attribute at rest
+    /// (v = 1 if the mode has no dimmer, emitters at full, pan/tilt 0, the
+    /// first zoom field, focus 0, iris open).
+    pub fn rest_state(&self, manual: &Manual) -> FixtureState {
+        let mut mix = [0.0; MAX_MIX];
+        if matches!(self.lamp, Lamp::Led { .. }) {
+            mix.iter_mut().take(self.mix_names.len()).for_each(|m| *m = 1.0);
+        }
+        let zoom = match &self.optics {
+            Optics::Spot(s) => s.zoom[0],
+            _ => 0.0,
+        };
+        FixtureState {
+            v: 1.0,
+            frame: 0.0,
+            mix,
+            pan: manual.pan.unwrap_or(0.0),
+            tilt: manual.tilt.unwrap_or(0.0),
+            zoom: manual.zoom.unwrap_or(zoom),
+            focus: manual.focus.unwrap_or(0.0),
+            iris: manual.iris.unwrap_or(1.0),
+        }
+    }
+
+    /// Decodes mode `mode`'s channels, reading slot values with `slot`
+    /// (offset from the start address, 0-based; slots past the universe
+    /// read as 0). Attributes without a channel keep [`FixtureType::rest_state`].
+    pub fn decode(&self, mode: &Mode, manual: &Manual, slot: &dyn Fn(u16) -> u8) -> FixtureState {
+        let mut s = self.rest_state(manual);
+        for c in &mode.channels {
+            let (raw, full) = c.raw(slot);
+            let x = f32::from(raw) / f32::from(full);
+            let real = c.range[0] * (1.0 - x) + c.range[1] * x; // exact at both ends
+            match c.attribute {
+                Attribute::Dimmer => {
+                    s.v = if full == 255 { c.curve.from_dmx8(raw as u8) } else { c.curve.from_dmx16(raw) }
+                }
+                Attribute::Pan => s.pan = real,
+                Attribute::Tilt => s.tilt = real,
+                Attribute::Zoom => s.zoom = real,
+                Attribute::Focus => s.focus = real.clamp(0.0, 1.0),
+                Attribute::Iris => s.iris = real.clamp(0.0, 1.0),
+                Attribute::Scroller => {
+                    if let Some(sc) = &c.scroller {
+                        s.frame =
+                            if full == 255 { sc.position_from_dmx8(raw as u8) } else { sc.position_from_dmx16(raw) };
+                    }
+                }
+                Attribute::Mix(i) => s.mix[usize::from(i)] = real.clamp(0.0, 1.0),
+                Attribute::Other => {}
+            }
+        }
+        s
+    }
+
+    /// The beam (unit-intensity pattern) for a state.
+    pub fn beam(&self, state: &FixtureState) -> Beam {
+        match &self.optics {
+            Optics::Spot(o) => Beam::Spot(o.open_beam(state.zoom, state.focus).irised(state.iris)),
+            Optics::Hermite(h) => {
+                Beam::Hermite(HermiteBeam::new(h.spot.clone(), h.spot_cd, h.flood.clone(), h.flood_cd, state.focus))
+            }
+            Optics::Measured(t) => Beam::Measured(MeasuredBeam::new(t.clone())),
+        }
+    }
+
+    /// Î in candela for a state: zoom and edge focus keep the flux (profile),
+    /// the iris keeps Î, Fresnel/PC focus mixes the spot and flood peaks.
+    pub fn intensity(&self, state: &FixtureState) -> f32 {
+        match &self.optics {
+            Optics::Spot(o) => o.intensity_at(state.zoom, state.focus),
+            Optics::Hermite(h) => {
+                HermiteBeam::new(h.spot.clone(), h.spot_cd, h.flood.clone(), h.flood_cd, state.focus).peak_cd()
+            }
+            Optics::Measured(t) => t.peak_cd(),
+        }
+    }
+
+    /// The lamp with the state's colour mix applied (c_I of eq. 4 comes from it).
+    pub fn lamp_for(&self, state: &FixtureState) -> Lamp {
+        let mix = |i: usize| state.mix[i].clamp(0.0, 1.0);
+        match &self.lamp {
+            Lamp::Led { emitters } => {
+                let mut emitters = emitters.clone();
+                for (i, e) in emitters.iter_mut().enumerate().take(MAX_MIX) {
+                    e.level = mix(i);
+                }
+                Lamp::Led { emitters }
+            }
+            Lamp::Cmy { cct, .. } => Lamp::Cmy { cct: *cct, cyan: mix(0), magenta: mix(1), yellow: mix(2) },
+            other => other.clone(),
+        }
+    }
+}

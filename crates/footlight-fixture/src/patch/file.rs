@@ -1,0 +1,108 @@
+//! The patch file as written: plain serde structs (first stage). The
+//! schema is `docs/patch-format.md`.
+
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use toml::Spanned;
+
+/// The whole patch file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PatchFile {
+    /// Folder of fixture-type files, relative to the patch (default `fixtures`).
+    pub fixtures: Option<Spanned<String>>,
+    /// Gel library, relative to the patch (default `gels.toml`).
+    pub gels: Option<Spanned<String>>,
+    /// Optional camera overriding the scene's.
+    pub camera: Option<Spanned<CameraFile>>,
+    /// Fixture instances.
+    #[serde(default)]
+    pub fixture: Vec<Spanned<FixtureFile>>,
+    /// The default look: DMX values by fixture id and attribute, or by `"U/ADDR"`.
+    pub look: Option<Spanned<BTreeMap<String, Spanned<toml::Value>>>>,
+    /// Protocol universe → patch universe overrides.
+    #[serde(default)]
+    pub input: Vec<Spanned<InputFile>>,
+}
+
+/// `[camera]`: eye position, target and vertical field of view.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraFile {
+    /// Eye position in metres.
+    pub position: [f32; 3],
+    /// Point looked at.
+    pub look_at: [f32; 3],
+    /// Vertical field of view in degrees (default 40).
+    #[serde(default = "default_fov")]
+    pub fov_y: f32,
+}
+
+fn default_fov() -> f32 {
+    40.0
+}
+
+/// One `[[fixture]]` entry as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FixtureFile {
+    /// Fixture id as the desk shows it (unique in the patch).
+    pub id: u32,
+    /// Human-readable name.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// Fixture type: a file stem in the fixtures folder, or the built-in `"spot"`.
+    #[serde(rename = "type")]
+    pub kind: Spanned<String>,
+    /// DMX mode of the fixture type.
+    pub mode: Option<Spanned<String>>,
+    /// Patch universe, counted from 1 as desks show it.
+    pub universe: Option<Spanned<i64>>,
+    /// Start address 1-512.
+    pub address: Option<Spanned<i64>>,
+    /// A fixed gel (id in the gel library).
+    pub gel: Option<Spanned<String>>,
+    /// Scroller string for this instance (gel ids), replacing the type's.
+    pub frames: Option<Spanned<Vec<String>>>,
+    /// Position in metres (stage coordinates, +Y up).
+    pub position: [f32; 3],
+    /// Point the beam aims at (a moving head: at pan 0, tilt 0).
+    pub aim: Option<[f32; 3]>,
+    /// Orientation quaternion [x, y, z, w] (a moving head: its body; identity hangs it).
+    pub rotation: Option<[f32; 4]>,
+    /// Manual field angle (degrees) for a zoom without a DMX channel.
+    pub zoom: Option<Spanned<f32>>,
+    /// Manual focus 0..1.
+    pub focus: Option<Spanned<f32>>,
+    /// Manual iris fraction.
+    pub iris: Option<Spanned<f32>>,
+    /// Manual pan, degrees.
+    pub pan: Option<Spanned<f32>>,
+    /// Manual tilt, degrees.
+    pub tilt: Option<Spanned<f32>>,
+    /// Built-in spot: full beam angle (50 % of peak), degrees.
+    pub beam_angle: Option<f32>,
+    /// Built-in spot: full field angle (10 % of peak), degrees.
+    pub field_angle: Option<f32>,
+    /// Built-in spot: Î in candela.
+    pub intensity: Option<f32>,
+    /// Built-in spot: linear RGB colour at full.
+    pub colour: Option<[f32; 3]>,
+    /// Built-in spot: dimmer level v of the default look.
+    pub level: Option<f32>,
+}
+
+/// One `[[input]]` entry.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputFile {
+    /// `"sacn"`, `"artnet"` or `"usbpro"`.
+    pub protocol: Spanned<String>,
+    /// sACN universe (1-63999), Art-Net Port-Address (0-32767) or USB Pro widget index (0-255).
+    pub universe: Spanned<i64>,
+    /// The patch universe it feeds (1-63999).
+    pub patch_universe: Option<Spanned<i64>>,
+    /// Feed nothing (stop the default route).
+    #[serde(default)]
+    pub block: bool,
+}

@@ -1,0 +1,164 @@
+//! A fixture's state in real units, decoded from DMX, and how a change of
+//! state reaches the renderer (DESIGN.md data flow; issue 5 item 6).
+//!
+//! ```text
+//! 512-slot frames ──decode──> FixtureState ──┬─ light_of ─> Light (geometry: tracer)
+//!                                             └─ k_of ────> k_i (eq. 4: compositor)
+//! ```
+//!
+//! [`classify`] compares two states of one fixture: nothing changed → no
+//! event; dimmer, colour mix or colour frame → the composite only (k_i);
+//! pan, tilt, zoom, focus or iris → geometry, which marks the light dirty
+//! for a rebuild (and, since zoom changes Î, also needs a new k_i).
+
+use std::collections::BTreeMap;
+
+/// Slots in a DMX universe.
+pub const SLOTS: usize = 512;
+
+/// Most colour-mix channels (LED emitters or CMY flags) a fixture type may have
+/// (the length of [`FixtureState::mix`], written as a literal there: rustc 1.9x
+/// ICEs on a closure that moves a struct whose array length is a named const).
+pub const MAX_MIX: usize = 8;
+
+/// One fixture's state in real units. Attributes the fixture does not have
+/// hold its fixed value (e.g. a PAR's field angle, pan 0).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FixtureState {
+    /// Dimmer factor v of eq. 4, 0..1, after the mode's dimmer curve.
+    pub v: f32,
+    /// Colour-scroller position in frames (0 = first frame; 1.5 = half frame 1, half frame 2).
+    pub frame: f32,
+    /// Colour mix 0..1: LED emitter levels in the type's emitter order, or CMY flags [c, m, y].
+    pub mix: [f32; 8],
+    /// Pan in degrees, 0 at the DMX centre of the range.
+    pub pan: f32,
+    /// Tilt in degrees, 0 at the DMX centre of the range.
+    pub tilt: f32,
+    /// Zoom as the full field angle (10 % of peak) in degrees.
+    pub zoom: f32,
+    /// Focus 0..1: Fresnel/PC spot → flood, profile hard → soft edge.
+    pub focus: f32,
+    /// Iris as a fraction of the open gate diameter (1 = open).
+    pub iris: f32,
+}
+
+impl Default for FixtureState {
+    /// Dark, open, centred: v 0, frame 0, no mix, pan/tilt 0, zoom 0, focus 0, iris open.
+    fn default() -> Self {
+        Self { v: 0.0, frame: 0.0, mix: [0.0; MAX_MIX], pan: 0.0, tilt: 0.0, zoom: 0.0, focus: 0.0, iris: 1.0 }
+    }
+}
+
+/// What a state change costs the renderer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Change {
+    /// Nothing the renderer sees changed: no event.
+    Unchanged,
+    /// Only k_i changed (dimmer, colour mix, colour frame, and with them CCT): recomposite.
+    Composite,
+    /// The beam moved or changed shape (pan, tilt, zoom, focus, iris): mark
+    /// the light dirty and rebuild it; k_i is recomputed too.
+    Geometry,
+}
+
+/// Classifies the change from `old` to `new` of one fixture. Pure: the
+/// same two states always give the same answer.
+pub fn classify(old: &FixtureState, new: &FixtureState) -> Change {
+    let geometry = old.pan != new.pan
+        || old.tilt != new.tilt
+        || old.zoom != new.zoom
+        || old.focus != new.focus
+        || old.iris != new.iris;
+    if geometry {
+        return Change::Geometry;
+    }
+    if old.v != new.v || old.frame != new.frame || old.mix != new.mix {
+        return Change::Composite;
+    }
+    Change::Unchanged
+}
+
+/// The latest 512-slot frame of each patch universe (1-based numbers, as
+/// desks show them). Slot `ADDR` is `slots[ADDR - 1]`. Kept independent of
+/// the DMX crate: the daemon copies its merged frames in.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Universes {
+    frames: BTreeMap<u16, Box<[u8; SLOTS]>>,
+}
+
+impl Universes {
+    /// No universes.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The frame of `universe`, if any arrived.
+    pub fn get(&self, universe: u16) -> Option<&[u8; SLOTS]> {
+        self.frames.get(&universe).map(|b| &**b)
+    }
+
+    /// Replaces the frame of `universe`.
+    pub fn set(&mut self, universe: u16, slots: &[u8; SLOTS]) {
+        self.frames.insert(universe, Box::new(*slots));
+    }
+
+    /// The frame of `universe` for writing, created dark if absent.
+    pub fn frame_mut(&mut self, universe: u16) -> &mut [u8; SLOTS] {
+        self.frames.entry(universe).or_insert_with(|| Box::new([0; SLOTS]))
+    }
+
+    /// Sets one slot (`address` 1-512; others are ignored).
+    pub fn set_slot(&mut self, universe: u16, address: u16, value: u8) {
+        if (1..=SLOTS as u16).contains(&address) {
+            self.frame_mut(universe)[usize::from(address) - 1] = value;
+        }
+    }
+
+    /// Universe numbers present, ascending.
+    pub fn universes(&self) -> impl Iterator<Item = u16> + '_ {
+        self.frames.keys().copied()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn classification_cases() {
+        let a = FixtureState { v: 0.5, zoom: 20.0, ..FixtureState::default() };
+        assert_eq!(classify(&a, &a), Change::Unchanged);
+        for change in [
+            FixtureState { v: 0.6, ..a },
+            FixtureState { frame: 1.5, ..a },
+            FixtureState { mix: [0.1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], ..a },
+        ] {
+            assert_eq!(classify(&a, &change), Change::Composite, "{change:?}");
+        }
+        for change in [
+            FixtureState { pan: 1.0, ..a },
+            FixtureState { tilt: -1.0, ..a },
+            FixtureState { zoom: 21.0, ..a },
+            FixtureState { focus: 0.5, ..a },
+            FixtureState { iris: 0.5, ..a },
+            FixtureState { pan: 1.0, v: 0.0, ..a },
+        ] {
+            assert_eq!(classify(&a, &change), Change::Geometry, "{change:?}");
+        }
+        assert!(Change::Geometry > Change::Composite && Change::Composite > Change::Unchanged);
+    }
+
+    #[test]
+    fn universes_store_frames_by_number() {
+        let mut u = Universes::new();
+        assert!(u.get(1).is_none());
+        u.set_slot(2, 512, 9);
+        u.set_slot(2, 0, 9);
+        u.set_slot(2, 513, 9);
+        assert_eq!(u.get(2).unwrap()[511], 9);
+        assert_eq!(u.get(2).unwrap().iter().map(|&v| u32::from(v)).sum::<u32>(), 9);
+        u.set(1, &[1; SLOTS]);
+        assert_eq!(u.universes().collect::<Vec<_>>(), vec![1, 2]);
+    }
+}

@@ -1,0 +1,104 @@
+//! Every fixture type in patch/fixtures, and the paper's rig.
+
+use super::{gels, root};
+use footlight_fixture::fixture_type::load_type;
+use footlight_fixture::{Attribute, BeamSampler, Patch};
+use glam::Vec3;
+
+#[test]
+fn every_fixture_type_loads_and_every_channel_gives_finite_k_and_a_valid_beam() {
+    let lib = gels();
+    let dir = root().join("patch/fixtures");
+    let mut count = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().and_then(|e| e.to_str()) != Some("toml") {
+            continue;
+        }
+        count += 1;
+        let ty = load_type(&path, Some(&lib)).unwrap_or_else(|e| panic!("{e}"));
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("source"), "{}: values must name their source or say estimated", path.display());
+        for mode in &ty.modes {
+            for channel in &mode.channels {
+                for value in [0u8, 127, 255] {
+                    // Every other slot at its default, this channel's slots at `value`.
+                    let mut slots = vec![0u8; usize::from(mode.footprint)];
+                    for c in &mode.channels {
+                        for (o, v) in c.slots_for(c.default) {
+                            slots[usize::from(o)] = v;
+                        }
+                    }
+                    slots[usize::from(channel.offset)] = value;
+                    if let Some(f) = channel.fine {
+                        slots[usize::from(f)] = value;
+                    }
+                    let s = ty.decode(mode, &Default::default(), &|o| slots.get(usize::from(o)).copied().unwrap_or(0));
+                    let what = format!("{} mode {} {} = {value}", ty.name, mode.name, channel.name);
+                    let beam = ty.beam(&s);
+                    assert_eq!(beam.pattern(Vec3::NEG_Z), 1.0, "{what}: peak 1 on the axis");
+                    let cut = beam.cos_cutoff();
+                    assert!((-1.0..1.0).contains(&cut), "{what}: cut-off {cut}");
+                    for i in 0..=180 {
+                        let a = (i as f32).to_radians();
+                        let p = beam.pattern(Vec3::new(a.sin(), 0.0, -a.cos()));
+                        assert!((0.0..=1.0).contains(&p), "{what}: pattern {p} at {i} deg");
+                        if a.cos() < cut - 1e-6 {
+                            assert_eq!(p, 0.0, "{what}: light past the cut-off at {i} deg");
+                        }
+                    }
+                    let sampler = BeamSampler::new(&beam);
+                    assert!(sampler.flux() > 0.0 && sampler.flux().is_finite(), "{what}");
+                    let intensity = ty.intensity(&s);
+                    assert!(intensity > 0.0 && intensity.is_finite(), "{what}: Î {intensity}");
+                    // k_i through the photometry crate, with the mode's scroller if any.
+                    let mix = match mode.channel(Attribute::Scroller).and_then(|c| c.scroller.as_ref()) {
+                        Some(sc) => sc.at(&lib, s.frame).expect("frames are in the library"),
+                        None => footlight_photometry::GelMix::OPEN,
+                    };
+                    let k = footlight_photometry::k(&ty.lamp_for(&s), s.v, &mix, intensity);
+                    assert!(k.is_finite() && k.min_element() >= 0.0, "{what}: k {k}");
+                    if s.v == 0.0 {
+                        assert_eq!(k, Vec3::ZERO, "{what}: v = 0 is exactly black");
+                    }
+                }
+            }
+        }
+    }
+    assert!(count >= 6, "the library has the paper's rig and the generic types ({count} files)");
+}
+
+#[test]
+fn the_paper_rig_loads_with_its_look() {
+    let patch = Patch::load(&root().join("patch/paper-rig.toml")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(patch.fixtures.len(), 6);
+    let dmx: Vec<_> = patch.fixtures.iter().map(|f| f.dmx).collect();
+    assert_eq!(dmx, (1..=6).map(|a| Some((1, a))).collect::<Vec<_>>());
+    // 100 %, 100 %, then four at 50 % (DMX 128 on a linear curve).
+    let v: Vec<f32> = patch.fixtures.iter().map(|f| f.look.v).collect();
+    assert_eq!(&v[..2], &[1.0, 1.0]);
+    assert!(v[2..].iter().all(|&x| (x - 128.0 / 255.0).abs() < 1e-6));
+    let frame = patch.look_universes.get(1).unwrap();
+    assert_eq!(&frame[..6], &[255, 255, 128, 128, 128, 128]);
+    // Colours: the HPZ is warm tungsten, the Castor through LEE 201 is bluer, the HMIs through LEE 136 are lavender.
+    let k: Vec<Vec3> = patch.default_k();
+    assert!(k[0].x > k[0].y && k[0].y > k[0].z, "3200 K is warm: {}", k[0]);
+    assert!(k[1].z / k[1].x > k[0].z / k[0].x, "LEE 201 is bluer: {}", k[1]);
+    assert!(k[2].x > k[2].y && k[2].z > k[2].y, "LEE 136 is pink/lavender: {}", k[2]);
+    for f in &patch.fixtures {
+        assert!(f.k().is_finite() && f.k().min_element() > 0.0);
+        assert!((f.k_full() - f.k() / f.look.v).abs().max_element() < 1e-2 * f.k_full().max_element());
+        assert!(f.light.axis().y < 0.0, "{}: aimed down at the stage", f.name);
+    }
+    assert!(patch.camera.is_none());
+    assert!(patch.gels.is_some());
+}
+
+#[test]
+fn the_legacy_default_patch_still_loads_unchanged() {
+    let patch = Patch::load(&root().join("patch/default.toml")).unwrap();
+    assert_eq!(patch.fixtures.len(), 6);
+    assert_eq!(patch.fixtures[0].k(), Vec3::splat(60000.0));
+    assert_eq!(patch.fixtures[2].k(), Vec3::new(0.92, 0.72, 0.86) * (0.5 * 120000.0));
+    assert_eq!(patch.fixtures[2].k_full(), Vec3::new(0.92, 0.72, 0.86) * 120000.0);
+}
