@@ -37,4 +37,4 @@ pub use scene::Scene;
 /// Path of the bundled default stage, relative to the repository root.
 pub const DEFAULT_SCENE: &str = "scenes/stage.glb";
 /// Path of the bundled default patch, relative to the repository root.
-pub const DEFAULT_PATCH: &str = "patch/default.toml";
+pub const DEFAULT_PATCH: &str = "patch/paper-rig.toml";

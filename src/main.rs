@@ -31,6 +31,11 @@ enum Command {
     Run(RunArgs),
     /// Record the DMX that arrives (Art-Net, sACN, USB Pro) to a pcapng file until Ctrl-C.
     Record(RecordArgs),
+    /// Validate a patch file: types, modes, addresses, values; every problem with file:line.
+    Check {
+        /// The patch file.
+        patch: PathBuf,
+    },
     /// Measure the paper's figure 6 ratios and anti-aliasing error; writes a report.
     Bench(BenchArgs),
 }
@@ -150,6 +155,15 @@ struct RenderArgs {
     /// Illuminance (lx) on a white Lambert surface shown as display white.
     #[arg(long, default_value_t = 1000.0)]
     white_lux: f32,
+    /// DMX levels for the still: `U/ADDR=VALUE,...` (universe and address from 1, value 0-255).
+    #[arg(long, value_delimiter = ',')]
+    set: Vec<String>,
+    /// Render the state of this DMX recording (pcapng/pcap) at `--at` seconds.
+    #[arg(long)]
+    dmx: Option<PathBuf>,
+    /// Time into the `--dmx` recording, in seconds.
+    #[arg(long, default_value_t = 0.0)]
+    at: f64,
     /// Photons stored per light for the indirect term (paper: 50000); 0 = direct light only.
     #[arg(long, default_value_t = 50_000)]
     photons: usize,
@@ -183,6 +197,7 @@ fn main() -> Result<()> {
         Command::Render(args) => render(args),
         Command::Run(args) => run(args),
         Command::Record(args) => record(args),
+        Command::Check { patch } => check(&patch),
         Command::Bench(args) => {
             let (scene, patch) = load_inputs(&args.input)?;
             let camera = choose_camera(&scene, &patch);
@@ -233,7 +248,7 @@ fn choose_camera(scene: &Scene, patch: &Patch) -> Camera {
 }
 
 fn run(args: RunArgs) -> Result<()> {
-    use footlight::live::{DefaultLook, LiveConfig, TracerSettings, Universes};
+    use footlight::live::{LiveConfig, TracerSettings, Universes};
     use std::sync::Arc;
     if args.width == 0 || args.height == 0 || args.width > 16384 || args.height > 16384 {
         bail!("--width and --height must be between 1 and 16384 (got {}×{})", args.width, args.height);
@@ -257,7 +272,8 @@ fn run(args: RunArgs) -> Result<()> {
         let listener = footlight::live::bind_http(config.http).await?;
         println!("Footlight preview: http://{}/", listener.local_addr()?);
         let (inputs_tx, inputs) = tokio::sync::watch::channel(Arc::new(Universes::new()));
-        let decoder = Arc::new(DefaultLook::new(&patch));
+        let patch = Arc::new(patch);
+        let decoder = Arc::new(footlight::live::PatchDecoder::new(patch.clone()));
         let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
         let stopped = |mut rx: tokio::sync::watch::Receiver<bool>| async move {
             let _ = rx.wait_for(|s| *s).await;
@@ -276,7 +292,7 @@ fn run(args: RunArgs) -> Result<()> {
                 let options = footlight_dmx::ReplayOptions {
                     speed: args.speed,
                     start: std::time::Duration::ZERO,
-                    patch: footlight_dmx::InputPatch::default(),
+                    patch: dmx_input_patch(&patch, Vec::new()),
                 };
                 let stop = stopped(stop_rx.clone());
                 let task = tokio::spawn(async move {
@@ -297,7 +313,9 @@ fn run(args: RunArgs) -> Result<()> {
                 (Arc::new(|| serde_json::json!({"input": "replay"})), task)
             }
             None => {
-                let input = footlight_dmx::DmxInput::bind(args.dmx.config(universes)?).await?;
+                let mut config = args.dmx.config(universes.clone())?;
+                config.patch = dmx_input_patch(&patch, universes);
+                let input = footlight_dmx::DmxInput::bind(config).await?;
                 let addrs = input.local_addrs();
                 println!("listening for DMX: Art-Net {:?}, sACN {:?}", addrs.artnet, addrs.sacn);
                 let stats = input.stats();
@@ -334,6 +352,73 @@ fn run(args: RunArgs) -> Result<()> {
         }
         Ok::<(), anyhow::Error>(())
     })
+}
+
+/// The DMX state a still shows: a recording at a moment, then `--set` levels.
+fn still_universes(args: &RenderArgs, patch: &footlight::Patch) -> Result<footlight::live::Universes> {
+    let mut universes = footlight::live::Universes::new();
+    if let Some(path) = &args.dmx {
+        if !(args.at.is_finite() && args.at >= 0.0) {
+            bail!("--at {} must be a time in seconds >= 0", args.at);
+        }
+        let recording = footlight_dmx::Recording::open(path)?;
+        let input = dmx_input_patch(patch, Vec::new());
+        for frame in footlight_dmx::state_at(&recording, std::time::Duration::from_secs_f64(args.at), &input)? {
+            universes.insert(frame.universe, frame.slots);
+        }
+    }
+    for item in &args.set {
+        let (lhs, value) =
+            item.split_once('=').with_context(|| format!("--set {item:?}: expected U/ADDR=VALUE, e.g. 1/1=255"))?;
+        let (u, a) = lhs.split_once('/').with_context(|| format!("--set {item:?}: expected U/ADDR=VALUE"))?;
+        let u: u16 = u.trim().parse().with_context(|| format!("--set {item:?}: universe must be a number from 1"))?;
+        let a: u16 = a.trim().parse().with_context(|| format!("--set {item:?}: address must be 1-512"))?;
+        let v: u8 = value.trim().parse().with_context(|| format!("--set {item:?}: value must be 0-255"))?;
+        if u == 0 || !(1..=512).contains(&a) {
+            bail!("--set {item:?}: universe counts from 1 and the address is 1-512");
+        }
+        let frame = universes.entry(u).or_insert_with(|| patch.look_universes.get(u).copied().unwrap_or([0; 512]));
+        frame[usize::from(a) - 1] = v;
+    }
+    Ok(universes)
+}
+
+/// Every fixture's tracer light and k_i for a DMX state (eq. 4).
+fn jobs_for(patch: &footlight::Patch, universes: &footlight::live::Universes) -> Vec<LightJob> {
+    use footlight::live::Decode;
+    footlight::live::PatchDecoder::new(std::sync::Arc::new(patch.clone()))
+        .decode(universes)
+        .into_iter()
+        .map(|i| LightJob { light: i.light, k_full: i.k_full, k: i.k })
+        .collect()
+}
+
+/// The DMX input's universes and LTP masks from the patch.
+fn dmx_input_patch(patch: &footlight::Patch, universes: Vec<u16>) -> footlight_dmx::InputPatch {
+    let ltp = patch
+        .ltp_addresses()
+        .into_iter()
+        .map(|(u, addrs)| (u, footlight_dmx::SlotMask::from_addresses(addrs)))
+        .collect();
+    footlight_dmx::InputPatch { universes, ltp, ..footlight_dmx::InputPatch::default() }
+}
+
+fn check(path: &Path) -> Result<()> {
+    match footlight::fixture::check(path) {
+        Ok(patch) => {
+            let mut universes: Vec<u16> = patch.fixtures.iter().filter_map(|f| f.dmx.map(|(u, _)| u)).collect();
+            universes.sort_unstable();
+            universes.dedup();
+            println!("{}: ok, {} fixtures on universes {universes:?}", path.display(), patch.fixtures.len());
+            Ok(())
+        }
+        Err(errors) => {
+            for e in &errors {
+                eprintln!("{e}");
+            }
+            bail!("{}: {} problem(s)", path.display(), errors.len())
+        }
+    }
 }
 
 /// Highest patch universe any fixture uses (at least 1).
@@ -405,8 +490,8 @@ fn render(args: RenderArgs) -> Result<()> {
             ..PhotonSettings::default()
         }),
     };
-    let jobs: Vec<LightJob> =
-        patch.fixtures.iter().map(|f| LightJob { light: f.light.clone(), k_full: f.k_full(), k: f.k() }).collect();
+    let universes = still_universes(&args, &patch)?;
+    let jobs = jobs_for(&patch, &universes);
     let still = render_still(&scene, camera, &jobs, &settings)?;
     if let Err((i, v)) = check_finite(&still.linear) {
         bail!("composite pixel {i} is {v}: this is a bug, please report it");

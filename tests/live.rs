@@ -76,7 +76,8 @@ fn centre_brightness(f: &Frame, x: u32) -> u8 {
 async fn dimmer_packet_shows_in_the_next_frame() {
     let (scene, cam) = small_stage();
     let tracer = tracer(&scene, cam, 40, 40);
-    let mut clock = FrameClock::new(Arc::new(TestDecoder), tracer.clone(), Compositor::new(40, 40, Display::default()));
+    let mut clock =
+        FrameClock::new(Arc::new(TestDecoder), tracer.clone(), Compositor::new(40, 40, Display::neutral(1000.0)));
     clock.tick(&universes(255, 128)); // requests the first build
     let t = tracer.clone();
     tokio::task::spawn_blocking(move || wait_for(&t, |s| s == Stage::Ready)).await.unwrap();
@@ -111,7 +112,8 @@ fn moved_light_shows_its_direct_stage_then_converges_and_presets_come_from_cache
     let (scene, cam) = small_stage();
     let (w, h) = (64, 64);
     let tracer = tracer(&scene, cam, w, h);
-    let mut clock = FrameClock::new(Arc::new(TestDecoder), tracer.clone(), Compositor::new(w, h, Display::default()));
+    let mut clock =
+        FrameClock::new(Arc::new(TestDecoder), tracer.clone(), Compositor::new(w, h, Display::neutral(1000.0)));
     clock.tick(&universes(255, 40)); // light at the left
     wait_for(&tracer, |s| s == Stage::Ready);
     let left = clock.tick(&universes(255, 40));
@@ -196,7 +198,7 @@ fn preview_serves_page_status_and_frames_on_loopback_and_refuses_a_taken_port() 
                 height: 32,
                 fps: 30.0,
                 http: addr,
-                display: Display::default(),
+                display: Display::neutral(1000.0),
                 limits: RecursionLimits::default(),
                 tracer: TracerSettings { photons: None, threads: 1, ..TracerSettings::default() },
                 compositor: footlight::gpu::CompositorChoice::Cpu,

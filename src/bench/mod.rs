@@ -6,6 +6,7 @@
 //! figure is an MSE against the 9× oversampled render of the same state.
 //! Writes `report.md` and `report.json` into the output folder.
 
+pub mod live;
 #[cfg(feature = "plots")]
 pub mod plots;
 pub mod stress;
@@ -23,6 +24,7 @@ use crate::scene::{Camera, Scene};
 use glam::Vec3;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// What to measure and at what size.
@@ -110,6 +112,8 @@ pub struct Report {
     pub accuracy: sweeps::Accuracy,
     /// The numerical stress matrix.
     pub stress: Vec<stress::StressCase>,
+    /// Daemon: composite frame times by light count and size, geometry latency.
+    pub live: live::LiveReport,
 }
 
 /// One point of a run-time-versus-error curve.
@@ -247,6 +251,27 @@ impl Report {
                 c.max_value,
                 bound,
                 c.detail
+            );
+        }
+        let l = &self.live;
+        s += &format!(
+            "\n## Daemon\n\nGeometry change of one light at {}×{}: first direct-light frame after {:.0} ms, mirrors/glass/AA \
+             after {:.0} ms, photon-mapped after {:.0} ms, converged ({} progressive passes) after {:.0} ms.\n\n\
+             Composite per frame (GPU: {}):\n\n| lights | size | CPU full (ms) | CPU one fader (ms) | GPU (ms) |\n|---:|---|---:|---:|---:|\n",
+            self.width,
+            self.height,
+            l.latency.first_direct_ms,
+            l.latency.whitted_ms,
+            l.latency.photons_ms,
+            l.latency.refine_passes,
+            l.latency.converged_ms,
+            l.gpu_adapter.as_deref().unwrap_or("no adapter")
+        );
+        for r in &l.composite {
+            let gpu = r.gpu_ms.map(|g| format!("{g:.2}")).unwrap_or_else(|| "–".into());
+            s += &format!(
+                "| {} | {}×{} | {:.2} | {:.3} | {} |\n",
+                r.lights, r.width, r.height, r.cpu_full_ms, r.cpu_one_fader_ms, gpu
             );
         }
         s += "\n## Raw timings (ms)\n\n| stage | ms |\n|---|---:|\n";
@@ -652,6 +677,14 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     progress.set_message("stress matrix");
     progress.inc(1);
     let stress = stress::run_matrix(if cfg.quick { 2_000 } else { 20_000 });
+    progress.set_message("daemon: composite scaling and geometry latency");
+    let scene_arc = Arc::new(crate::scene::load(&cfg.scene_path).map_err(std::io::Error::other)?);
+    let (sizes, counts): (Vec<(u32, u32)>, Vec<usize>) = if cfg.quick {
+        (vec![(200, 125)], vec![1, 8, 32])
+    } else {
+        (vec![(800, 500), (1920, 1080)], vec![1, 8, 32, 128])
+    };
+    let live = live::run(&scene_arc, camera, &sizes, &counts, (w, h), light, k_full, if cfg.quick { 4 } else { 32 });
     progress.finish_and_clear();
 
     let report = Report {
@@ -670,6 +703,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         skips,
         accuracy,
         stress,
+        live,
     };
     #[cfg(feature = "plots")]
     plots::write(&report, out)?;

@@ -175,6 +175,51 @@ pub async fn run_clock(
     }
 }
 
+/// Decodes DMX through the patch: each fixture's channels to its state in
+/// real units, then to its tracer geometry and its k_i (eq. 4). Universes
+/// without any frame yet show the patch's default look.
+pub struct PatchDecoder {
+    patch: Arc<crate::Patch>,
+}
+
+impl PatchDecoder {
+    /// A decoder for `patch`.
+    pub fn new(patch: Arc<crate::Patch>) -> Self {
+        Self { patch }
+    }
+}
+
+impl Decode for PatchDecoder {
+    fn len(&self) -> usize {
+        self.patch.fixtures.len()
+    }
+
+    fn decode(&self, universes: &Universes) -> Vec<LightInput> {
+        let mut frames = footlight_fixture::Universes::new();
+        for (u, slots) in universes {
+            frames.set(*u, slots);
+        }
+        let states = self.patch.decode(&frames);
+        self.patch
+            .fixtures
+            .iter()
+            .zip(&states)
+            .map(|(f, s)| {
+                let dmx = match f.dmx {
+                    Some((u, addr)) => {
+                        let slots = frames.get(u).or_else(|| self.patch.look_universes.get(u));
+                        let start = usize::from(addr.max(1)) - 1;
+                        let end = (start + usize::from(f.footprint())).min(512);
+                        slots.map(|sl| sl[start..end].to_vec()).unwrap_or_default()
+                    }
+                    None => Vec::new(),
+                };
+                LightInput { name: f.name.clone(), light: f.light_of(s), k: f.k_of(s), k_full: f.k_full_of(s), dmx }
+            })
+            .collect()
+    }
+}
+
 /// The patch's default look, without DMX: every fixture as the patch file
 /// sets it. Used until DMX decoding is configured.
 pub struct DefaultLook {

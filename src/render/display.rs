@@ -2,6 +2,9 @@
 //!
 //! Exposure is a fixed user setting, never automatic: by default a white
 //! Lambert surface under 1000 lx (luminance 1000/π cd/m²) is display white.
+//! White balance is a camera's: by default a 3200 K tungsten lamp at full
+//! is neutral (Vierjahn 2010, section 3.3; gains from footlight-photometry,
+//! luminance-preserving).
 //! Values above white clip at the display, like an overexposed camera; a
 //! non-finite value is an error found before this step ([`check_finite`]),
 //! never clamped away here.
@@ -27,10 +30,23 @@ impl Default for Display {
 }
 
 impl Display {
-    /// Exposure such that a white Lambert surface under `lux` is display white.
+    /// Exposure such that a white Lambert surface under `lux` is display
+    /// white, white-balanced for tungsten 3200 K at full.
     pub fn for_white_lux(lux: f32) -> Self {
+        Self { white_balance: footlight_photometry::WhiteBalance::default().gains, ..Self::neutral(lux) }
+    }
+
+    /// As [`Display::for_white_lux`] without white balance (gains 1): linear
+    /// RGB goes to the display unchanged (analytic tests, RGB stand-in lights).
+    pub fn neutral(lux: f32) -> Self {
         let lux = if lux.is_finite() && lux > 0.0 { lux } else { DEFAULT_WHITE_LUX };
         Self { exposure: std::f32::consts::PI / lux, white_balance: Vec3::ONE }
+    }
+
+    /// White balance for a lamp at dimmer `v` (that lamp's light shows neutral).
+    pub fn balanced_for(mut self, lamp: &footlight_photometry::Lamp, v: f32) -> Self {
+        self.white_balance = footlight_photometry::WhiteBalance::for_lamp(lamp, v).gains;
+        self
     }
 
     /// Linear cd/m² to display-linear RGB (before the transfer function).
@@ -119,7 +135,7 @@ mod tests {
 
     #[test]
     fn white_lambert_at_reference_lux_is_white() {
-        let d = Display::default();
+        let d = Display::neutral(DEFAULT_WHITE_LUX);
         let l = DEFAULT_WHITE_LUX / std::f32::consts::PI;
         assert_eq!(d.to_srgb8(&[Vec3::splat(l)]), vec![255, 255, 255]);
         assert_eq!(d.to_srgb8(&[Vec3::ZERO]), vec![0, 0, 0]);
@@ -131,6 +147,11 @@ mod tests {
     #[test]
     fn table_matches_the_exact_curve() {
         let d = Display { exposure: 1.0, white_balance: Vec3::ONE };
+        // Tungsten at full is neutral under the default white balance.
+        let wb = Display::default();
+        let tungsten = footlight_photometry::Lamp::tungsten().colour(1.0);
+        let px = wb.to_srgb8(&[tungsten * (0.5 / wb.exposure)]);
+        assert!(px[0].abs_diff(px[1]) <= 1 && px[1].abs_diff(px[2]) <= 1, "{px:?}");
         let mut worst = 0;
         for i in 0..=20_000 {
             let x = (i as f32 / 20_000.0).powi(3) * 1.2;
