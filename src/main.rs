@@ -279,8 +279,7 @@ fn run(args: RunArgs) -> Result<()> {
             let _ = rx.wait_for(|s| *s).await;
         };
         let universes: Vec<u16> = (1..=patch_universes(&patch)).collect();
-        let (status, input_task): (footlight::serve::StatusFn, tokio::task::JoinHandle<Result<()>>) = match &args.replay
-        {
+        let handle = match &args.replay {
             Some(path) => {
                 let recording = footlight_dmx::Recording::open(path)?;
                 println!(
@@ -294,23 +293,7 @@ fn run(args: RunArgs) -> Result<()> {
                     start: std::time::Duration::ZERO,
                     patch: dmx_input_patch(&patch, Vec::new()),
                 };
-                let stop = stopped(stop_rx.clone());
-                let task = tokio::spawn(async move {
-                    let mut current = Universes::new();
-                    let summary = footlight_dmx::replay(
-                        &recording,
-                        &options,
-                        |frame| {
-                            current.insert(frame.universe, frame.slots);
-                            let _ = inputs_tx.send(Arc::new(current.clone()));
-                        },
-                        stop,
-                    )
-                    .await?;
-                    tracing::info!("replay finished: {} DMX packets", summary.packets);
-                    Ok(())
-                });
-                (Arc::new(|| serde_json::json!({"input": "replay"})), task)
+                footlight::live::input::start_replay(recording, options, inputs_tx, stopped(stop_rx.clone()))
             }
             None => {
                 let mut config = args.dmx.config(universes.clone())?;
@@ -318,36 +301,16 @@ fn run(args: RunArgs) -> Result<()> {
                 let input = footlight_dmx::DmxInput::bind(config).await?;
                 let addrs = input.local_addrs();
                 println!("listening for DMX: Art-Net {:?}, sACN {:?}", addrs.artnet, addrs.sacn);
-                let stats = input.stats();
-                let mut frames = input.frames();
-                let forward = async move {
-                    while frames.changed().await.is_ok() {
-                        let u: Universes = frames.borrow_and_update().iter().map(|f| (f.universe, f.slots)).collect();
-                        if inputs_tx.send(Arc::new(u)).is_err() {
-                            break;
-                        }
-                    }
-                };
-                let stop = stopped(stop_rx.clone());
-                let task = tokio::spawn(async move {
-                    tokio::spawn(forward);
-                    input.run(stop).await?;
-                    Ok(())
-                });
-                let status: footlight::serve::StatusFn = Arc::new(move || {
-                    let s = stats.snapshot();
-                    let packets = s.artnet.received + s.sacn.received + s.usbpro.received;
-                    let malformed = s.artnet.malformed + s.sacn.malformed + s.usbpro.malformed;
-                    serde_json::json!({"input": "network", "packets": packets, "malformed": malformed})
-                });
-                (status, task)
+                footlight::live::input::start_network(input, inputs_tx, stopped(stop_rx.clone()))
             }
         };
+        let (status, input_task) = (handle.status, handle.task);
         footlight::live::run(Arc::new(scene), camera, decoder, inputs, listener, config, status, shutdown_signal())
             .await?;
         let _ = stop_tx.send(true);
         match input_task.await {
             Ok(result) => result?,
+            Err(e) if e.is_cancelled() => {}
             Err(e) => bail!("DMX input task failed: {e}"),
         }
         Ok::<(), anyhow::Error>(())

@@ -24,5 +24,7 @@ mod live;
 mod stress;
 // GPU compositor == CPU compositor (lavapipe in CI).
 mod gpu;
+// Recorded DMX end to end, cues vs golden, packet flood, browser preview.
+mod replay;
 // The command line as a user runs it.
 mod cli;

@@ -5,6 +5,7 @@
 //! * [`clock`]: the frame clock: decode → k_i → composite → publish.
 //! * [`tracer`]: worker threads that rebuild dirty lights in stages.
 //! * [`cache`]: recent geometry states per light (position presets are instant).
+//! * [`input`]: DMX sources (network or a replayed recording) into the clock.
 //!
 //! Threads: DMX input and HTTP run on tokio; builds run on their own rayon
 //! pool; the frame clock runs on a tokio task and only reads published
@@ -14,6 +15,7 @@
 
 pub mod cache;
 pub mod clock;
+pub mod input;
 pub mod tracer;
 
 pub use clock::{Decode, Frame, FrameClock, LightInput, Universes};

@@ -1,0 +1,351 @@
+//! Recorded DMX end to end: the daemon plays a recording and its final
+//! frame equals `footlight render --dmx FILE --at T` (a separate process);
+//! frames at marked cues against golden images; a packet flood over
+//! loopback loses no state; the preview page in headless Chromium.
+
+use crate::common::*;
+use footlight::live::input::{start_network, start_replay};
+use footlight::live::{LiveConfig, PatchDecoder, TracerSettings, Universes};
+use footlight::render::photon::PhotonSettings;
+use footlight::render::still::{LightJob, render_still};
+use footlight::render::{Display, RecursionLimits, RenderSettings};
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tokio::sync::watch;
+
+const W: u32 = 160;
+const H: u32 = 100;
+const PHOTONS: usize = 5_000;
+
+fn replay_patch() -> footlight::Patch {
+    footlight::Patch::load(&root().join("tests/replays/replay-patch.toml")).expect("replay patch")
+}
+
+fn recording(name: &str) -> std::path::PathBuf {
+    root().join("tests/replays").join(name)
+}
+
+enum Source {
+    Replay(&'static str),
+    ArtNet,
+}
+
+struct Daemon {
+    http: SocketAddr,
+    artnet: Option<SocketAddr>,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Daemon {
+    /// The daemon over the bundled stage with the replay patch, on loopback only.
+    fn start(source: Source) -> Self {
+        let (tx, rx) = std::sync::mpsc::channel();
+        let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+        let thread = std::thread::spawn(move || {
+            let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+            rt.block_on(async move {
+                let scene = Arc::new(stage());
+                let camera = scene.camera.unwrap();
+                let patch = Arc::new(replay_patch());
+                let listener = footlight::live::bind_http("127.0.0.1:0".parse().unwrap()).await.unwrap();
+                let http = listener.local_addr().unwrap();
+                let (inputs_tx, inputs) = watch::channel(Arc::new(Universes::new()));
+                let (stop_inputs, stop_inputs_rx) = watch::channel(false);
+                let stopped = |mut r: watch::Receiver<bool>| async move {
+                    let _ = r.wait_for(|s| *s).await;
+                };
+                let (handle, artnet) = match source {
+                    Source::Replay(name) => {
+                        let rec = footlight_dmx::Recording::open(&recording(name)).unwrap();
+                        let options = footlight_dmx::ReplayOptions {
+                            speed: f64::INFINITY,
+                            start: Duration::ZERO,
+                            patch: footlight_dmx::InputPatch::default(),
+                        };
+                        (start_replay(rec, options, inputs_tx, stopped(stop_inputs_rx)), None)
+                    }
+                    Source::ArtNet => {
+                        let config = footlight_dmx::InputConfig {
+                            artnet: Some(footlight_dmx::artnet::ArtNetConfig {
+                                bind: "127.0.0.1:0".parse().unwrap(),
+                                ..Default::default()
+                            }),
+                            sacn: None,
+                            usbpro: None,
+                            patch: footlight_dmx::InputPatch { universes: vec![1], ..Default::default() },
+                        };
+                        let input = footlight_dmx::DmxInput::bind(config).await.unwrap();
+                        let addr = input.local_addrs().artnet;
+                        (start_network(input, inputs_tx, stopped(stop_inputs_rx)), addr)
+                    }
+                };
+                tx.send((http, artnet)).unwrap();
+                let config = LiveConfig {
+                    width: W,
+                    height: H,
+                    fps: 60.0,
+                    http,
+                    display: Display::default(),
+                    limits: RecursionLimits::default(),
+                    tracer: TracerSettings {
+                        photons: Some(PhotonSettings { stored: PHOTONS, ..PhotonSettings::default() }),
+                        refine_passes: 0,
+                        ..TracerSettings::default()
+                    },
+                    compositor: footlight::gpu::CompositorChoice::Cpu,
+                };
+                let decoder = Arc::new(PatchDecoder::new(patch));
+                footlight::live::run(scene, camera, decoder, inputs, listener, config, handle.status, async {
+                    let _ = stop_rx.await;
+                })
+                .await
+                .unwrap();
+                let _ = stop_inputs.send(true);
+                let _ = handle.task.await;
+            });
+        });
+        let (http, artnet) = rx.recv_timeout(Duration::from_secs(120)).unwrap();
+        Self { http, artnet, stop: Some(stop_tx), thread: Some(thread) }
+    }
+
+    fn status(&self) -> serde_json::Value {
+        serde_json::from_slice(&http_get(self.http, "/api/status").1).unwrap()
+    }
+
+    /// Waits until every light is built and a few frames have passed since.
+    fn wait_ready(&self) -> serde_json::Value {
+        let t = Instant::now();
+        loop {
+            let s = self.status();
+            if s["lights"].as_array().is_some_and(|l| l.iter().all(|l| l["stage"] == "ready")) {
+                std::thread::sleep(Duration::from_millis(150));
+                return self.status();
+            }
+            assert!(t.elapsed() < Duration::from_secs(120), "never ready: {s}");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    fn frame(&self) -> image::RgbImage {
+        image::load_from_memory(&http_get(self.http, "/api/frame.png").1).unwrap().to_rgb8()
+    }
+}
+
+impl Drop for Daemon {
+    fn drop(&mut self) {
+        if let Some(s) = self.stop.take() {
+            let _ = s.send(());
+        }
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// Minimal HTTP/1.1 GET over loopback.
+fn http_get(addr: SocketAddr, path: &str) -> (String, Vec<u8>) {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    write!(s, "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").unwrap();
+    let mut raw = Vec::new();
+    s.read_to_end(&mut raw).unwrap();
+    let split = raw.windows(4).position(|w| w == b"\r\n\r\n").unwrap() + 4;
+    let head = String::from_utf8_lossy(&raw[..split]).to_string();
+    let mut body = raw[split..].to_vec();
+    if head.to_ascii_lowercase().contains("transfer-encoding: chunked") {
+        let mut out = Vec::new();
+        let mut b = &body[..];
+        loop {
+            let e = b.windows(2).position(|w| w == b"\r\n").unwrap();
+            let n = usize::from_str_radix(std::str::from_utf8(&b[..e]).unwrap().trim(), 16).unwrap();
+            if n == 0 {
+                break;
+            }
+            out.extend_from_slice(&b[e + 2..e + 2 + n]);
+            b = &b[e + 2 + n + 2..];
+        }
+        body = out;
+    }
+    (head, body)
+}
+
+fn max_diff(a: &image::RgbImage, b: &image::RgbImage) -> u8 {
+    a.as_raw().iter().zip(b.as_raw()).map(|(x, y)| x.abs_diff(*y)).max().unwrap_or(0)
+}
+
+/// Writes actual and amplified difference images under target/golden/ and panics.
+fn fail_with_diff(name: &str, actual: &image::RgbImage, expected: &image::RgbImage, why: &str) -> ! {
+    let dir = root().join("target/golden");
+    std::fs::create_dir_all(&dir).unwrap();
+    actual.save(dir.join(format!("{name}.actual.png"))).unwrap();
+    let diff: Vec<u8> =
+        actual.as_raw().iter().zip(expected.as_raw()).map(|(a, b)| a.abs_diff(*b).saturating_mul(8)).collect();
+    image::RgbImage::from_raw(actual.width(), actual.height(), diff)
+        .unwrap()
+        .save(dir.join(format!("{name}.diff.png")))
+        .unwrap();
+    panic!("{name}: {why}; see target/golden/{name}.actual.png and .diff.png");
+}
+
+#[test]
+fn daemon_replay_matches_render_of_the_same_moment() {
+    let daemon = Daemon::start(Source::Replay("pan-tilt-sweep.pcapng"));
+    let status = daemon.wait_ready();
+    assert_eq!(status["input"], "replay");
+    assert!(status["frames"].as_u64().unwrap() > 200, "{status}");
+    let live = daemon.frame();
+    drop(daemon);
+    // The same moment through the command line, an independent process.
+    let out = std::env::temp_dir().join(format!("footlight-replay-{}.png", std::process::id()));
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_footlight"))
+        .current_dir(root())
+        .args(["render", "--patch", "tests/replays/replay-patch.toml", "--dmx", "tests/replays/pan-tilt-sweep.pcapng"])
+        .args(["--at", "60", "--width", &W.to_string(), "--height", &H.to_string(), "--photons", &PHOTONS.to_string()])
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rendered = image::open(&out).unwrap().to_rgb8();
+    assert!(live.pixels().any(|p| p.0[0] > 40), "the head lights the stage");
+    let d = max_diff(&live, &rendered);
+    if d > 1 {
+        fail_with_diff("replay-end", &live, &rendered, &format!("daemon frame differs from render by {d} code values"));
+    }
+}
+
+#[test]
+fn frames_at_marked_cues_match_golden_images() {
+    let scene = stage();
+    let patch = Arc::new(replay_patch());
+    let settings = RenderSettings {
+        width: W,
+        height: H,
+        photons: Some(PhotonSettings { stored: PHOTONS, ..PhotonSettings::default() }),
+        ..RenderSettings::default()
+    };
+    let cues = [
+        ("cue-fades.pcapng", 2.0, "cue1-fade-in"),
+        ("cue-fades.pcapng", 5.0, "cue2-crossfade"),
+        ("colour-chase.pcapng", 1.0, "chase-frame"),
+        ("pan-tilt-sweep.pcapng", 3.0, "sweep-centre"),
+    ];
+    for (file, at, name) in cues {
+        let rec = footlight_dmx::Recording::open(&recording(file)).unwrap();
+        let frames =
+            footlight_dmx::state_at(&rec, Duration::from_secs_f64(at), &footlight_dmx::InputPatch::default()).unwrap();
+        let universes: Universes = frames.iter().map(|f| (f.universe, f.slots)).collect();
+        use footlight::live::Decode;
+        let jobs: Vec<LightJob> = PatchDecoder::new(patch.clone())
+            .decode(&universes)
+            .into_iter()
+            .map(|i| LightJob { light: i.light, k_full: i.k_full, k: i.k })
+            .collect();
+        let still = render_still(&scene, scene.camera.unwrap(), &jobs, &settings).unwrap();
+        let actual = image::RgbImage::from_raw(W, H, settings.display.to_srgb8(&still.linear)).unwrap();
+        let golden = root().join(format!("tests/golden/{name}.png"));
+        if std::env::var_os("FOOTLIGHT_BLESS").is_some() {
+            actual.save(&golden).unwrap();
+            continue;
+        }
+        let expected = image::open(&golden).expect("golden image (bless with FOOTLIGHT_BLESS=1)").to_rgb8();
+        let mean = actual.as_raw().iter().zip(expected.as_raw()).map(|(a, b)| a.abs_diff(*b) as f64).sum::<f64>()
+            / actual.as_raw().len() as f64;
+        if mean > 0.5 || max_diff(&actual, &expected) > 16 {
+            fail_with_diff(name, &actual, &expected, &format!("mean |Δ| {mean:.3}"));
+        }
+    }
+}
+
+fn artdmx(sequence: u8, level: u8) -> Vec<u8> {
+    let mut p = b"Art-Net\0".to_vec();
+    p.extend_from_slice(&0x5000u16.to_le_bytes());
+    p.extend_from_slice(&14u16.to_be_bytes());
+    p.extend_from_slice(&[sequence, 0, 0, 0]); // sequence, physical, universe 0 (patch universe 1)
+    p.extend_from_slice(&512u16.to_be_bytes());
+    let mut slots = [0u8; 512];
+    slots[0] = level; // profile dimmer
+    slots[10] = 128; // head pan centre
+    slots[12] = 128; // head tilt centre
+    slots[14] = 255 - level; // head dimmer
+    p.extend_from_slice(&slots);
+    p
+}
+
+#[test]
+fn packet_flood_loses_no_state_and_the_clock_keeps_running() {
+    let daemon = Daemon::start(Source::ArtNet);
+    let target = daemon.artnet.expect("Art-Net bound on loopback");
+    assert!(target.ip().is_loopback());
+    let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    sock.send_to(&artdmx(1, 10), target).unwrap();
+    daemon.wait_ready();
+    let before = daemon.status();
+    // 10× a desk's 44 Hz for 2 s: 880 packets, bounded, loopback only.
+    let start = Instant::now();
+    let mut sent = 1u64;
+    for i in 0..880u32 {
+        let level = (i % 251) as u8;
+        sock.send_to(&artdmx((i % 255 + 1) as u8, level), target).unwrap();
+        sent += 1;
+        let due = Duration::from_micros(2_272 * (u64::from(i) + 1));
+        if let Some(wait) = due.checked_sub(start.elapsed()) {
+            std::thread::sleep(wait);
+        }
+    }
+    // The final level, with sequence 0 ("off"): always applied, whatever came before.
+    let last = 200u8;
+    sock.send_to(&artdmx(0, last), target).unwrap();
+    sent += 1;
+    std::thread::sleep(Duration::from_millis(300));
+    let after = daemon.status();
+    assert_eq!(after["packets"].as_u64().unwrap(), sent, "every packet received: {after}");
+    assert_eq!(after["lights"][0]["dmx"][0], last, "the last level is shown");
+    let frames = after["frame"].as_u64().unwrap() - before["frame"].as_u64().unwrap();
+    let seconds = start.elapsed().as_secs_f64() + 0.3;
+    assert!(frames as f64 > 0.5 * 60.0 * seconds, "the frame clock stalled: {frames} frames in {seconds:.1} s");
+}
+
+#[test]
+fn preview_page_in_headless_chromium_shows_the_stage_and_follows_a_dimmer() {
+    let chromium = ["chromium", "chromium-browser"]
+        .into_iter()
+        .find(|c| std::process::Command::new(c).arg("--version").output().map(|o| o.status.success()).unwrap_or(false));
+    let Some(chromium) = chromium else {
+        assert!(std::env::var_os("FOOTLIGHT_REQUIRE_BROWSER").is_none(), "chromium required but not installed");
+        eprintln!("skipping: chromium not installed");
+        return;
+    };
+    let daemon = Daemon::start(Source::ArtNet);
+    let target = daemon.artnet.unwrap();
+    let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let shot = |name: &str| -> image::RgbImage {
+        let dir = std::env::temp_dir().join(format!("footlight-chromium-{}-{name}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("shot.png");
+        let o = std::process::Command::new(chromium)
+            .args(["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run"])
+            .args(["--disable-background-networking", "--disable-component-update", "--disable-sync"])
+            .arg(format!("--user-data-dir={}", dir.join("profile").display()))
+            .arg(format!("--screenshot={}", file.display()))
+            .args(["--window-size=900,400", "--virtual-time-budget=3000"])
+            .arg(format!("http://{}/", daemon.http))
+            .output()
+            .unwrap();
+        assert!(file.exists(), "no screenshot: {}", String::from_utf8_lossy(&o.stderr));
+        image::open(&file).unwrap().to_rgb8()
+    };
+    sock.send_to(&artdmx(0, 255), target).unwrap();
+    daemon.wait_ready();
+    let bright = shot("bright");
+    sock.send_to(&artdmx(0, 0), target).unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    daemon.wait_ready();
+    let dark = shot("dark");
+    let sum = |img: &image::RgbImage| img.as_raw().iter().map(|&c| c as u64).sum::<u64>();
+    assert!(bright.pixels().any(|p| p.0[0] > 60), "the stage picture shows in the page");
+    assert_ne!(sum(&bright), sum(&dark), "the page follows the dimmer");
+}
