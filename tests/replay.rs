@@ -58,7 +58,7 @@ impl Daemon {
                 };
                 let (handle, artnet) = match source {
                     Source::Replay(name) => {
-                        let rec = footlight_dmx::Recording::open(&recording(name)).unwrap();
+                        let rec = footlight_dmx::Recording::open(recording(name)).unwrap();
                         let options = footlight_dmx::ReplayOptions {
                             speed: f64::INFINITY,
                             start: Duration::ZERO,
@@ -234,7 +234,7 @@ fn frames_at_marked_cues_match_golden_images() {
         ("pan-tilt-sweep.pcapng", 3.0, "sweep-centre"),
     ];
     for (file, at, name) in cues {
-        let rec = footlight_dmx::Recording::open(&recording(file)).unwrap();
+        let rec = footlight_dmx::Recording::open(recording(file)).unwrap();
         let frames =
             footlight_dmx::state_at(&rec, Duration::from_secs_f64(at), &footlight_dmx::InputPatch::default()).unwrap();
         let universes: Universes = frames.iter().map(|f| (f.universe, f.slots)).collect();

@@ -69,8 +69,7 @@ pub fn run(
     sizes: &[(u32, u32)],
     counts: &[usize],
     bench_size: (u32, u32),
-    light: &Light,
-    k_full: Vec3,
+    (light, k_full): (&Light, Vec3),
     refine_passes: u32,
 ) -> LiveReport {
     let display = Display::default();

@@ -665,7 +665,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         *m = crate::scene::Material::lambert(&m.name, m.diffuse + m.k_r + m.k_t);
     }
     let skip_lights = many_lights(16);
-    let skips = sweeps::skips(scene, &plain, &gbuffer, &skip_lights, k_full, &display, cfg.limits, n);
+    let skips = sweeps::skips(scene, &plain, &gbuffer, &skip_lights, aa, cfg.limits, n);
     progress.set_message("accuracy over ten renders");
     progress.inc(1);
     let accuracy_photons = if cfg.quick {
@@ -684,7 +684,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     } else {
         (vec![(800, 500), (1920, 1080)], vec![1, 8, 32, 128])
     };
-    let live = live::run(&scene_arc, camera, &sizes, &counts, (w, h), light, k_full, if cfg.quick { 4 } else { 32 });
+    let live = live::run(&scene_arc, camera, &sizes, &counts, (w, h), (light, k_full), if cfg.quick { 4 } else { 32 });
     progress.finish_and_clear();
 
     let report = Report {

@@ -113,19 +113,18 @@ pub fn depth_curve(
 
 /// Time saved by skipping work a scene does not need, as same-run ratios.
 pub fn skips(
-    scene_path_scene: &Scene,
+    scene: &Scene,
     plain: &Scene,
     gbuffer: &GBuffer,
     lights: &[Light],
-    k_full: Vec3,
-    display: &Display,
+    aa: AaParams,
     limits: RecursionLimits,
     repeats: usize,
 ) -> Vec<Ratio> {
-    let scene = scene_path_scene;
     let (w, h) = (gbuffer.width, gbuffer.height);
     let view = View::from_gbuffer(scene, gbuffer.clone(), Sampling::Adaptive, limits);
-    let aa = AaParams { display_scale: k_full * display.scale(), threshold: 20.0 };
+    // A display-white scale: k such that k·exposure = the AA scale.
+    let k_full = aa.display_scale / Display::default().scale();
     let buffers: Vec<LightBuffer> = lights.iter().map(|l| view.render_light(scene, l, Some(aa)).0).collect();
     let refs: Vec<&LightBuffer> = buffers.iter().collect();
     let mut frame = vec![Vec3::ZERO; (w * h) as usize];
