@@ -25,6 +25,8 @@ pub mod live;
 pub mod render;
 pub mod scene;
 pub mod serve;
+#[cfg(feature = "window")]
+pub mod window;
 
 /// Lights for the tracer and their emission patterns (crate `footlight-fixture`).
 pub use footlight_fixture as fixture;

@@ -120,6 +120,9 @@ struct RunArgs {
     /// Compositor: auto (GPU if a hardware adapter exists), cpu, or gpu.
     #[arg(long, value_enum, default_value_t = footlight::gpu::CompositorChoice::Auto)]
     compositor: footlight::gpu::CompositorChoice,
+    /// Also show the live picture in a window (build with `--features window`).
+    #[arg(long)]
+    window: bool,
 }
 
 /// Scene, patch and image options shared by `render` and `bench`.
@@ -248,8 +251,7 @@ fn choose_camera(scene: &Scene, patch: &Patch) -> Camera {
 }
 
 fn run(args: RunArgs) -> Result<()> {
-    use footlight::live::{LiveConfig, TracerSettings, Universes};
-    use std::sync::Arc;
+    use footlight::live::{LiveConfig, TracerSettings};
     if args.width == 0 || args.height == 0 || args.width > 16384 || args.height > 16384 {
         bail!("--width and --height must be between 1 and 16384 (got {}×{})", args.width, args.height);
     }
@@ -267,6 +269,40 @@ fn run(args: RunArgs) -> Result<()> {
         tracer: TracerSettings { display_scale: display.scale(), photons, ..TracerSettings::default() },
         compositor: args.compositor,
     };
+    if args.window && !cfg!(feature = "window") {
+        bail!(
+            "this footlight was built without the window; rebuild with `cargo run --release --features window -- run --window`"
+        );
+    }
+    let (tap_tx, tap_rx) = std::sync::mpsc::channel();
+    let tap = args.window.then_some(tap_tx);
+    let (close_tx, close_rx) = tokio::sync::oneshot::channel::<()>();
+    let daemon = std::thread::spawn(move || run_daemon(args, scene, patch, camera, config, tap, close_rx));
+    if let Ok(frames) = tap_rx.recv() {
+        #[cfg(feature = "window")]
+        {
+            let shown = footlight::window::show(frames);
+            let _ = close_tx.send(());
+            shown?;
+        }
+        #[cfg(not(feature = "window"))]
+        drop((frames, close_tx));
+    }
+    daemon.join().map_err(|_| anyhow::anyhow!("the daemon thread panicked"))?
+}
+
+/// The daemon on its own tokio runtime; returns when a signal or `close` (the window) stops it.
+fn run_daemon(
+    args: RunArgs,
+    scene: footlight::Scene,
+    patch: footlight::Patch,
+    camera: Camera,
+    config: footlight::live::LiveConfig,
+    tap: Option<std::sync::mpsc::Sender<tokio::sync::watch::Receiver<std::sync::Arc<footlight::live::Frame>>>>,
+    close: tokio::sync::oneshot::Receiver<()>,
+) -> Result<()> {
+    use footlight::live::Universes;
+    use std::sync::Arc;
     let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
     runtime.block_on(async move {
         let listener = footlight::live::bind_http(config.http).await?;
@@ -305,8 +341,13 @@ fn run(args: RunArgs) -> Result<()> {
             }
         };
         let (status, input_task) = (handle.status, handle.task);
-        footlight::live::run(Arc::new(scene), camera, decoder, inputs, listener, config, status, shutdown_signal())
-            .await?;
+        let shutdown = async move {
+            tokio::select! {
+                _ = shutdown_signal() => {}
+                _ = close => {}
+            }
+        };
+        footlight::live::run(Arc::new(scene), camera, decoder, inputs, listener, config, status, tap, shutdown).await?;
         let _ = stop_tx.send(true);
         match input_task.await {
             Ok(result) => result?,

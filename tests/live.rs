@@ -204,7 +204,7 @@ fn preview_serves_page_status_and_frames_on_loopback_and_refuses_a_taken_port() 
                 compositor: footlight::gpu::CompositorChoice::Cpu,
             };
             let status: footlight::serve::StatusFn = Arc::new(|| serde_json::json!({"packets": 0, "malformed": 0}));
-            footlight::live::run(scene, cam, Arc::new(TestDecoder), inputs, listener, config, status, async {
+            footlight::live::run(scene, cam, Arc::new(TestDecoder), inputs, listener, config, status, None, async {
                 let _ = stop_rx.await;
             })
             .await

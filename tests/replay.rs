@@ -97,7 +97,7 @@ impl Daemon {
                     compositor: footlight::gpu::CompositorChoice::Cpu,
                 };
                 let decoder = Arc::new(PatchDecoder::new(patch));
-                footlight::live::run(scene, camera, decoder, inputs, listener, config, handle.status, async {
+                footlight::live::run(scene, camera, decoder, inputs, listener, config, handle.status, None, async {
                     let _ = stop_rx.await;
                 })
                 .await

@@ -78,7 +78,8 @@ pub async fn bind_http(addr: SocketAddr) -> Result<tokio::net::TcpListener, Live
 /// Runs the daemon until `shutdown` completes: builds the view, starts the
 /// tracer, the frame clock and the preview server, and stops them in order.
 /// `inputs` carries the latest merged DMX universes; `status` adds input
-/// counters to `/api/status`; `frames_out` receives every published frame.
+/// counters to `/api/status`; `frames_tap`, if given, receives the channel
+/// of published frames (for a window).
 #[allow(clippy::too_many_arguments)]
 pub async fn run(
     scene: Arc<Scene>,
@@ -88,6 +89,7 @@ pub async fn run(
     listener: tokio::net::TcpListener,
     config: LiveConfig,
     status: StatusFn,
+    frames_tap: Option<std::sync::mpsc::Sender<watch::Receiver<Arc<Frame>>>>,
     shutdown: impl Future<Output = ()>,
 ) -> Result<(), LiveError> {
     let t = std::time::Instant::now();
@@ -111,6 +113,9 @@ pub async fn run(
     let compositor_name = clock.gpu_adapter().map(|a| format!("GPU: {a}")).unwrap_or_else(|| "CPU".into());
     let first = Arc::new(clock.tick(&inputs.borrow().clone()));
     let (frames_tx, frames_rx) = watch::channel(first);
+    if let Some(tap) = frames_tap {
+        let _ = tap.send(frames_rx.clone());
+    }
 
     let (stop_tx, stop_rx) = watch::channel(false);
     let fps = Arc::new(std::sync::Mutex::new(0.0f64));
