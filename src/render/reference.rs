@@ -11,7 +11,7 @@ use super::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT, SAMPLES_PER_PIXEL, bin_samp
 use super::view::SampleSet;
 use super::whitted::{RecursionLimits, ShadingVertex, direct, reflect, refract};
 use crate::fixture::Light;
-use crate::scene::{Hit, Scene, SurfacePoint, bvh::offset_origin};
+use crate::scene::{Facing, Hit, Scene, SurfacePoint, bvh::offset_origin};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -70,9 +70,7 @@ fn radiance(
     limits: RecursionLimits,
 ) -> Vec3 {
     let m = &scene.materials[s.material as usize];
-    let front = s.geometric_normal.dot(dir) < 0.0;
-    let (ng, ns) =
-        if front { (s.geometric_normal, s.shading_normal) } else { (-s.geometric_normal, -s.shading_normal) };
+    let Facing { front, geometric: ng, shading: ns } = s.facing(dir);
     let mut total = Vec3::ZERO;
     if m.diffuse.max_element() > 0.0 || m.specular.max_element() > 0.0 {
         let v = ShadingVertex {

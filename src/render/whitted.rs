@@ -13,7 +13,7 @@
 //! independent single-pass eq. 1 renderer ([`super::reference`]).
 
 use crate::fixture::Light;
-use crate::scene::{Scene, SurfacePoint, bvh::offset_origin};
+use crate::scene::{Facing, Scene, SurfacePoint, bvh::offset_origin};
 use glam::Vec3;
 
 /// A surface point seen by the camera, directly or through mirrors/glass.
@@ -78,12 +78,7 @@ fn expand_at(
 ) {
     let m = &scene.materials[surface.material as usize];
     // Orient normals toward the arriving ray (two-sided surfaces).
-    let front = surface.geometric_normal.dot(dir) < 0.0;
-    let (ng, ns) = if front {
-        (surface.geometric_normal, surface.shading_normal)
-    } else {
-        (-surface.geometric_normal, -surface.shading_normal)
-    };
+    let Facing { front, geometric: ng, shading: ns } = surface.facing(dir);
     if m.diffuse.max_element() > 0.0 || m.specular.max_element() > 0.0 {
         out.push(ShadingVertex {
             position: surface.position,

@@ -32,6 +32,27 @@ pub struct SurfacePoint {
     pub triangle: u32,
 }
 
+/// A surface point's normals turned toward the side a ray arrives from
+/// (every surface is two-sided), and which side that was.
+#[derive(Clone, Copy, Debug)]
+pub struct Facing {
+    /// True when the ray hit the side the winding calls the front.
+    pub front: bool,
+    /// Geometric normal on the arriving side.
+    pub geometric: Vec3,
+    /// Shading normal on the arriving side.
+    pub shading: Vec3,
+}
+
+impl SurfacePoint {
+    /// Normals facing a ray arriving along `dir`.
+    pub fn facing(&self, dir: Vec3) -> Facing {
+        let front = self.geometric_normal.dot(dir) < 0.0;
+        let sign = if front { 1.0 } else { -1.0 };
+        Facing { front, geometric: self.geometric_normal * sign, shading: self.shading_normal * sign }
+    }
+}
+
 /// Counts of what the importer had to drop, reported to the user.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ImportReport {

@@ -21,6 +21,13 @@ use std::num::NonZero;
 /// Cone filter normalisation for k_cone = 1: 1 − 2/(3 k_cone).
 const CONE_NORM: f32 = 1.0 / 3.0;
 
+/// A k-d tree over `positions`, or none when there are none (kiddo needs
+/// at least one point).
+fn kd_tree(positions: impl Iterator<Item = Vec3>) -> Option<ImmutableKdTree<f32, 3>> {
+    let points: Vec<[f32; 3]> = positions.map(|p| p.to_array()).collect();
+    (!points.is_empty()).then(|| ImmutableKdTree::new_from_slice(&points))
+}
+
 /// One stored photon.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Photon {
@@ -55,12 +62,7 @@ pub struct Estimate {
 impl PhotonMap {
     /// Builds the map's k-d tree (none for an empty map).
     pub fn new(photons: Vec<Photon>) -> Self {
-        let tree = if photons.is_empty() {
-            None
-        } else {
-            let points: Vec<[f32; 3]> = photons.iter().map(|p| p.position.to_array()).collect();
-            Some(ImmutableKdTree::new_from_slice(&points))
-        };
+        let tree = kd_tree(photons.iter().map(|p| p.position));
         Self { photons, tree }
     }
 
@@ -166,12 +168,7 @@ impl IrradianceCache {
                 })
             })
             .collect();
-        let tree = if points.is_empty() {
-            None
-        } else {
-            let pts: Vec<[f32; 3]> = points.iter().map(|p| p.position.to_array()).collect();
-            Some(ImmutableKdTree::new_from_slice(&pts))
-        };
+        let tree = kd_tree(points.iter().map(|p| p.position));
         Self { points, tree }
     }
 

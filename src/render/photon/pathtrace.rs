@@ -12,7 +12,7 @@
 
 use crate::fixture::Light;
 use crate::render::whitted::{ShadingVertex, direct, reflect};
-use crate::scene::{Scene, bvh::offset_origin};
+use crate::scene::{Facing, Scene, bvh::offset_origin};
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
@@ -40,9 +40,7 @@ fn radiance_along(scene: &Scene, light: &Light, origin: Vec3, dir: Vec3, rng: &m
     let Some(hit) = scene.accel.intersect(origin, dir, f32::INFINITY) else { return Vec3::ZERO };
     let s = scene.surface(&hit);
     let m = &scene.materials[s.material as usize];
-    let front = s.geometric_normal.dot(dir) < 0.0;
-    let (ng, ns) =
-        if front { (s.geometric_normal, s.shading_normal) } else { (-s.geometric_normal, -s.shading_normal) };
+    let Facing { geometric: ng, shading: ns, .. } = s.facing(dir);
     let v = ShadingVertex {
         position: s.position,
         normal: ns,

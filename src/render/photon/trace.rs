@@ -18,7 +18,7 @@ use super::PhotonSettings;
 use super::map::{IrradianceCache, Photon, PhotonMap};
 use crate::fixture::{BeamSampler, Light};
 use crate::render::whitted::{reflect, refract};
-use crate::scene::{Scene, bvh::offset_origin};
+use crate::scene::{Facing, Scene, bvh::offset_origin};
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
@@ -176,12 +176,7 @@ pub(crate) fn trace_chunk(
             let Some(hit) = scene.accel.intersect(origin, dir, f32::INFINITY) else { break };
             let sp = scene.surface(&hit);
             let m = &scene.materials[sp.material as usize];
-            let front = sp.geometric_normal.dot(dir) < 0.0;
-            let (ng, ns) = if front {
-                (sp.geometric_normal, sp.shading_normal)
-            } else {
-                (-sp.geometric_normal, -sp.shading_normal)
-            };
+            let Facing { front, geometric: ng, shading: ns } = sp.facing(dir);
             if bounce > 0 && m.diffuse.max_element() > 0.0 {
                 let photon = Photon { position: sp.position, power, dir, normal: ns };
                 if specular_only { caustic.push(photon) } else { global.push(photon) }
