@@ -31,6 +31,14 @@ enum Command {
     Run(RunArgs),
     /// Record the DMX that arrives (Art-Net, sACN, USB Pro) to a pcapng file until Ctrl-C.
     Record(RecordArgs),
+    /// Play a recording (ours, or any Wireshark/tcpdump capture of Art-Net or sACN) through the
+    /// daemon: `footlight run --replay FILE`.
+    Replay {
+        /// The recording (pcapng or pcap).
+        file: PathBuf,
+        #[command(flatten)]
+        run: Box<RunArgs>,
+    },
     /// Validate a patch file: types, modes, addresses, values; every problem with file:line.
     Check {
         /// The patch file.
@@ -200,6 +208,10 @@ fn main() -> Result<()> {
         Command::Render(args) => render(args),
         Command::Run(args) => run(args),
         Command::Record(args) => record(args),
+        Command::Replay { file, mut run } => {
+            run.replay = Some(file);
+            self::run(*run)
+        }
         Command::Check { patch } => check(&patch),
         Command::Bench(args) => {
             let (scene, patch) = load_inputs(&args.input)?;

@@ -267,6 +267,51 @@ pub fn run_matrix(photons: usize) -> Vec<StressCase> {
                 some_light,
             ));
         }
+        // Real fixture types at absurd settings: zoom, iris, focus, pan and
+        // tilt far outside their ranges, through the patch's state → light → k.
+        let root = env!("CARGO_MANIFEST_DIR");
+        let text = format!(
+            "fixtures = \"{root}/patch/fixtures\"\ngels = \"{root}/patch/gels.toml\"\n\
+             [[fixture]]\nid = 1\ntype = \"generic-moving-spot\"\nmode = \"standard\"\nuniverse = 1\naddress = 1\nposition = [0.0, 3.0, 0.0]\n\
+             [[fixture]]\nid = 2\ntype = \"strand-castor\"\nmode = \"1ch\"\nuniverse = 1\naddress = 40\nposition = [1.0, 3.0, 1.0]\naim = [0.0, 0.0, 0.0]\n\
+             [[fixture]]\nid = 3\ntype = \"niethammer-hpz-115-d\"\nmode = \"1ch\"\nuniverse = 1\naddress = 41\nposition = [-1.0, 3.0, 1.0]\naim = [0.0, 0.0, 0.0]\n"
+        );
+        match crate::Patch::parse(std::path::Path::new("stress-patch.toml"), &text) {
+            Err(e) => out.push(StressCase {
+                name: "extreme zoom, iris, focus, pan and tilt".into(),
+                ok: false,
+                max_value: f32::NAN,
+                bound: None,
+                detail: e.to_string(),
+            }),
+            Ok(patch) => {
+                let mut lights = Vec::new();
+                for f in &patch.fixtures {
+                    for (zoom, iris, focus, pan) in
+                        [(0.0, 0.0, 0.0, -1e4), (1e4, 1.0, 1.0, 1e4), (f32::NAN, f32::NAN, f32::NAN, f32::NAN)]
+                    {
+                        let state = footlight_fixture::FixtureState {
+                            v: 1.0,
+                            zoom,
+                            iris,
+                            focus,
+                            pan,
+                            tilt: pan,
+                            ..footlight_fixture::FixtureState::default()
+                        };
+                        lights.push((f.light_of(&state), f.k_of(&state)));
+                    }
+                }
+                let finite_k =
+                    lights.iter().all(|(l, k)| k.is_finite() && l.position.is_finite() && l.rotation.is_finite());
+                let r = if finite_k {
+                    render(&scene, down(1.0), &lights, photons.min(2_000))
+                } else {
+                    Err("non-finite k or light from a fixture state".into())
+                };
+                out.push(case("extreme zoom, iris, focus, pan and tilt (fixture types)", r, None, some_light));
+            }
+        }
         let many: Vec<Lit> = (0..128)
             .map(|i| {
                 let a = i as f32 * 0.37;

@@ -334,21 +334,21 @@ fn build(s: &Shared, index: usize, req: Request) {
     let final_buffer;
     if let Some(photons) = s.settings.photons {
         let settings = PhotonSettings { seed: light_seed(photons.seed, index), ..photons };
-        let (sum, sppm) = s.pool.install(|| {
+        let (sum, maps) = s.pool.install(|| {
             let maps = trace_photons(scene, &req.light, &settings);
             let indirect = view.render_indirect(scene, &maps);
             let sum: Vec<Vec3> = direct.iter().zip(&indirect).map(|(d, a)| *d + *a).collect();
-            let sppm =
-                (s.settings.refine_passes > 0 && !maps.global.is_empty()).then(|| Progressive::new(scene, view, &maps));
-            (sum, sppm)
+            (sum, maps)
         });
+        let refine = s.settings.refine_passes > 0 && !maps.global.is_empty();
         let buffer = LightBuffer::from_dense(w, h, &sum);
         final_buffer = buffer.clone();
-        let stage = if sppm.is_some() { Stage::Photons } else { Stage::Ready };
-        if !publish(s, index, req.id, buffer, stage) {
+        if !publish(s, index, req.id, buffer, if refine { Stage::Photons } else { Stage::Ready }) {
             return;
         }
-        if let Some(sppm) = sppm {
+        // Progressive state is set up after the first estimate is on screen.
+        if refine && current() {
+            let sppm = s.pool.install(|| Progressive::new(scene, view, &maps));
             *slot.refine.lock().expect("refine lock") =
                 Some(Refine { request_id: req.id, light: req.light.clone(), direct, sppm });
         }

@@ -111,6 +111,15 @@ impl PhotonMap {
         Estimate { irradiance: sum / (CONE_NORM * std::f32::consts::PI * r2), radius: r, count }
     }
 
+    /// Distance to the nearest photon (infinite for an empty map): a cheap
+    /// test before a k-nearest gather.
+    pub fn nearest_distance(&self, x: Vec3) -> f32 {
+        match &self.tree {
+            None => f32::INFINITY,
+            Some(tree) => tree.nearest_one::<SquaredEuclidean>(&x.to_array()).distance.sqrt(),
+        }
+    }
+
     /// Photons within `radius` of `x` arriving on the front of `n`:
     /// Σ power (for progressive photon mapping).
     pub fn gather(&self, x: Vec3, n: Vec3, radius2: f32) -> (Vec3, usize) {
@@ -153,21 +162,40 @@ impl IrradianceCache {
     /// Estimates irradiance at every `stride`-th photon of `map` from its
     /// `k` nearest photons, about the surface normal where it landed.
     pub fn build(map: &PhotonMap, k: usize, stride: usize, max_radius: f32) -> Self {
-        let points: Vec<CachePoint> = map
-            .photons
-            .par_iter()
-            .step_by(stride.max(1))
-            .filter_map(|p| {
-                let n = p.normal;
-                let e = map.estimate(p.position, n, k, max_radius);
-                (e.count > 0 && e.irradiance.is_finite()).then_some(CachePoint {
-                    position: p.position,
-                    normal: n,
-                    irradiance: e.irradiance,
-                    radius: e.radius,
-                })
-            })
-            .collect();
+        let empty = PhotonMap::new(Vec::new());
+        Self::build_with_caustics(map, &empty, (k, stride, max_radius), (1, 1, max_radius))
+    }
+
+    /// One cache for both maps: cache points at every `stride`-th global and
+    /// caustic photon, each holding global + caustic irradiance there, so a
+    /// shading point needs one lookup for all indirect light. Each argument
+    /// triple is (k, stride, gather radius limit) of its map.
+    pub fn build_with_caustics(
+        global: &PhotonMap,
+        caustic: &PhotonMap,
+        (k, stride, max_radius): (usize, usize, f32),
+        (kc, stride_c, radius_c): (usize, usize, f32),
+    ) -> Self {
+        let at = |p: &Photon| {
+            let g = global.estimate(p.position, p.normal, k, max_radius);
+            // Most points are nowhere near a caustic: a nearest-neighbour test first.
+            let c = if !caustic.is_empty() && caustic.nearest_distance(p.position) < radius_c {
+                caustic.estimate(p.position, p.normal, kc, radius_c)
+            } else {
+                Estimate { irradiance: Vec3::ZERO, radius: 0.0, count: 0 }
+            };
+            // The acceptance radius is the finer of the two gathers that found photons.
+            let radius = match (g.count > 0, c.count > 0) {
+                (true, true) => g.radius.min(c.radius),
+                (true, false) => g.radius,
+                (false, true) => c.radius,
+                (false, false) => return None,
+            };
+            let irradiance = g.irradiance + c.irradiance;
+            irradiance.is_finite().then_some(CachePoint { position: p.position, normal: p.normal, irradiance, radius })
+        };
+        let mut points: Vec<CachePoint> = global.photons.par_iter().step_by(stride.max(1)).filter_map(at).collect();
+        points.extend(caustic.photons.par_iter().step_by(stride_c.max(1)).filter_map(at).collect::<Vec<_>>());
         let tree = kd_tree(points.iter().map(|p| p.position));
         Self { points, tree }
     }
@@ -180,6 +208,14 @@ impl IrradianceCache {
     /// True when nothing was cached (no indirect light).
     pub fn is_empty(&self) -> bool {
         self.points.is_empty()
+    }
+
+    /// Gather radius of the cache point nearest to `x`, if any: the local
+    /// photon spacing, used to start progressive photon mapping.
+    pub fn radius_near(&self, x: Vec3) -> Option<f32> {
+        let tree = self.tree.as_ref()?;
+        let nb = tree.nearest_one::<SquaredEuclidean>(&x.to_array());
+        Some(self.points[nb.item as usize].radius)
     }
 
     /// Irradiance at `x` with normal `n`: cone-weighted mean of the nearest

@@ -31,7 +31,8 @@ pub struct Progressive {
 
 impl Progressive {
     /// Starts from the light's first photon maps: each diffuse vertex's
-    /// initial radius is its kNN gather radius in those maps.
+    /// initial radius is the gather radius of the nearest precomputed
+    /// irradiance point (the local photon spacing of the first estimate).
     pub fn new(scene: &Scene, view: &View, maps: &PhotonMaps) -> Self {
         let default_r = maps.max_radius * 0.2;
         let radius2 = view
@@ -42,8 +43,8 @@ impl Progressive {
                 if scene.materials[v.material as usize].diffuse.max_element() <= 0.0 {
                     return 0.0;
                 }
-                let e = maps.global.estimate(v.position, v.normal, maps.settings.estimate.min(50), maps.max_radius);
-                let r = if e.count > 0 { e.radius } else { default_r };
+                // A third of the 150-photon radius: ~20 photons of this density.
+                let r = maps.irradiance.radius_near(v.position).map(|r| r / 3.0).unwrap_or(default_r);
                 r * r
             })
             .collect::<Vec<f32>>();

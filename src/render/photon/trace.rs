@@ -24,6 +24,10 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
 
+/// Caustic gathers are limited to this share of the global gather radius
+/// (caustics are sharp).
+const CAUSTIC_RADIUS_SHARE: f32 = 0.25;
+
 /// Photons emitted per RNG chunk.
 const CHUNK: usize = 2048;
 /// Chunks traced per round before the stored count is checked.
@@ -61,13 +65,10 @@ impl PhotonMaps {
         }
     }
 
-    /// Indirect irradiance at a diffuse point (global via the cache, plus caustics).
+    /// Indirect irradiance (global + caustic) at a diffuse point, from the
+    /// precomputed irradiance cache.
     pub fn irradiance(&self, x: Vec3, n: Vec3) -> Vec3 {
-        let mut e = self.irradiance.lookup(x, n);
-        if !self.caustic.is_empty() {
-            e += self.caustic.estimate(x, n, self.settings.caustic_estimate, self.max_radius * 0.25).irradiance;
-        }
-        e
+        self.irradiance.lookup(x, n)
     }
 }
 
@@ -139,10 +140,16 @@ pub fn trace_photons(scene: &Scene, light: &Light, settings: &PhotonSettings) ->
         p.power *= norm;
     }
     let global = PhotonMap::new(global);
-    let irradiance = IrradianceCache::build(&global, settings.estimate, settings.irradiance_stride, max_radius);
+    let caustic = PhotonMap::new(caustic);
+    let irradiance = IrradianceCache::build_with_caustics(
+        &global,
+        &caustic,
+        (settings.estimate, settings.irradiance_stride, max_radius),
+        (settings.caustic_estimate, 2, max_radius * CAUSTIC_RADIUS_SHARE),
+    );
     PhotonMaps {
         global,
-        caustic: PhotonMap::new(caustic),
+        caustic,
         irradiance,
         emitted: emitted as u64,
         flux: sampler.flux(),
