@@ -166,6 +166,12 @@ impl Report {
     fn markdown(&self) -> String {
         let mut s = String::from("# footlight bench report\n\n");
         s += &format!(
+            "Command: `{}` (footlight {}, {} build).\n\n",
+            std::env::args().collect::<Vec<_>>().join(" "),
+            env!("CARGO_PKG_VERSION"),
+            if cfg!(debug_assertions) { "debug" } else { "release" }
+        );
+        s += &format!(
             "Scene: {} triangles ({:.1} % specular), {}×{}, depth 5, {} threads. Timings are medians; every ratio is taken within this run.\n\n",
             self.triangles,
             self.specular_fraction * 100.0,
@@ -684,7 +690,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     } else {
         (vec![(800, 500), (1920, 1080)], vec![1, 8, 32, 128])
     };
-    let live = live::run(&scene_arc, camera, &sizes, &counts, (w, h), (light, k_full), if cfg.quick { 4 } else { 32 });
+    let live = live::run(&scene_arc, camera, &sizes, &counts, (w, h), (light, k_full), if cfg.quick { 4 } else { 16 });
     progress.finish_and_clear();
 
     let report = Report {

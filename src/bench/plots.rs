@@ -52,6 +52,7 @@ pub fn write(report: &Report, out: &Path) -> std::io::Result<()> {
             .configure_mesh()
             .x_desc("wall time (ms)")
             .y_desc("MSE (R+G+B, display)")
+            .y_label_formatter(&|v| format!("{v:.1e}"))
             .draw()
             .map_err(|e| err(e.to_string()))?;
         chart

@@ -75,7 +75,7 @@ impl Default for TracerSettings {
             aa_threshold: 20.0,
             display_scale: crate::render::Display::default().scale(),
             photons: Some(PhotonSettings::default()),
-            refine_passes: 32,
+            refine_passes: 16,
             max_refining: 4,
             cache_bytes: 512 << 20,
         }
