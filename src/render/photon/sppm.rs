@@ -43,8 +43,11 @@ impl Progressive {
                 if scene.materials[v.material as usize].diffuse.max_element() <= 0.0 {
                     return 0.0;
                 }
-                // A third of the 150-photon radius: ~20 photons of this density.
-                let r = maps.irradiance.radius_near(v.position).map(|r| r / 3.0).unwrap_or(default_r);
+                // The radius holding ~50 photons at this density: √(50/k) of the
+                // k-photon cache radius. Smaller starts are noisier than the
+                // first estimate for many passes; larger ones stay blurred.
+                let share = (50.0 / maps.settings.estimate.max(50) as f32).sqrt();
+                let r = maps.irradiance.radius_near(v.position).map(|r| r * share).unwrap_or(default_r);
                 r * r
             })
             .collect::<Vec<f32>>();
