@@ -9,6 +9,7 @@
 pub mod live;
 #[cfg(feature = "plots")]
 pub mod plots;
+pub mod scale;
 pub mod stress;
 pub mod sweeps;
 
@@ -114,6 +115,8 @@ pub struct Report {
     pub stress: Vec<stress::StressCase>,
     /// Daemon: composite frame times by light count and size, geometry latency.
     pub live: live::LiveReport,
+    /// The 600-fixture, 16-universe rig at 1920×1080 (full runs only).
+    pub scale: Option<scale::ScaleReport>,
 }
 
 /// One point of a run-time-versus-error curve.
@@ -278,6 +281,25 @@ impl Report {
             s += &format!(
                 "| {} | {}×{} | {:.2} | {:.3} | {} |\n",
                 r.lights, r.width, r.height, r.cpu_full_ms, r.cpu_one_fader_ms, gpu
+            );
+        }
+        if let Some(r) = &self.scale {
+            s += &format!(
+                "\n## A {}-fixture rig on {} universes at {}×{}\n\nPer frame: decoding all universes into lights and k_i \
+                 {:.2} ms; full composite + sRGB {:.2} ms; incremental update after one fader {:.3} ms, after all \
+                 dimmers at once {:.2} ms. Buffers: {:.0} MiB sparse ({:.0} MiB as dense RGB f32). Building every \
+                 light's direct buffer once: {:.1} s.\n",
+                r.fixtures,
+                r.universes,
+                r.width,
+                r.height,
+                r.decode_ms,
+                r.composite_full_ms,
+                r.composite_one_fader_ms,
+                r.composite_all_faders_ms,
+                r.buffers_mib,
+                r.dense_mib,
+                r.build_s
             );
         }
         s += "\n## Raw timings (ms)\n\n| stage | ms |\n|---|---:|\n";
@@ -691,6 +713,18 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         (vec![(800, 500), (1920, 1080)], vec![1, 8, 32, 128])
     };
     let live = live::run(&scene_arc, camera, &sizes, &counts, (w, h), (light, k_full), if cfg.quick { 4 } else { 16 });
+    let scale = if cfg.quick {
+        None
+    } else {
+        progress.set_message("600-fixture rig at 1920×1080");
+        match scale::run(&scene_arc, camera, 1920, 1080) {
+            Ok(r) => Some(r),
+            Err(e) => {
+                tracing::error!("large rig: {e}");
+                None
+            }
+        }
+    };
     progress.finish_and_clear();
 
     let report = Report {
@@ -710,6 +744,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         accuracy,
         stress,
         live,
+        scale,
     };
     #[cfg(feature = "plots")]
     plots::write(&report, out)?;

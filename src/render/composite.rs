@@ -96,7 +96,7 @@ pub struct Compositor {
     linear: Vec<Vec3>,
     srgb: Vec<u8>,
     /// Per light: last k, last generation, and the tiles its buffer covered.
-    seen: Vec<(Vec3, u64, Vec<bool>)>,
+    seen: Vec<(Vec3, u64, Vec<u32>)>,
 }
 
 impl Compositor {
@@ -144,7 +144,7 @@ impl Compositor {
         let full = self.seen.len() != lights.len();
         if full {
             dirty.fill(true);
-            self.seen = lights.iter().map(|_| (Vec3::NAN, u64::MAX, vec![false; n_tiles])).collect();
+            self.seen = lights.iter().map(|_| (Vec3::NAN, u64::MAX, Vec::new())).collect();
         }
         for (l, (k, generation, covered)) in lights.iter().zip(self.seen.iter_mut()) {
             // NaN != NaN: the first update always counts as a change.
@@ -152,13 +152,21 @@ impl Compositor {
                 continue;
             }
             changed += 1;
-            let now: Vec<bool> = (0..n_tiles).map(|t| l.buffer.tile(t % tiles_x, t / tiles_x).is_some()).collect();
-            for t in 0..n_tiles {
-                dirty[t] |= covered[t] || now[t];
+            // The tiles the light's old buffer covered need recomposing too;
+            // its tile list is rebuilt only when the buffer was replaced.
+            for &t in covered.iter() {
+                dirty[t as usize] = true;
+            }
+            if *generation != l.generation {
+                *covered = (0..n_tiles as u32)
+                    .filter(|&t| l.buffer.tile(t as usize % tiles_x, t as usize / tiles_x).is_some())
+                    .collect();
+                for &t in covered.iter() {
+                    dirty[t as usize] = true;
+                }
             }
             *k = l.k;
             *generation = l.generation;
-            *covered = now;
         }
         let tiles = dirty.iter().filter(|&&d| d).count();
         if tiles == 0 {
@@ -166,6 +174,13 @@ impl Compositor {
         }
         let buffers: Vec<&LightBuffer> = lights.iter().map(|l| l.buffer).collect();
         let k: Vec<Vec3> = lights.iter().map(|l| l.k).collect();
+        if tiles * 2 > n_tiles {
+            // Most of the frame changed (a grand-master fade): one full pass
+            // is cheaper than tile-by-tile recomposing and encoding.
+            composite_into(&buffers, &k, self.width, self.height, &mut self.linear);
+            self.display.to_srgb8_into(&self.linear, &mut self.srgb);
+            return UpdateStats { tiles, changed_lights: changed };
+        }
         let active = active_lights(&buffers, &k);
         let display = self.display;
         self.linear.par_chunks_mut(w * TILE).zip(self.srgb.par_chunks_mut(w * TILE * 3)).enumerate().for_each(
