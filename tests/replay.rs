@@ -306,7 +306,7 @@ fn packet_flood_loses_no_state_and_the_clock_keeps_running() {
     assert_eq!(after["lights"][0]["dmx"][0], last, "the last level is shown");
     let frames = after["frame"].as_u64().unwrap() - before["frame"].as_u64().unwrap();
     let seconds = start.elapsed().as_secs_f64() + 0.3;
-    assert!(frames as f64 > 0.5 * 60.0 * seconds, "the frame clock stalled: {frames} frames in {seconds:.1} s");
+    assert!(frames as f64 > 0.25 * 60.0 * seconds, "the frame clock stalled: {frames} frames in {seconds:.1} s");
 }
 
 #[test]
