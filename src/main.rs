@@ -90,9 +90,12 @@ struct RecordArgs {
     /// Patch universes to listen to (sACN multicast joins), e.g. 1,2,3.
     #[arg(long, value_delimiter = ',', default_value = "1")]
     universes: Vec<u16>,
-    /// Output file (pcapng; Wireshark opens it).
+    /// Output file (pcapng; Wireshark opens it). An existing file is never replaced without --force.
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing output file.
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(Args)]
@@ -181,9 +184,12 @@ struct RenderArgs {
     /// Photons in each radiance estimate (paper: 150).
     #[arg(long, default_value_t = 150)]
     estimate: usize,
-    /// Output PNG.
+    /// Output PNG. An existing file is never replaced without --force.
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing output file.
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(Args)]
@@ -442,7 +448,16 @@ fn patch_universes(patch: &footlight::Patch) -> u16 {
     patch.fixtures.iter().filter_map(|f| f.dmx.map(|(u, _)| u)).max().unwrap_or(1)
 }
 
+/// Refuses to replace a file the user already has, unless `force`.
+fn check_output(path: &Path, force: bool) -> Result<()> {
+    if path.exists() && !force {
+        bail!("{} already exists; choose another name or add --force to replace it", path.display());
+    }
+    Ok(())
+}
+
 fn record(args: RecordArgs) -> Result<()> {
+    check_output(&args.out, args.force)?;
     let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
     runtime.block_on(async move {
         let config = args.dmx.config(args.universes.clone())?;
@@ -491,6 +506,7 @@ fn render(args: RenderArgs) -> Result<()> {
     if args.depth > 64 {
         bail!("--depth {} is past the supported 64 bounces", args.depth);
     }
+    check_output(&args.out, args.force)?;
     let (scene, patch) = load_inputs(&args.input)?;
     let camera = choose_camera(&scene, &patch);
     let settings = RenderSettings {

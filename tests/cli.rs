@@ -12,6 +12,8 @@ fn footlight() -> Command {
 
 fn temp_dir(name: &str) -> std::path::PathBuf {
     let d = std::env::temp_dir().join(format!("footlight-test-{}-{name}", std::process::id()));
+    // Fresh every run: a leftover from an earlier run with the same pid must not count as the user's file.
+    let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
 }
@@ -25,6 +27,15 @@ fn render_writes_a_png_of_the_requested_size() {
     let img = image::open(&out).unwrap().to_rgb8();
     assert_eq!(img.dimensions(), (120, 75));
     assert!(img.pixels().any(|p| p.0.iter().any(|&c| c > 40)), "the default look lights the stage");
+    // An existing file is never replaced without --force.
+    let before = std::fs::read(&out).unwrap();
+    let o = footlight().args(["render", "--width", "40", "--height", "25", "--out"]).arg(&out).output().unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("already exists"));
+    assert_eq!(std::fs::read(&out).unwrap(), before, "the user's file is untouched");
+    let o = footlight().args(["render", "--width", "40", "--height", "25", "--force", "--out"]).arg(&out).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(image::open(&out).unwrap().to_rgb8().dimensions(), (40, 25));
 }
 
 #[test]

@@ -204,7 +204,7 @@ fn daemon_replay_matches_render_of_the_same_moment() {
         .current_dir(root())
         .args(["render", "--patch", "tests/replays/replay-patch.toml", "--dmx", "tests/replays/pan-tilt-sweep.pcapng"])
         .args(["--at", "60", "--width", &W.to_string(), "--height", &H.to_string(), "--photons", &PHOTONS.to_string()])
-        .arg("--out")
+        .args(["--force", "--out"])
         .arg(&out)
         .output()
         .unwrap();
