@@ -33,7 +33,8 @@ fn render_writes_a_png_of_the_requested_size() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("already exists"));
     assert_eq!(std::fs::read(&out).unwrap(), before, "the user's file is untouched");
-    let o = footlight().args(["render", "--width", "40", "--height", "25", "--force", "--out"]).arg(&out).output().unwrap();
+    let o =
+        footlight().args(["render", "--width", "40", "--height", "25", "--force", "--out"]).arg(&out).output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(image::open(&out).unwrap().to_rgb8().dimensions(), (40, 25));
 }
