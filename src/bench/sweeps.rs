@@ -62,7 +62,6 @@ pub fn aa_threshold_curve(
 ) -> Curve {
     let nine = View::from_gbuffer(scene, gbuffer.clone(), Sampling::Nine, limits);
     let reference = shown(&nine.render_direct(scene, light, None).0, k_full);
-    let base = View::from_gbuffer(scene, gbuffer.clone(), Sampling::Adaptive, limits);
     let mut points = Vec::new();
     for threshold in [5.0f32, 10.0, 15.0, 20.0, 25.0, 40.0, 80.0, 256.0] {
         let aa = AaParams { display_scale: k_full * display.scale(), threshold };
@@ -72,7 +71,6 @@ pub fn aa_threshold_curve(
             || View::from_gbuffer(scene, gbuffer.clone(), Sampling::Adaptive, limits),
             |v| v.render_direct(scene, light, Some(aa)),
         );
-        let _ = &base;
         points.push(CurvePoint {
             setting: threshold as f64,
             ms,
