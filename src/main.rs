@@ -3,14 +3,95 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
+use footlight::live::{Daemon, DaemonConfig, Decode, DmxSource, Show, TracerSettings};
 use footlight::render::display::{Display, check_finite, write_png};
 use footlight::render::photon::PhotonSettings;
 use footlight::render::still::{LightJob, render_still};
-use footlight::render::{RecursionLimits, RenderSettings, Sampling};
+use footlight::render::{BuildSettings, RecursionLimits, RenderSettings, Sampling};
 use footlight::scene::Camera;
 use footlight::{Patch, Scene, bench};
 use glam::Vec3;
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Flag validators: every numeric flag is checked at parse time, with a
+/// message naming the allowed range (clap prefixes the flag's name).
+mod flags {
+    /// A finite number in `lo..=hi`.
+    fn number(v: &str, lo: f64, hi: f64, unit: &str) -> Result<f64, String> {
+        let x: f64 = v.trim().parse().map_err(|_| format!("expected a number from {lo} to {hi}{unit}"))?;
+        if x.is_finite() && (lo..=hi).contains(&x) {
+            Ok(x)
+        } else {
+            Err(format!("must be a number from {lo} to {hi}{unit}"))
+        }
+    }
+
+    /// `--fps`: 1-240 Hz.
+    pub fn fps(v: &str) -> Result<f64, String> {
+        number(v, 1.0, 240.0, " Hz")
+    }
+
+    /// `--speed`: 0.01-1000 × real time.
+    pub fn speed(v: &str) -> Result<f64, String> {
+        number(v, 0.01, 1000.0, " (× real time)")
+    }
+
+    /// `--at`: 0 s to one week.
+    pub fn at(v: &str) -> Result<f64, String> {
+        number(v, 0.0, 7.0 * 86400.0, " seconds")
+    }
+
+    /// `--white-lux`: (0, 10^7] lx.
+    pub fn white_lux(v: &str) -> Result<f32, String> {
+        let x = number(v, 0.0, 1e7, " lx")?;
+        if x > 0.0 { Ok(x as f32) } else { Err("must be above 0 lx (the illuminance shown as display white)".into()) }
+    }
+
+    /// `--aa-threshold`: 0-255 display steps.
+    pub fn aa_threshold(v: &str) -> Result<f32, String> {
+        number(v, 0.0, 255.0, " (0-255 display steps)").map(|x| x as f32)
+    }
+
+    /// `--width`/`--height`: 1-16384 pixels.
+    pub fn pixels(v: &str) -> Result<u32, String> {
+        number(v, 1.0, 16384.0, " pixels")
+            .and_then(|x| if x.fract() == 0.0 { Ok(x as u32) } else { Err("must be a whole number of pixels".into()) })
+    }
+
+    /// Bytes a light's photon map needs per stored photon (photon, k-d tree
+    /// node and irradiance cache share), for the `--photons` message.
+    const BYTES_PER_PHOTON: f64 = 64.0;
+    /// Most photons stored per light.
+    pub const MAX_PHOTONS: usize = 20_000_000;
+
+    /// `--photons`: 0-20,000,000 per light, with the memory it needs.
+    pub fn photons(v: &str) -> Result<usize, String> {
+        let n: f64 = v.trim().parse().map_err(|_| "expected a whole number of photons".to_string())?;
+        if !(n.is_finite() && n >= 0.0 && n.fract() == 0.0) {
+            return Err("expected a whole number of photons (0 = direct light only)".into());
+        }
+        if n > MAX_PHOTONS as f64 {
+            return Err(format!(
+                "{n} photons per light would need about {:.1} GB per light; at most {MAX_PHOTONS} ({:.1} GB)",
+                n * BYTES_PER_PHOTON / 1e9,
+                MAX_PHOTONS as f64 * BYTES_PER_PHOTON / 1e9
+            ));
+        }
+        Ok(n as usize)
+    }
+
+    /// `--estimate`: 2-10000 photons.
+    pub fn estimate(v: &str) -> Result<usize, String> {
+        number(v, 2.0, 10_000.0, " photons").map(|x| x as usize)
+    }
+
+    /// `--depth`: 0-64 bounces.
+    pub fn depth(v: &str) -> Result<u32, String> {
+        number(v, 0.0, 64.0, " bounces").map(|x| x as u32)
+    }
+}
 
 #[derive(Parser)]
 #[command(
@@ -25,7 +106,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Render a still of the scene lit by the patch's default look.
+    /// Render a still of the scene lit by the patch's default look, given levels, or a recording.
     Render(RenderArgs),
     /// Run the live daemon: DMX in, background tracer, composite every frame, preview over HTTP.
     Run(RunArgs),
@@ -54,7 +135,7 @@ struct DmxArgs {
     /// Art-Net bind address, or `off`.
     #[arg(long, default_value = "0.0.0.0:6454")]
     artnet: String,
-    /// sACN (E1.31) bind address, or `off`. Joins the multicast groups of the patched universes.
+    /// sACN (E1.31) bind address, or `off`. Joins the multicast groups of the routed universes.
     #[arg(long, default_value = "0.0.0.0:5568")]
     sacn: String,
     /// Serial port of an Enttec DMX USB Pro (e.g. /dev/ttyUSB0).
@@ -62,24 +143,29 @@ struct DmxArgs {
     usbpro: Option<String>,
 }
 
+/// `--artnet`/`--sacn` value: an address, or `off`.
+fn bind_address(flag: &str, v: &str) -> Result<Option<std::net::SocketAddr>> {
+    if v.eq_ignore_ascii_case("off") {
+        return Ok(None);
+    }
+    v.parse().map(Some).with_context(|| format!("--{flag} {v:?}: expected an address like 0.0.0.0:6454, or off"))
+}
+
 impl DmxArgs {
-    /// The input configuration for patch universes `universes`.
-    fn config(&self, universes: Vec<u16>) -> Result<footlight_dmx::InputConfig> {
+    /// The network input's nodes (the show adds routes and universes).
+    fn source(&self) -> Result<DmxSource> {
         use footlight_dmx::{artnet::ArtNetConfig, sacn::SacnConfig, usbpro::UsbProConfig};
-        let parse = |what: &str, v: &str| -> Result<Option<std::net::SocketAddr>> {
-            if v.eq_ignore_ascii_case("off") {
-                return Ok(None);
-            }
-            v.parse()
-                .map(Some)
-                .with_context(|| format!("--{what} {v:?}: expected an address like 0.0.0.0:6454, or off"))
-        };
-        Ok(footlight_dmx::InputConfig {
-            artnet: parse("artnet", &self.artnet)?.map(|bind| ArtNetConfig { bind, ..ArtNetConfig::default() }),
-            sacn: parse("sacn", &self.sacn)?.map(|bind| SacnConfig { bind, ..SacnConfig::default() }),
+        Ok(DmxSource::Network {
+            artnet: bind_address("artnet", &self.artnet)?.map(|bind| ArtNetConfig { bind, ..ArtNetConfig::default() }),
+            sacn: bind_address("sacn", &self.sacn)?.map(|bind| SacnConfig { bind, ..SacnConfig::default() }),
             usbpro: self.usbpro.as_ref().map(UsbProConfig::new),
-            patch: footlight_dmx::InputPatch { universes, ..footlight_dmx::InputPatch::default() },
         })
+    }
+
+    /// The full input configuration for `show` (record).
+    fn config(&self, show: &Show) -> Result<footlight_dmx::InputConfig> {
+        let DmxSource::Network { artnet, sacn, usbpro } = self.source()? else { unreachable!("network source") };
+        Ok(footlight_dmx::InputConfig { artnet, sacn, usbpro, patch: show.input_patch().clone() })
     }
 }
 
@@ -87,9 +173,10 @@ impl DmxArgs {
 struct RecordArgs {
     #[command(flatten)]
     dmx: DmxArgs,
-    /// Patch universes to listen to (sACN multicast joins), e.g. 1,2,3.
-    #[arg(long, value_delimiter = ',', default_value = "1")]
-    universes: Vec<u16>,
+    /// Patch whose `[[input]]` routes and universes decide the sACN groups joined and the
+    /// Art-Net ports announced.
+    #[arg(long, default_value = footlight::DEFAULT_PATCH)]
+    patch: PathBuf,
     /// Output file (pcapng; Wireshark opens it). An existing file is never replaced without --force.
     #[arg(long)]
     out: PathBuf,
@@ -107,26 +194,26 @@ struct RunArgs {
     /// Play this recording (pcapng/pcap of Art-Net or sACN) instead of listening to the network.
     #[arg(long)]
     replay: Option<PathBuf>,
-    /// Replay speed (1 = real time).
-    #[arg(long, default_value_t = 1.0)]
+    /// Replay speed (1 = real time; 0.01-1000).
+    #[arg(long, default_value_t = 1.0, value_parser = flags::speed)]
     speed: f64,
     /// Picture width in pixels.
-    #[arg(long, default_value_t = 800)]
+    #[arg(long, default_value_t = DaemonConfig::default().width, value_parser = flags::pixels)]
     width: u32,
     /// Picture height in pixels.
-    #[arg(long, default_value_t = 500)]
+    #[arg(long, default_value_t = DaemonConfig::default().height, value_parser = flags::pixels)]
     height: u32,
-    /// Display frame rate (Hz).
-    #[arg(long, default_value_t = 60.0)]
+    /// Display frame rate (Hz, 1-240).
+    #[arg(long, default_value_t = DaemonConfig::default().fps, value_parser = flags::fps)]
     fps: f64,
-    /// Address of the HTTP preview (127.0.0.1 by default: nothing is exposed to the network).
-    #[arg(long, default_value = "127.0.0.1:8080")]
+    /// Address of the HTTP preview (loopback by default: nothing is exposed to the network).
+    #[arg(long, default_value = footlight::live::daemon::DEFAULT_HTTP)]
     http: std::net::SocketAddr,
     /// Photons stored per light (0 = direct light only).
-    #[arg(long, default_value_t = 50_000)]
+    #[arg(long, default_value_t = PhotonSettings::default().stored, value_parser = flags::photons)]
     photons: usize,
     /// Illuminance (lx) on a white Lambert surface shown as display white.
-    #[arg(long, default_value_t = 1000.0)]
+    #[arg(long, default_value_t = footlight::render::display::DEFAULT_WHITE_LUX, value_parser = flags::white_lux)]
     white_lux: f32,
     /// Compositor: auto (GPU if a hardware adapter exists), cpu, or gpu.
     #[arg(long, value_enum, default_value_t = footlight::gpu::CompositorChoice::Auto)]
@@ -152,37 +239,38 @@ struct RenderArgs {
     #[command(flatten)]
     input: SceneArgs,
     /// Image width in pixels.
-    #[arg(long, default_value_t = 800)]
+    #[arg(long, default_value_t = RenderSettings::default().width, value_parser = flags::pixels)]
     width: u32,
     /// Image height in pixels.
-    #[arg(long, default_value_t = 500)]
+    #[arg(long, default_value_t = RenderSettings::default().height, value_parser = flags::pixels)]
     height: u32,
-    /// Maximum Whitted recursion depth (reflection/transmission bounces).
-    #[arg(long, default_value_t = 5)]
+    /// Maximum Whitted recursion depth (reflection/transmission bounces, 0-64).
+    #[arg(long, default_value_t = RecursionLimits::default().max_depth, value_parser = flags::depth)]
     depth: u32,
     /// Sampling: one, geometry, adaptive (the paper's) or nine.
     #[arg(long, value_enum, default_value_t = Sampling::Adaptive)]
     sampling: Sampling,
     /// Anti-aliasing gradient threshold on the 0-255 scale (paper: 15-25).
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = BuildSettings::default().aa_threshold, value_parser = flags::aa_threshold)]
     aa_threshold: f32,
     /// Illuminance (lx) on a white Lambert surface shown as display white.
-    #[arg(long, default_value_t = 1000.0)]
+    #[arg(long, default_value_t = footlight::render::display::DEFAULT_WHITE_LUX, value_parser = flags::white_lux)]
     white_lux: f32,
-    /// DMX levels for the still: `U/ADDR=VALUE,...` (universe and address from 1, value 0-255).
+    /// DMX levels for the still: `U/ADDR=VALUE,...` (patch universe and address from 1, value 0-255).
     #[arg(long, value_delimiter = ',')]
     set: Vec<String>,
-    /// Render the state of this DMX recording (pcapng/pcap) at `--at` seconds.
+    /// Render the state of this DMX recording (pcapng/pcap) at `--at` seconds, through the
+    /// patch's `[[input]]` routes.
     #[arg(long)]
     dmx: Option<PathBuf>,
-    /// Time into the `--dmx` recording, in seconds.
-    #[arg(long, default_value_t = 0.0)]
+    /// Time into the `--dmx` recording in seconds, from its first DMX packet of a patched universe.
+    #[arg(long, default_value_t = 0.0, value_parser = flags::at)]
     at: f64,
     /// Photons stored per light for the indirect term (paper: 50000); 0 = direct light only.
-    #[arg(long, default_value_t = 50_000)]
+    #[arg(long, default_value_t = PhotonSettings::default().stored, value_parser = flags::photons)]
     photons: usize,
     /// Photons in each radiance estimate (paper: 150).
-    #[arg(long, default_value_t = 150)]
+    #[arg(long, default_value_t = PhotonSettings::default().estimate, value_parser = flags::estimate)]
     estimate: usize,
     /// Output PNG. An existing file is never replaced without --force.
     #[arg(long)]
@@ -204,13 +292,14 @@ struct BenchArgs {
     out: Option<PathBuf>,
 }
 
-fn main() -> Result<()> {
+fn main() -> std::process::ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()))
         .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
         .init();
     let cli = Cli::parse();
-    match cli.command {
+    let result = match cli.command {
         Command::Render(args) => render(args),
         Command::Run(args) => run(args),
         Command::Record(args) => record(args),
@@ -219,17 +308,26 @@ fn main() -> Result<()> {
             self::run(*run)
         }
         Command::Check { patch } => check(&patch),
-        Command::Bench(args) => {
-            let (scene, patch) = load_inputs(&args.input)?;
-            let camera = choose_camera(&scene, &patch);
-            let out = args.out.unwrap_or_else(bench::default_out_dir);
-            let config = bench::BenchConfig::new(args.quick, resolve(&args.input.scene));
-            let report = bench::run(&scene, &patch, camera, &config, &out)?;
-            println!("{}", report.summary());
-            println!("report written to {}", out.display());
-            Ok(())
+        Command::Bench(args) => bench_command(args),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
         }
     }
+}
+
+fn bench_command(args: BenchArgs) -> Result<()> {
+    let (scene, patch) = load_inputs(&args.input)?;
+    let camera = choose_camera(&scene, &patch);
+    let out = args.out.unwrap_or_else(bench::default_out_dir);
+    let config = bench::BenchConfig::new(args.quick, resolve(&args.input.scene));
+    let report = bench::run(&scene, &patch, camera, &config, &out)?;
+    println!("{}", report.summary());
+    println!("report written to {}", out.display());
+    Ok(())
 }
 
 /// Finds a bundled file relative to the working directory, else relative to
@@ -268,25 +366,49 @@ fn choose_camera(scene: &Scene, patch: &Patch) -> Camera {
         .unwrap_or_else(|| Camera::look_at(Vec3::new(0.0, 1.7, 14.0), Vec3::new(0.0, 1.5, 0.0), 40f32.to_radians()))
 }
 
-fn run(args: RunArgs) -> Result<()> {
-    use footlight::live::{LiveConfig, TracerSettings};
-    if args.width == 0 || args.height == 0 || args.width > 16384 || args.height > 16384 {
-        bail!("--width and --height must be between 1 and 16384 (got {}×{})", args.width, args.height);
+/// The stop signal: SIGINT (Ctrl-C) or SIGTERM. Installed as soon as the
+/// runtime exists, so a signal during loading is a clean stop too.
+struct Signals {
+    #[cfg(unix)]
+    int: tokio::signal::unix::Signal,
+    #[cfg(unix)]
+    term: tokio::signal::unix::Signal,
+}
+
+impl Signals {
+    /// Registers the handlers (call inside the runtime).
+    fn install() -> Result<Self> {
+        #[cfg(unix)]
+        {
+            use tokio::signal::unix::{SignalKind, signal};
+            Ok(Self {
+                int: signal(SignalKind::interrupt()).context("installing the SIGINT handler")?,
+                term: signal(SignalKind::terminate()).context("installing the SIGTERM handler")?,
+            })
+        }
+        #[cfg(not(unix))]
+        Ok(Self {})
     }
-    let (scene, patch) = load_inputs(&args.input)?;
-    let camera = choose_camera(&scene, &patch);
-    let display = Display::for_white_lux(args.white_lux);
-    let photons = (args.photons > 0).then(|| PhotonSettings { stored: args.photons, ..PhotonSettings::default() });
-    let config = LiveConfig {
-        width: args.width,
-        height: args.height,
-        fps: args.fps,
-        http: args.http,
-        display,
-        limits: RecursionLimits::default(),
-        tracer: TracerSettings { display_scale: display.scale(), photons, ..TracerSettings::default() },
-        compositor: args.compositor,
-    };
+
+    /// Completes on the first signal.
+    async fn wait(mut self) {
+        #[cfg(unix)]
+        tokio::select! {
+            _ = self.int.recv() => {}
+            _ = self.term.recv() => {}
+        }
+        #[cfg(not(unix))]
+        {
+            let _ = tokio::signal::ctrl_c().await;
+        }
+    }
+}
+
+fn runtime() -> Result<tokio::runtime::Runtime> {
+    Ok(tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?)
+}
+
+fn run(args: RunArgs) -> Result<()> {
     if args.window && !cfg!(feature = "window") {
         bail!(
             "this footlight was built without the window; rebuild with `cargo run --release --features window -- run --window`"
@@ -295,7 +417,7 @@ fn run(args: RunArgs) -> Result<()> {
     let (tap_tx, tap_rx) = std::sync::mpsc::channel();
     let tap = args.window.then_some(tap_tx);
     let (close_tx, close_rx) = tokio::sync::oneshot::channel::<()>();
-    let daemon = std::thread::spawn(move || run_daemon(args, scene, patch, camera, config, tap, close_rx));
+    let daemon = std::thread::spawn(move || run_daemon(args, tap, close_rx));
     if let Ok(frames) = tap_rx.recv() {
         #[cfg(feature = "window")]
         {
@@ -306,89 +428,105 @@ fn run(args: RunArgs) -> Result<()> {
         #[cfg(not(feature = "window"))]
         drop((frames, close_tx));
     }
-    daemon.join().map_err(|_| anyhow::anyhow!("the daemon thread panicked"))?
+    daemon.join().map_err(|_| anyhow::anyhow!("the daemon thread panicked (a bug; please report it)"))?
 }
 
 /// The daemon on its own tokio runtime; returns when a signal or `close` (the window) stops it.
 fn run_daemon(
     args: RunArgs,
-    scene: footlight::Scene,
-    patch: footlight::Patch,
-    camera: Camera,
-    config: footlight::live::LiveConfig,
-    tap: Option<std::sync::mpsc::Sender<tokio::sync::watch::Receiver<std::sync::Arc<footlight::live::Frame>>>>,
+    tap: Option<std::sync::mpsc::Sender<tokio::sync::watch::Receiver<Arc<footlight::live::Frame>>>>,
     close: tokio::sync::oneshot::Receiver<()>,
 ) -> Result<()> {
-    use footlight::live::Universes;
-    use std::sync::Arc;
-    let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
-    runtime.block_on(async move {
-        let listener = footlight::live::bind_http(config.http).await?;
-        println!("Footlight preview: http://{}/", listener.local_addr()?);
-        let (inputs_tx, inputs) = tokio::sync::watch::channel(Arc::new(Universes::new()));
-        let patch = Arc::new(patch);
-        let decoder = Arc::new(footlight::live::PatchDecoder::new(patch.clone()));
-        let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
-        let stopped = |mut rx: tokio::sync::watch::Receiver<bool>| async move {
-            let _ = rx.wait_for(|s| *s).await;
+    runtime()?.block_on(async move {
+        let signals = Signals::install()?;
+        let stop = async move {
+            tokio::select! {
+                _ = signals.wait() => {}
+                _ = close => {}
+            }
         };
-        let universes: Vec<u16> = (1..=patch_universes(&patch)).collect();
-        let handle = match &args.replay {
+        tokio::pin!(stop);
+        // Bind the preview first: a taken port is reported before minutes of loading.
+        let listener = footlight::live::bind_http(args.http).await?;
+        let input = args.input.clone();
+        let loading = tokio::task::spawn_blocking(move || load_inputs(&input));
+        let (scene, patch) = tokio::select! {
+            loaded = loading => loaded.context("loading the scene")??,
+            _ = &mut stop => return Ok(()),
+        };
+        let camera = choose_camera(&scene, &patch);
+        let show = Arc::new(Show::new(patch));
+        let display = Display::for_white_lux(args.white_lux);
+        let photons = (args.photons > 0).then(|| PhotonSettings { stored: args.photons, ..PhotonSettings::default() });
+        let defaults = DaemonConfig::default();
+        let config = DaemonConfig {
+            width: args.width,
+            height: args.height,
+            fps: args.fps,
+            display,
+            compositor: args.compositor,
+            tracer: TracerSettings {
+                build: BuildSettings { display_scale: display.scale(), photons, ..defaults.tracer.build },
+                ..defaults.tracer
+            },
+            ..defaults
+        };
+        let source = match &args.replay {
             Some(path) => {
                 let recording = footlight_dmx::Recording::open(path)?;
                 println!(
-                    "replaying {} ({:.1} s) at {}×",
+                    "replaying {} ({:.1} s) at {}× once the preview serves",
                     path.display(),
                     recording.duration().as_secs_f64(),
                     args.speed
                 );
-                let options = footlight_dmx::ReplayOptions {
-                    speed: args.speed,
-                    start: std::time::Duration::ZERO,
-                    patch: dmx_input_patch(&patch, Vec::new()),
-                };
-                footlight::live::input::start_replay(recording, options, inputs_tx, stopped(stop_rx.clone()))
+                DmxSource::Replay { recording, speed: args.speed }
             }
-            None => {
-                let mut config = args.dmx.config(universes.clone())?;
-                config.patch = dmx_input_patch(&patch, universes);
-                let input = footlight_dmx::DmxInput::bind(config).await?;
-                let addrs = input.local_addrs();
-                println!("listening for DMX: Art-Net {:?}, sACN {:?}", addrs.artnet, addrs.sacn);
-                footlight::live::input::start_network(input, inputs_tx, stopped(stop_rx.clone()))
-            }
+            None => args.dmx.source()?,
         };
-        let (status, input_task) = (handle.status, handle.task);
-        let shutdown = async move {
-            tokio::select! {
-                _ = shutdown_signal() => {}
-                _ = close => {}
-            }
-        };
-        footlight::live::run(Arc::new(scene), camera, decoder, inputs, listener, config, status, tap, shutdown).await?;
-        let _ = stop_tx.send(true);
-        match input_task.await {
-            Ok(result) => result?,
-            Err(e) if e.is_cancelled() => {}
-            Err(e) => bail!("DMX input task failed: {e}"),
+        let (running_tx, running_rx) = std::sync::mpsc::channel();
+        let http = listener.local_addr()?;
+        let mut daemon = Daemon::new(Arc::new(scene), show.clone(), camera, config)
+            .input(source)
+            .serve(listener)
+            .on_running(running_tx);
+        if let Some(tap) = tap {
+            daemon = daemon.frames_tap(tap);
         }
+        let universes = show.universes();
+        let announce = tokio::task::spawn_blocking(move || {
+            if let Ok(handle) = running_rx.recv() {
+                println!("Footlight preview: http://{http}/");
+                if let Some(dmx) = handle.dmx {
+                    let on = |a: Option<std::net::SocketAddr>| a.map_or("off".to_string(), |a| a.to_string());
+                    println!(
+                        "listening for DMX: Art-Net {}, sACN {} (patch universes {})",
+                        on(dmx.artnet),
+                        on(dmx.sacn),
+                        universes.iter().map(u16::to_string).collect::<Vec<_>>().join(", ")
+                    );
+                }
+            }
+        });
+        daemon.run(stop).await?;
+        announce.abort();
         Ok::<(), anyhow::Error>(())
     })
 }
 
-/// The DMX state a still shows: a recording at a moment, then `--set` levels.
-fn still_universes(args: &RenderArgs, patch: &footlight::Patch) -> Result<footlight::live::Universes> {
-    let mut universes = footlight::live::Universes::new();
+/// The DMX state a still shows: a recording at a moment (through the show's
+/// routes), then `--set` levels.
+fn still_universes(args: &RenderArgs, show: &Show) -> Result<footlight::fixture::Universes> {
+    let mut universes = footlight::fixture::Universes::new();
     if let Some(path) = &args.dmx {
-        if !(args.at.is_finite() && args.at >= 0.0) {
-            bail!("--at {} must be a time in seconds >= 0", args.at);
-        }
         let recording = footlight_dmx::Recording::open(path)?;
-        let input = dmx_input_patch(patch, Vec::new());
-        for frame in footlight_dmx::state_at(&recording, std::time::Duration::from_secs_f64(args.at), &input)? {
-            universes.insert(frame.universe, frame.slots);
+        for frame in
+            footlight_dmx::state_at(&recording, std::time::Duration::from_secs_f64(args.at), show.input_patch())?
+        {
+            universes.set(frame.universe, &frame.slots);
         }
     }
+    let patch = show.patch();
     for item in &args.set {
         let (lhs, value) =
             item.split_once('=').with_context(|| format!("--set {item:?}: expected U/ADDR=VALUE, e.g. 1/1=255"))?;
@@ -399,39 +537,30 @@ fn still_universes(args: &RenderArgs, patch: &footlight::Patch) -> Result<footli
         if u == 0 || !(1..=512).contains(&a) {
             bail!("--set {item:?}: universe counts from 1 and the address is 1-512");
         }
-        let frame = universes.entry(u).or_insert_with(|| patch.look_universes.get(u).copied().unwrap_or([0; 512]));
-        frame[usize::from(a) - 1] = v;
+        if universes.get(u).is_none() {
+            universes.set(u, patch.look_universes.get(u).unwrap_or(&[0; 512]));
+        }
+        universes.set_slot(u, a, v);
     }
     Ok(universes)
 }
 
 /// Every fixture's tracer light and k_i for a DMX state (eq. 4).
-fn jobs_for(patch: &footlight::Patch, universes: &footlight::live::Universes) -> Vec<LightJob> {
-    use footlight::live::Decode;
-    footlight::live::PatchDecoder::new(std::sync::Arc::new(patch.clone()))
-        .decode(universes)
-        .into_iter()
-        .map(|i| LightJob { light: i.light, k_full: i.k_full, k: i.k })
-        .collect()
-}
-
-/// The DMX input's universes and LTP masks from the patch.
-fn dmx_input_patch(patch: &footlight::Patch, universes: Vec<u16>) -> footlight_dmx::InputPatch {
-    let ltp = patch
-        .ltp_addresses()
-        .into_iter()
-        .map(|(u, addrs)| (u, footlight_dmx::SlotMask::from_addresses(addrs)))
-        .collect();
-    footlight_dmx::InputPatch { universes, ltp, ..footlight_dmx::InputPatch::default() }
+fn jobs_for(show: &Show, universes: &footlight::fixture::Universes) -> Vec<LightJob> {
+    show.decode(universes).into_iter().map(|i| LightJob { light: i.light, k_full: i.k_full, k: i.k }).collect()
 }
 
 fn check(path: &Path) -> Result<()> {
     match footlight::fixture::check(path) {
         Ok(patch) => {
-            let mut universes: Vec<u16> = patch.fixtures.iter().filter_map(|f| f.dmx.map(|(u, _)| u)).collect();
-            universes.sort_unstable();
-            universes.dedup();
-            println!("{}: ok, {} fixtures on universes {universes:?}", path.display(), patch.fixtures.len());
+            let show = Show::new(patch);
+            let universes = show.universes();
+            println!(
+                "{}: ok, {} fixtures on universes {}",
+                path.display(),
+                show.patch().fixtures.len(),
+                universes.iter().map(u16::to_string).collect::<Vec<_>>().join(", ")
+            );
             Ok(())
         }
         Err(errors) => {
@@ -441,11 +570,6 @@ fn check(path: &Path) -> Result<()> {
             bail!("{}: {} problem(s)", path.display(), errors.len())
         }
     }
-}
-
-/// Highest patch universe any fixture uses (at least 1).
-fn patch_universes(patch: &footlight::Patch) -> u16 {
-    patch.fixtures.iter().filter_map(|f| f.dmx.map(|(u, _)| u)).max().unwrap_or(1)
 }
 
 /// Refuses to replace a file the user already has, unless `force`.
@@ -458,11 +582,12 @@ fn check_output(path: &Path, force: bool) -> Result<()> {
 
 fn record(args: RecordArgs) -> Result<()> {
     check_output(&args.out, args.force)?;
-    let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
-    runtime.block_on(async move {
-        let config = args.dmx.config(args.universes.clone())?;
+    let show = Show::new(Patch::load(&resolve(&args.patch))?);
+    runtime()?.block_on(async move {
+        let signals = Signals::install()?;
+        let config = args.dmx.config(&show)?;
         println!("recording DMX to {} until Ctrl-C", args.out.display());
-        let summary = footlight_dmx::record(&args.out, config, shutdown_signal()).await?;
+        let summary = footlight_dmx::record(&args.out, config, signals.wait()).await?;
         println!(
             "wrote {} packets ({:.1} s, {} lost) to {}",
             summary.packets,
@@ -474,41 +599,11 @@ fn record(args: RecordArgs) -> Result<()> {
     })
 }
 
-/// Completes on Ctrl-C or SIGTERM.
-async fn shutdown_signal() {
-    let ctrl_c = async {
-        let _ = tokio::signal::ctrl_c().await;
-    };
-    #[cfg(unix)]
-    let term = async {
-        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-            Ok(mut s) => {
-                s.recv().await;
-            }
-            Err(_) => std::future::pending::<()>().await,
-        }
-    };
-    #[cfg(not(unix))]
-    let term = std::future::pending::<()>();
-    tokio::select! {
-        _ = ctrl_c => {}
-        _ = term => {}
-    }
-}
-
 fn render(args: RenderArgs) -> Result<()> {
-    if args.width == 0 || args.height == 0 || args.width > 16384 || args.height > 16384 {
-        bail!("--width and --height must be between 1 and 16384 (got {}×{})", args.width, args.height);
-    }
-    if !(args.aa_threshold.is_finite() && args.aa_threshold >= 0.0) {
-        bail!("--aa-threshold must be a number >= 0");
-    }
-    if args.depth > 64 {
-        bail!("--depth {} is past the supported 64 bounces", args.depth);
-    }
     check_output(&args.out, args.force)?;
     let (scene, patch) = load_inputs(&args.input)?;
     let camera = choose_camera(&scene, &patch);
+    let show = Show::new(patch);
     let settings = RenderSettings {
         width: args.width,
         height: args.height,
@@ -518,12 +613,12 @@ fn render(args: RenderArgs) -> Result<()> {
         display: Display::for_white_lux(args.white_lux),
         photons: (args.photons > 0).then(|| PhotonSettings {
             stored: args.photons,
-            estimate: args.estimate.max(2),
+            estimate: args.estimate,
             ..PhotonSettings::default()
         }),
     };
-    let universes = still_universes(&args, &patch)?;
-    let jobs = jobs_for(&patch, &universes);
+    let universes = still_universes(&args, &show)?;
+    let jobs = jobs_for(&show, &universes);
     let still = render_still(&scene, camera, &jobs, &settings)?;
     if let Err((i, v)) = check_finite(&still.linear) {
         bail!("composite pixel {i} is {v}: this is a bug, please report it");

@@ -2,8 +2,9 @@
 //! moved light, the geometry cache, and the HTTP preview on loopback.
 
 use crate::common::*;
+use footlight::fixture::{DmxSlots, FixtureState, Universes};
 use footlight::live::{
-    Decode, Frame, FrameClock, LightInput, LiveConfig, Stage, Tracer, TracerSettings, Universes, run_clock,
+    Daemon, DaemonConfig, Decode, DmxSource, Frame, FrameClock, LightInput, Stage, Tracer, TracerSettings,
 };
 use footlight::render::composite::Compositor;
 use footlight::render::{Display, RecursionLimits, Sampling, View};
@@ -13,15 +14,16 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::sync::watch;
 
-/// Universe 1: slot 1 = dimmer (0-255), slot 2 = light x position (0-255 → −2..2 m).
+/// Universe 1: slot 1 = dimmer (0-255), slot 2 = light x position (0-255 → −2..2 m),
+/// decoded as a fixture whose "pan" is the position (the change rule's geometry).
 struct TestDecoder;
 
 impl Decode for TestDecoder {
     fn len(&self) -> usize {
         1
     }
-    fn decode(&self, u: &Universes) -> Vec<LightInput> {
-        let slots = u.get(&1).copied().unwrap_or([0; 512]);
+    fn decode(&self, u: &dyn DmxSlots) -> Vec<LightInput> {
+        let slots = u.slots(1).copied().unwrap_or([0; 512]);
         let v = slots[0] as f32 / 255.0;
         let x = -2.0 + 4.0 * slots[1] as f32 / 255.0;
         let light = footlight::Light::aimed(
@@ -29,13 +31,11 @@ impl Decode for TestDecoder {
             Vec3::new(x, 0.0, 0.0),
             footlight::Beam::Spot(footlight::fixture::SpotBeam::from_beam_field(30.0, 40.0)),
         );
-        vec![LightInput {
-            name: "test".into(),
-            light,
-            k: Vec3::splat(1000.0 * v),
-            k_full: Vec3::splat(1000.0),
-            dmx: slots[..2].to_vec(),
-        }]
+        let state = FixtureState { v, pan: x, ..FixtureState::default() };
+        vec![LightInput { light, k: Vec3::splat(1000.0 * v), k_full: Vec3::splat(1000.0), state }]
+    }
+    fn slots_of(&self, _index: usize, u: &dyn DmxSlots) -> Vec<u8> {
+        u.slots(1).map(|s| s[..2].to_vec()).unwrap_or_default()
     }
 }
 
@@ -48,8 +48,14 @@ fn small_stage() -> (Arc<Scene>, Camera) {
 
 fn tracer(scene: &Arc<Scene>, camera: Camera, w: u32, h: u32) -> Arc<Tracer> {
     let view = View::build(scene, camera, w, h, Sampling::Adaptive, RecursionLimits::default());
-    let settings = TracerSettings { photons: None, threads: 1, ..TracerSettings::default() };
+    let settings = no_photons();
     Arc::new(Tracer::new(scene.clone(), Arc::new(view), 1, settings))
+}
+
+fn no_photons() -> TracerSettings {
+    let mut settings = TracerSettings { threads: 1, ..TracerSettings::default() };
+    settings.build.photons = None;
+    settings
 }
 
 fn wait_for(tracer: &Tracer, what: impl Fn(Stage) -> bool) {
@@ -61,10 +67,20 @@ fn wait_for(tracer: &Tracer, what: impl Fn(Stage) -> bool) {
 }
 
 fn universes(dimmer: u8, x: u8) -> Universes {
-    let mut s = [0u8; 512];
-    s[0] = dimmer;
-    s[1] = x;
-    Universes::from([(1, s)])
+    let mut u = Universes::new();
+    u.set_slot(1, 1, dimmer);
+    u.set_slot(1, 2, x);
+    u
+}
+
+/// The same levels as the DMX crate's merged frames (what the daemon reads).
+fn merged(dimmer: u8, x: u8) -> footlight_dmx::Universes {
+    let mut slots = [0u8; 512];
+    slots[0] = dimmer;
+    slots[1] = x;
+    let mut u = footlight_dmx::Universes::default();
+    u.update(&footlight_dmx::UniverseFrame { universe: 1, slots, at: tokio::time::Instant::now(), stale: false });
+    u
 }
 
 fn centre_brightness(f: &Frame, x: u32) -> u8 {
@@ -82,25 +98,25 @@ async fn dimmer_packet_shows_in_the_next_frame() {
     let t = tracer.clone();
     tokio::task::spawn_blocking(move || wait_for(&t, |s| s == Stage::Ready)).await.unwrap();
 
-    let (in_tx, in_rx) = watch::channel(Arc::new(universes(255, 128)));
+    let (in_tx, in_rx) = watch::channel(merged(255, 128));
     let first = Arc::new(clock.tick(&universes(255, 128)));
     let (out_tx, mut out_rx) = watch::channel(first);
-    let (_stop_tx, stop_rx) = watch::channel(false);
-    tokio::spawn(run_clock(clock, 50.0, in_rx, out_tx, Arc::new(std::sync::Mutex::new(0.0)), stop_rx));
+    let (_stop_tx, stop) = footlight::live::daemon::stop_signal();
+    tokio::spawn(footlight::live::run_clock(clock, 50.0, in_rx, out_tx, Default::default(), stop));
     let period = Duration::from_millis(20);
     // Let the clock settle on a frame at full.
     tokio::time::sleep(period * 3).await;
     let before = out_rx.borrow_and_update().clone();
     assert!(centre_brightness(&before, 20) > 100, "lit at full: {}", centre_brightness(&before, 20));
     // The desk pulls the fader to 0 between two frames.
-    in_tx.send(Arc::new(universes(0, 128))).unwrap();
+    in_tx.send(merged(0, 128)).unwrap();
     out_rx.changed().await.unwrap();
     let next = out_rx.borrow_and_update().clone();
     assert_eq!(next.number, before.number + 1, "the change must land in the very next frame");
     assert_eq!(centre_brightness(&next, 20), 0);
     assert_eq!(next.update.changed_lights, 1);
     // And back up: again frame n+1, and the picture is what it was.
-    in_tx.send(Arc::new(universes(255, 128))).unwrap();
+    in_tx.send(merged(255, 128)).unwrap();
     out_rx.changed().await.unwrap();
     let back = out_rx.borrow_and_update().clone();
     assert_eq!(back.number, next.number + 1);
@@ -136,7 +152,8 @@ fn moved_light_shows_its_direct_stage_then_converges_and_presets_come_from_cache
     wait_for(&tracer, |s| s == Stage::Ready);
     // Two stages were published: direct light first, then the full Whitted buffer.
     assert_eq!(tracer.published(0).generation, generation + 2);
-    assert!(tracer.published(0).first_stage.is_some());
+    let report = tracer.report(0).unwrap();
+    assert!(report.first_stage_ms.is_some() && report.direct_updates == 2, "{report:?}");
 
     // Back to the left preset: served from the geometry cache within the
     // request itself (Ready before any worker could have built it), and the
@@ -194,23 +211,24 @@ fn preview_serves_page_status_and_frames_on_loopback_and_refuses_a_taken_port() 
             let err = footlight::live::bind_http(addr).await.unwrap_err().to_string();
             assert!(err.contains("another footlight"), "{err}");
             addr_tx.send(addr).unwrap();
-            let (_tx, inputs) = watch::channel(Arc::new(universes(255, 128)));
-            let config = LiveConfig {
+            let (_tx, inputs) = watch::channel(merged(255, 128));
+            let config = DaemonConfig {
                 width: 48,
                 height: 32,
                 fps: 30.0,
-                http: addr,
                 display: Display::neutral(1000.0),
-                limits: RecursionLimits::default(),
-                tracer: TracerSettings { photons: None, threads: 1, ..TracerSettings::default() },
+                tracer: no_photons(),
                 compositor: footlight::gpu::CompositorChoice::Cpu,
+                ..DaemonConfig::default()
             };
-            let status: footlight::serve::StatusFn = Arc::new(|| serde_json::json!({"packets": 0, "malformed": 0}));
-            footlight::live::run(scene, cam, Arc::new(TestDecoder), inputs, listener, config, status, None, async {
-                let _ = stop_rx.await;
-            })
-            .await
-            .unwrap();
+            Daemon::with_decoder(scene, Arc::new(TestDecoder), cam, config)
+                .input(DmxSource::Channel(inputs))
+                .serve(listener)
+                .run(async {
+                    let _ = stop_rx.await;
+                })
+                .await
+                .unwrap();
         })
     });
     let addr = addr_rx.recv_timeout(Duration::from_secs(60)).unwrap();

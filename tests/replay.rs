@@ -4,15 +4,13 @@
 //! loopback loses no state; the preview page in headless Chromium.
 
 use crate::common::*;
-use footlight::live::input::{start_network, start_replay};
-use footlight::live::{LiveConfig, PatchDecoder, TracerSettings, Universes};
+use footlight::live::{DaemonConfig, Decode, DmxSource, Show};
 use footlight::render::photon::PhotonSettings;
 use footlight::render::still::{LightJob, render_still};
-use footlight::render::{Display, RecursionLimits, RenderSettings};
+use footlight::render::{Display, RenderSettings};
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use tokio::sync::watch;
 
 const W: u32 = 160;
 const H: u32 = 100;
@@ -39,7 +37,8 @@ struct Daemon {
 }
 
 impl Daemon {
-    /// The daemon over the bundled stage with the replay patch, on loopback only.
+    /// The daemon over the bundled stage with the replay patch, on loopback
+    /// only: the same `footlight::live::Daemon` the binary runs.
     fn start(source: Source) -> Self {
         let (tx, rx) = std::sync::mpsc::channel();
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
@@ -48,62 +47,49 @@ impl Daemon {
             rt.block_on(async move {
                 let scene = Arc::new(stage());
                 let camera = scene.camera.unwrap();
-                let patch = Arc::new(replay_patch());
+                let show = Arc::new(Show::new(replay_patch()));
                 let listener = footlight::live::bind_http("127.0.0.1:0".parse().unwrap()).await.unwrap();
                 let http = listener.local_addr().unwrap();
-                let (inputs_tx, inputs) = watch::channel(Arc::new(Universes::new()));
-                let (stop_inputs, stop_inputs_rx) = watch::channel(false);
-                let stopped = |mut r: watch::Receiver<bool>| async move {
-                    let _ = r.wait_for(|s| *s).await;
+                let dmx = match source {
+                    Source::Replay(name) => DmxSource::Replay {
+                        recording: footlight_dmx::Recording::open(recording(name)).unwrap(),
+                        speed: f64::INFINITY,
+                    },
+                    Source::ArtNet => DmxSource::Network {
+                        artnet: Some(footlight_dmx::artnet::ArtNetConfig {
+                            bind: "127.0.0.1:0".parse().unwrap(),
+                            ..Default::default()
+                        }),
+                        sacn: None,
+                        usbpro: None,
+                    },
                 };
-                let (handle, artnet) = match source {
-                    Source::Replay(name) => {
-                        let rec = footlight_dmx::Recording::open(recording(name)).unwrap();
-                        let options = footlight_dmx::ReplayOptions {
-                            speed: f64::INFINITY,
-                            start: Duration::ZERO,
-                            patch: footlight_dmx::InputPatch::default(),
-                        };
-                        (start_replay(rec, options, inputs_tx, stopped(stop_inputs_rx)), None)
-                    }
-                    Source::ArtNet => {
-                        let config = footlight_dmx::InputConfig {
-                            artnet: Some(footlight_dmx::artnet::ArtNetConfig {
-                                bind: "127.0.0.1:0".parse().unwrap(),
-                                ..Default::default()
-                            }),
-                            sacn: None,
-                            usbpro: None,
-                            patch: footlight_dmx::InputPatch { universes: vec![1], ..Default::default() },
-                        };
-                        let input = footlight_dmx::DmxInput::bind(config).await.unwrap();
-                        let addr = input.local_addrs().artnet;
-                        (start_network(input, inputs_tx, stopped(stop_inputs_rx)), addr)
-                    }
-                };
-                tx.send((http, artnet)).unwrap();
-                let config = LiveConfig {
+                let mut config = DaemonConfig {
                     width: W,
                     height: H,
                     fps: 60.0,
-                    http,
                     display: Display::default(),
-                    limits: RecursionLimits::default(),
-                    tracer: TracerSettings {
-                        photons: Some(PhotonSettings { stored: PHOTONS, ..PhotonSettings::default() }),
-                        refine_passes: 0,
-                        ..TracerSettings::default()
-                    },
                     compositor: footlight::gpu::CompositorChoice::Cpu,
+                    ..DaemonConfig::default()
                 };
-                let decoder = Arc::new(PatchDecoder::new(patch));
-                footlight::live::run(scene, camera, decoder, inputs, listener, config, handle.status, None, async {
-                    let _ = stop_rx.await;
-                })
-                .await
-                .unwrap();
-                let _ = stop_inputs.send(true);
-                let _ = handle.task.await;
+                config.tracer.build.photons = Some(PhotonSettings { stored: PHOTONS, ..PhotonSettings::default() });
+                config.tracer.build.refine_passes = 0;
+                let (running_tx, running_rx) = std::sync::mpsc::channel();
+                let daemon = footlight::live::Daemon::new(scene, show, camera, config)
+                    .input(dmx)
+                    .serve(listener)
+                    .on_running(running_tx);
+                let announce = std::thread::spawn(move || {
+                    let handle = running_rx.recv().unwrap();
+                    tx.send((http, handle.dmx.and_then(|d| d.artnet))).unwrap();
+                });
+                daemon
+                    .run(async {
+                        let _ = stop_rx.await;
+                    })
+                    .await
+                    .unwrap();
+                announce.join().unwrap();
             });
         });
         let (http, artnet) = rx.recv_timeout(Duration::from_secs(120)).unwrap();
@@ -235,11 +221,13 @@ fn frames_at_marked_cues_match_golden_images() {
     ];
     for (file, at, name) in cues {
         let rec = footlight_dmx::Recording::open(recording(file)).unwrap();
-        let frames =
-            footlight_dmx::state_at(&rec, Duration::from_secs_f64(at), &footlight_dmx::InputPatch::default()).unwrap();
-        let universes: Universes = frames.iter().map(|f| (f.universe, f.slots)).collect();
-        use footlight::live::Decode;
-        let jobs: Vec<LightJob> = PatchDecoder::new(patch.clone())
+        let show = Show::new((*patch).clone());
+        let frames = footlight_dmx::state_at(&rec, Duration::from_secs_f64(at), show.input_patch()).unwrap();
+        let mut universes = footlight::fixture::Universes::new();
+        for f in &frames {
+            universes.set(f.universe, &f.slots);
+        }
+        let jobs: Vec<LightJob> = show
             .decode(&universes)
             .into_iter()
             .map(|i| LightJob { light: i.light, k_full: i.k_full, k: i.k })

@@ -142,9 +142,12 @@ pub fn run(
     let (w, h) = bench_size;
     let view = Arc::new(View::build(scene, camera, w, h, Sampling::Adaptive, RecursionLimits::default()));
     let settings = TracerSettings {
-        photons: Some(PhotonSettings::default()),
-        refine_passes,
-        display_scale: display.scale(),
+        build: crate::render::BuildSettings {
+            photons: Some(PhotonSettings::default()),
+            refine_passes,
+            display_scale: display.scale(),
+            ..crate::render::BuildSettings::default()
+        },
         ..TracerSettings::default()
     };
     let tracer = Tracer::new(scene.clone(), view, 1, settings);
@@ -171,7 +174,7 @@ pub fn run(
         }
         std::thread::sleep(Duration::from_micros(200));
     }
-    tracer.shutdown();
+    tracer.shutdown(Duration::from_secs(60));
     let at = |i: usize| seen[i].unwrap_or(f64::NAN);
     LiveReport {
         gpu_adapter: adapter,

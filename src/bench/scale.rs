@@ -6,7 +6,8 @@
 //! per-light buffers take.
 
 use super::time_ms;
-use crate::live::{Decode, PatchDecoder, Universes};
+use crate::fixture::Universes;
+use crate::live::{Decode, Show};
 use crate::render::composite::{CompositeInput, Compositor, composite_into};
 use crate::render::{Display, LightBuffer, RecursionLimits, Sampling, View};
 use crate::scene::{Camera, Scene};
@@ -88,12 +89,12 @@ pub fn run(scene: &Arc<Scene>, camera: Camera, width: u32, height: u32) -> Resul
     let root = env!("CARGO_MANIFEST_DIR");
     let patch = crate::Patch::parse(std::path::Path::new("generated-600-rig.toml"), &rig_patch(root))
         .map_err(|e| e.to_string())?;
-    let decoder = PatchDecoder::new(Arc::new(patch.clone()));
-    let mut universes: Universes = Universes::new();
+    let decoder = Show::new(patch.clone());
+    let mut universes = Universes::new();
     let max_u = patch.fixtures.iter().filter_map(|f| f.dmx.map(|(u, _)| u)).max().unwrap_or(1);
     // Every channel at half: dimmers half up, CMY flags half in, heads centred.
     for u in 1..=max_u {
-        universes.insert(u, [128; 512]);
+        universes.set(u, &[128; 512]);
     }
     let (decode_ms, inputs) = time_ms(20, || decoder.decode(&universes));
 
@@ -170,9 +171,9 @@ mod tests {
         assert_eq!(universes, 16);
         let mut all = Universes::new();
         for u in 1..=universes {
-            all.insert(u, [255; 512]);
+            all.set(u, &[255; 512]);
         }
-        let inputs = PatchDecoder::new(Arc::new(patch)).decode(&all);
+        let inputs = Show::new(patch).decode(&all);
         assert!(inputs.iter().all(|i| i.k.is_finite() && i.light.position.is_finite()));
         // Every channel at 255: conventionals and LED PARs full on; moving
         // spots with all three CMY flags in are black, as they should be.

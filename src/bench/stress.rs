@@ -5,8 +5,8 @@
 //! `footlight bench` reports the table; `tests/stress.rs` runs it small.
 
 use crate::fixture::{Beam, Light, SpotBeam};
-use crate::render::photon::{PhotonSettings, trace_photons};
-use crate::render::{LightBuffer, RecursionLimits, Sampling, View, composite};
+use crate::render::photon::PhotonSettings;
+use crate::render::{BuildSettings, Cancel, LightBuffer, LightBuild, RecursionLimits, Sampling, View, composite};
 use crate::scene::{Camera, Material, Scene, SceneBuilder};
 use glam::Vec3;
 use serde::Serialize;
@@ -38,22 +38,21 @@ type Lit = (Light, Vec3);
 fn render(scene: &Scene, camera: Camera, lights: &[Lit], photons: usize) -> Result<Vec<Vec3>, String> {
     let view = View::build(scene, camera, W, H, Sampling::Adaptive, RecursionLimits::default());
     let mut buffers = Vec::new();
+    let settings = BuildSettings {
+        photons: Some(PhotonSettings { stored: photons, seed: 17, ..PhotonSettings::default() }),
+        refine_passes: 0,
+        ..BuildSettings::default()
+    };
     for (i, (light, k)) in lights.iter().enumerate() {
-        let aa =
-            crate::render::AaParams { display_scale: *k * crate::render::Display::default().scale(), threshold: 20.0 };
-        let (mut dense, _) = view.render_direct(scene, light, Some(aa));
-        let settings = PhotonSettings { stored: photons, seed: 17 + i as u64, ..PhotonSettings::default() };
-        let maps = trace_photons(scene, light, &settings);
-        for p in maps.global.photons.iter().chain(&maps.caustic.photons) {
-            if !p.power.is_finite() || p.power.min_element() < 0.0 || !p.position.is_finite() {
-                return Err(format!("light {i}: photon {p:?} is not finite"));
+        let mut build = LightBuild::new(light.clone(), i, *k, settings, Cancel::never());
+        let b = build.photons(scene, &view).map_err(|e| format!("light {i}: {e}"))?;
+        if let Some(maps) = build.maps() {
+            for p in maps.global.photons.iter().chain(&maps.caustic.photons) {
+                if !p.power.is_finite() || p.power.min_element() < 0.0 || !p.position.is_finite() {
+                    return Err(format!("light {i}: photon {p:?} is not finite"));
+                }
             }
         }
-        for (d, a) in dense.iter_mut().zip(view.render_indirect(scene, &maps)) {
-            *d += a;
-        }
-        let b = LightBuffer::from_dense(W, H, &dense);
-        b.check().map_err(|e| format!("light {i}: {e}"))?;
         buffers.push(b);
     }
     let refs: Vec<&LightBuffer> = buffers.iter().collect();

@@ -7,35 +7,38 @@
 //! first stage. The clock never waits for the tracer: it only reads the
 //! buffers the tracer has published.
 
-use super::tracer::{Published, Stage, Tracer};
+use super::tracer::{Published, Tracer};
 use crate::Light;
+use crate::fixture::{Change, DmxSlots, FixtureState, classify};
 use crate::render::composite::{CompositeInput, Compositor, UpdateStats};
 use glam::Vec3;
-use serde::Serialize;
-use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-
-/// Merged DMX levels per patch universe (1-based, as desks count).
-pub type Universes = BTreeMap<u16, [u8; 512]>;
 
 /// One fixture's state as the renderer needs it, decoded from DMX.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LightInput {
-    /// Display name.
-    pub name: String,
-    /// Geometry and beam (a change here means a rebuild).
+    /// Geometry and beam (rebuilt when [`classify`] says the geometry changed).
     pub light: Light,
     /// k_i now (eq. 4).
     pub k: Vec3,
     /// k_i with the dimmer at full (anti-aliasing scale).
     pub k_full: Vec3,
-    /// The fixture's DMX slots, for the status page.
-    pub dmx: Vec<u8>,
+    /// The fixture state in real units: what the change rule compares.
+    pub state: FixtureState,
 }
 
-/// Turns DMX universes into fixture states. The patch implements it; tests
-/// and the default look implement it without DMX.
+/// How a light is named in logs and in the status.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct LightLabel {
+    /// The fixture id as the patch (and the desk) numbers it.
+    pub fixture: Option<u32>,
+    /// Display name.
+    pub name: String,
+}
+
+/// Turns DMX into fixture states. [`super::Show`] implements it over the
+/// patch; tests implement it without one.
 pub trait Decode: Send + Sync {
     /// Number of lights (fixed for the life of the daemon).
     fn len(&self) -> usize;
@@ -44,7 +47,15 @@ pub trait Decode: Send + Sync {
         self.len() == 0
     }
     /// Every light's state for these universes, in a fixed order.
-    fn decode(&self, universes: &Universes) -> Vec<LightInput>;
+    fn decode(&self, universes: &dyn DmxSlots) -> Vec<LightInput>;
+    /// Every light's label, in the same order.
+    fn labels(&self) -> Vec<LightLabel> {
+        (0..self.len()).map(|i| LightLabel { fixture: None, name: format!("light {}", i + 1) }).collect()
+    }
+    /// The DMX slots of light `index`'s footprint (status page).
+    fn slots_of(&self, _index: usize, _universes: &dyn DmxSlots) -> Vec<u8> {
+        Vec::new()
+    }
 }
 
 /// A published frame.
@@ -58,29 +69,12 @@ pub struct Frame {
     pub height: u32,
     /// 8-bit sRGB, row-major RGB.
     pub rgb: Arc<Vec<u8>>,
-    /// Per-light state shown on the status page.
-    pub lights: Arc<Vec<LightStatus>>,
+    /// Luminance of each light's k_i (cd) in this frame, 0 when dark.
+    pub intensity: Arc<Vec<f32>>,
     /// Composite time of this frame.
     pub composite_time: Duration,
     /// What the incremental composite did.
     pub update: UpdateStats,
-}
-
-/// A light on the status page.
-#[derive(Clone, Debug, Serialize)]
-pub struct LightStatus {
-    /// Display name.
-    pub name: String,
-    /// DMX values of its footprint.
-    pub dmx: Vec<u8>,
-    /// Build state of its buffer.
-    pub stage: Stage,
-    /// Last full build time, ms.
-    pub last_build_ms: Option<f64>,
-    /// Time from the geometry change to its first visible stage, ms.
-    pub first_stage_ms: Option<f64>,
-    /// Luminance weight of k_i (cd), 0 when dark.
-    pub intensity: f32,
 }
 
 /// Frame state carried from tick to tick.
@@ -89,7 +83,8 @@ pub struct FrameClock {
     tracer: Arc<Tracer>,
     compositor: Compositor,
     gpu: Option<crate::gpu::GpuFrames>,
-    last: Vec<Option<Light>>,
+    /// Each light's last decoded state (the change rule's "old").
+    last: Vec<Option<FixtureState>>,
     number: u64,
     /// The last published picture, shared again while nothing changes
     /// (copying a 1080p frame 60 times a second is 370 MB/s for nothing).
@@ -97,7 +92,7 @@ pub struct FrameClock {
 }
 
 /// Relative luminance of linear sRGB (Rec. 709 weights).
-fn luminance(c: Vec3) -> f32 {
+pub fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
@@ -132,19 +127,23 @@ impl FrameClock {
     }
 
     /// One frame: decode, request rebuilds for changed geometry, composite, publish.
-    pub fn tick(&mut self, universes: &Universes) -> Frame {
+    pub fn tick(&mut self, universes: &dyn DmxSlots) -> Frame {
         let t0 = Instant::now();
         let inputs = self.decoder.decode(universes);
         let mut published: Vec<Published> = Vec::with_capacity(inputs.len());
         for (i, input) in inputs.iter().enumerate().take(self.tracer.len()) {
             let priority = luminance(input.k_full).max(0.0)
                 * (0.1 + luminance(input.k).max(0.0) / luminance(input.k_full).max(1e-6));
-            if self.last[i].as_ref() != Some(&input.light) {
+            let moved = match &self.last[i] {
+                None => true,
+                Some(old) => classify(old, &input.state) == Change::Geometry,
+            };
+            if moved {
                 self.tracer.request(i, input.light.clone(), input.k_full, priority);
-                self.last[i] = Some(input.light.clone());
             } else {
                 self.tracer.set_priority(i, priority);
             }
+            self.last[i] = Some(input.state);
             published.push(self.tracer.published(i));
         }
         let lights: Vec<CompositeInput> = published
@@ -163,24 +162,13 @@ impl FrameClock {
             }
         }
         let update = if gpu_rgb.is_none() { self.compositor.update(&lights) } else { UpdateStats::default() };
-        let status = published
-            .iter()
-            .zip(&inputs)
-            .map(|(p, input)| LightStatus {
-                name: input.name.clone(),
-                dmx: input.dmx.clone(),
-                stage: p.stage,
-                last_build_ms: p.last_build.map(|d| d.as_secs_f64() * 1e3),
-                first_stage_ms: p.first_stage.map(|d| d.as_secs_f64() * 1e3),
-                intensity: luminance(input.k),
-            })
-            .collect();
+        let intensity = inputs.iter().map(|input| luminance(input.k)).collect();
         let frame = Frame {
             number: self.number,
             width: self.compositor.width(),
             height: self.compositor.height(),
             rgb: self.frame_rgb(gpu_rgb, &update),
-            lights: Arc::new(status),
+            intensity: Arc::new(intensity),
             composite_time: t0.elapsed(),
             update,
         };

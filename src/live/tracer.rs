@@ -1,29 +1,47 @@
 //! The background tracer: rebuilds lights whose geometry changed while the
 //! rest of the picture stays live (Vierjahn 2010, section 3.3 and fig. 1).
+//! It only *schedules*: every buffer is built by [`LightBuild`].
 //!
-//! Each light has a slot holding its latest *request* (coalesced: a pan
-//! sweep replaces the pending request instead of queueing every step) and
-//! its latest *published* buffer. Worker threads take the highest-priority
-//! pending request (bright lights that reach much of the view first) and
-//! build it in stages, publishing each as it finishes:
-//! 1. direct light on directly seen surfaces (the moving light is seen moving),
-//! 2. full Whitted recursion with adaptive anti-aliasing,
-//! 3. the photon-mapped indirect term,
-//! 4. while idle, progressive (SPPM) passes refine the brightest lights.
+//! Each light has a slot holding its newest *request* (coalesced: a pan
+//! sweep replaces the pending request instead of queueing every step), the
+//! build in progress between stages, and its latest *published* buffer.
 //!
-//! A newer request for the same light cancels the build in progress at the
-//! next stage boundary. Builds run on their own rayon pool, so the frame
-//! clock's composite (global pool) never queues behind them; the frame
-//! clock only reads published buffers (an `Arc` swap under a short lock).
+//! # Scheduling (fair and deadline-driven)
+//! 1. **Direct stages first.** While any light has a pending request, the
+//!    worker builds a direct stage ([`LightBuild::direct`], footprint-culled)
+//!    for the light that has waited longest, its wait weighted by the share
+//!    of the picture it changes (1 + fraction of tiles its beam covered last
+//!    time, so the weight is in [1, 2]). A light's wait starts at its
+//!    *oldest* unserved request and coalescing never resets it, so no light
+//!    starves: with N lights moving every frame, each one is served within
+//!    2N direct stages (unit-tested on [`schedule`]).
+//! 2. **Later stages only on still lights.** Whitted + anti-aliasing,
+//!    photons and refinement start on a light whose last request is at
+//!    least [`TracerSettings::settle`] old (150 ms by default): no work is
+//!    spent on a position already stale. All settled lights get their
+//!    Whitted stage before any gets photons, and photons before any
+//!    refinement pass; within a stage, the brightest light goes first.
+//! 3. **A light in motion is shaded at moving quality**
+//!    ([`DirectQuality::Moving`]: one pixel per 2×2 block) when its
+//!    previous request was less than `settle` earlier; the settled Whitted
+//!    stage replaces it.
+//!
+//! A newer request for a light cancels its build in progress (the
+//! [`Cancel`] token compares request ids) at the next stage boundary; a
+//! geometry state found in the [`GeometryCache`] is published at once.
+//! Builds run on the tracer's own rayon pool, so the frame clock's composite
+//! never queues behind them; the frame clock only reads published buffers
+//! (an `Arc` swap under a short lock).
 
-use super::cache::{GeometryCache, geometry_key};
+use super::cache::GeometryCache;
 use crate::Light;
-use crate::render::photon::{PhotonSettings, Progressive, trace_photons};
-use crate::render::still::light_seed;
-use crate::render::{AaParams, LightBuffer, View};
+use crate::render::build::{BuildError, BuildSettings, Cancel, LightBuild, Refinement};
+use crate::render::footprint::DirectQuality;
+use crate::render::{LightBuffer, View};
 use crate::scene::Scene;
 use glam::Vec3;
 use serde::Serialize;
+use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
@@ -34,7 +52,7 @@ use std::time::{Duration, Instant};
 pub enum Stage {
     /// Nothing built yet.
     Queued,
-    /// Direct light on directly seen surfaces.
+    /// Direct light on directly seen surfaces (full or moving quality).
     Direct,
     /// Direct light with mirrors, glass and anti-aliasing.
     Whitted,
@@ -46,21 +64,15 @@ pub enum Stage {
     Ready,
 }
 
-/// Tracer settings.
+/// Tracer settings; [`Default`] holds every default in one place.
 #[derive(Clone, Copy, Debug)]
 pub struct TracerSettings {
-    /// Build worker threads (each build is itself data-parallel).
-    pub workers: usize,
-    /// Threads of the build pool.
+    /// Threads of the build pool (each stage is data-parallel).
     pub threads: usize,
-    /// Anti-aliasing threshold (0-255).
-    pub aa_threshold: f32,
-    /// Display scale (exposure · white balance) for anti-aliasing decisions.
-    pub display_scale: Vec3,
-    /// Photon mapping, or `None` for direct light only.
-    pub photons: Option<PhotonSettings>,
-    /// Progressive passes per light before it counts as converged.
-    pub refine_passes: u32,
+    /// What each light build does (AA threshold, photons, refinement passes).
+    pub build: BuildSettings,
+    /// How long a light must be still before its later stages start.
+    pub settle: Duration,
     /// Lights refined at the same time (each holds per-vertex SPPM state).
     pub max_refining: usize,
     /// Geometry cache budget in bytes.
@@ -70,19 +82,16 @@ pub struct TracerSettings {
 impl Default for TracerSettings {
     fn default() -> Self {
         Self {
-            workers: 1,
             threads: std::thread::available_parallelism().map(|n| n.get()).unwrap_or(2),
-            aa_threshold: 20.0,
-            display_scale: crate::render::Display::default().scale(),
-            photons: Some(PhotonSettings::default()),
-            refine_passes: 16,
+            build: BuildSettings::default(),
+            settle: Duration::from_millis(150),
             max_refining: 4,
             cache_bytes: 512 << 20,
         }
     }
 }
 
-/// What the frame clock and the status page see of a light.
+/// What the frame clock sees of a light.
 #[derive(Clone, Debug)]
 pub struct Published {
     /// The light's current unit-intensity buffer.
@@ -91,10 +100,26 @@ pub struct Published {
     pub generation: u64,
     /// How far the build got.
     pub stage: Stage,
-    /// Wall time of the last completed build (stages 1-3).
-    pub last_build: Option<Duration>,
-    /// Time from the request to stage 1 of the last build.
-    pub first_stage: Option<Duration>,
+}
+
+/// A light's build state for the status page (issue 18: the status tells
+/// the truth about moving lights).
+#[derive(Clone, Debug, Serialize)]
+pub struct LightReport {
+    /// The stage of the buffer on screen.
+    pub stage: Stage,
+    /// A request is waiting, or the last one is younger than the settle time.
+    pub moving: bool,
+    /// Age of the oldest unserved request, ms (`None`: nothing waiting).
+    pub pending_ms: Option<f64>,
+    /// Direct stages published in the last second (Hz).
+    pub direct_hz: f64,
+    /// Direct stages published since start.
+    pub direct_updates: u64,
+    /// Time from the oldest unserved request to its direct stage on screen, ms (last one).
+    pub first_stage_ms: Option<f64>,
+    /// Time from the last request to the light's final stage, ms (last finished build).
+    pub last_build_ms: Option<f64>,
 }
 
 struct Request {
@@ -104,19 +129,37 @@ struct Request {
     at: Instant,
 }
 
-struct Refine {
-    request_id: u64,
-    light: Light,
-    direct: Vec<Vec3>,
-    sppm: Progressive,
+/// A light's scheduling state (under its slot's lock).
+#[derive(Default)]
+struct SlotState {
+    /// The newest unserved position.
+    pending: Option<Request>,
+    /// When the oldest unserved request arrived (coalescing keeps it).
+    waiting_since: Option<Instant>,
+    /// When the newest request arrived (settle rule).
+    last_move: Option<Instant>,
+    /// The request before the newest (moving-quality rule).
+    previous_move: Option<Instant>,
+    /// A build past its direct stage, waiting for its later stages.
+    build: Option<(u64, LightBuild, Instant)>,
+    /// Progressive refinement in progress.
+    refine: Option<(u64, Refinement, Instant)>,
+    /// Brightness priority (luminance of k_i).
+    priority: f32,
+    /// Share of the picture the light changes, in [1, 2].
+    weight: f32,
+    /// Direct-stage publish times in the last second.
+    direct_times: VecDeque<Instant>,
+    direct_total: u64,
+    first_stage: Option<Duration>,
+    last_build: Option<Duration>,
 }
 
 struct Slot {
-    pending: Mutex<Option<Request>>,
-    latest: AtomicU64,
+    /// Id of the newest request: the [`Cancel`] token of its builds.
+    latest: Arc<AtomicU64>,
+    state: Mutex<SlotState>,
     published: Mutex<Published>,
-    refine: Mutex<Option<Refine>>,
-    priority: Mutex<f32>,
 }
 
 struct Shared {
@@ -125,7 +168,7 @@ struct Shared {
     settings: TracerSettings,
     slots: Vec<Slot>,
     wake: (Mutex<u64>, Condvar),
-    stop: AtomicBool,
+    stop: Arc<AtomicBool>,
     next_id: AtomicU64,
     cache: Mutex<GeometryCache>,
     pool: rayon::ThreadPool,
@@ -134,26 +177,65 @@ struct Shared {
 /// Background builder of per-light buffers.
 pub struct Tracer {
     shared: Arc<Shared>,
-    workers: Vec<std::thread::JoinHandle<()>>,
+    worker: Option<std::thread::JoinHandle<()>>,
+}
+
+/// A light's scheduling facts, as [`schedule`] sees them.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SlotView {
+    /// The oldest unserved request's time, if a request waits.
+    pub waiting_since: Option<Instant>,
+    /// Share of the picture the light changes, in [1, 2].
+    pub weight: f32,
+    /// Brightness priority.
+    pub priority: f32,
+    /// Still for at least the settle time.
+    pub settled: bool,
+    /// The next later stage it needs: 0 Whitted, 1 photons, 2 refinement.
+    pub later: Option<u8>,
+}
+
+/// The next job of the tracer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Job {
+    /// The direct stage of this light.
+    Direct(usize),
+    /// The next later stage of this (settled) light.
+    Later(usize),
+}
+
+/// The scheduling policy (module doc): pure, so its fairness is tested
+/// without threads or clocks.
+pub fn schedule(slots: &[SlotView], now: Instant) -> Option<Job> {
+    let waited =
+        |s: &SlotView| s.waiting_since.map(|t| now.saturating_duration_since(t).as_secs_f64() * f64::from(s.weight));
+    let direct = slots
+        .iter()
+        .enumerate()
+        .filter_map(|(i, s)| waited(s).map(|w| (i, w)))
+        // Longest weighted wait; ties go to the lower index.
+        .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)));
+    if let Some((i, _)) = direct {
+        return Some(Job::Direct(i));
+    }
+    slots
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.settled && s.waiting_since.is_none())
+        .filter_map(|(i, s)| s.later.map(|stage| (i, stage, s.priority)))
+        .min_by(|a, b| a.1.cmp(&b.1).then(b.2.total_cmp(&a.2)).then(a.0.cmp(&b.0)))
+        .map(|(i, _, _)| Job::Later(i))
 }
 
 impl Tracer {
-    /// Starts the worker threads for `lights` lights over `view`.
+    /// Starts the worker for `lights` lights over `view`.
     pub fn new(scene: Arc<Scene>, view: Arc<View>, lights: usize, settings: TracerSettings) -> Self {
         let empty = Arc::new(LightBuffer::empty(view.width(), view.height()));
         let slots = (0..lights)
             .map(|_| Slot {
-                pending: Mutex::new(None),
-                latest: AtomicU64::new(0),
-                published: Mutex::new(Published {
-                    buffer: empty.clone(),
-                    generation: 0,
-                    stage: Stage::Queued,
-                    last_build: None,
-                    first_stage: None,
-                }),
-                refine: Mutex::new(None),
-                priority: Mutex::new(0.0),
+                latest: Arc::new(AtomicU64::new(0)),
+                state: Mutex::new(SlotState { weight: 1.0, ..SlotState::default() }),
+                published: Mutex::new(Published { buffer: empty.clone(), generation: 0, stage: Stage::Queued }),
             })
             .collect();
         let pool = rayon::ThreadPoolBuilder::new()
@@ -167,21 +249,19 @@ impl Tracer {
             settings,
             slots,
             wake: (Mutex::new(0), Condvar::new()),
-            stop: AtomicBool::new(false),
+            stop: Arc::new(AtomicBool::new(false)),
             next_id: AtomicU64::new(1),
             cache: Mutex::new(GeometryCache::new(settings.cache_bytes)),
             pool,
         });
-        let workers = (0..settings.workers.max(1))
-            .map(|i| {
-                let shared = shared.clone();
-                std::thread::Builder::new()
-                    .name(format!("footlight-tracer-{i}"))
-                    .spawn(move || worker(&shared))
-                    .expect("spawn tracer worker")
-            })
-            .collect();
-        Self { shared, workers }
+        let worker = {
+            let shared = shared.clone();
+            std::thread::Builder::new()
+                .name("footlight-tracer".into())
+                .spawn(move || worker(&shared))
+                .expect("spawn tracer worker")
+        };
+        Self { shared, worker: Some(worker) }
     }
 
     /// Number of light slots.
@@ -194,37 +274,46 @@ impl Tracer {
         self.shared.slots.is_empty()
     }
 
+    /// The view the lights are built for.
+    pub fn view(&self) -> &Arc<View> {
+        &self.shared.view
+    }
+
     /// Asks for light `index` to be rebuilt with new geometry. Replaces any
-    /// pending request and cancels a build in progress at its next stage.
-    /// A geometry state found in the cache is published at once.
+    /// pending request and cancels a build in progress. A geometry state
+    /// found in the cache is published at once.
     pub fn request(&self, index: usize, light: Light, k_full: Vec3, priority: f32) {
         let s = &self.shared;
         let Some(slot) = s.slots.get(index) else { return };
         let id = s.next_id.fetch_add(1, Ordering::Relaxed);
         slot.latest.store(id, Ordering::SeqCst);
-        *slot.refine.lock().expect("refine lock") = None;
-        let key = geometry_key(&light);
-        if let Some(buffer) = s.cache.lock().expect("cache lock").get(index, key) {
-            *slot.pending.lock().expect("pending lock") = None;
+        let now = Instant::now();
+        let mut st = slot.state.lock().expect("slot lock");
+        st.build = None;
+        st.refine = None;
+        st.priority = priority;
+        st.previous_move = st.last_move.replace(now);
+        if let Some(buffer) = s.cache.lock().expect("cache lock").get(index, &light) {
+            st.pending = None;
+            st.waiting_since = None;
+            drop(st);
             let mut p = slot.published.lock().expect("published lock");
             p.buffer = buffer;
             p.generation += 1;
             p.stage = Stage::Ready;
-            p.first_stage = Some(Duration::ZERO);
             tracing::debug!("light {index}: geometry found in cache");
             return;
         }
-        *slot.pending.lock().expect("pending lock") = Some(Request { id, light, k_full, at: Instant::now() });
-        *slot.priority.lock().expect("priority lock") = priority;
-        let (lock, cv) = &s.wake;
-        *lock.lock().expect("wake lock") += 1;
-        cv.notify_all();
+        st.pending = Some(Request { id, light, k_full, at: now });
+        st.waiting_since.get_or_insert(now);
+        drop(st);
+        s.notify();
     }
 
     /// Updates a light's priority (its brightness changes every frame).
     pub fn set_priority(&self, index: usize, priority: f32) {
         if let Some(slot) = self.shared.slots.get(index) {
-            *slot.priority.lock().expect("priority lock") = priority;
+            slot.state.lock().expect("slot lock").priority = priority;
         }
     }
 
@@ -233,10 +322,32 @@ impl Tracer {
         self.shared.slots[index].published.lock().expect("published lock").clone()
     }
 
-    /// True when no light has a pending request or unfinished build.
+    /// The light's build state for the status page.
+    pub fn report(&self, index: usize) -> Option<LightReport> {
+        let slot = self.shared.slots.get(index)?;
+        let stage = slot.published.lock().expect("published lock").stage;
+        let now = Instant::now();
+        let mut st = slot.state.lock().expect("slot lock");
+        prune(&mut st.direct_times, now);
+        let settle = self.shared.settings.settle;
+        Some(LightReport {
+            stage,
+            moving: st.pending.is_some() || st.last_move.is_some_and(|t| now.duration_since(t) < settle),
+            pending_ms: st.waiting_since.map(|t| now.duration_since(t).as_secs_f64() * 1e3),
+            direct_hz: st.direct_times.len() as f64,
+            direct_updates: st.direct_total,
+            first_stage_ms: st.first_stage.map(|d| d.as_secs_f64() * 1e3),
+            last_build_ms: st.last_build.map(|d| d.as_secs_f64() * 1e3),
+        })
+    }
+
+    /// True when no light has a pending request or a stage before its
+    /// first indirect estimate still to build.
     pub fn idle(&self) -> bool {
         self.shared.slots.iter().all(|s| {
-            s.pending.lock().expect("pending lock").is_none()
+            let st = s.state.lock().expect("slot lock");
+            st.pending.is_none()
+                && st.build.is_none()
                 && !matches!(
                     s.published.lock().expect("published lock").stage,
                     Stage::Queued | Stage::Direct | Stage::Whitted
@@ -244,170 +355,347 @@ impl Tracer {
         })
     }
 
-    /// Stops the workers after their current stage and joins them.
-    pub fn shutdown(mut self) {
-        self.stop_workers();
+    /// Geometry cache entries and bytes.
+    pub fn cache_usage(&self) -> (usize, usize) {
+        let c = self.shared.cache.lock().expect("cache lock");
+        (c.len(), c.bytes())
     }
 
-    fn stop_workers(&mut self) {
+    /// Stops the worker: every build's [`Cancel`] token fires, and the
+    /// worker is joined for at most `grace`. A stage that cannot stop in
+    /// time is left to end with the process; returns false then.
+    pub fn shutdown(mut self, grace: Duration) -> bool {
         self.shared.stop.store(true, Ordering::SeqCst);
-        self.shared.wake.1.notify_all();
-        for w in self.workers.drain(..) {
-            let _ = w.join();
+        self.shared.notify();
+        let Some(worker) = self.worker.take() else { return true };
+        let deadline = Instant::now() + grace;
+        while !worker.is_finished() {
+            if Instant::now() >= deadline {
+                tracing::warn!("a light build is still running; leaving it to end with the process");
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(5));
         }
+        let _ = worker.join();
+        true
     }
 }
 
 impl Drop for Tracer {
     fn drop(&mut self) {
-        self.stop_workers();
+        self.shared.stop.store(true, Ordering::SeqCst);
+        self.shared.notify();
+    }
+}
+
+impl Shared {
+    fn notify(&self) {
+        let (lock, cv) = &self.wake;
+        *lock.lock().expect("wake lock") += 1;
+        cv.notify_all();
+    }
+
+    fn stopped(&self) -> bool {
+        self.stop.load(Ordering::SeqCst)
+    }
+
+    /// Publishes `buffer` for `index` if request `id` still owns the slot.
+    fn publish(&self, index: usize, id: u64, buffer: LightBuffer, stage: Stage) -> bool {
+        let slot = &self.slots[index];
+        if slot.latest.load(Ordering::SeqCst) != id {
+            return false; // superseded: a newer request owns the slot
+        }
+        let mut p = slot.published.lock().expect("published lock");
+        p.buffer = Arc::new(buffer);
+        p.generation += 1;
+        p.stage = stage;
+        true
+    }
+
+    fn views(&self, now: Instant) -> Vec<SlotView> {
+        self.slots
+            .iter()
+            .map(|slot| {
+                let st = slot.state.lock().expect("slot lock");
+                let later = if let Some((_, b, _)) = &st.build {
+                    Some(if b.has_whitted() { 1 } else { 0 })
+                } else if st.refine.is_some() {
+                    Some(2)
+                } else {
+                    None
+                };
+                SlotView {
+                    waiting_since: st.waiting_since.filter(|_| st.pending.is_some()),
+                    weight: st.weight,
+                    priority: st.priority,
+                    settled: st.last_move.is_none_or(|t| now.duration_since(t) >= self.settings.settle),
+                    later,
+                }
+            })
+            .collect()
+    }
+
+    /// How long the worker may sleep: until the next light settles, else 50 ms.
+    fn idle_wait(&self, now: Instant) -> Duration {
+        self.slots
+            .iter()
+            .filter_map(|slot| {
+                let st = slot.state.lock().expect("slot lock");
+                let waiting = st.build.is_some() || st.refine.is_some();
+                st.last_move.filter(|_| waiting).map(|t| (t + self.settings.settle).saturating_duration_since(now))
+            })
+            .min()
+            .unwrap_or(Duration::from_millis(50))
+            .clamp(Duration::from_millis(1), Duration::from_millis(50))
+    }
+}
+
+fn prune(times: &mut VecDeque<Instant>, now: Instant) {
+    while times.front().is_some_and(|t| now.duration_since(*t) > Duration::from_secs(1)) {
+        times.pop_front();
     }
 }
 
 fn worker(s: &Shared) {
-    while !s.stop.load(Ordering::SeqCst) {
-        if let Some((index, req)) = take_request(s) {
-            build(s, index, req);
-            continue;
-        }
-        if refine_one(s) {
-            continue;
-        }
-        let (lock, cv) = &s.wake;
-        let guard = lock.lock().expect("wake lock");
-        let _ = cv.wait_timeout(guard, Duration::from_millis(50));
-    }
-}
-
-/// Takes the pending request with the highest priority.
-fn take_request(s: &Shared) -> Option<(usize, Request)> {
-    let mut best: Option<(usize, f32)> = None;
-    for (i, slot) in s.slots.iter().enumerate() {
-        if slot.pending.lock().expect("pending lock").is_some() {
-            let p = *slot.priority.lock().expect("priority lock");
-            if best.is_none_or(|(_, bp)| p > bp) {
-                best = Some((i, p));
+    while !s.stopped() {
+        let now = Instant::now();
+        match schedule(&s.views(now), now) {
+            Some(Job::Direct(i)) => direct_stage(s, i),
+            Some(Job::Later(i)) => later_stage(s, i),
+            None => {
+                let wait = s.idle_wait(now);
+                let (lock, cv) = &s.wake;
+                let guard = lock.lock().expect("wake lock");
+                let _ = cv.wait_timeout(guard, wait);
             }
         }
     }
-    let (i, _) = best?;
-    s.slots[i].pending.lock().expect("pending lock").take().map(|r| (i, r))
 }
 
-fn publish(s: &Shared, index: usize, id: u64, buffer: LightBuffer, stage: Stage) -> bool {
-    let slot = &s.slots[index];
-    if slot.latest.load(Ordering::SeqCst) != id {
-        return false; // superseded: a newer request owns the slot
+fn report_bug(index: usize, e: &BuildError) {
+    if let BuildError::Bad(bad) = e {
+        tracing::error!("light {index}: {bad}; keeping the previous buffer (this is a bug)");
     }
-    if let Err(e) = buffer.check() {
-        tracing::error!("light {index}: {e}; keeping the previous buffer (this is a bug)");
-        return false;
-    }
-    let mut p = slot.published.lock().expect("published lock");
-    p.buffer = Arc::new(buffer);
-    p.generation += 1;
-    p.stage = stage;
-    true
 }
 
-fn build(s: &Shared, index: usize, req: Request) {
-    let (scene, view) = (&*s.scene, &*s.view);
+/// Stage 1 for the light that waited longest.
+fn direct_stage(s: &Shared, index: usize) {
     let slot = &s.slots[index];
-    let current = || slot.latest.load(Ordering::SeqCst) == req.id && !s.stop.load(Ordering::SeqCst);
-    let (w, h) = (view.width(), view.height());
-    let t0 = Instant::now();
-    let primary = s.pool.install(|| view.render_primary_direct(scene, &req.light));
-    if !publish(s, index, req.id, LightBuffer::from_dense(w, h, &primary), Stage::Direct) {
+    let (req, waiting_since, quality) = {
+        let mut st = slot.state.lock().expect("slot lock");
+        let Some(req) = st.pending.take() else { return };
+        let moving = st.previous_move.is_some_and(|p| req.at.duration_since(p) < s.settings.settle);
+        let since = st.waiting_since.take().unwrap_or(req.at);
+        (req, since, moving)
+    };
+    let quality = if quality { DirectQuality::Moving } else { DirectQuality::Full };
+    let cancel = Cancel::new(slot.latest.clone(), req.id, s.stop.clone());
+    let mut build = LightBuild::new(req.light, index, req.k_full, s.settings.build, cancel);
+    let result = s.pool.install(|| build.direct(&s.scene, &s.view, quality));
+    let (buffer, stats) = match result {
+        Ok(r) => r,
+        Err(e) => return report_bug(index, &e),
+    };
+    if !s.publish(index, req.id, buffer, Stage::Direct) {
         return;
     }
-    slot.published.lock().expect("published lock").first_stage = Some(req.at.elapsed());
-    tracing::debug!("light {index}: direct stage in {:.0} ms", t0.elapsed().as_secs_f64() * 1e3);
-    if !current() {
-        return;
+    let now = Instant::now();
+    let mut st = slot.state.lock().expect("slot lock");
+    st.first_stage = Some(now.duration_since(waiting_since));
+    st.direct_times.push_back(now);
+    st.direct_total += 1;
+    prune(&mut st.direct_times, now);
+    st.weight = 1.0 + stats.tiles_in_beam as f32 / stats.tiles.max(1) as f32;
+    if slot.latest.load(Ordering::SeqCst) == req.id {
+        st.build = Some((req.id, build, req.at));
     }
-    let aa = AaParams { display_scale: req.k_full * s.settings.display_scale, threshold: s.settings.aa_threshold };
-    let (direct, _) = s.pool.install(|| view.render_direct(scene, &req.light, Some(aa)));
-    let stage = if s.settings.photons.is_some() { Stage::Whitted } else { Stage::Ready };
-    if !publish(s, index, req.id, LightBuffer::from_dense(w, h, &direct), stage) || !current() {
-        return;
-    }
-    let final_buffer;
-    if let Some(photons) = s.settings.photons {
-        let settings = PhotonSettings { seed: light_seed(photons.seed, index), ..photons };
-        let (sum, maps) = s.pool.install(|| {
-            let maps = trace_photons(scene, &req.light, &settings);
-            let indirect = view.render_indirect(scene, &maps);
-            let sum: Vec<Vec3> = direct.iter().zip(&indirect).map(|(d, a)| *d + *a).collect();
-            (sum, maps)
-        });
-        let refine = s.settings.refine_passes > 0 && !maps.global.is_empty();
-        let buffer = LightBuffer::from_dense(w, h, &sum);
-        final_buffer = buffer.clone();
-        if !publish(s, index, req.id, buffer, if refine { Stage::Photons } else { Stage::Ready }) {
+}
+
+/// The next later stage (Whitted, photons or a refinement pass) of a settled light.
+fn later_stage(s: &Shared, index: usize) {
+    let slot = &s.slots[index];
+    let (build, refine) = {
+        let mut st = slot.state.lock().expect("slot lock");
+        (st.build.take(), if st.build.is_none() { st.refine.take() } else { None })
+    };
+    if let Some((id, mut build, at)) = build {
+        if !build.has_whitted() {
+            let result = s.pool.install(|| build.whitted(&s.scene, &s.view));
+            let stage = if build.has_photons() { Stage::Whitted } else { Stage::Ready };
+            match result {
+                Ok(buffer) => {
+                    let cached = (stage == Stage::Ready).then(|| Arc::new(buffer.clone()));
+                    if s.publish(index, id, buffer, stage) {
+                        match cached {
+                            Some(b) => finished(s, index, build.light(), b, at),
+                            None => keep_build(s, index, id, build, at),
+                        }
+                    }
+                }
+                Err(e) => report_bug(index, &e),
+            }
             return;
         }
-        // Progressive state is set up after the first estimate is on screen.
-        if refine && current() {
-            let sppm = s.pool.install(|| Progressive::new(scene, view, &maps));
-            *slot.refine.lock().expect("refine lock") =
-                Some(Refine { request_id: req.id, light: req.light.clone(), direct, sppm });
+        let result = s.pool.install(|| build.photons(&s.scene, &s.view));
+        match result {
+            Ok(buffer) => {
+                let refine = build.will_refine();
+                let stage = if refine { Stage::Photons } else { Stage::Ready };
+                let cached = (!refine).then(|| Arc::new(buffer.clone()));
+                if !s.publish(index, id, buffer, stage) {
+                    return;
+                }
+                if let Some(b) = cached {
+                    return finished(s, index, build.light(), b, at);
+                }
+                let light = build.light().clone();
+                match s.pool.install(|| build.into_refinement(&s.scene, &s.view)) {
+                    Some(r) => start_refining(s, index, id, r, at),
+                    None => mark_ready(s, index, id, &light, at),
+                }
+            }
+            Err(e) => report_bug(index, &e),
         }
-    } else {
-        final_buffer = LightBuffer::from_dense(w, h, &direct);
+        return;
     }
-    let elapsed = t0.elapsed();
-    slot.published.lock().expect("published lock").last_build = Some(elapsed);
-    s.cache.lock().expect("cache lock").insert(index, geometry_key(&req.light), Arc::new(final_buffer));
-    tracing::info!("light {index}: rebuilt in {:.0} ms", elapsed.as_secs_f64() * 1e3);
+    let Some((id, mut refine, at)) = refine else { return };
+    let result = s.pool.install(|| refine.pass(&s.scene, &s.view));
+    match result {
+        Ok(buffer) => {
+            let done = refine.finished();
+            let stage = if done { Stage::Ready } else { Stage::Refining(refine.done()) };
+            let cached = done.then(|| Arc::new(buffer.clone()));
+            if !s.publish(index, id, buffer, stage) {
+                return;
+            }
+            match cached {
+                Some(b) => {
+                    tracing::debug!("light {index}: converged after {} progressive passes", refine.done());
+                    finished(s, index, refine.light(), b, at);
+                }
+                None => {
+                    let mut st = slot.state.lock().expect("slot lock");
+                    if slot.latest.load(Ordering::SeqCst) == id {
+                        st.refine = Some((id, refine, at));
+                    }
+                }
+            }
+        }
+        Err(e) => report_bug(index, &e),
+    }
 }
 
-/// One SPPM pass on the highest-priority light still refining; false when
-/// there is nothing to refine.
-fn refine_one(s: &Shared) -> bool {
-    let (scene, view) = (&*s.scene, &*s.view);
-    let mut candidates: Vec<(usize, f32)> = s
+fn keep_build(s: &Shared, index: usize, id: u64, build: LightBuild, at: Instant) {
+    let slot = &s.slots[index];
+    let mut st = slot.state.lock().expect("slot lock");
+    if slot.latest.load(Ordering::SeqCst) == id {
+        st.build = Some((id, build, at));
+    }
+}
+
+/// Holds refinement state for at most `max_refining` lights: the dimmest
+/// holder gives its state up (its picture stays at the photon estimate).
+fn start_refining(s: &Shared, index: usize, id: u64, refine: Refinement, at: Instant) {
+    let slot = &s.slots[index];
+    {
+        let mut st = slot.state.lock().expect("slot lock");
+        if slot.latest.load(Ordering::SeqCst) != id {
+            return;
+        }
+        st.refine = Some((id, refine, at));
+    }
+    let mut holders: Vec<(usize, f32)> = s
         .slots
         .iter()
         .enumerate()
-        .filter(|(_, slot)| slot.refine.lock().expect("refine lock").is_some())
-        .map(|(i, slot)| (i, *slot.priority.lock().expect("priority lock")))
+        .filter_map(|(i, sl)| {
+            let st = sl.state.lock().expect("slot lock");
+            st.refine.as_ref().map(|_| (i, st.priority))
+        })
         .collect();
-    candidates.sort_by(|a, b| b.1.total_cmp(&a.1));
-    // Lights beyond the first `max_refining` give their state up (memory bound).
-    for &(i, _) in candidates.iter().skip(s.settings.max_refining.max(1)) {
-        if let Some(r) = s.slots[i].refine.lock().expect("refine lock").take() {
-            finish_refine(s, i, r.request_id);
+    holders.sort_by(|a, b| b.1.total_cmp(&a.1));
+    for &(i, _) in holders.iter().skip(s.settings.max_refining.max(1)) {
+        let taken = s.slots[i].state.lock().expect("slot lock").refine.take();
+        if let Some((rid, r, rat)) = taken {
+            mark_ready(s, i, rid, r.light(), rat);
         }
     }
-    let Some(&(index, _)) = candidates.first() else { return false };
-    let slot = &s.slots[index];
-    let Some(mut r) = slot.refine.lock().expect("refine lock").take() else { return true };
-    let sum = s.pool.install(|| {
-        r.sppm.pass(scene, view, &r.light);
-        let indirect = view.render_progressive(scene, &r.sppm);
-        r.direct.iter().zip(&indirect).map(|(d, a)| *d + *a).collect::<Vec<Vec3>>()
-    });
-    let passes = r.sppm.passes();
-    let done = passes >= s.settings.refine_passes;
-    let stage = if done { Stage::Ready } else { Stage::Refining(passes) };
-    let buffer = LightBuffer::from_dense(view.width(), view.height(), &sum);
-    let cached = done.then(|| Arc::new(buffer.clone()));
-    if !publish(s, index, r.request_id, buffer, stage) {
-        return true;
-    }
-    if let Some(b) = cached {
-        s.cache.lock().expect("cache lock").insert(index, geometry_key(&r.light), b);
-        tracing::info!("light {index}: converged after {passes} progressive passes");
-    } else if slot.latest.load(Ordering::SeqCst) == r.request_id {
-        *slot.refine.lock().expect("refine lock") = Some(r);
-    }
-    true
 }
 
-/// Marks a light whose refinement state was given up as finished.
-fn finish_refine(s: &Shared, index: usize, request_id: u64) {
+/// Marks a light whose later stages ended without a new buffer as ready.
+fn mark_ready(s: &Shared, index: usize, id: u64, _light: &Light, at: Instant) {
     let slot = &s.slots[index];
-    if slot.latest.load(Ordering::SeqCst) == request_id {
+    if slot.latest.load(Ordering::SeqCst) == id {
         slot.published.lock().expect("published lock").stage = Stage::Ready;
+        slot.state.lock().expect("slot lock").last_build = Some(at.elapsed());
+    }
+}
+
+/// A light's final buffer: cached for position presets, build time recorded.
+fn finished(s: &Shared, index: usize, light: &Light, buffer: Arc<LightBuffer>, at: Instant) {
+    s.cache.lock().expect("cache lock").insert(index, light, buffer);
+    let elapsed = at.elapsed();
+    s.slots[index].state.lock().expect("slot lock").last_build = Some(elapsed);
+    tracing::debug!("light {index}: finished {:.0} ms after its last move", elapsed.as_secs_f64() * 1e3);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// N lights re-requested every frame, one direct stage per frame: every
+    /// light is served within 2N stages (the weight is at most 2), and
+    /// later stages never run while a request waits.
+    #[test]
+    fn no_light_starves_when_every_light_moves_every_frame() {
+        for n in [1usize, 2, 8, 44] {
+            let t0 = Instant::now();
+            let frame = Duration::from_millis(16);
+            let mut slots: Vec<SlotView> = (0..n)
+                .map(|i| SlotView {
+                    waiting_since: Some(t0),
+                    // Uneven footprints: the weight spans its whole range.
+                    weight: 1.0 + (i % 3) as f32 * 0.5,
+                    priority: 1.0,
+                    settled: false,
+                    later: Some(0),
+                })
+                .collect();
+            let mut last_served = vec![0usize; n];
+            let mut worst = 0;
+            for step in 1..=20 * n {
+                let now = t0 + frame * step as u32;
+                let Some(Job::Direct(i)) = schedule(&slots, now) else { panic!("a direct stage must run first") };
+                worst = worst.max(step - last_served[i]);
+                last_served[i] = step;
+                // The served light moves again during the next frame.
+                slots[i].waiting_since = Some(now + frame / 2);
+            }
+            assert!(worst <= 2 * n, "n = {n}: a light waited {worst} stages (bound {})", 2 * n);
+            // Every light was served at least once in the last 2N steps.
+            assert!(last_served.iter().all(|&s| s + 2 * n >= 20 * n), "{last_served:?}");
+        }
+    }
+
+    #[test]
+    fn later_stages_wait_for_settled_lights_and_go_stage_by_stage() {
+        let now = Instant::now();
+        let still = |later: u8, priority: f32| SlotView {
+            waiting_since: None,
+            weight: 1.0,
+            priority,
+            settled: true,
+            later: Some(later),
+        };
+        // A moving (unsettled) light never gets a later stage.
+        let moving = SlotView { settled: false, ..still(0, 100.0) };
+        assert_eq!(schedule(&[moving], now), None);
+        // Whitted before photons before refinement; the brightest first within a stage.
+        let slots = [still(2, 100.0), still(1, 50.0), still(1, 80.0), moving];
+        assert_eq!(schedule(&slots, now), Some(Job::Later(2)));
+        assert_eq!(schedule(&[still(2, 100.0), still(0, 1.0)], now), Some(Job::Later(1)));
+        // Any waiting request goes before every later stage.
+        let waiting = SlotView { waiting_since: Some(now), settled: false, later: None, ..still(0, 0.0) };
+        assert_eq!(schedule(&[still(0, 100.0), waiting], now), Some(Job::Direct(1)));
     }
 }

@@ -74,6 +74,21 @@ impl LightBuffer {
         buf
     }
 
+    /// Packs tiles given by tile index (row-major over the tile grid), each
+    /// TILE×TILE row-major; all-zero tiles and indices outside the grid are
+    /// dropped. What a footprint-culled stage produces (no dense buffer).
+    pub fn from_tiles(width: u32, height: u32, tiles: Vec<(usize, Vec<Vec3>)>) -> Self {
+        let mut buf = Self::empty(width, height);
+        for (t, pixels) in tiles {
+            if t >= buf.slot.len() || pixels.len() != TILE_PIXELS || pixels.iter().all(|p| *p == Vec3::ZERO) {
+                continue;
+            }
+            buf.slot[t] = (buf.data.len() / TILE_PIXELS) as u32;
+            buf.data.extend_from_slice(&pixels);
+        }
+        buf
+    }
+
     /// Value at pixel (x, y).
     pub fn get(&self, x: u32, y: u32) -> Vec3 {
         let (x, y) = (x as usize, y as usize);

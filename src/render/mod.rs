@@ -10,14 +10,19 @@
 //! * [`photon`]: per-light photon maps for the indirect term (eq. 3),
 //!   progressive refinement, and the path-traced reference.
 //! * [`buffer`]: sparse tiled per-light buffers.
+//! * [`footprint`]: direct light in proportion to a beam's footprint (tile culling).
+//! * [`build`]: [`LightBuild`], the only builder of a light's buffer, one
+//!   method per stage (direct, Whitted + AA, photons, refinement).
 //! * [`composite`]: I = Σ k_i ⊙ buffer_i (eq. 5, §3.3) on the CPU.
 //! * [`display`]: exposure, white balance, sRGB, PNG.
 //! * [`reference`]: single-pass eq. 1 renderer for the linearity tests.
 //! * [`still`]: the whole pipeline for one still image (`footlight render`).
 
 pub mod buffer;
+pub mod build;
 pub mod composite;
 pub mod display;
+pub mod footprint;
 pub mod gbuffer;
 pub mod photon;
 pub mod reference;
@@ -26,6 +31,7 @@ pub mod view;
 pub mod whitted;
 
 pub use buffer::LightBuffer;
+pub use build::{BuildSettings, Cancel, LightBuild};
 pub use composite::composite;
 pub use display::Display;
 pub use view::{AaParams, SampleSet, Sampling, View};

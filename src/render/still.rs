@@ -4,10 +4,10 @@
 //! same pieces with a scheduler in between.
 
 use super::RenderSettings;
-use super::buffer::{BadValue, LightBuffer};
+use super::buffer::LightBuffer;
+use super::build::{BuildError, BuildSettings, Cancel, LightBuild};
 use super::composite::composite;
-use super::photon::{PhotonSettings, trace_photons};
-use super::view::{AaParams, View};
+use super::view::View;
 use crate::fixture::Light;
 use crate::scene::{Camera, Scene};
 use glam::Vec3;
@@ -25,14 +25,15 @@ pub struct LightJob {
     pub k: Vec3,
 }
 
-/// A NaN/Inf in a light's buffer: a bug, reported with the light and pixel.
+/// A light's build failed: a NaN/Inf in its buffer (a bug, reported with
+/// the light and pixel), or a cancelled build.
 #[derive(Debug, thiserror::Error)]
 #[error("light {light}: {source}")]
 pub struct RenderError {
     /// Index of the light in the job list.
     pub light: usize,
     /// Where and what.
-    pub source: BadValue,
+    pub source: BuildError,
 }
 
 /// Timings of the stages of a still render.
@@ -62,10 +63,7 @@ pub struct Still {
     pub timings: StillTimings,
 }
 
-/// Photon seed of light `index`: distinct, reproducible streams per light.
-pub fn light_seed(seed: u64, index: usize) -> u64 {
-    seed ^ (index as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15)
-}
+pub use super::build::light_seed;
 
 /// Renders `jobs` over `scene` from `camera`.
 pub fn render_still(
@@ -80,22 +78,26 @@ pub fn render_still(
     let mut buffers = Vec::with_capacity(jobs.len());
     let mut reshaded = 0;
     let mut photon_time = Duration::ZERO;
+    let build_settings = BuildSettings {
+        aa_threshold: settings.aa_threshold,
+        display_scale: settings.display.scale(),
+        photons: settings.photons,
+        refine_passes: 0,
+    };
     for (i, job) in jobs.iter().enumerate() {
-        let aa = AaParams { display_scale: job.k_full * settings.display.scale(), threshold: settings.aa_threshold };
-        let (mut dense, n) = view.render_direct(scene, &job.light, Some(aa));
-        if let Some(photons) = &settings.photons {
-            let tp = Instant::now();
-            let light_settings = PhotonSettings { seed: light_seed(photons.seed, i), ..*photons };
-            let maps = trace_photons(scene, &job.light, &light_settings);
-            let indirect = view.render_indirect(scene, &maps);
-            for (d, a) in dense.iter_mut().zip(&indirect) {
-                *d += *a; // buffer_i = D_i + A_i, both scaled by k_i (eq. 5)
+        let mut build = LightBuild::new(job.light.clone(), i, job.k_full, build_settings, Cancel::never());
+        let buffer = build.whitted(scene, &view).and_then(|b| {
+            if build.has_photons() {
+                let tp = Instant::now();
+                let b = build.photons(scene, &view);
+                photon_time += tp.elapsed();
+                b
+            } else {
+                Ok(b)
             }
-            photon_time += tp.elapsed();
-        }
-        let buffer = LightBuffer::from_dense(view.width(), view.height(), &dense);
-        buffer.check().map_err(|source| RenderError { light: i, source })?;
-        reshaded += n;
+        });
+        let buffer = buffer.map_err(|source| RenderError { light: i, source })?;
+        reshaded += build.reshaded();
         buffers.push(buffer);
     }
     let t2 = Instant::now();

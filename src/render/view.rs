@@ -118,6 +118,9 @@ pub struct View {
     /// rays are the expensive part and depend only on the camera).
     nine_cache: Vec<OnceLock<Box<[ShadingVertex]>>>,
     nine_cache_bytes: AtomicUsize,
+    /// Per-tile bounds of the directly seen vertices, built on first use
+    /// (footprint-culled direct stages, [`super::footprint`]).
+    tile_bounds: OnceLock<super::footprint::TileBounds>,
 }
 
 impl View {
@@ -138,7 +141,20 @@ impl View {
     pub fn from_gbuffer(scene: &Scene, gbuffer: GBuffer, sampling: Sampling, limits: RecursionLimits) -> Self {
         let shading = Self::expand_all(scene, &gbuffer, sampling.base_set(), limits);
         let nine_cache = (0..gbuffer.samples.len()).map(|_| OnceLock::new()).collect();
-        Self { gbuffer, shading, sampling, limits, nine_cache, nine_cache_bytes: AtomicUsize::new(0) }
+        Self {
+            gbuffer,
+            shading,
+            sampling,
+            limits,
+            nine_cache,
+            nine_cache_bytes: AtomicUsize::new(0),
+            tile_bounds: OnceLock::new(),
+        }
+    }
+
+    /// Per-tile bounds of the directly seen vertices (built once per view).
+    pub fn tile_bounds(&self) -> &super::footprint::TileBounds {
+        self.tile_bounds.get_or_init(|| super::footprint::TileBounds::build(self))
     }
 
     /// Image width.

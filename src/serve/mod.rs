@@ -49,7 +49,6 @@ async fn status(State(s): State<ServeState>) -> Response {
         obj.insert("width".into(), frame.width.into());
         obj.insert("height".into(), frame.height.into());
         obj.insert("composite_ms".into(), (frame.composite_time.as_secs_f64() * 1e3).into());
-        obj.insert("lights".into(), serde_json::to_value(&*frame.lights).unwrap_or_default());
     }
     axum::Json(v).into_response()
 }

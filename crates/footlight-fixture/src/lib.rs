@@ -42,7 +42,7 @@ pub use error::PatchError;
 pub use fixture_type::{Attribute, FixtureType, Manual, Mode, Optics};
 pub use light::Light;
 pub use patch::{CameraSpec, Fixture, FixtureModel, InputProtocol, InputRoute, Patch, check, check_text};
-pub use state::{Change, FixtureState, Universes, classify};
+pub use state::{Change, DmxSlots, FixtureState, Universes, classify};
 
 #[cfg(test)]
 mod tests {

@@ -79,9 +79,25 @@ pub fn classify(old: &FixtureState, new: &FixtureState) -> Change {
     Change::Unchanged
 }
 
+/// Read access to the latest 512-slot frame of each patch universe, in
+/// place: what decoding reads. The daemon implements it over the DMX
+/// crate's merged frames (no copy per packet or per frame); stills and tests
+/// use [`Universes`].
+pub trait DmxSlots {
+    /// The frame of patch `universe` (1-based), if any arrived.
+    fn slots(&self, universe: u16) -> Option<&[u8; SLOTS]>;
+}
+
+impl DmxSlots for Universes {
+    fn slots(&self, universe: u16) -> Option<&[u8; SLOTS]> {
+        self.get(universe)
+    }
+}
+
 /// The latest 512-slot frame of each patch universe (1-based numbers, as
 /// desks show them). Slot `ADDR` is `slots[ADDR - 1]`. Kept independent of
-/// the DMX crate: the daemon copies its merged frames in.
+/// the DMX crate (stills, `--set`, tests); the daemon reads the DMX crate's
+/// frames through [`DmxSlots`].
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Universes {
     frames: BTreeMap<u16, Box<[u8; SLOTS]>>,

@@ -33,7 +33,7 @@ use crate::beam::{Beam, SpotBeam};
 use crate::error::PatchError;
 use crate::fixture_type::{Attribute, FixtureType, Manual};
 use crate::light::{Light, head_rotation};
-use crate::state::{FixtureState, SLOTS, Universes};
+use crate::state::{DmxSlots, FixtureState, SLOTS, Universes};
 use footlight_photometry::{GelId, GelLibrary, GelMix, Scroller};
 use glam::{Quat, Vec3};
 use std::collections::BTreeMap;
@@ -133,8 +133,8 @@ impl Fixture {
 
     /// The state from the patch's universes; the default look when the
     /// fixture is unpatched or its universe has no frame yet.
-    pub fn decode_universes(&self, universes: &Universes) -> FixtureState {
-        match self.dmx.and_then(|(u, _)| universes.get(u)) {
+    pub fn decode_universes(&self, universes: &(impl DmxSlots + ?Sized)) -> FixtureState {
+        match self.dmx.and_then(|(u, _)| universes.slots(u)) {
             Some(slots) => self.decode(slots),
             None => self.look,
         }
@@ -322,7 +322,7 @@ impl Patch {
 
     /// Every fixture's state from `universes`, in fixture order (the default
     /// look for fixtures whose universe has no frame).
-    pub fn decode(&self, universes: &Universes) -> Vec<FixtureState> {
+    pub fn decode(&self, universes: &(impl DmxSlots + ?Sized)) -> Vec<FixtureState> {
         self.fixtures.iter().map(|f| f.decode_universes(universes)).collect()
     }
 }

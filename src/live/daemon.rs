@@ -1,0 +1,628 @@
+//! [`Daemon`]: the one owner of every task and channel of `footlight run`,
+//! stopped by one signal (DESIGN.md "Owners"). The binary and the
+//! integration tests run this same code.
+//!
+//! ```text
+//! Daemon::new(scene, show, camera, config)
+//!     .input(DmxSource::Network{..} | Replay{..} | Channel(..))
+//!     .serve(listener)
+//!     .run(shutdown)
+//!
+//!   DMX input task ──watch<Universes>──> frame clock task ──watch<Frame>──> HTTP / window
+//!   (network nodes or replay)              (tick on the blocking pool:      (typed status
+//!                                           decode, k_i, composite)          on request)
+//!                                tracer thread + build pool (LightBuild stages)
+//! ```
+//!
+//! Lifecycle: [`Daemon::run`] starts the tracer, the frame clock, the HTTP
+//! server and then the DMX input (a replay starts only once the preview
+//! serves). It returns when `shutdown` completes — or, with an error, when
+//! any task fails (a task that dies never leaves the daemon running
+//! silently). On the way out every task sees the same stop signal, open
+//! work gets [`DaemonConfig::shutdown_grace`], and a light build still
+//! running after it is left to end with the process.
+
+use super::clock::{Decode, Frame, FrameClock, LightLabel};
+use super::show::{LiveSlots, Show};
+use super::tracer::{LightReport, Tracer, TracerSettings};
+use crate::render::composite::Compositor;
+use crate::render::{Display, RecursionLimits, Sampling, View};
+use crate::scene::{Camera, Scene};
+use crate::serve::{ServeState, StatusFn};
+use footlight_dmx::artnet::ArtNetConfig;
+use footlight_dmx::sacn::SacnConfig;
+use footlight_dmx::usbpro::UsbProConfig;
+use footlight_dmx::{InputConfig, Recording, ReplayOptions, Universes};
+use serde::Serialize;
+use std::collections::VecDeque;
+use std::future::Future;
+use std::net::SocketAddr;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+use tokio::sync::watch;
+use tokio::task::JoinSet;
+
+/// Every default of the daemon, in one place (CLI flags override them).
+#[derive(Clone, Debug)]
+pub struct DaemonConfig {
+    /// Picture width (paper: 800).
+    pub width: u32,
+    /// Picture height (paper: 500).
+    pub height: u32,
+    /// Display frame rate in Hz (1-240).
+    pub fps: f64,
+    /// Exposure and white balance.
+    pub display: Display,
+    /// Recursion limits (paper: depth 5).
+    pub limits: RecursionLimits,
+    /// Tracer and light-build settings.
+    pub tracer: TracerSettings,
+    /// CPU or GPU compositing.
+    pub compositor: crate::gpu::CompositorChoice,
+    /// How long tasks and a light build in progress get on shutdown.
+    pub shutdown_grace: Duration,
+}
+
+impl Default for DaemonConfig {
+    fn default() -> Self {
+        Self {
+            width: 800,
+            height: 500,
+            fps: 60.0,
+            display: Display::default(),
+            limits: RecursionLimits::default(),
+            tracer: TracerSettings::default(),
+            compositor: crate::gpu::CompositorChoice::Auto,
+            shutdown_grace: Duration::from_millis(500),
+        }
+    }
+}
+
+/// The default preview address: loopback only, nothing exposed to the network.
+pub const DEFAULT_HTTP: &str = "127.0.0.1:8080";
+
+/// Where the daemon's DMX comes from.
+pub enum DmxSource {
+    /// No DMX: the patch's default look.
+    None,
+    /// Art-Net, sACN and/or an Enttec USB Pro (`None` = off); the show's
+    /// routes, universes and LTP masks are added by the daemon.
+    Network {
+        /// Art-Net node.
+        artnet: Option<ArtNetConfig>,
+        /// sACN node.
+        sacn: Option<SacnConfig>,
+        /// USB Pro widget.
+        usbpro: Option<UsbProConfig>,
+    },
+    /// A recording played at `speed` through the show's routes.
+    Replay {
+        /// The capture.
+        recording: Recording,
+        /// 1 = real time.
+        speed: f64,
+    },
+    /// Merged universes from elsewhere (tests, embedding).
+    Channel(watch::Receiver<Universes>),
+}
+
+/// Why the daemon stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum DaemonError {
+    /// The preview port is taken (often: another Footlight is running).
+    #[error(
+        "cannot serve the preview on {addr}: {source} (is another footlight already running? choose another --http address)"
+    )]
+    Bind {
+        /// The address.
+        addr: SocketAddr,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// The DMX input could not start or failed.
+    #[error("DMX input: {0}")]
+    Dmx(#[from] footlight_dmx::Error),
+    /// The GPU compositor could not start.
+    #[error("GPU compositor: {0}")]
+    Gpu(String),
+    /// A task of the daemon failed; the daemon stopped.
+    #[error("the {task} task failed: {message}")]
+    Task {
+        /// Which task.
+        task: &'static str,
+        /// What happened.
+        message: String,
+    },
+}
+
+/// Binds the preview listener first, so a taken port is reported before any work starts.
+pub async fn bind_http(addr: SocketAddr) -> Result<tokio::net::TcpListener, DaemonError> {
+    tokio::net::TcpListener::bind(addr).await.map_err(|source| DaemonError::Bind { addr, source })
+}
+
+/// One stop signal for every task (mini-redis `Shutdown`): cloneable,
+/// remembers that it fired.
+#[derive(Clone)]
+pub struct StopSignal(watch::Receiver<bool>);
+
+/// A new stop signal and the sender that fires it (`send(true)`).
+pub fn stop_signal() -> (watch::Sender<bool>, StopSignal) {
+    let (tx, rx) = watch::channel(false);
+    (tx, StopSignal(rx))
+}
+
+impl StopSignal {
+    /// Completes once the signal fired (at once if it already had).
+    pub async fn fired(mut self) {
+        let _ = self.0.wait_for(|s| *s).await;
+    }
+
+    /// True once fired.
+    pub fn is_fired(&self) -> bool {
+        *self.0.borrow()
+    }
+}
+
+/// The frame clock's own measurements.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct ClockStatus {
+    /// Frames per second over the last second.
+    pub fps: f64,
+    /// 99th percentile of the interval between published frames over the
+    /// last 600 frames, ms (the clock's jitter).
+    pub frame_interval_p99_ms: f64,
+    /// Composite time of the last frame, ms.
+    pub composite_ms: f64,
+    /// Compositor in use.
+    pub compositor: String,
+}
+
+/// A light in `/api/status`.
+#[derive(Clone, Debug, Serialize)]
+pub struct LightStatus {
+    /// Fixture id and name as the patch gives them.
+    #[serde(flatten)]
+    pub label: LightLabel,
+    /// DMX values of its footprint.
+    pub dmx: Vec<u8>,
+    /// Luminance of its k_i now (cd), 0 when dark.
+    pub intensity: f32,
+    /// Build state.
+    #[serde(flatten)]
+    pub build: Option<LightReport>,
+}
+
+/// The DMX input in `/api/status`.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct InputSummary {
+    /// `network`, `replay` or `none`.
+    pub kind: &'static str,
+    /// DMX packets received (all protocols).
+    pub packets: u64,
+    /// Malformed packets.
+    pub malformed: u64,
+    /// Patch universes with their staleness.
+    pub universes: Vec<UniverseSummary>,
+}
+
+/// One patch universe in `/api/status`.
+#[derive(Clone, Debug, Serialize)]
+pub struct UniverseSummary {
+    /// Patch universe (1-based).
+    pub universe: u16,
+    /// Every source left: the last levels are held.
+    pub stale: bool,
+}
+
+/// Cache usage in `/api/status`.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct CacheSummary {
+    /// Geometry states cached.
+    pub entries: usize,
+    /// Bytes they hold.
+    pub bytes: usize,
+    /// The budget.
+    pub budget_bytes: usize,
+}
+
+/// `/api/status`: the typed status of the daemon (documented in docs/live.md).
+#[derive(Clone, Debug, Serialize)]
+pub struct DaemonStatus {
+    /// Footlight version.
+    pub version: &'static str,
+    /// Number of the latest frame.
+    pub frame: u64,
+    /// Picture width.
+    pub width: u32,
+    /// Picture height.
+    pub height: u32,
+    /// Frame clock figures.
+    #[serde(flatten)]
+    pub clock: ClockStatus,
+    /// DMX input.
+    pub input: InputSummary,
+    /// Geometry cache.
+    pub cache: CacheSummary,
+    /// Problems a user should see (stale universes, unpatched DMX).
+    pub warnings: Vec<String>,
+    /// Every light, in patch order.
+    pub lights: Vec<LightStatus>,
+}
+
+/// The daemon, built up and then [`run`](Daemon::run).
+pub struct Daemon {
+    scene: Arc<Scene>,
+    decoder: Arc<dyn Decode>,
+    show: Option<Arc<Show>>,
+    camera: Camera,
+    config: DaemonConfig,
+    source: DmxSource,
+    listener: Option<tokio::net::TcpListener>,
+    tap: Option<std::sync::mpsc::Sender<watch::Receiver<Arc<Frame>>>>,
+    bound: Option<std::sync::mpsc::Sender<DaemonHandle>>,
+}
+
+/// What a running daemon tells its embedder (tests, the binary).
+#[derive(Clone)]
+pub struct DaemonHandle {
+    /// Published frames.
+    pub frames: watch::Receiver<Arc<Frame>>,
+    /// Local addresses of the DMX sockets, when network input runs.
+    pub dmx: Option<footlight_dmx::LocalAddrs>,
+    /// The typed status, built on request.
+    pub status: Arc<dyn Fn() -> DaemonStatus + Send + Sync>,
+}
+
+impl Daemon {
+    /// A daemon showing `scene` from `camera`, lit by `show`.
+    pub fn new(scene: Arc<Scene>, show: Arc<Show>, camera: Camera, config: DaemonConfig) -> Self {
+        let decoder: Arc<dyn Decode> = show.clone();
+        Self {
+            scene,
+            decoder,
+            show: Some(show),
+            camera,
+            config,
+            source: DmxSource::None,
+            listener: None,
+            tap: None,
+            bound: None,
+        }
+    }
+
+    /// A daemon over any decoder (tests): no routes, the input patch is the
+    /// default one.
+    pub fn with_decoder(scene: Arc<Scene>, decoder: Arc<dyn Decode>, camera: Camera, config: DaemonConfig) -> Self {
+        Self {
+            scene,
+            decoder,
+            show: None,
+            camera,
+            config,
+            source: DmxSource::None,
+            listener: None,
+            tap: None,
+            bound: None,
+        }
+    }
+
+    /// Where DMX comes from.
+    pub fn input(mut self, source: DmxSource) -> Self {
+        self.source = source;
+        self
+    }
+
+    /// Serves the preview on `listener` (see [`bind_http`]).
+    pub fn serve(mut self, listener: tokio::net::TcpListener) -> Self {
+        self.listener = Some(listener);
+        self
+    }
+
+    /// Sends the published frames' channel to `tap` once running (a window).
+    pub fn frames_tap(mut self, tap: std::sync::mpsc::Sender<watch::Receiver<Arc<Frame>>>) -> Self {
+        self.tap = Some(tap);
+        self
+    }
+
+    /// Sends a [`DaemonHandle`] once every task runs (tests, embedding).
+    pub fn on_running(mut self, tx: std::sync::mpsc::Sender<DaemonHandle>) -> Self {
+        self.bound = Some(tx);
+        self
+    }
+
+    /// Runs until `shutdown` completes (`Ok`) or a task fails (`Err`).
+    pub async fn run(self, shutdown: impl Future<Output = ()>) -> Result<(), DaemonError> {
+        let Daemon { scene, decoder, show, camera, config, source, listener, tap, bound } = self;
+        let (stop_tx, stop) = stop_signal();
+        tokio::pin!(shutdown);
+
+        // The view (G-buffer and camera paths) and the GPU, off the async workers.
+        let t = std::time::Instant::now();
+        let (w, h, limits) = (config.width, config.height, config.limits);
+        let view_scene = scene.clone();
+        let mut view_task =
+            tokio::task::spawn_blocking(move || View::build(&view_scene, camera, w, h, Sampling::Adaptive, limits));
+        let view = tokio::select! {
+            v = &mut view_task => v.map_err(|e| task_error("view", e))?,
+            _ = &mut shutdown => return Ok(()),
+        };
+        tracing::info!(
+            "view {w}×{h} ready in {:.0} ms ({} shading vertices)",
+            t.elapsed().as_secs_f64() * 1e3,
+            view.shading.vertex_count()
+        );
+        let tracer = Arc::new(Tracer::new(scene, Arc::new(view), decoder.len(), config.tracer));
+        let (choice, display) = (config.compositor, config.display);
+        let gpu = tokio::task::spawn_blocking(move || crate::gpu::GpuFrames::open(choice, w, h, display))
+            .await
+            .map_err(|e| task_error("GPU setup", e))?
+            .map_err(|e| DaemonError::Gpu(e.to_string()))?;
+        let mut clock = FrameClock::new(decoder.clone(), tracer.clone(), Compositor::new(w, h, display)).with_gpu(gpu);
+        let compositor = clock.gpu_adapter().map(|a| format!("GPU: {a}")).unwrap_or_else(|| "CPU".into());
+
+        // DMX: a network input is bound now (a taken port is an error before
+        // anything runs); a replay starts once the preview serves.
+        let input_patch = show.as_ref().map(|s| s.input_patch().clone()).unwrap_or_default();
+        let mut input_kind = "none";
+        let (universes_tx, universes_rx) = watch::channel(Universes::default());
+        let mut dmx_stats = None;
+        let mut local = None;
+        let mut network = None;
+        let mut replay = None;
+        let mut external = None;
+        match source {
+            DmxSource::None => {}
+            DmxSource::Network { artnet, sacn, usbpro } => {
+                let input =
+                    footlight_dmx::DmxInput::bind(InputConfig { artnet, sacn, usbpro, patch: input_patch.clone() })
+                        .await?;
+                local = Some(input.local_addrs());
+                dmx_stats = Some(input.stats());
+                input_kind = "network";
+                network = Some(input);
+            }
+            DmxSource::Replay { recording, speed } => {
+                input_kind = "replay";
+                replay = Some((recording, ReplayOptions { speed, start: Duration::ZERO, patch: input_patch.clone() }));
+            }
+            DmxSource::Channel(rx) => external = Some(rx),
+        }
+        let inputs = match (&network, external) {
+            (Some(input), _) => input.frames(),
+            (None, Some(rx)) => rx,
+            (None, None) => universes_rx,
+        };
+
+        let first = {
+            let u = inputs.borrow().clone();
+            Arc::new(clock.tick(&LiveSlots(&u)))
+        };
+        let (frames_tx, frames_rx) = watch::channel(first);
+        let clock_status = Arc::new(Mutex::new(ClockStatus { compositor, ..ClockStatus::default() }));
+        let replay_packets = Arc::new(std::sync::atomic::AtomicU64::new(0));
+
+        let status_fn: Arc<dyn Fn() -> DaemonStatus + Send + Sync> = {
+            let (frames, inputs, tracer, decoder) =
+                (frames_rx.clone(), inputs.clone(), tracer.clone(), decoder.clone());
+            let (clock_status, replay_packets) = (clock_status.clone(), replay_packets.clone());
+            let labels = decoder.labels();
+            let cache_budget = config.tracer.cache_bytes;
+            Arc::new(move || {
+                let frame = frames.borrow().clone();
+                let universes = inputs.borrow().clone();
+                let slots = LiveSlots(&universes);
+                let lights = labels
+                    .iter()
+                    .enumerate()
+                    .map(|(i, label)| LightStatus {
+                        label: label.clone(),
+                        dmx: decoder.slots_of(i, &slots),
+                        intensity: frame.intensity.get(i).copied().unwrap_or(0.0),
+                        build: tracer.report(i),
+                    })
+                    .collect();
+                let mut input = InputSummary {
+                    kind: input_kind,
+                    universes: universes
+                        .iter()
+                        .map(|f| UniverseSummary { universe: f.universe, stale: f.stale })
+                        .collect(),
+                    ..InputSummary::default()
+                };
+                if let Some(stats) = &dmx_stats {
+                    let s = stats.snapshot();
+                    input.packets = s.artnet.received + s.sacn.received + s.usbpro.received;
+                    input.malformed = s.artnet.malformed + s.sacn.malformed + s.usbpro.malformed;
+                } else {
+                    input.packets = replay_packets.load(std::sync::atomic::Ordering::Relaxed);
+                }
+                let warnings = input
+                    .universes
+                    .iter()
+                    .filter(|u| u.stale)
+                    .map(|u| format!("universe {}: every source stopped sending; holding the last levels", u.universe))
+                    .collect();
+                let (entries, bytes) = tracer.cache_usage();
+                DaemonStatus {
+                    version: env!("CARGO_PKG_VERSION"),
+                    frame: frame.number,
+                    width: frame.width,
+                    height: frame.height,
+                    clock: clock_status.lock().expect("clock status lock").clone(),
+                    input,
+                    cache: CacheSummary { entries, bytes, budget_bytes: cache_budget },
+                    warnings,
+                    lights,
+                }
+            })
+        };
+
+        let mut tasks: JoinSet<(&'static str, Result<(), String>)> = JoinSet::new();
+        tasks.spawn(run_clock(clock, config.fps, inputs.clone(), frames_tx, clock_status, stop.clone()));
+        if let Some(listener) = listener {
+            let status: StatusFn = {
+                let status_fn = status_fn.clone();
+                Arc::new(move || serde_json::to_value(status_fn()).unwrap_or_default())
+            };
+            let app = crate::serve::router(ServeState { frames: frames_rx.clone(), status });
+            let http_stop = stop.clone();
+            tasks.spawn(async move {
+                let result = axum::serve(listener, app).with_graceful_shutdown(http_stop.fired()).await;
+                ("HTTP", result.map_err(|e| e.to_string()))
+            });
+        }
+        if let Some(input) = network {
+            let input_stop = stop.clone();
+            tasks.spawn(async move { ("DMX input", input.run(input_stop.fired()).await.map_err(|e| e.to_string())) });
+        }
+        if let Some((recording, options)) = replay {
+            let replay_stop = stop.clone();
+            let counted = replay_packets.clone();
+            tasks.spawn(async move {
+                let result = footlight_dmx::replay(
+                    &recording,
+                    &options,
+                    |frame| {
+                        counted.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        universes_tx.send_modify(|u| u.update(frame));
+                    },
+                    replay_stop.fired(),
+                )
+                .await;
+                match result {
+                    Ok(summary) => {
+                        tracing::info!("replay finished: {} DMX packets; holding the last look", summary.packets);
+                        ("replay", Ok(()))
+                    }
+                    Err(e) => ("replay", Err(e.to_string())),
+                }
+            });
+        }
+        if let Some(tap) = tap {
+            let _ = tap.send(frames_rx.clone());
+        }
+        if let Some(bound) = bound {
+            let _ = bound.send(DaemonHandle { frames: frames_rx.clone(), dmx: local, status: status_fn.clone() });
+        }
+
+        // Run until the shutdown signal or the first failing task.
+        let mut failure = None;
+        loop {
+            tokio::select! {
+                _ = &mut shutdown => break,
+                joined = tasks.join_next() => match joined {
+                    None => std::future::pending::<()>().await,
+                    Some(Ok((_, Ok(())))) => continue, // a finished replay: the look holds
+                    Some(Ok((task, Err(message)))) => {
+                        failure = Some(DaemonError::Task { task, message });
+                        break;
+                    }
+                    Some(Err(e)) => {
+                        failure = Some(task_error("daemon", e));
+                        break;
+                    }
+                }
+            }
+        }
+        tracing::info!("shutting down");
+        let _ = stop_tx.send(true);
+        let grace = config.shutdown_grace;
+        let drained = tokio::time::timeout(grace, async {
+            while let Some(joined) = tasks.join_next().await {
+                if let Ok((task, Err(message))) = joined {
+                    tracing::warn!("{task} task ended with an error during shutdown: {message}");
+                }
+            }
+        })
+        .await;
+        if drained.is_err() {
+            tracing::warn!("some tasks did not stop within {} ms; closing them", grace.as_millis());
+            tasks.abort_all();
+        }
+        if let Ok(t) = Arc::try_unwrap(tracer) {
+            let _ = tokio::task::spawn_blocking(move || t.shutdown(grace)).await;
+        }
+        match failure {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+}
+
+fn task_error(task: &'static str, e: tokio::task::JoinError) -> DaemonError {
+    let message = if e.is_panic() { "it panicked (a bug; please report it)".to_string() } else { e.to_string() };
+    DaemonError::Task { task, message }
+}
+
+/// The frame clock task: one tick per display frame until `stop`. Each
+/// tick (decode, k_i, composite) runs on the blocking pool, so the async
+/// workers serving HTTP and DMX never wait for a composite. Missed ticks
+/// are skipped (a slow frame never causes a burst).
+pub async fn run_clock(
+    mut clock: FrameClock,
+    fps: f64,
+    inputs: watch::Receiver<Universes>,
+    frames: watch::Sender<Arc<Frame>>,
+    status: Arc<Mutex<ClockStatus>>,
+    stop: StopSignal,
+) -> (&'static str, Result<(), String>) {
+    if !(fps.is_finite() && (1.0..=240.0).contains(&fps)) {
+        return ("frame clock", Err(format!("frame rate {fps} Hz is outside 1-240")));
+    }
+    let period = Duration::from_secs_f64(1.0 / fps);
+    let mut interval = tokio::time::interval(period);
+    interval.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let mut window = (tokio::time::Instant::now(), 0u32);
+    let mut intervals: VecDeque<f64> = VecDeque::with_capacity(600);
+    let mut last = tokio::time::Instant::now();
+    let stopped = stop.clone().fired();
+    tokio::pin!(stopped);
+    loop {
+        tokio::select! {
+            _ = interval.tick() => {}
+            _ = &mut stopped => return ("frame clock", Ok(())),
+        }
+        let rx = inputs.clone();
+        let ticked = tokio::task::spawn_blocking(move || {
+            let frame = {
+                let universes = rx.borrow();
+                clock.tick(&LiveSlots(&universes))
+            };
+            (clock, frame)
+        })
+        .await;
+        let (back, frame) = match ticked {
+            Ok(r) => r,
+            Err(e) => return ("frame clock", Err(task_error("frame clock", e).to_string())),
+        };
+        clock = back;
+        let composite_ms = frame.composite_time.as_secs_f64() * 1e3;
+        let _ = frames.send(Arc::new(frame));
+        let now = tokio::time::Instant::now();
+        if intervals.len() == 600 {
+            intervals.pop_front();
+        }
+        intervals.push_back(now.duration_since(last).as_secs_f64() * 1e3);
+        last = now;
+        window.1 += 1;
+        let elapsed = window.0.elapsed();
+        let mut s = status.lock().expect("clock status lock");
+        s.composite_ms = composite_ms;
+        if elapsed >= Duration::from_secs(1) {
+            s.fps = f64::from(window.1) / elapsed.as_secs_f64();
+            s.frame_interval_p99_ms = percentile(intervals.iter().copied(), 0.99);
+            window = (now, 0);
+        }
+    }
+}
+
+/// The `q` quantile of `values` (nearest rank), 0 when empty.
+pub fn percentile(values: impl Iterator<Item = f64>, q: f64) -> f64 {
+    let mut v: Vec<f64> = values.filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    let rank = ((q.clamp(0.0, 1.0) * v.len() as f64).ceil() as usize).clamp(1, v.len());
+    v[rank - 1]
+}

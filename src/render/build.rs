@@ -1,0 +1,289 @@
+//! [`LightBuild`]: the only place a light's unit-intensity buffer
+//! I_h,ε_i (Vierjahn 2010, eq. 5) is built, one method per stage.
+//! `footlight render`, the live tracer, the stress matrix and the bench all
+//! call it; the tracer only decides *which* light and *when*.
+//!
+//! ```text
+//! LightBuild::new ─ direct() ─> D⁰ (primary surfaces only: a moving light is seen moving)
+//!                 ─ whitted() ─> D (eq. 1 recursion: mirrors, glass, adaptive AA, §3.4)
+//!                 ─ photons() ─> D + A (eq. 3: the light's own photon maps)
+//!                 ─ into_refinement() ─> Refinement::pass() ─> D + A_sppm, pass after pass
+//! ```
+//!
+//! Every stage returns the buffer to publish, or [`Cancelled`] when the
+//! build's [`Cancel`] token fired (a newer position of the same light, or
+//! shutdown). Stages can be called in order or skipped ahead: `photons()`
+//! runs `whitted()` first when it has not run.
+
+use super::buffer::{BadValue, LightBuffer};
+use super::footprint::{DirectQuality, FootprintStats, primary_direct};
+use super::photon::{PhotonMaps, PhotonSettings, Progressive, trace_photons};
+use super::view::{AaParams, View};
+use crate::fixture::Light;
+use crate::scene::Scene;
+use glam::Vec3;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+/// Defaults of a light build, in one place (CLI flags and the daemon
+/// override them).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BuildSettings {
+    /// Anti-aliasing gradient threshold on a 0-255 scale (paper: 15-25).
+    pub aa_threshold: f32,
+    /// Display scale (exposure · white balance) for anti-aliasing decisions.
+    pub display_scale: Vec3,
+    /// Photon mapping for the indirect term; `None`: direct light (and
+    /// Whitted recursion) only.
+    pub photons: Option<PhotonSettings>,
+    /// Progressive (SPPM) passes after the photon-map estimate; 0 = none.
+    pub refine_passes: u32,
+}
+
+impl Default for BuildSettings {
+    /// The paper's settings (section 4): threshold 20, 50,000 photons, 150
+    /// in the estimate; 16 refinement passes while idle.
+    fn default() -> Self {
+        Self {
+            aa_threshold: 20.0,
+            display_scale: super::Display::default().scale(),
+            photons: Some(PhotonSettings::default()),
+            refine_passes: 16,
+        }
+    }
+}
+
+/// A build was abandoned because its [`Cancel`] token fired.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("light build cancelled")]
+pub struct Cancelled;
+
+/// Why a stage produced no buffer.
+#[derive(Debug, thiserror::Error)]
+pub enum BuildError {
+    /// The token fired (not an error for the caller's user).
+    #[error(transparent)]
+    Cancelled(#[from] Cancelled),
+    /// A NaN/Inf in the buffer: a bug, reported with the pixel.
+    #[error(transparent)]
+    Bad(#[from] BadValue),
+}
+
+/// A cancellation token: a request id compared with the light's latest
+/// request, plus a global stop flag. Cheap to clone and to check.
+#[derive(Clone, Debug, Default)]
+pub struct Cancel {
+    latest: Option<(Arc<AtomicU64>, u64)>,
+    stop: Option<Arc<AtomicBool>>,
+}
+
+impl Cancel {
+    /// A token that never fires.
+    pub fn never() -> Self {
+        Self::default()
+    }
+
+    /// Fires when `latest` no longer holds `id` (a newer request) or `stop` is set.
+    pub fn new(latest: Arc<AtomicU64>, id: u64, stop: Arc<AtomicBool>) -> Self {
+        Self { latest: Some((latest, id)), stop: Some(stop) }
+    }
+
+    /// Fires when `stop` is set.
+    pub fn on_stop(stop: Arc<AtomicBool>) -> Self {
+        Self { latest: None, stop: Some(stop) }
+    }
+
+    /// True once the build should stop.
+    pub fn fired(&self) -> bool {
+        self.stop.as_ref().is_some_and(|s| s.load(Ordering::Relaxed))
+            || self.latest.as_ref().is_some_and(|(l, id)| l.load(Ordering::Relaxed) != *id)
+    }
+
+    /// `Err(Cancelled)` once fired.
+    pub fn check(&self) -> Result<(), Cancelled> {
+        if self.fired() { Err(Cancelled) } else { Ok(()) }
+    }
+}
+
+/// Photon seed of light `index`: distinct, reproducible streams per light.
+pub fn light_seed(seed: u64, index: usize) -> u64 {
+    seed ^ (index as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+}
+
+/// One light's build over one view, stage by stage. It owns only the
+/// light and its intermediate results; the scene and view are passed to
+/// each stage, so a scheduler can keep a build between stages (the live
+/// tracer serves other lights' direct stages in between).
+pub struct LightBuild {
+    light: Light,
+    index: usize,
+    k_full: Vec3,
+    settings: BuildSettings,
+    cancel: Cancel,
+    /// The Whitted direct term D, once built (kept for the indirect sum).
+    direct: Option<Vec<Vec3>>,
+    /// Pixels re-shaded by anti-aliasing in the Whitted stage.
+    reshaded: usize,
+    /// The light's photon maps, once traced.
+    maps: Option<PhotonMaps>,
+}
+
+impl LightBuild {
+    /// A build of light number `index` (its photon seed) with k_i at full
+    /// dimmer `k_full` (anti-aliasing decisions).
+    pub fn new(light: Light, index: usize, k_full: Vec3, settings: BuildSettings, cancel: Cancel) -> Self {
+        Self { light, index, k_full, settings, cancel, direct: None, reshaded: 0, maps: None }
+    }
+
+    /// The build's cancellation token.
+    pub fn cancel(&self) -> &Cancel {
+        &self.cancel
+    }
+
+    /// True once the Whitted stage has run.
+    pub fn has_whitted(&self) -> bool {
+        self.direct.is_some()
+    }
+
+    /// The light being built.
+    pub fn light(&self) -> &Light {
+        &self.light
+    }
+
+    /// Pixels re-shaded by adaptive anti-aliasing (after [`LightBuild::whitted`]).
+    pub fn reshaded(&self) -> usize {
+        self.reshaded
+    }
+
+    /// Whether the settings ask for an indirect term.
+    pub fn has_photons(&self) -> bool {
+        self.settings.photons.is_some()
+    }
+
+    fn finish(view: &View, dense: &[Vec3]) -> Result<LightBuffer, BuildError> {
+        let buffer = LightBuffer::from_dense(view.width(), view.height(), dense);
+        buffer.check()?;
+        Ok(buffer)
+    }
+
+    /// Stage 1: direct light on the surfaces the camera sees directly (no
+    /// mirrors, glass or anti-aliasing), the cheapest picture of a moved light.
+    ///
+    /// Footprint-culled ([`super::footprint`]): only the tiles the cone
+    /// reaches are shaded; `quality` is [`DirectQuality::Moving`] for a light
+    /// still in motion.
+    pub fn direct(
+        &mut self,
+        scene: &Scene,
+        view: &View,
+        quality: DirectQuality,
+    ) -> Result<(LightBuffer, FootprintStats), BuildError> {
+        self.cancel.check()?;
+        let (buffer, stats) = primary_direct(scene, view, view.tile_bounds(), &self.light, quality);
+        self.cancel.check()?;
+        buffer.check()?;
+        Ok((buffer, stats))
+    }
+
+    /// Stage 2: the full Whitted direct term (eq. 1: k_R, k_T recursion)
+    /// with adaptive anti-aliasing (§3.4).
+    pub fn whitted(&mut self, scene: &Scene, view: &View) -> Result<LightBuffer, BuildError> {
+        self.cancel.check()?;
+        let aa = AaParams {
+            display_scale: self.k_full * self.settings.display_scale,
+            threshold: self.settings.aa_threshold,
+        };
+        let (dense, reshaded) = view.render_direct(scene, &self.light, Some(aa));
+        self.cancel.check()?;
+        self.reshaded = reshaded;
+        let buffer = Self::finish(view, &dense)?;
+        self.direct = Some(dense);
+        Ok(buffer)
+    }
+
+    /// Stage 3: direct plus the photon-mapped indirect term (eq. 3, 5:
+    /// buffer_i = D_i + A_i, both scaled by k_i). Without photon settings it
+    /// is the Whitted buffer.
+    pub fn photons(&mut self, scene: &Scene, view: &View) -> Result<LightBuffer, BuildError> {
+        if self.direct.is_none() {
+            self.whitted(scene, view)?;
+        }
+        let Some(direct) = self.direct.as_ref() else { return Err(Cancelled.into()) };
+        let Some(photons) = self.settings.photons else { return Self::finish(view, direct) };
+        self.cancel.check()?;
+        let settings = PhotonSettings { seed: light_seed(photons.seed, self.index), ..photons };
+        let maps = trace_photons(scene, &self.light, &settings);
+        self.cancel.check()?;
+        let indirect = view.render_indirect(scene, &maps);
+        self.cancel.check()?;
+        let sum: Vec<Vec3> = direct.iter().zip(&indirect).map(|(d, a)| *d + *a).collect();
+        self.maps = Some(maps);
+        Self::finish(view, &sum)
+    }
+
+    /// The light's photon maps, after [`LightBuild::photons`].
+    pub fn maps(&self) -> Option<&PhotonMaps> {
+        self.maps.as_ref()
+    }
+
+    /// Whether [`LightBuild::into_refinement`] would refine (photons traced,
+    /// passes configured, some global photons stored).
+    pub fn will_refine(&self) -> bool {
+        self.settings.refine_passes > 0 && self.maps.as_ref().is_some_and(|m| !m.global.is_empty())
+    }
+
+    /// Stage 4 state: progressive photon mapping (SPPM) from the photon
+    /// maps, `None` when there is nothing to refine.
+    pub fn into_refinement(self, scene: &Scene, view: &View) -> Option<Refinement> {
+        if !self.will_refine() || self.cancel.fired() {
+            return None;
+        }
+        let (maps, direct) = (self.maps?, self.direct?);
+        let sppm = Progressive::new(scene, view, &maps);
+        Some(Refinement { light: self.light, direct, sppm, passes: self.settings.refine_passes, cancel: self.cancel })
+    }
+}
+
+/// A light's progressive refinement (stage 4): each pass is one SPPM
+/// iteration at the view's shading vertices.
+pub struct Refinement {
+    light: Light,
+    direct: Vec<Vec3>,
+    sppm: Progressive,
+    passes: u32,
+    cancel: Cancel,
+}
+
+impl Refinement {
+    /// Passes done.
+    pub fn done(&self) -> u32 {
+        self.sppm.passes()
+    }
+
+    /// True when every configured pass has run.
+    pub fn finished(&self) -> bool {
+        self.sppm.passes() >= self.passes
+    }
+
+    /// The light being refined.
+    pub fn light(&self) -> &Light {
+        &self.light
+    }
+
+    /// True once the token fired.
+    pub fn cancelled(&self) -> bool {
+        self.cancel.fired()
+    }
+
+    /// One SPPM pass; returns D + A_sppm.
+    pub fn pass(&mut self, scene: &Scene, view: &View) -> Result<LightBuffer, BuildError> {
+        self.cancel.check()?;
+        self.sppm.pass(scene, view, &self.light);
+        self.cancel.check()?;
+        let indirect = view.render_progressive(scene, &self.sppm);
+        let sum: Vec<Vec3> = self.direct.iter().zip(&indirect).map(|(d, a)| *d + *a).collect();
+        let buffer = LightBuffer::from_dense(view.width(), view.height(), &sum);
+        buffer.check()?;
+        Ok(buffer)
+    }
+}
