@@ -143,3 +143,85 @@ fn quick_bench_writes_a_consistent_report() {
     assert!(sum(1) < sum(0), "adaptive AA is closer to 9× than one sample");
     assert!(json["ratios"].as_array().unwrap().iter().all(|r| r["ours"].as_f64().unwrap().is_finite()));
 }
+
+/// `footlight run` as a user starts it: the binary's own wiring, real UDP on
+/// loopback, the typed status over HTTP, `[[input]]` routes applied, and a
+/// clean exit (code 0) on SIGTERM.
+#[test]
+fn the_binarys_run_routes_artnet_and_stops_cleanly_on_sigterm() {
+    use std::io::BufRead;
+    let dir = temp_dir("run");
+    let root = root();
+    let patch = dir.join("routed.toml");
+    let replay_patch = std::fs::read_to_string(root.join("tests/replays/replay-patch.toml")).unwrap();
+    let replay_patch = replay_patch
+        .replace("fixtures = \"fixtures\"", &format!("fixtures = {:?}", root.join("tests/replays/fixtures")))
+        .replace("gels = \"../../patch/gels.toml\"", &format!("gels = {:?}", root.join("patch/gels.toml")));
+    // The desk sends on Art-Net Port-Address 5; Port-Address 0 (the default
+    // source of patch universe 1) is blocked.
+    let routes = "\n[[input]]\nprotocol = \"artnet\"\nuniverse = 5\npatch_universe = 1\n\n[[input]]\nprotocol = \"artnet\"\nuniverse = 0\nblock = true\n";
+    std::fs::write(&patch, format!("{replay_patch}{routes}")).unwrap();
+    let mut child = footlight()
+        .args(["run", "--artnet", "127.0.0.1:0", "--sacn", "off", "--http", "127.0.0.1:0"])
+        .args(["--width", "64", "--height", "40", "--photons", "0", "--compositor", "cpu", "--patch"])
+        .arg(&patch)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (lines_tx, lines) = std::sync::mpsc::channel();
+    let stdout = child.stdout.take().unwrap();
+    std::thread::spawn(move || {
+        for line in std::io::BufReader::new(stdout).lines().map_while(Result::ok) {
+            let _ = lines_tx.send(line);
+        }
+    });
+    let (mut http, mut artnet) = (None, None);
+    while http.is_none() || artnet.is_none() {
+        let line = lines.recv_timeout(std::time::Duration::from_secs(120)).expect("startup lines");
+        if let Some(url) = line.strip_prefix("Footlight preview: http://") {
+            http = Some(url.trim_end_matches('/').parse::<std::net::SocketAddr>().unwrap());
+        }
+        if let Some(rest) = line.strip_prefix("listening for DMX: Art-Net ") {
+            assert!(!rest.contains("Some("), "no Debug text in user messages: {line}");
+            artnet = Some(rest.split(',').next().unwrap().parse::<std::net::SocketAddr>().unwrap());
+        }
+    }
+    let (http, artnet) = (http.unwrap(), artnet.unwrap());
+    let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let status = || -> serde_json::Value { serde_json::from_slice(&http_get(http, "/api/status").1).unwrap() };
+    let mut slots = [0u8; 512];
+    slots[0] = 77;
+    let mut blocked = [0u8; 512];
+    blocked[0] = 200;
+    let t = std::time::Instant::now();
+    let seen = loop {
+        // Both arrive; only the routed one may reach the profile's dimmer.
+        sock.send_to(&art_dmx(0, 0, &blocked), artnet).unwrap();
+        sock.send_to(&art_dmx(5, 0, &slots), artnet).unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(50));
+        let s = status();
+        if s["lights"][0]["dmx"][0] == 77 {
+            break s;
+        }
+        assert!(t.elapsed() < std::time::Duration::from_secs(60), "routed DMX never arrived: {s}");
+    };
+    assert_eq!(seen["lights"][0]["fixture"], 1, "fixture ids as in the patch: {seen}");
+    assert_eq!(seen["input"]["kind"], "network");
+    assert!(seen["frame"].as_u64().unwrap() > 0);
+    let stopped = std::process::Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap();
+    assert!(stopped.success());
+    let t = std::time::Instant::now();
+    let code = loop {
+        if let Some(code) = child.try_wait().unwrap() {
+            break code;
+        }
+        assert!(t.elapsed() < std::time::Duration::from_secs(30), "footlight did not stop on SIGTERM");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut stderr).unwrap();
+    assert!(code.success(), "exit {code:?}: {stderr}");
+    assert!(!stderr.contains('\u{1b}'), "no ANSI codes when stderr is not a terminal: {stderr}");
+    assert!(!stderr.contains("ERROR"), "a healthy run logs no error: {stderr}");
+}

@@ -167,36 +167,6 @@ fn moved_light_shows_its_direct_stage_then_converges_and_presets_come_from_cache
     assert_eq!(recalled.rgb, left.rgb);
 }
 
-/// Minimal HTTP/1.1 GET over loopback (no client dependency needed).
-fn http_get(addr: std::net::SocketAddr, path: &str) -> (String, Vec<u8>) {
-    use std::io::{Read, Write};
-    let mut s = std::net::TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
-    write!(s, "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").unwrap();
-    let mut raw = Vec::new();
-    s.read_to_end(&mut raw).unwrap();
-    let split = raw.windows(4).position(|w| w == b"\r\n\r\n").expect("header end") + 4;
-    let head = String::from_utf8_lossy(&raw[..split]).to_string();
-    let mut body = raw[split..].to_vec();
-    if head.to_ascii_lowercase().contains("transfer-encoding: chunked") {
-        body = dechunk(&body);
-    }
-    (head, body)
-}
-
-fn dechunk(mut b: &[u8]) -> Vec<u8> {
-    let mut out = Vec::new();
-    loop {
-        let line_end = b.windows(2).position(|w| w == b"\r\n").unwrap();
-        let size = usize::from_str_radix(std::str::from_utf8(&b[..line_end]).unwrap().trim(), 16).unwrap();
-        if size == 0 {
-            return out;
-        }
-        out.extend_from_slice(&b[line_end + 2..line_end + 2 + size]);
-        b = &b[line_end + 2 + size + 2..];
-    }
-}
-
 #[test]
 fn preview_serves_page_status_and_frames_on_loopback_and_refuses_a_taken_port() {
     let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
@@ -258,4 +228,72 @@ fn preview_serves_page_status_and_frames_on_loopback_and_refuses_a_taken_port() 
     daemon.join().unwrap();
     // After shutdown the port is free again.
     std::net::TcpListener::bind(addr).expect("port released on shutdown");
+}
+
+fn spot_at(x: f32, beam_deg: f32) -> footlight::Light {
+    footlight::Light::aimed(
+        Vec3::new(x, 2.0, 0.0),
+        Vec3::new(x, 0.0, 0.0),
+        footlight::Beam::Spot(footlight::fixture::SpotBeam::from_beam_field(beam_deg, beam_deg * 1.3)),
+    )
+}
+
+/// The footprint-culled direct stage equals the whole-frame one pixel for
+/// pixel, and a narrow beam evaluates a small fraction of the frame's
+/// directly seen vertices (the counter, not a time).
+#[test]
+fn direct_stage_costs_the_beams_footprint_and_equals_the_whole_frame_stage() {
+    use footlight::render::footprint::{DirectQuality, primary_direct};
+    let (scene, cam) = small_stage();
+    let view = View::build(&scene, cam, 160, 160, Sampling::Adaptive, RecursionLimits::default());
+    let frame_vertices = view.shading.vertices().iter().filter(|v| v.depth == 0).count();
+    for (beam, max_share) in [(5.0, 0.05), (18.0, 0.2), (40.0, 0.6)] {
+        let light = spot_at(0.3, beam);
+        let (culled, stats) = primary_direct(&scene, &view, view.tile_bounds(), &light, DirectQuality::Full);
+        let whole = view.render_primary_direct(&scene, &light);
+        assert_eq!(culled.to_dense(), whole, "{beam}°: culling must not change a pixel");
+        assert!(whole.iter().any(|p| p.max_element() > 0.0), "{beam}°: the beam lights the floor");
+        let share = stats.vertices as f64 / frame_vertices as f64;
+        assert!(share < max_share, "{beam}°: evaluated {} of {frame_vertices} vertices ({share:.3})", stats.vertices);
+    }
+    // Moving quality shades a quarter of the pixels and repeats them.
+    let light = spot_at(0.3, 40.0);
+    let (_, full) = primary_direct(&scene, &view, view.tile_bounds(), &light, DirectQuality::Full);
+    let (moving, fast) = primary_direct(&scene, &view, view.tile_bounds(), &light, DirectQuality::Moving);
+    assert!(fast.vertices * 3 < full.vertices, "{} vs {}", fast.vertices, full.vertices);
+    assert_eq!(moving.get(10, 10), moving.get(11, 11));
+}
+
+/// A light that keeps moving only ever shows direct stages (no Whitted,
+/// photon or refinement work on a stale position); once it stops it
+/// settles to `ready`, and its final buffer equals a build of that position
+/// from scratch (moving quality leaves no trace).
+#[test]
+fn a_moving_light_never_starts_its_later_stages_and_settles_to_the_same_buffer() {
+    use footlight::render::{BuildSettings, Cancel, LightBuild};
+    let (scene, cam) = small_stage();
+    let view = Arc::new(View::build(&scene, cam, 48, 48, Sampling::Adaptive, RecursionLimits::default()));
+    let mut build = BuildSettings { refine_passes: 0, ..BuildSettings::default() };
+    build.photons = Some(footlight::render::photon::PhotonSettings { stored: 2_000, ..Default::default() });
+    // A long settle time: a stalled test thread can never make the light look still.
+    let settings = TracerSettings { threads: 1, build, settle: Duration::from_secs(2), ..TracerSettings::default() };
+    let tracer = Tracer::new(scene.clone(), view.clone(), 1, settings);
+    let k_full = Vec3::splat(1000.0);
+    let mut last = spot_at(-1.0, 30.0);
+    for step in 0..25 {
+        last = spot_at(-1.0 + 0.08 * step as f32, 30.0);
+        tracer.request(0, last.clone(), k_full, 1.0);
+        std::thread::sleep(Duration::from_millis(20));
+        let stage = tracer.published(0).stage;
+        assert!(matches!(stage, Stage::Queued | Stage::Direct), "step {step}: {stage:?} while moving");
+        assert!(tracer.report(0).unwrap().moving);
+    }
+    wait_for(&tracer, |s| s == Stage::Ready);
+    let report = tracer.report(0).unwrap();
+    assert!(!report.moving && report.pending_ms.is_none(), "{report:?}");
+    assert!(report.direct_updates >= 2, "{report:?}");
+    let mut fresh = LightBuild::new(last, 0, k_full, build, Cancel::never());
+    let expected = fresh.photons(&scene, &view).unwrap();
+    assert_eq!(*tracer.published(0).buffer, expected);
+    tracer.shutdown(Duration::from_secs(30));
 }

@@ -80,3 +80,43 @@ pub fn assert_finite(img: &[Vec3], what: &str) {
         assert!(v.is_finite() && v.min_element() >= 0.0, "{what}: pixel {i} = {v}");
     }
 }
+
+/// Minimal HTTP/1.1 GET over loopback (no client dependency needed).
+pub fn http_get(addr: std::net::SocketAddr, path: &str) -> (String, Vec<u8>) {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(std::time::Duration::from_secs(30))).unwrap();
+    write!(s, "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").unwrap();
+    let mut raw = Vec::new();
+    s.read_to_end(&mut raw).unwrap();
+    let split = raw.windows(4).position(|w| w == b"\r\n\r\n").expect("header end") + 4;
+    let head = String::from_utf8_lossy(&raw[..split]).to_string();
+    let mut body = raw[split..].to_vec();
+    if head.to_ascii_lowercase().contains("transfer-encoding: chunked") {
+        let mut out = Vec::new();
+        let mut b = &body[..];
+        loop {
+            let e = b.windows(2).position(|w| w == b"\r\n").unwrap();
+            let n = usize::from_str_radix(std::str::from_utf8(&b[..e]).unwrap().trim(), 16).unwrap();
+            if n == 0 {
+                break;
+            }
+            out.extend_from_slice(&b[e + 2..e + 2 + n]);
+            b = &b[e + 2 + n + 2..];
+        }
+        body = out;
+    }
+    (head, body)
+}
+
+/// An ArtDmx packet (Art-Net 4, protocol 14) for 15-bit `port_address`
+/// carrying all 512 `slots`, built from the spec's field table.
+pub fn art_dmx(port_address: u16, sequence: u8, slots: &[u8; 512]) -> Vec<u8> {
+    let mut p = b"Art-Net\0".to_vec();
+    p.extend_from_slice(&0x5000u16.to_le_bytes()); // OpCode, little-endian
+    p.extend_from_slice(&14u16.to_be_bytes()); // ProtVer, big-endian
+    p.extend_from_slice(&[sequence, 0, (port_address & 0xFF) as u8, (port_address >> 8) as u8 & 0x7F]);
+    p.extend_from_slice(&512u16.to_be_bytes()); // Length, big-endian
+    p.extend_from_slice(slots);
+    p
+}
