@@ -282,7 +282,7 @@ def model(name, length, width, height, primitive, file=None):
     )
 
 
-def beam(name, model_name, pos, **kw):
+def beam(name, model_name, pos, children=None, **kw):
     defaults = dict(
         LampType="Discharge",
         PowerConsumption="1000",
@@ -297,7 +297,6 @@ def beam(name, model_name, pos, **kw):
         ColorRenderingIndex="100",
     )
     defaults.update({k: str(v) for k, v in kw.items()})
-    children = defaults.pop("children", None)
     return el("Beam", children, Name=name, Model=model_name, Position=pos, **defaults)
 
 
@@ -453,7 +452,9 @@ def emitters_xml(spectra=True):
         meas = []
         if spectra and peak is not None:
             meas = [el("Measurement", spectrum(peak, fwhm), Physical="100", LuminousIntensity="1000", InterpolationTo="Linear")]
-        out.append(el("Emitter", meas, Name=name, Color=xyy))
+        # DominantWaveLength is optional in GDTF 1.2, but the `gdtf` crate 0.3 needs it next to Color
+        # (white: 0, no dominant wavelength).
+        out.append(el("Emitter", meas, Name=name, Color=xyy, DominantWaveLength=str(peak or 0)))
     return el("Emitters", out)
 
 
