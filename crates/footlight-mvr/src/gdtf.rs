@@ -206,7 +206,7 @@ pub struct SetInfo {
     pub dmx_from: u64,
     /// Last raw DMX value.
     pub dmx_to: u64,
-    /// Wheel slot index (1-based), if any.
+    /// Wheel slot index as the file writes it (1-based; the `gdtf` crate stores it 0-based).
     pub wheel_slot: Option<i32>,
 }
 
@@ -582,7 +582,7 @@ fn channel(c: &DmxChannel, template: &str, instance: &str, breaks: Option<&[(u16
                     name: s.name.as_deref().unwrap_or("").to_string(),
                     dmx_from: sf,
                     dmx_to: st,
-                    wheel_slot: s.wheel_slot_index,
+                    wheel_slot: s.wheel_slot_index.map(|i| i.saturating_add(1)),
                 });
             }
             functions.push(FunctionInfo {
