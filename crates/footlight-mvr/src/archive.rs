@@ -68,7 +68,9 @@ impl Archive {
             let f = zip.by_index_raw(i).map_err(|e| err(format!("zip entry {i} is unreadable: {e}")))?;
             let name = f.name().to_string();
             if let Some(why) = unsafe_name(&name) {
-                return Err(err(format!("refused: entry {name:?} {why}; the archive may try to write outside its folder")));
+                return Err(err(format!(
+                    "refused: entry {name:?} {why}; the archive may try to write outside its folder"
+                )));
             }
             if f.encrypted() {
                 return Err(err(format!("refused: entry {name:?} is encrypted")));
@@ -115,7 +117,10 @@ impl Archive {
             return Some(d);
         }
         let want = name.trim_start_matches("./");
-        self.files.iter().find(|(k, _)| k.trim_start_matches("./").eq_ignore_ascii_case(want)).map(|(_, v)| v.as_slice())
+        self.files
+            .iter()
+            .find(|(k, _)| k.trim_start_matches("./").eq_ignore_ascii_case(want))
+            .map(|(_, v)| v.as_slice())
     }
 
     /// Names of the files, sorted.

@@ -30,8 +30,8 @@
 use crate::archive::Archive;
 use crate::xml;
 use footlight_fixture::PatchError;
-use gdtf::geometry::AnyGeometry;
 use gdtf::dmx_mode::{DmxBreak, DmxChannel, DmxMode};
+use gdtf::geometry::AnyGeometry;
 use gdtf::geometry::{BeamGeometry, Geometry};
 use gdtf::values::{DmxValue, Matrix};
 use glam::{DMat4, DVec4};
@@ -279,10 +279,12 @@ impl Gdtf {
     /// A wheel image by its `MediaFileName` (`wheels/<name>.png`, or the name with its extension).
     pub fn wheel_image(&self, media_name: &str) -> Option<&[u8]> {
         let candidates = [format!("wheels/{media_name}.png"), format!("wheels/{media_name}")];
-        candidates.iter().find_map(|c| {
-            self.media.get(c).or_else(|| self.media.iter().find(|(k, _)| k.eq_ignore_ascii_case(c)).map(|(_, v)| v))
-        })
-        .map(Vec::as_slice)
+        candidates
+            .iter()
+            .find_map(|c| {
+                self.media.get(c).or_else(|| self.media.iter().find(|(k, _)| k.eq_ignore_ascii_case(c)).map(|(_, v)| v))
+            })
+            .map(Vec::as_slice)
     }
 
     /// Number of slots of the wheel named `name`.
@@ -310,7 +312,7 @@ impl Gdtf {
         let mut count = 0usize;
         let tree = self.instantiate(root, DMat4::IDENTITY, None, 0, &mut count).map_err(at)?;
         // Where each file geometry occurs: (instance name, the breaks of the reference it sits in).
-        let mut occurrences: BTreeMap<String, Vec<(String, Option<Vec<(u16, u16)>>)>> = BTreeMap::new();
+        let mut occurrences: Occurrences = BTreeMap::new();
         collect(&tree, None, &self.ft, &mut occurrences);
         let mut channels = Vec::new();
         for c in &m.dmx_channels {
@@ -491,13 +493,17 @@ pub fn dmx(v: DmxValue, bytes: u8) -> u64 {
     out.min(max_raw(want as u8))
 }
 
+/// File geometry name → its instances and the `(DMXBreak, DMXOffset)`
+/// pairs of the reference each sits in (`None` outside references).
+type Occurrences = BTreeMap<String, Vec<(String, Option<Vec<(u16, u16)>>)>>;
+
 /// Records, for each file geometry name, the instances it has and the
 /// breaks of the reference they sit in.
 fn collect(
     node: &GeometryNode,
     breaks: Option<&[(u16, u16)]>,
     ft: &gdtf::fixture_type::FixtureType,
-    out: &mut BTreeMap<String, Vec<(String, Option<Vec<(u16, u16)>>)>>,
+    out: &mut Occurrences,
 ) {
     if let GeometryKind::Reference(_) = node.kind {
         let own = reference_breaks(ft, node);
@@ -541,7 +547,13 @@ fn reference_breaks(ft: &gdtf::fixture_type::FixtureType, node: &GeometryNode) -
         .unwrap_or_default()
 }
 
-fn channel(c: &DmxChannel, template: &str, instance: &str, breaks: Option<&[(u16, u16)]>, mode: &DmxMode) -> ChannelInfo {
+fn channel(
+    c: &DmxChannel,
+    template: &str,
+    instance: &str,
+    breaks: Option<&[(u16, u16)]>,
+    mode: &DmxMode,
+) -> ChannelInfo {
     let (mut dmx_break, overwrite) = match c.dmx_break {
         DmxBreak::Value(v) => (v.clamp(1, i32::from(u16::MAX)) as u16, false),
         DmxBreak::Overwrite => (1, true),
@@ -577,7 +589,8 @@ fn channel(c: &DmxChannel, template: &str, instance: &str, breaks: Option<&[(u16
             let mut sets = Vec::new();
             for (j, s) in f.channel_sets.iter().enumerate() {
                 let sf = dmx(s.dmx_from, bytes);
-                let st = f.channel_sets.get(j + 1).map(|x| dmx(x.dmx_from, bytes).saturating_sub(1).max(sf)).unwrap_or(to);
+                let st =
+                    f.channel_sets.get(j + 1).map(|x| dmx(x.dmx_from, bytes).saturating_sub(1).max(sf)).unwrap_or(to);
                 sets.push(SetInfo {
                     name: s.name.as_deref().unwrap_or("").to_string(),
                     dmx_from: sf,
@@ -596,17 +609,16 @@ fn channel(c: &DmxChannel, template: &str, instance: &str, breaks: Option<&[(u16
                 emitter: f.emitter.as_ref().map(|w| w.to_string()),
                 filter: f.filter.as_ref().map(|w| w.to_string()),
                 dmx_profile: f.dmx_profile.as_ref().map(|w| w.to_string()),
-                mode_master: f.mode_master.as_ref().map(|mm| (mm.node.to_string(), dmx(mm.from, bytes), dmx(mm.to, bytes))),
+                mode_master: f
+                    .mode_master
+                    .as_ref()
+                    .map(|mm| (mm.node.to_string(), dmx(mm.from, bytes), dmx(mm.to, bytes))),
                 sets,
             });
         }
     }
-    let attribute = c
-        .logical_channels
-        .first()
-        .and_then(|l| l.attribute.first())
-        .map(|a| a.to_string())
-        .unwrap_or_default();
+    let attribute =
+        c.logical_channels.first().and_then(|l| l.attribute.first()).map(|a| a.to_string()).unwrap_or_default();
     // The default comes from the initial function (else the first function).
     let initial = c.initial_function.as_ref().and_then(|node| node.last()).map(|n| n.to_string());
     let default = c
@@ -618,7 +630,15 @@ fn channel(c: &DmxChannel, template: &str, instance: &str, breaks: Option<&[(u16
         .map(|f| dmx(f.default, bytes))
         .unwrap_or(0);
     let _ = mode;
-    ChannelInfo { geometry: instance.to_string(), template: template.to_string(), attribute, dmx_break, offsets, default, functions }
+    ChannelInfo {
+        geometry: instance.to_string(),
+        template: template.to_string(),
+        attribute,
+        dmx_break,
+        offsets,
+        default,
+        functions,
+    }
 }
 
 #[cfg(test)]

@@ -160,7 +160,8 @@ pub fn parse_matrix(text: &str) -> Option<DMat4> {
     if nums.len() != 12 {
         return None;
     }
-    let col = |i: usize| glam::DVec4::new(nums[3 * i], nums[3 * i + 1], nums[3 * i + 2], if i == 3 { 1.0 } else { 0.0 });
+    let col =
+        |i: usize| glam::DVec4::new(nums[3 * i], nums[3 * i + 1], nums[3 * i + 2], if i == 3 { 1.0 } else { 0.0 });
     Some(DMat4::from_cols(col(0), col(1), col(2), col(3)))
 }
 
@@ -379,13 +380,18 @@ impl Mvr {
     pub fn from_archive(archive: Archive) -> Result<Self, PatchError> {
         let label = archive.label("GeneralSceneDescription.xml");
         let Some(bytes) = archive.get("GeneralSceneDescription.xml") else {
-            return Err(PatchError::new(&archive.path, 0, "no GeneralSceneDescription.xml in the archive; not an MVR file"));
+            return Err(PatchError::new(
+                &archive.path,
+                0,
+                "no GeneralSceneDescription.xml in the archive; not an MVR file",
+            ));
         };
         let text = xml::utf8(&label, bytes)?;
         xml::well_formed(&label, text, "GeneralSceneDescription")?;
         let gsd: GsdX = quick_xml::de::from_str(text)
             .map_err(|e| PatchError::new(&label, 0, format!("not an MVR scene description: {e}")))?;
-        let mut b = Flatten { label: label.clone(), out: Scene::default(), warnings: Vec::new(), symdefs: BTreeMap::new() };
+        let mut b =
+            Flatten { label: label.clone(), out: Scene::default(), warnings: Vec::new(), symdefs: BTreeMap::new() };
         b.out.version = format!("{}.{}", gsd.ver_major, gsd.ver_minor);
         b.out.provider = gsd.provider;
         let scene = gsd.scene.unwrap_or_default();
@@ -508,7 +514,10 @@ impl Flatten {
                     self.geometries(&def, m, out, depth + 1);
                     self.symdefs.insert(s.symdef.clone(), def);
                 }
-                None => self.warn(format!("Symbol names Symdef {:?}, which AUXData does not define (or a symbol loop)", s.symdef)),
+                None => self.warn(format!(
+                    "Symbol names Symdef {:?}, which AUXData does not define (or a symbol loop)",
+                    s.symdef
+                )),
             }
         }
     }

@@ -3,6 +3,7 @@
 mod fuzz;
 mod peers;
 mod readers;
+mod show;
 
 use std::path::PathBuf;
 

@@ -23,13 +23,7 @@ fn peers_available() -> bool {
 
 fn dump(paths: &[std::path::PathBuf]) -> Value {
     let script = root().join("crates/footlight-mvr/tests/peers/dump.py");
-    let out = Command::new("timeout")
-        .arg("120")
-        .arg("python3")
-        .arg(script)
-        .args(paths)
-        .output()
-        .expect("run python3");
+    let out = Command::new("timeout").arg("120").arg("python3").arg(script).args(paths).output().expect("run python3");
     assert!(out.status.success(), "dump.py failed:\n{}", String::from_utf8_lossy(&out.stderr));
     serde_json::from_slice(&out.stdout).expect("dump.py prints JSON")
 }

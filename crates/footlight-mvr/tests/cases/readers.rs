@@ -39,7 +39,10 @@ fn spot_mode_channels_and_geometry() {
     assert_eq!((arm.name.as_str(), &arm.kind), ("Arm", &GeometryKind::Axis));
     let lens = &arm.children[0].children[0];
     let GeometryKind::Beam(beam) = &lens.kind else { panic!("{:?}", lens.kind) };
-    assert_eq!((beam.beam_angle, beam.field_angle, beam.flux_lm, beam.lamp_type), (15.0, 20.0, 20000.0, LampType::Discharge));
+    assert_eq!(
+        (beam.beam_angle, beam.field_angle, beam.flux_lm, beam.lamp_type),
+        (15.0, 20.0, 20000.0, LampType::Discharge)
+    );
     // Positions compose down the tree: −0.15 − 0.35 − 0.25 m.
     assert!((lens.to_fixture.w_axis.z + 0.75).abs() < 1e-12, "{}", lens.to_fixture);
     assert_eq!(lens.children.len(), 3);
@@ -63,7 +66,10 @@ fn pixel_bar_references_and_breaks() {
     let w = Gdtf::open(&gdtf("Wash")).unwrap().layout("8ch").unwrap();
     assert_eq!(w.relations.len(), 4);
     assert_eq!(w.relations[0].kind, "Multiply");
-    assert_eq!(w.channels.iter().find(|c| c.attribute == "ColorAdd_G").unwrap().functions[0].emitter.as_deref(), Some("Green"));
+    assert_eq!(
+        w.channels.iter().find(|c| c.attribute == "ColorAdd_G").unwrap().functions[0].emitter.as_deref(),
+        Some("Green")
+    );
 }
 
 #[test]
