@@ -1,0 +1,484 @@
+//! From GDTF and MVR to Footlight's fixture model: a GDTF file as a
+//! [`FixtureType`] ([`fixture_type`]) and an MVR file as a [`Patch`]
+//! ([`load_mvr`]).
+//!
+//! What maps onto the existing model (Vierjahn 2010, eq. 4: k_i = c_F ⊙ c_I · v · Î):
+//! * the first `<Beam>` of the first mode's tree gives the optics: a cone +
+//!   penumbra [`SpotOptics`] from `BeamAngle`/`FieldAngle`, and
+//!   Î = `LuminousFlux` / ∫f dω (all the flux in the pattern);
+//! * `Dimmer` → v (a DMX profile with a pure square law → square curve,
+//!   otherwise linear); `Pan`/`Tilt` → the yoke with the channel's
+//!   physical range (GDTF: pan about the Axis' Z, tilt about X, rest beam
+//!   −Z: the same frame as Footlight's hanging head, see `light.rs`);
+//!   `Zoom` → field angle (GDTF's zoom is the beam angle, scaled by the
+//!   beam's field/beam ratio); `Focus1` → focus 0..1; `Iris` → iris fraction;
+//! * `ColorAdd_*` with an emitter → LED emitters (CIE xy and Y share from
+//!   the emitter's `Color`); `ColorSub_C/M/Y` → CMY flags over the beam's CCT;
+//!   otherwise the lamp type (tungsten/halogen dims redder, discharge and
+//!   LED white keep their CCT).
+//!
+//! Every other attribute (shutter/strobe, wheels, gobos, prism, blades,
+//! CTO…) still occupies its slots as an `other` channel, with **one warning
+//! per fixture type** naming them. Not yet mapped: multi-beam fixtures
+//! (pixel cells, multi-lamp blinders) are one light at the first beam; DMX
+//! breaks after the first are reported, not decoded.
+
+use crate::gdtf::{BeamInfo, ChannelInfo, Gdtf, GeometryKind, GeometryNode, LampType, Layout};
+use crate::mvr::{Mvr, Scene, stage_pose};
+use footlight_fixture::beam::SpotBeam;
+use footlight_fixture::fixture_type::{Attribute, Channel, Mode, Movement, Optics, SpotOptics};
+use footlight_fixture::patch::{BuiltinSpot, TypedFixture};
+use footlight_fixture::state::{MAX_MIX, SLOTS, Universes};
+use footlight_fixture::{Beam, Fixture, FixtureModel, FixtureState, FixtureType, Light, Manual, Patch, PatchError};
+use footlight_photometry::{Chroma, DimmerCurve, Emitter, Lamp};
+use glam::{DQuat, Quat, Vec2, Vec3};
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Arc;
+
+/// An imported MVR: the patch, what did not stop the import, and the scene
+/// (venue geometry, truss, focus points) for the lead's scene wiring.
+#[derive(Clone, Debug)]
+pub struct Import {
+    /// The patch: one fixture per emitting MVR fixture.
+    pub patch: Patch,
+    /// Problems that did not stop the import (missing GDTFs, unsupported attributes…).
+    pub warnings: Vec<PatchError>,
+    /// The flattened MVR scene.
+    pub scene: Scene,
+}
+
+/// The first `<Beam>` instance under `node`, depth-first.
+pub fn first_beam(node: &GeometryNode) -> Option<(&GeometryNode, BeamInfo)> {
+    if let GeometryKind::Beam(b) = &node.kind {
+        return Some((node, *b));
+    }
+    node.children.iter().find_map(first_beam)
+}
+
+/// A GDTF file as a Footlight fixture type (every mode), with one warning
+/// per unsupported attribute set. `None` in the error position means the
+/// type has no beam (a hazer, a truss…): not a light.
+pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchError> {
+    let label = g.label.join("description.xml");
+    let mut warnings = Vec::new();
+    let layouts: Vec<Layout> = g.mode_names().iter().map(|m| g.layout(m)).collect::<Result<_, _>>()?;
+    let Some((_, beam)) = layouts.iter().find_map(|l| first_beam(&l.root)) else {
+        return Err(PatchError::new(&label, 0, "no <Beam> geometry in any mode: not a light"));
+    };
+    let all = || layouts.iter().flat_map(|l| l.channels.iter());
+    // Optics.
+    let (mut beam_angle, mut field_angle) = (beam.beam_angle as f32, beam.field_angle as f32);
+    if !(beam_angle > 0.0 && beam_angle <= 180.0) {
+        warnings.push(PatchError::new(&label, 0, format!("BeamAngle {beam_angle} is not in (0, 180]; 25 used")));
+        beam_angle = 25.0;
+    }
+    if !(field_angle >= beam_angle && field_angle <= 180.0) {
+        field_angle = beam_angle;
+    }
+    let ratio = (beam_angle / field_angle).clamp(0.05, 1.0);
+    let zoom = match all().find(|c| c.attribute == "Zoom").and_then(|c| c.functions.first()) {
+        Some(f) => [f.physical_from as f32 / ratio, f.physical_to as f32 / ratio].map(|a| a.clamp(0.5, 180.0)),
+        None => [field_angle; 2],
+    };
+    let iris_min = all()
+        .find(|c| c.attribute == "Iris")
+        .and_then(|c| c.functions.first())
+        .map(|f| (f.physical_from.min(f.physical_to) as f32).clamp(0.01, 0.99));
+    let lo = zoom[0].min(zoom[1]);
+    let omega = SpotBeam::from_beam_field(lo * ratio, lo).solid_angle();
+    let flux = if beam.flux_lm.is_finite() && beam.flux_lm > 0.0 { beam.flux_lm as f32 } else { 10_000.0 };
+    let intensity = if omega > 0.0 { flux / omega } else { 0.0 };
+    let optics = Optics::Spot(SpotOptics::new(zoom, [ratio; 2], intensity, lo, iris_min));
+    // Lamp and colour mixing.
+    let cct = if (1000.0..=20000.0).contains(&beam.cct_k) { beam.cct_k as f32 } else { 6000.0 };
+    let mut mix_names: Vec<String> = Vec::new();
+    let mut emitters = Vec::new();
+    for c in all().filter(|c| c.attribute.starts_with("ColorAdd_")) {
+        if mix_names.contains(&c.attribute) || mix_names.len() >= MAX_MIX {
+            continue;
+        }
+        let e = c
+            .functions
+            .iter()
+            .find_map(|f| f.emitter.as_deref())
+            .and_then(|name| g.ft.physical_descriptions.emitters.iter().find(|e| e.name.as_deref() == Some(name)));
+        let chroma = match e.map(|e| e.optic) {
+            Some(gdtf::physical_descriptions::EmitterOptic::Color { color, .. }) => {
+                Some((Vec2::new(color.x as f32, color.y as f32), color.z as f32))
+            }
+            _ => None,
+        };
+        match chroma {
+            Some((xy, y)) if xy.x > 0.0 && xy.y > 0.0 && xy.x + xy.y < 1.0 => {
+                emitters.push(Emitter::new(c.attribute.to_ascii_lowercase(), Chroma::Xy(xy), y.max(1e-3)));
+                mix_names.push(c.attribute.clone());
+            }
+            _ => warnings.push(PatchError::new(
+                &label,
+                0,
+                format!("{}: no emitter with a CIE colour; the channel is decoded but not mixed", c.attribute),
+            )),
+        }
+    }
+    let cmy = ["ColorSub_C", "ColorSub_M", "ColorSub_Y"];
+    let lamp = if !emitters.is_empty() {
+        Lamp::Led { emitters }
+    } else if all().any(|c| cmy.contains(&c.attribute.as_str())) {
+        mix_names = cmy.map(String::from).to_vec();
+        Lamp::Cmy { cct, cyan: 0.0, magenta: 0.0, yellow: 0.0 }
+    } else {
+        match beam.lamp_type {
+            LampType::Tungsten | LampType::Halogen => Lamp::Tungsten { cct_full: cct },
+            _ => Lamp::Discharge { cct },
+        }
+    };
+    let movement = {
+        let span = |a: &str| {
+            all()
+                .find(|c| c.attribute == a)
+                .and_then(|c| c.functions.first())
+                .map(|f| (f.physical_to - f.physical_from).abs() as f32)
+        };
+        match (span("Pan"), span("Tilt")) {
+            (None, None) => None,
+            (p, t) => {
+                Some(Movement { pan: p.unwrap_or(0.0).clamp(1e-3, 720.0), tilt: t.unwrap_or(0.0).clamp(1e-3, 720.0) })
+            }
+        }
+    };
+    let mut unsupported: Vec<String> = Vec::new();
+    let mut modes = Vec::new();
+    for l in &layouts {
+        let mut channels = Vec::new();
+        let mut footprint = 0u16;
+        let mut later_breaks = false;
+        for c in &l.channels {
+            if c.offsets.is_empty() {
+                continue;
+            }
+            if c.dmx_break != 1 {
+                later_breaks = true;
+                continue;
+            }
+            footprint = footprint.max(*c.offsets.iter().max().unwrap_or(&0));
+            let (attribute, range) = map_attribute(c, &mix_names, movement.is_some());
+            if attribute == Attribute::Other && !unsupported.contains(&c.attribute) {
+                unsupported.push(c.attribute.clone());
+            }
+            let curve = c
+                .functions
+                .first()
+                .and_then(|f| f.dmx_profile.as_deref())
+                .map(|p| profile_curve(g, p))
+                .unwrap_or_default();
+            let fine = c.offsets.get(1).map(|o| o.saturating_sub(1));
+            let default = match c.offsets.len() {
+                1 => c.default.min(255),
+                n => (c.default >> (8 * (n - 2).min(6))).min(65535),
+            } as u16;
+            channels.push(Channel {
+                attribute,
+                name: c.attribute.to_ascii_lowercase(),
+                offset: c.offsets[0].saturating_sub(1),
+                fine,
+                default,
+                curve,
+                range,
+                scroller: None,
+                line: 0,
+            });
+        }
+        if later_breaks {
+            warnings.push(PatchError::new(
+                &label,
+                0,
+                format!("mode {:?}: channels on DMX breaks after the first are not decoded yet", l.mode),
+            ));
+        }
+        modes.push(Mode { name: l.mode.clone(), channels, footprint: footprint.min(SLOTS as u16), line: 0 });
+    }
+    if !unsupported.is_empty() {
+        warnings.push(PatchError::new(
+            &label,
+            0,
+            format!(
+                "{}: attributes not modelled yet (their channels keep their slots): {}",
+                g.name(),
+                unsupported.join(", ")
+            ),
+        ));
+    }
+    let ty = FixtureType {
+        name: g.name(),
+        maker: g.ft.manufacturer.clone(),
+        path: g.label.clone(),
+        lamp,
+        mix_names: mix_names.iter().map(|n| n.to_ascii_lowercase()).collect(),
+        optics,
+        movement,
+        modes,
+    };
+    Ok((ty, warnings))
+}
+
+/// Footlight attribute and real-unit range of a GDTF channel.
+fn map_attribute(c: &ChannelInfo, mix: &[String], moving: bool) -> (Attribute, [f32; 2]) {
+    let phys = c.functions.first().map(|f| [f.physical_from as f32, f.physical_to as f32]).unwrap_or([0.0, 1.0]);
+    let unit = [0.0, 1.0];
+    match c.attribute.as_str() {
+        "Dimmer" => (Attribute::Dimmer, unit),
+        "Pan" if moving => (Attribute::Pan, phys),
+        "Tilt" if moving => (Attribute::Tilt, phys),
+        "Zoom" => (Attribute::Zoom, phys),
+        "Focus1" => (Attribute::Focus, phys.map(|x| x.clamp(0.0, 1.0))),
+        "Iris" => (Attribute::Iris, phys.map(|x| x.clamp(0.0, 1.0))),
+        a => match mix.iter().position(|m| m == a) {
+            Some(i) => (Attribute::Mix(i as u8), unit),
+            None => (Attribute::Other, unit),
+        },
+    }
+}
+
+/// The dimmer curve of a GDTF DMX profile: a single cubic segment
+/// y = x² is the square law; anything else is read as linear.
+fn profile_curve(g: &Gdtf, name: &str) -> DimmerCurve {
+    let p = g.ft.physical_descriptions.dmx_profiles.iter().find(|p| p.name.as_deref() == Some(name));
+    match p.map(|p| p.points.as_slice()) {
+        Some([pt])
+            if pt.cfc0.abs() < 1e-9 && pt.cfc1.abs() < 1e-9 && (pt.cfc2 - 1.0).abs() < 1e-9 && pt.cfc3.abs() < 1e-9 =>
+        {
+            DimmerCurve::SquareLaw
+        }
+        _ => DimmerCurve::Linear,
+    }
+}
+
+/// Reads an MVR file as a patch: every problem that stops it, or the
+/// import with its warnings. GDTF files are parsed once each.
+pub fn load_mvr(path: &Path) -> Result<Import, Vec<PatchError>> {
+    let m = Mvr::open(path).map_err(|e| vec![e])?;
+    build(path, m)
+}
+
+/// Wall time of [`load_mvr`] for the benchmark: seconds to read and build.
+pub fn time_load_mvr(path: &Path) -> Result<f64, Vec<PatchError>> {
+    let t = std::time::Instant::now();
+    load_mvr(path)?;
+    Ok(t.elapsed().as_secs_f64())
+}
+
+/// A parsed type and its first beam's offset from the fixture origin (GDTF axes, metres).
+type TypeEntry = Result<(Arc<FixtureType>, Vec3), String>;
+
+fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
+    let mut warnings = m.warnings.clone();
+    let mut errors = Vec::new();
+    let mut types: BTreeMap<String, TypeEntry> = BTreeMap::new();
+    let mut missing: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    let mut fixtures: Vec<Fixture> = Vec::new();
+    let mut used: Vec<(u16, u16, u16, String)> = Vec::new(); // universe, first, last, fixture name
+    let mut frames = Universes::new();
+    let beam_frame = Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2); // GDTF local → stage local
+    for (n, f) in m.scene.fixtures.iter().enumerate() {
+        let id = f.fixture_id_numeric.or_else(|| f.fixture_id.parse().ok()).unwrap_or(n as u32 + 1);
+        let (p, q) = stage_pose(f.world);
+        let (position, q) = (p.as_vec3(), quat(q));
+        let entry = types.entry(f.gdtf_spec.clone()).or_insert_with(|| {
+            let Some(bytes) = m.archive.get(&f.gdtf_spec) else {
+                return Err("missing".into());
+            };
+            let g = Gdtf::from_bytes(&m.archive.label(&f.gdtf_spec), bytes.to_vec()).map_err(|e| e.to_string())?;
+            match fixture_type(&g) {
+                Ok((ty, w)) => {
+                    warnings.extend(w);
+                    let beam =
+                        g.layout(&g.mode_names()[0]).ok().and_then(|l| first_beam(&l.root).map(|(n, _)| n.to_fixture));
+                    let off = beam.map(|t| t.w_axis.truncate().as_vec3()).unwrap_or(Vec3::ZERO);
+                    Ok((Arc::new(ty), off))
+                }
+                Err(e) => Err(e.to_string()),
+            }
+        });
+        let dmx = f.addresses.iter().find(|a| a.dmx_break == 0).map(|a| (a.universe, a.address));
+        for a in f.addresses.iter().filter(|a| a.dmx_break != 0) {
+            warnings.push(PatchError::new(
+                path,
+                0,
+                format!(
+                    "fixture {:?} (id {id}): DMX break {} at {}.{} is not decoded yet",
+                    f.name,
+                    a.dmx_break + 1,
+                    a.universe,
+                    a.address
+                ),
+            ));
+        }
+        match entry {
+            Err(why) if why == "missing" => {
+                missing.entry(f.gdtf_spec.clone()).or_default().push(format!("{} (id {id})", f.name));
+                // A dark placeholder where the fixture hangs.
+                let beam = SpotBeam::from_beam_field(25.0, 35.0);
+                let light = Light { position, rotation: q * beam_frame, beam: Beam::Spot(beam.clone()) };
+                fixtures.push(Fixture {
+                    id,
+                    name: f.name.clone(),
+                    light,
+                    dmx: None,
+                    line: 0,
+                    model: FixtureModel::Builtin(BuiltinSpot { beam, intensity: 0.0, colour: Vec3::ZERO }),
+                    look: FixtureState::default(),
+                });
+            }
+            Err(why) => {
+                if why.contains("not a light") {
+                    warnings.push(PatchError::new(
+                        path,
+                        0,
+                        format!("fixture {:?} (id {id}): {why}; its slots stay reserved", f.name),
+                    ));
+                    if let (Some((u, a)), Ok(g)) = (dmx, footprint_of(&m, &f.gdtf_spec, &f.gdtf_mode)) {
+                        used.push((u, a, a + g.saturating_sub(1), f.name.clone()));
+                    }
+                } else {
+                    errors.push(PatchError::new(path, 0, format!("fixture {:?} (id {id}): {why}", f.name)));
+                }
+            }
+            Ok((ty, beam_offset)) => {
+                let Some(mode) = ty.mode(&f.gdtf_mode) else {
+                    let names: Vec<_> = ty.modes.iter().map(|m| m.name.clone()).collect();
+                    errors.push(PatchError::new(
+                        path,
+                        0,
+                        format!(
+                            "fixture {:?} (id {id}): {} has no mode {:?}; its modes: {names:?}",
+                            f.name, f.gdtf_spec, f.gdtf_mode
+                        ),
+                    ));
+                    continue;
+                };
+                let md = &ty.modes[mode];
+                let rotation = if ty.movement.is_some() { q } else { q * beam_frame };
+                let offset = q * beam_frame * *beam_offset;
+                let typed = TypedFixture {
+                    fixture_type: ty.clone(),
+                    mode,
+                    position: position + offset,
+                    rotation,
+                    gel: None,
+                    scroller: None,
+                    gels: None,
+                    manual: Manual::default(),
+                };
+                let mut local = vec![0u8; usize::from(md.footprint)];
+                for c in &md.channels {
+                    for (o, v) in c.slots_for(c.default) {
+                        if let Some(s) = local.get_mut(usize::from(o)) {
+                            *s = v;
+                        }
+                    }
+                }
+                if let Some((u, a)) = dmx {
+                    let end = u32::from(a) + u32::from(md.footprint) - 1;
+                    if end > SLOTS as u32 {
+                        errors.push(PatchError::new(
+                            path,
+                            0,
+                            format!(
+                                "fixture {:?} (id {id}): its {} slots from {u}.{a} run past slot 512",
+                                f.name, md.footprint
+                            ),
+                        ));
+                    } else {
+                        used.push((u, a, end as u16, f.name.clone()));
+                        for (o, v) in local.iter().enumerate() {
+                            frames.set_slot(u, a + o as u16, *v);
+                        }
+                    }
+                }
+                let mut fixture = Fixture {
+                    id,
+                    name: f.name.clone(),
+                    light: Light { position, rotation, beam: Beam::Spot(SpotBeam::from_half_angles(0.0, 0.0)) },
+                    dmx,
+                    line: 0,
+                    model: FixtureModel::Typed(typed),
+                    look: FixtureState::default(),
+                };
+                fixture.look = fixture.decode_with(&|o| local.get(usize::from(o)).copied().unwrap_or(0));
+                fixture.light = fixture.light_of(&fixture.look);
+                fixtures.push(fixture);
+            }
+        }
+    }
+    for (spec, names) in &missing {
+        warnings.push(PatchError::new(
+            path,
+            0,
+            format!(
+                "GDTF file {spec:?} is named but not in the archive: {} shown as dark placeholders",
+                names.join(", ")
+            ),
+        ));
+    }
+    used.sort();
+    for w in used.windows(2) {
+        if w[0].0 == w[1].0 && w[1].1 <= w[0].2 {
+            errors.push(PatchError::new(
+                path,
+                0,
+                format!(
+                    "{} (slots {}.{}..{}) overlaps {} (slots {}.{}..{})",
+                    w[1].3, w[1].0, w[1].1, w[1].2, w[0].3, w[0].0, w[0].1, w[0].2
+                ),
+            ));
+        }
+    }
+    if !errors.is_empty() {
+        return Err(errors);
+    }
+    let patch = Patch {
+        path: path.to_path_buf(),
+        camera: None,
+        fixtures,
+        inputs: Vec::new(),
+        look_universes: frames,
+        gels: None,
+    };
+    Ok(Import { patch, warnings, scene: m.scene })
+}
+
+fn footprint_of(m: &Mvr, spec: &str, mode: &str) -> Result<u16, PatchError> {
+    let bytes = m.archive.get(spec).ok_or_else(|| PatchError::new(&m.archive.path, 0, "missing"))?;
+    let g = Gdtf::from_bytes(&m.archive.label(spec), bytes.to_vec())?;
+    let l = g.layout(mode)?;
+    Ok(l.footprints.get(&1).copied().unwrap_or(0))
+}
+
+fn quat(q: DQuat) -> Quat {
+    Quat::from_xyzw(q.x as f32, q.y as f32, q.z as f32, q.w as f32).normalize()
+}
+
+/// Loads a patch: an `.mvr` through [`load_mvr`] (warnings logged to
+/// stderr by the caller's choice: they are returned by [`check_patch`]),
+/// anything else through [`Patch::load`].
+pub fn load_patch(path: &Path) -> Result<Patch, PatchError> {
+    if is_mvr(path) {
+        return load_mvr(path).map(|i| i.patch).map_err(|mut e| e.swap_remove(0));
+    }
+    Patch::load(path)
+}
+
+/// Every problem of a patch or MVR file (what `footlight check` prints):
+/// the patch and the warnings, or the errors.
+pub fn check_patch(path: &Path) -> Result<(Patch, Vec<PatchError>), Vec<PatchError>> {
+    if is_mvr(path) {
+        return load_mvr(path).map(|i| (i.patch, i.warnings));
+    }
+    footlight_fixture::check(path).map(|p| (p, Vec::new()))
+}
+
+/// True for a path ending in `.mvr` (any case).
+pub fn is_mvr(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("mvr"))
+}

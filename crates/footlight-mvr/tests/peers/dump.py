@@ -1,0 +1,87 @@
+#!/usr/bin/env python3
+"""Independent reading of Footlight's GDTF/MVR test files with pygdtf and pymvr.
+
+Prints one JSON object: per GDTF file, per mode, the channels per DMX break
+(offsets, attribute), the geometry tree (names, kinds) walked from the mode,
+the beams' angles and the wheel slot counts; per MVR file, every fixture's
+spec, mode, addresses, ids and local matrix. The Rust test
+(tests/peers.rs) compares its own reader with these numbers.
+"""
+import json
+import sys
+
+import pygdtf
+import pymvr
+from pygdtf.utils import get_dmx_channels
+
+
+def tree(ft, g):
+    out = {"name": g.name, "kind": type(g).__name__, "children": []}
+    if isinstance(g, pygdtf.GeometryReference):
+        ref = ft.geometries.get_geometry_by_name(g.geometry)
+        out["children"].append(tree(ft, ref))
+        return out
+    for c in getattr(g, "geometries", []) or []:
+        out["children"].append(tree(ft, c))
+    return out
+
+
+def beams(ft, g, acc):
+    if isinstance(g, pygdtf.GeometryBeam):
+        acc.append([g.name, float(g.beam_angle), float(g.field_angle), float(g.luminous_flux), str(g.beam_type.value)])
+    if isinstance(g, pygdtf.GeometryReference):
+        beams(ft, ft.geometries.get_geometry_by_name(g.geometry), acc)
+    for c in getattr(g, "geometries", []) or []:
+        beams(ft, c, acc)
+    return acc
+
+
+def gdtf(path):
+    ft = pygdtf.FixtureType(path)
+    modes = {}
+    for m in ft.dmx_modes:
+        breaks = get_dmx_channels(ft, m.name)
+        root = ft.geometries.get_geometry_by_name(m.geometry)
+        modes[m.name] = {
+            "breaks": [[[list(c.offset), str(c.logical_channels[0].attribute)] for c in b] for b in breaks],
+            "tree": tree(ft, root),
+            "beams": beams(ft, root, []),
+        }
+    return {"name": ft.name, "wheels": {w.name: len(w.wheel_slots) for w in ft.wheels}, "modes": modes}
+
+
+def mvr(path):
+    s = pymvr.GeneralSceneDescription(path)
+    out = []
+
+    def walk(cl):
+        for f in cl.fixtures:
+            out.append(
+                {
+                    "name": f.name,
+                    "spec": f.gdtf_spec,
+                    "mode": f.gdtf_mode,
+                    "addresses": [[a.dmx_break, a.universe, a.address] for a in f.addresses.addresses],
+                    "fixture_id": str(f.fixture_id),
+                    "unit_number": f.unit_number,
+                    "matrix": f.matrix.matrix,
+                }
+            )
+            if f.child_list:
+                walk(f.child_list)
+        for g in cl.group_objects:
+            walk(g.child_list)
+
+    for layer in s.scene.layers:
+        walk(layer.child_list)
+    return out
+
+
+if __name__ == "__main__":
+    result = {"gdtf": {}, "mvr": {}}
+    for p in sys.argv[1:]:
+        if p.endswith(".gdtf"):
+            result["gdtf"][p] = gdtf(p)
+        else:
+            result["mvr"][p] = mvr(p)
+    json.dump(result, sys.stdout)

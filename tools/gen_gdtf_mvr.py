@@ -1,0 +1,794 @@
+#!/usr/bin/env python3
+"""Writes Footlight's GDTF and MVR test files with known answers (issue 14).
+
+No manufacturer file can be downloaded where Footlight is developed, so the
+importer's test data is written here, from the GDTF 1.2 / MVR 1.6 layouts
+(DIN SPEC 15800:2022 and the XSDs in the mvrdevelopment/spec repository).
+Python standard library only (zipfile, zlib, xml.sax.saxutils); the output
+is deterministic: fixed zip timestamps, sorted entries, uuid5 identifiers.
+
+    python3 tools/gen_gdtf_mvr.py            # writes tests/data/gdtf and tests/data/mvr
+    python3 tools/gen_gdtf_mvr.py --check    # fails if the files on disk differ
+
+Every value below is invented for the tests (estimated, not a datasheet);
+the Rust tests and the Python peers (pygdtf, pymvr) read these files and
+compare what they find with the numbers written here.
+
+GDTF files (tests/data/gdtf/):
+  Footlight@Spot.gdtf     moving spot: Base > Yoke (Axis) > Head (Axis) > Beam,
+                          filters; modes Standard (27 ch, 16-bit pan/tilt/dimmer)
+                          and Basic (8 ch, 24-bit dimmer); colour wheel (xyY),
+                          gobo wheel (PNG slots in wheels/), prism facets,
+                          zoom/focus/iris, CMY, CTO, shutter/strobe, 8 blades + rotation
+  Footlight@Wash.gdtf     RGBW LED wash, emitters with xyY and spectra, virtual-dimmer
+                          relations; modes 8ch and 4ch
+  Footlight@Bar8.gdtf     pixel bar: 8 GeometryReference cells of one Pixel beam;
+                          modes 25ch (one break) and Split (2 breaks)
+  Footlight@Blinder.gdtf  2-lamp tungsten blinder; modes 2ch and 1ch
+  Footlight@Fresnel.gdtf  1 kW tungsten Fresnel with a DMX profile; modes 1ch, 2ch (zoom)
+  Footlight@Hazer.gdtf    hazer, no beam: Haze density and Fan channels
+
+MVR files (tests/data/mvr/):
+  features.mvr   layers, classes, group objects, focus points, truss and scene
+                 objects with symdef/symbol instancing, a 2-break fixture, fixture
+                 ids/unit numbers/colour/gobo fields, and one GDTF that is named
+                 but not in the archive (placeholder test)
+  show150.mvr    150 fixtures of the six types over 4 universes
+  bad-*.mvr      refused archives: a `..` path, an absolute path, a >100:1 entry,
+                 a header claiming > 1 GiB; and malformed XML (line/column test)
+"""
+
+import argparse
+import io
+import math
+import struct
+import sys
+import uuid
+import zipfile
+import zlib
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+ROOT = Path(__file__).resolve().parent.parent
+GDTF_DIR = ROOT / "tests" / "data" / "gdtf"
+MVR_DIR = ROOT / "tests" / "data" / "mvr"
+NS = uuid.UUID("6f6f746c-6967-6874-2d6d-76722d746573")  # fixed namespace for uuid5
+
+IDENTITY4 = "{1,0,0,0}{0,1,0,0}{0,0,1,0}{0,0,0,1}"
+
+
+def uid(name):
+    return str(uuid.uuid5(NS, name)).upper()
+
+
+def m4(tx=0.0, ty=0.0, tz=0.0):
+    """GDTF geometry matrix (metres): rows {u1,v1,w1,o1}..., translation in the 4th column."""
+    return f"{{1,0,0,{tx:g}}}{{0,1,0,{ty:g}}}{{0,0,1,{tz:g}}}{{0,0,0,1}}"
+
+
+def attrs(**kw):
+    return "".join(f" {k}={quoteattr(str(v))}" for k, v in kw.items() if v is not None)
+
+
+def el(tag, children=None, **kw):
+    a = attrs(**kw)
+    if not children:
+        return f"<{tag}{a}/>"
+    inner = "".join(children) if isinstance(children, list) else children
+    return f"<{tag}{a}>{inner}</{tag}>"
+
+
+# --- PNG (gobo slot images) -------------------------------------------------
+
+
+def png_gray(width, height, pixel):
+    """8-bit greyscale PNG; pixel(x, y) -> 0..255 (255 = light passes)."""
+    raw = b"".join(b"\x00" + bytes(pixel(x, y) for x in range(width)) for y in range(height))
+
+    def chunk(kind, data):
+        c = kind + data
+        return struct.pack(">I", len(data)) + c + struct.pack(">I", zlib.crc32(c) & 0xFFFFFFFF)
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b"")
+
+
+GOBO_SIZE = 64
+
+
+def gobo_ring(x, y):
+    """Open ring: radius 0.5..0.9 of the half-size passes light (known area fraction)."""
+    c = (GOBO_SIZE - 1) / 2
+    r = math.hypot(x - c, y - c) / (GOBO_SIZE / 2)
+    return 255 if 0.5 <= r <= 0.9 else 0
+
+
+def gobo_bars(x, y):
+    """Four vertical bars: columns 8 px wide every 16 px pass light."""
+    return 255 if (x // 8) % 2 == 0 else 0
+
+
+# --- GDTF ---------------------------------------------------------------------
+
+FEATURES = {
+    "Dimmer": ["Dimmer"],
+    "Position": ["PanTilt"],
+    "Gobo": ["Gobo"],
+    "Color": ["Color", "RGB", "CIE"],
+    "Beam": ["Beam"],
+    "Focus": ["Focus"],
+    "Shapers": ["Shapers"],
+    "Control": ["Control"],
+}
+
+# name -> (feature, physical unit, pretty)
+ATTRIBUTES = {
+    "Dimmer": ("Dimmer.Dimmer", "LuminousIntensity", "Dim"),
+    "Pan": ("Position.PanTilt", "Angle", "P"),
+    "Tilt": ("Position.PanTilt", "Angle", "T"),
+    "Shutter1": ("Beam.Beam", "None", "Sh1"),
+    "Shutter1Strobe": ("Beam.Beam", "Frequency", "Strobe1"),
+    "Color1": ("Color.Color", "None", "C1"),
+    "Gobo1": ("Gobo.Gobo", "None", "G1"),
+    "Gobo1Pos": ("Gobo.Gobo", "Angle", "G1 <>"),
+    "Prism1": ("Beam.Beam", "None", "Prism1"),
+    "Zoom": ("Focus.Focus", "Angle", "Zoom"),
+    "Focus1": ("Focus.Focus", "None", "Focus1"),
+    "Iris": ("Beam.Beam", "None", "Iris"),
+    "ColorSub_C": ("Color.Color", "ColorComponent", "C"),
+    "ColorSub_M": ("Color.Color", "ColorComponent", "M"),
+    "ColorSub_Y": ("Color.Color", "ColorComponent", "Y"),
+    "CTO": ("Color.Color", "Temperature", "CTO"),
+    "ColorAdd_R": ("Color.RGB", "ColorComponent", "R"),
+    "ColorAdd_G": ("Color.RGB", "ColorComponent", "G"),
+    "ColorAdd_B": ("Color.RGB", "ColorComponent", "B"),
+    "ColorAdd_W": ("Color.RGB", "ColorComponent", "W"),
+    "ShaperRot": ("Shapers.Shapers", "Angle", "Shaper Rot"),
+    "Haze": ("Control.Control", "None", "Haze"),
+    "Fan": ("Control.Control", "None", "Fan"),
+}
+for i in range(1, 5):
+    for ab in "AB":
+        ATTRIBUTES[f"Blade{i}{ab}"] = ("Shapers.Shapers", "None", f"Blade {i}{ab}")
+
+
+def attribute_definitions(names):
+    groups = [
+        el("FeatureGroup", [el("Feature", Name=f) for f in fs], Name=g, Pretty=g) for g, fs in FEATURES.items()
+    ]
+    atts = []
+    for n in names:
+        feature, unit, pretty = ATTRIBUTES[n]
+        main = "Shutter1" if n == "Shutter1Strobe" else None
+        atts.append(el("Attribute", Name=n, Pretty=pretty, Feature=feature, PhysicalUnit=unit, MainAttribute=main))
+    return el(
+        "AttributeDefinitions",
+        [
+            el("ActivationGroups", [el("ActivationGroup", Name="PanTilt"), el("ActivationGroup", Name="ColorRGB")]),
+            el("FeatureGroups", groups),
+            el("Attributes", atts),
+        ],
+    )
+
+
+def dmx_value(v, nbytes):
+    return f"{v}/{nbytes}"
+
+
+class Chan:
+    """One DMX channel: geometry, offsets (coarse first), channel functions.
+
+    functions: list of (attribute, dmx_from, phys_from, phys_to, extra attrs dict,
+    channel sets [(name, dmx_from, wheel_slot_index)])."""
+
+    def __init__(self, geometry, offsets, functions, default=0, brk="1", initial=None):
+        self.geometry = geometry
+        self.offsets = offsets
+        self.functions = functions
+        self.default = default
+        self.brk = brk
+        self.initial = initial
+
+    @property
+    def bytes(self):
+        return max(1, len(self.offsets))
+
+    @property
+    def attribute(self):
+        return self.functions[0][0]
+
+    def xml(self):
+        n = self.bytes
+        fns = []
+        for k, f in enumerate(self.functions):
+            attribute, dmx_from, p0, p1, extra, sets = (list(f) + [{}, []])[:6]
+            set_nodes = [
+                el("ChannelSet", Name=sn, DMXFrom=dmx_value(sf, n), WheelSlotIndex=ws) for sn, sf, ws in sets
+            ]
+            fns.append(
+                el(
+                    "ChannelFunction",
+                    set_nodes,
+                    Name=f"{attribute} {k + 1}",
+                    Attribute=attribute,
+                    OriginalAttribute="",
+                    DMXFrom=dmx_value(dmx_from, n),
+                    Default=dmx_value(self.default if k == 0 else dmx_from, n),
+                    PhysicalFrom=f"{p0:g}",
+                    PhysicalTo=f"{p1:g}",
+                    RealFade="0",
+                    **extra,
+                )
+            )
+        logical = el("LogicalChannel", fns, Attribute=self.attribute, Snap="No", Master="None", MibFade="0")
+        off = ",".join(str(o) for o in self.offsets)
+        return el(
+            "DMXChannel",
+            [logical],
+            DMXBreak=self.brk,
+            Offset=off,
+            Highlight="None",
+            Geometry=self.geometry,
+            InitialFunction=f"{self.geometry}_{self.attribute}.{self.attribute}.{self.attribute} 1",
+        )
+
+
+def simple(geometry, offsets, attribute, p0=0.0, p1=1.0, default=0, extra=None, brk="1"):
+    return Chan(geometry, offsets, [(attribute, 0, p0, p1, extra or {}, [])], default=default, brk=brk)
+
+
+def mode(name, geometry, channels, relations=()):
+    rel = [
+        el("Relation", Name=n, Master=m, Follower=f, Type=t) for n, m, f, t in relations
+    ]
+    return el(
+        "DMXMode",
+        [el("DMXChannels", [c.xml() for c in channels]), el("Relations", rel), el("FTMacros")],
+        Name=name,
+        Geometry=geometry,
+    )
+
+
+def fixture_type(name, short, attrs_used, wheels, physical, models, geometries, modes, description):
+    ft = el(
+        "FixtureType",
+        [
+            attribute_definitions(attrs_used),
+            el("Wheels", wheels),
+            el("PhysicalDescriptions", physical),
+            el("Models", models),
+            el("Geometries", geometries),
+            el("DMXModes", modes),
+            el("Revisions", [el("Revision", Text="generated by tools/gen_gdtf_mvr.py", Date="2026-11-30T00:00:00", UserID="0")]),
+            el("FTPresets"),
+            el("Protocols"),
+        ],
+        Name=name,
+        ShortName=short,
+        LongName=f"Footlight test {name}",
+        Manufacturer="Footlight",
+        Description=description,
+        FixtureTypeID=uid("ft/" + name),
+        Thumbnail="",
+        RefFT="",
+        CanHaveChildren="Yes",
+    )
+    return '<?xml version="1.0" encoding="UTF-8" standalone="no"?>\n' + el("GDTF", [ft], DataVersion="1.2") + "\n"
+
+
+def model(name, length, width, height, primitive, file=None):
+    return el(
+        "Model", Name=name, Length=f"{length:g}", Width=f"{width:g}", Height=f"{height:g}", PrimitiveType=primitive, File=file
+    )
+
+
+def beam(name, model_name, pos, children=None, **kw):
+    defaults = dict(
+        LampType="Discharge",
+        PowerConsumption="1000",
+        LuminousFlux="10000",
+        ColorTemperature="6000",
+        BeamAngle="25",
+        FieldAngle="25",
+        ThrowRatio="1",
+        RectangleRatio="1.7777",
+        BeamRadius="0.05",
+        BeamType="Wash",
+        ColorRenderingIndex="100",
+    )
+    defaults.update({k: str(v) for k, v in kw.items()})
+    return el("Beam", children, Name=name, Model=model_name, Position=pos, **defaults)
+
+
+def color_wheel():
+    slots = [
+        ("Open", "0.3127,0.3290,100"),
+        ("Red", "0.6400,0.3300,21.26"),
+        ("Green", "0.3000,0.6000,71.52"),
+        ("Blue", "0.1500,0.0600,7.22"),
+        ("Amber", "0.5700,0.4200,60"),
+    ]
+    return el("Wheel", [el("Slot", Name=n, Color=c) for n, c in slots], Name="Color1"), len(slots)
+
+
+def gobo_wheel():
+    slots = [
+        el("Slot", Name="Open", Color="0.3127,0.3290,100"),
+        el("Slot", Name="Ring", Color="0.3127,0.3290,100", MediaFileName="gobo_ring"),
+        el("Slot", Name="Bars", Color="0.3127,0.3290,100", MediaFileName="gobo_bars"),
+    ]
+    return el("Wheel", slots, Name="Gobo1"), len(slots)
+
+
+def prism_wheel():
+    r3 = [(math.cos(a), math.sin(a)) for a in (0.0, 2 * math.pi / 3, 4 * math.pi / 3)]
+    facets = []
+    for c, s in r3:
+        # a facet tilted 5 degrees away from the axis, rotated about it by the facet angle
+        t = math.radians(5.0)
+        rot = f"{{{c:.6f},{-s:.6f},0}}{{{s:.6f},{c:.6f},0}}{{0,0,1}}"
+        _ = t
+        facets.append(el("Facet", Color="0.3127,0.3290,100", Rotation=rot))
+    slots = [el("Slot", Name="Open", Color="0.3127,0.3290,100"), el("Slot", facets, Name="3-Facet", Color="0.3127,0.3290,100")]
+    return el("Wheel", slots, Name="Prism1"), len(slots)
+
+
+def spectrum(peak_nm, fwhm_nm):
+    sigma = fwhm_nm / 2.3548
+    pts = []
+    for nm in range(380, 781, 10):
+        e = math.exp(-0.5 * ((nm - peak_nm) / sigma) ** 2)
+        pts.append(el("MeasurementPoint", WaveLength=str(nm), Energy=f"{e:.6f}"))
+    return pts
+
+
+def spot():
+    cw, _ = color_wheel()
+    gw, _ = gobo_wheel()
+    pw, _ = prism_wheel()
+    used = [
+        "Dimmer", "Pan", "Tilt", "Shutter1", "Shutter1Strobe", "Color1", "Gobo1", "Gobo1Pos", "Prism1", "Zoom",
+        "Focus1", "Iris", "ColorSub_C", "ColorSub_M", "ColorSub_Y", "CTO", "ShaperRot",
+    ] + [f"Blade{i}{ab}" for i in range(1, 5) for ab in "AB"]
+    physical = [
+        el("Emitters"),
+        el("Filters"),
+        el("ColorSpace", Mode="sRGB"),
+        el("DMXProfiles"),
+        el("CRIs"),
+        el("Connectors"),
+        el("Properties", [el("OperatingTemperature", Low="0", High="40"), el("Weight", Value="30"), el("LegHeight", Value="0")]),
+    ]
+    models = [
+        model("Base", 0.40, 0.30, 0.15, "Base"),
+        model("Yoke", 0.35, 0.10, 0.35, "Yoke"),
+        model("Head", 0.25, 0.25, 0.40, "Head"),
+        model("Beam", 0.01, 0.14, 0.14, "Cylinder"),
+    ]
+    filters = [
+        el("FilterColor", Name="ColorWheel", Model="Beam", Position=m4(0, 0, -0.05)),
+        el("FilterGobo", Name="GoboWheel", Model="Beam", Position=m4(0, 0, -0.06)),
+        el("FilterShaper", Name="Framing", Model="Beam", Position=m4(0, 0, -0.07)),
+    ]
+    lamp = beam(
+        "Lens", "Beam", m4(0, 0, -0.25), LampType="Discharge", PowerConsumption="700", LuminousFlux="20000",
+        ColorTemperature="7000", BeamAngle="15", FieldAngle="20", BeamRadius="0.07", BeamType="Spot", children=filters,
+    )
+    # The geometry names are deliberately not Base/Yoke/Head: importers must walk by reference.
+    tree = el(
+        "Geometry",
+        [el("Axis", [el("Axis", [lamp], Name="Lantern", Model="Head", Position=m4(0, 0, -0.35))], Name="Arm", Model="Yoke", Position=m4(0, 0, -0.15))],
+        Name="Foot",
+        Model="Base",
+        Position=m4(),
+    )
+    shutter = Chan(
+        "Lens",
+        [7],
+        [
+            ("Shutter1", 0, 0, 0, {}, [("Closed", 0, None)]),
+            ("Shutter1", 32, 1, 1, {}, [("Open", 32, None)]),
+            ("Shutter1Strobe", 64, 1, 25, {}, []),
+        ],
+        default=32,
+    )
+    color = Chan(
+        "ColorWheel",
+        [8],
+        [("Color1", 0, 0, 0, {"Wheel": "Color1"}, [("Open", 0, 1), ("Red", 10, 2), ("Green", 20, 3), ("Blue", 30, 4), ("Amber", 40, 5)])],
+    )
+    gobo = Chan("GoboWheel", [9], [("Gobo1", 0, 0, 0, {"Wheel": "Gobo1"}, [("Open", 0, 1), ("Ring", 10, 2), ("Bars", 20, 3)])])
+    prism = Chan(
+        "Lens", [11], [("Prism1", 0, 0, 0, {"Wheel": "Prism1"}, [("Out", 0, 1)]), ("Prism1", 128, 0, 0, {"Wheel": "Prism1"}, [("3-Facet", 128, 2)])]
+    )
+    standard = [
+        simple("Arm", [1, 2], "Pan", -270, 270, default=32768),
+        simple("Lantern", [3, 4], "Tilt", -135, 135, default=32768),
+        simple("Lens", [5, 6], "Dimmer", 0, 1),
+        shutter,
+        color,
+        gobo,
+        simple("GoboWheel", [10], "Gobo1Pos", -180, 180, default=128),
+        prism,
+        simple("Lens", [12], "Zoom", 10, 40),
+        simple("Lens", [13], "Focus1", 0, 1),
+        simple("Lens", [14], "Iris", 1, 0.2),
+        simple("Lens", [15], "ColorSub_C", 0, 1),
+        simple("Lens", [16], "ColorSub_M", 0, 1),
+        simple("Lens", [17], "ColorSub_Y", 0, 1),
+        simple("Lens", [18], "CTO", 7000, 3200),
+    ]
+    for k, (i, ab) in enumerate((i, ab) for i in range(1, 5) for ab in "AB"):
+        standard.append(simple("Framing", [19 + k], f"Blade{i}{ab}", 0, 1))
+    standard.append(simple("Framing", [27], "ShaperRot", -45, 45, default=128))
+    basic = [
+        simple("Arm", [1], "Pan", -270, 270, default=128),
+        simple("Lantern", [2], "Tilt", -135, 135, default=128),
+        simple("Lens", [3, 4, 5], "Dimmer", 0, 1),
+        Chan("Lens", [6], shutter.functions, default=32),
+        Chan("ColorWheel", [7], color.functions),
+        Chan("GoboWheel", [8], gobo.functions),
+    ]
+    text = fixture_type(
+        "Spot", "Spot", used, [cw, gw, pw], physical, models, [tree],
+        [mode("Standard", "Foot", standard), mode("Basic", "Foot", basic)],
+        "moving spot with every beam feature (test data, estimated values)",
+    )
+    media = {"wheels/gobo_ring.png": png_gray(GOBO_SIZE, GOBO_SIZE, gobo_ring), "wheels/gobo_bars.png": png_gray(GOBO_SIZE, GOBO_SIZE, gobo_bars)}
+    return text, media
+
+
+EMITTERS = [
+    ("Red", "0.7000,0.2990,20", 630, 20),
+    ("Green", "0.1700,0.7000,60", 525, 30),
+    ("Blue", "0.1400,0.0400,8", 460, 22),
+    ("White", "0.3127,0.3290,100", None, None),
+]
+
+
+def emitters_xml(spectra=True):
+    out = []
+    for name, xyy, peak, fwhm in EMITTERS:
+        meas = []
+        if spectra and peak is not None:
+            meas = [el("Measurement", spectrum(peak, fwhm), Physical="100", LuminousIntensity="1000", InterpolationTo="Linear")]
+        # DominantWaveLength is optional in GDTF 1.2, but the `gdtf` crate 0.3 needs it next to Color
+        # (white: 0, no dominant wavelength).
+        out.append(el("Emitter", meas, Name=name, Color=xyy, DominantWaveLength=str(peak or 0)))
+    return el("Emitters", out)
+
+
+def wash():
+    used = ["Dimmer", "ColorAdd_R", "ColorAdd_G", "ColorAdd_B", "ColorAdd_W", "Zoom", "Shutter1", "Shutter1Strobe"]
+    physical = [emitters_xml(), el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
+    models = [model("Body", 0.3, 0.3, 0.35, "Conventional"), model("Lens", 0.01, 0.2, 0.2, "Cylinder")]
+    tree = el(
+        "Geometry",
+        [beam("Front", "Lens", m4(0, 0, -0.2), LampType="LED", PowerConsumption="300", LuminousFlux="8000", ColorTemperature="6500", BeamAngle="30", FieldAngle="45", BeamRadius="0.1", BeamType="Wash")],
+        Name="Can",
+        Model="Body",
+        Position=m4(),
+    )
+    rgbw = [("ColorAdd_R", "Red"), ("ColorAdd_G", "Green"), ("ColorAdd_B", "Blue"), ("ColorAdd_W", "White")]
+    ch8 = [simple("Front", [1], "Dimmer")]
+    for k, (a, e) in enumerate(rgbw):
+        ch8.append(simple("Front", [2 + k], a, default=255, extra={"Emitter": e}))
+    ch8.append(simple("Front", [6], "Zoom", 12, 50))
+    ch8.append(
+        Chan("Front", [7], [("Shutter1", 0, 1, 1, {}, [("Open", 0, None)]), ("Shutter1Strobe", 16, 0.5, 20, {}, [])])
+    )
+    ch4 = [simple("Front", [1 + k], a, default=255, extra={"Emitter": e}) for k, (a, e) in enumerate(rgbw)]
+    rel = [(f"Virtual dimmer {a}", "Front_Dimmer", f"Front_{a}.{a}.{a} 1", "Multiply") for a, _ in rgbw]
+    text = fixture_type(
+        "Wash", "Wash", used, [], physical, models, [tree], [mode("8ch", "Can", ch8, rel), mode("4ch", "Can", ch4)],
+        "RGBW LED wash (test data, estimated values)",
+    )
+    return text, {}
+
+
+BAR_CELLS = 8
+
+
+def bar():
+    used = ["Dimmer", "ColorAdd_R", "ColorAdd_G", "ColorAdd_B"]
+    physical = [emitters_xml(spectra=False), el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
+    models = [model("Body", 1.0, 0.08, 0.1, "Cube"), model("Pixel", 0.1, 0.06, 0.01, "Cube")]
+    pixel = beam("Pixel", "Pixel", m4(), LampType="LED", PowerConsumption="15", LuminousFlux="400", ColorTemperature="6500", BeamAngle="20", FieldAngle="30", BeamRadius="0.03", BeamType="Wash")
+    x0 = -0.4375
+    one = [
+        el("GeometryReference", [el("Break", DMXOffset=str(2 + 3 * k), DMXBreak="1")], Name=f"Cell{k + 1}", Geometry="Pixel", Model="Pixel", Position=m4(x0 + 0.125 * k, 0, -0.05))
+        for k in range(BAR_CELLS)
+    ]
+    split = [
+        el("GeometryReference", [el("Break", DMXOffset=str(1 + 3 * k), DMXBreak="2")], Name=f"SplitCell{k + 1}", Geometry="Pixel", Model="Pixel", Position=m4(x0 + 0.125 * k, 0, -0.05))
+        for k in range(BAR_CELLS)
+    ]
+    bar_one = el("Geometry", one, Name="Bar", Model="Body", Position=m4())
+    bar_split = el("Geometry", split, Name="BarSplit", Model="Body", Position=m4())
+    cells = [("ColorAdd_R", "Red"), ("ColorAdd_G", "Green"), ("ColorAdd_B", "Blue")]
+    m1 = [simple("Bar", [1], "Dimmer")] + [simple("Pixel", [1 + k], a, extra={"Emitter": e}) for k, (a, e) in enumerate(cells)]
+    m2 = [simple("BarSplit", [1], "Dimmer")] + [
+        simple("Pixel", [1 + k], a, extra={"Emitter": e}, brk="2") for k, (a, e) in enumerate(cells)
+    ]
+    text = fixture_type(
+        "Bar8", "Bar8", used, [], physical, models, [bar_one, bar_split, pixel],
+        [mode("25ch", "Bar", m1), mode("Split", "BarSplit", m2)],
+        "8-cell RGB pixel bar (test data, estimated values)",
+    )
+    return text, {}
+
+
+def blinder():
+    used = ["Dimmer"]
+    physical = [el("Emitters"), el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
+    models = [model("Body", 0.5, 0.3, 0.2, "Cube"), model("Lamp", 0.05, 0.2, 0.2, "Cylinder")]
+    lamps = [
+        beam(f"Cell{k + 1}", "Lamp", m4(-0.12 + 0.24 * k, 0, -0.1), LampType="Tungsten", PowerConsumption="650", LuminousFlux="18000", ColorTemperature="3000", BeamAngle="50", FieldAngle="90", BeamRadius="0.1", BeamType="Wash")
+        for k in range(2)
+    ]
+    tree = el("Geometry", lamps, Name="Frame", Model="Body", Position=m4())
+    m2 = [simple("Cell1", [1], "Dimmer"), simple("Cell2", [2], "Dimmer")]
+    m1 = [simple("Frame", [1], "Dimmer")]
+    text = fixture_type("Blinder", "Blinder", used, [], physical, models, [tree], [mode("2ch", "Frame", m2), mode("1ch", "Frame", m1)], "2-lamp tungsten blinder (test data, estimated values)")
+    return text, {}
+
+
+def fresnel():
+    used = ["Dimmer", "Zoom"]
+    # A square-law profile written as GDTF 1.2 cubic segments: y = x^2 on [0, 1].
+    profile = el("DMXProfile", [el("Point", DMXPercentage="0", CFC0="0", CFC1="0", CFC2="1", CFC3="0")], Name="Square")
+    physical = [el("Emitters"), el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles", [profile]), el("CRIs"), el("Connectors"), el("Properties")]
+    models = [model("Body", 0.35, 0.3, 0.3, "Conventional"), model("Lens", 0.01, 0.15, 0.15, "Cylinder")]
+    tree = el(
+        "Geometry",
+        [beam("Lens", "Lens", m4(0, 0, -0.18), LampType="Tungsten", PowerConsumption="1000", LuminousFlux="25000", ColorTemperature="3200", BeamAngle="12", FieldAngle="20", BeamRadius="0.075", BeamType="Fresnel")],
+        Name="Housing",
+        Model="Body",
+        Position=m4(),
+    )
+    m1 = [simple("Lens", [1], "Dimmer", extra={"DMXProfile": "Square"})]
+    m2 = [simple("Lens", [1], "Dimmer", extra={"DMXProfile": "Square"}), simple("Lens", [2], "Zoom", 12, 60)]
+    text = fixture_type("Fresnel", "Fresnel", used, [], physical, models, [tree], [mode("1ch", "Housing", m1), mode("2ch", "Housing", m2)], "1 kW tungsten Fresnel (test data, estimated values)")
+    return text, {}
+
+
+def hazer():
+    used = ["Haze", "Fan"]
+    physical = [el("Emitters"), el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
+    models = [model("Body", 0.5, 0.3, 0.3, "Cube")]
+    tree = el("Geometry", Name="Box", Model="Body", Position=m4())
+    m = [simple("Box", [1], "Haze", 0, 1), simple("Box", [2], "Fan", 0, 1)]
+    text = fixture_type("Hazer", "Hazer", used, [], physical, models, [tree], [mode("2ch", "Box", m)], "hazer: density and fan (test data, estimated values)")
+    return text, {}
+
+
+TYPES = {
+    "Footlight@Spot.gdtf": spot,
+    "Footlight@Wash.gdtf": wash,
+    "Footlight@Bar8.gdtf": bar,
+    "Footlight@Blinder.gdtf": blinder,
+    "Footlight@Fresnel.gdtf": fresnel,
+    "Footlight@Hazer.gdtf": hazer,
+}
+
+def zip_bytes(entries, compress=zipfile.ZIP_DEFLATED):
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as z:
+        for name in sorted(entries):
+            info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = compress
+            info.external_attr = 0o644 << 16
+            data = entries[name]
+            z.writestr(info, data.encode() if isinstance(data, str) else data)
+    return buf.getvalue()
+
+
+def gdtf_bytes(name):
+    text, media = TYPES[name]()
+    return zip_bytes({"description.xml": text, **media})
+
+
+# --- MVR ----------------------------------------------------------------------
+
+
+def mvr_matrix(x_mm, y_mm, z_mm, rot_z_deg=0.0, rot_x_deg=0.0):
+    """MVR matrix text {u}{v}{w}{o}: u, v, w the rotated axes (Rz then Rx), o the offset in mm."""
+    cz, sz = math.cos(math.radians(rot_z_deg)), math.sin(math.radians(rot_z_deg))
+    cx, sx = math.cos(math.radians(rot_x_deg)), math.sin(math.radians(rot_x_deg))
+    # R = Rz * Rx; columns are the images of the axes
+    r = [
+        [cz, -sz * cx, sz * sx],
+        [sz, cz * cx, -cz * sx],
+        [0.0, sx, cx],
+    ]
+    u = (r[0][0], r[1][0], r[2][0])
+    v = (r[0][1], r[1][1], r[2][1])
+    w = (r[0][2], r[1][2], r[2][2])
+    f = lambda t: ",".join(f"{c:.6f}" for c in t)  # noqa: E731
+    return f"{{{f(u)}}}{{{f(v)}}}{{{f(w)}}}{{{x_mm:.3f},{y_mm:.3f},{z_mm:.3f}}}"
+
+
+def fixture_xml(name, spec, mode_name, fid, unit, matrix, addresses, klass=None, focus=None, color=None, gobo=None):
+    kids = [el("Matrix", matrix)]
+    if klass:
+        kids.append(el("Classing", klass))
+    kids += [el("GDTFSpec", spec), el("GDTFMode", mode_name)]
+    if focus:
+        kids.append(el("Focus", focus))
+    kids.append(el("CastShadow", "false"))
+    kids.append(el("Addresses", [el("Address", str(a), **{"break": str(b)}) for b, a in addresses]))
+    kids += [el("FixtureID", str(fid)), el("FixtureIDNumeric", str(fid)), el("UnitNumber", str(unit))]
+    if color:
+        kids.append(el("Color", color))
+    if gobo:
+        kids.append(el("Gobo", gobo[0], rotation=str(gobo[1])))
+    return el("Fixture", kids, name=name, uuid=uid("fixture/" + name))
+
+
+def gsd(layers, aux):
+    body = el("Scene", [el("AUXData", aux), el("Layers", layers)])
+    root = el("GeneralSceneDescription", [el("UserData"), body], verMajor="1", verMinor="6", provider="Footlight gen_gdtf_mvr.py", providerVersion="1")
+    return '<?xml version="1.0" encoding="UTF-8" standalone="no"?>\n' + root + "\n"
+
+
+def absolute(universe, address):
+    return (universe - 1) * 512 + address
+
+
+def features_mvr():
+    lights = uid("class/Lighting")
+    scenery = uid("class/Scenery")
+    truss_def = uid("symdef/truss-2m")
+    focus = uid("focus/centre")
+    aux = [
+        el("Class", name="Lighting", uuid=lights),
+        el("Class", name="Scenery", uuid=scenery),
+        el("Symdef", [el("ChildList", [el("Geometry3D", [el("Matrix", "{1,0,0}{0,1,0}{0,0,1}{0,0,0}")], fileName="truss_2m.glb")])], name="Truss 2 m", uuid=truss_def),
+    ]
+    truss_kids = []
+    for k in range(3):
+        truss_kids.append(
+            el("Truss", [el("Matrix", mvr_matrix(-3000 + 2000 * k, 2000, 7000)), el("Classing", scenery), el("Geometries", [el("Symbol", [el("Matrix", "{1,0,0}{0,1,0}{0,0,1}{0,0,0}")], uuid=uid(f"symbol/{k}"), symdef=truss_def)])], name=f"Truss {k + 1}", uuid=uid(f"truss/{k}"))
+        )
+    floor = el("SceneObject", [el("Matrix", mvr_matrix(0, 0, 0)), el("Classing", scenery), el("Geometries", [el("Geometry3D", fileName="stage_floor.glb")])], name="Stage floor", uuid=uid("scene/floor"))
+    focus_point = el("FocusPoint", [el("Matrix", mvr_matrix(0, 0, 0))], name="Centre", uuid=focus)
+    group_fixtures = [
+        fixture_xml("Spot 1", "Footlight@Spot.gdtf", "Standard", 101, 1, mvr_matrix(-2000, 2000, 6800), [(0, absolute(1, 1))], lights, focus, gobo=("gobo_ring", 15.0)),
+        fixture_xml("Spot 2", "Footlight@Spot.gdtf", "Basic", 102, 2, mvr_matrix(2000, 2000, 6800, rot_z_deg=90.0), [(0, absolute(1, 41))], lights, focus),
+    ]
+    group = el("GroupObject", [el("Matrix", mvr_matrix(0, 0, 0)), el("Classing", lights), el("ChildList", group_fixtures)], name="Spots", uuid=uid("group/spots"))
+    rig = [
+        group,
+        fixture_xml("Wash 1", "Footlight@Wash.gdtf", "8ch", 201, 1, mvr_matrix(0, 1000, 6500), [(0, absolute(1, 101))], lights, color="0.3127,0.3290,100.000000"),
+        fixture_xml("Bar split", "Footlight@Bar8.gdtf", "Split", 301, 1, mvr_matrix(0, 3000, 6000), [(0, absolute(1, 201)), (1, absolute(2, 1))], lights),
+        fixture_xml("Blinder 1", "Footlight@Blinder.gdtf", "2ch", 401, 1, mvr_matrix(-4000, -1000, 5000, rot_x_deg=90.0), [(0, absolute(1, 301))], lights),
+        fixture_xml("Fresnel 1", "Footlight@Fresnel.gdtf", "2ch", 501, 1, mvr_matrix(3000, -2000, 6000), [(0, absolute(1, 311))], lights),
+        fixture_xml("Hazer 1", "Footlight@Hazer.gdtf", "2ch", 601, 1, mvr_matrix(-5000, 4000, 0), [(0, "3.1")], lights),
+        fixture_xml("Ghost 1", "Footlight@Missing.gdtf", "Mode 1", 701, 1, mvr_matrix(4000, 2000, 6800), [(0, absolute(1, 401))], lights),
+        fixture_xml("Ghost 2", "Footlight@Missing.gdtf", "Mode 1", 702, 2, mvr_matrix(5000, 2000, 6800), [(0, absolute(1, 421))], lights),
+    ]
+    layers = [
+        el("Layer", [el("ChildList", truss_kids + [floor, focus_point])], name="Venue", uuid=uid("layer/venue")),
+        el("Layer", [el("Matrix", mvr_matrix(0, 0, 500)), el("ChildList", rig)], name="Rig", uuid=uid("layer/rig")),
+    ]
+    entries = {"GeneralSceneDescription.xml": gsd(layers, aux)}
+    for n in ["Footlight@Spot.gdtf", "Footlight@Wash.gdtf", "Footlight@Bar8.gdtf", "Footlight@Blinder.gdtf", "Footlight@Fresnel.gdtf", "Footlight@Hazer.gdtf"]:
+        entries[n] = gdtf_bytes(n)
+    return zip_bytes(entries)
+
+
+SHOW = [
+    # (spec, mode, count, footprint, height mm, y mm)
+    ("Footlight@Spot.gdtf", "Standard", 44, 27, 7000, 2000),
+    ("Footlight@Wash.gdtf", "8ch", 40, 7, 6500, 0),
+    ("Footlight@Bar8.gdtf", "25ch", 24, 25, 6000, 4000),
+    ("Footlight@Blinder.gdtf", "2ch", 20, 2, 5000, -2000),
+    ("Footlight@Fresnel.gdtf", "2ch", 20, 2, 6000, -4000),
+    ("Footlight@Hazer.gdtf", "2ch", 2, 2, 0, 5000),
+]
+
+
+def show_mvr():
+    lights = uid("class/Lighting")
+    fixtures = []
+    universe, address = 1, 1
+    fid = 1000
+    for spec, mode_name, count, footprint, height, y in SHOW:
+        for k in range(count):
+            if address + footprint - 1 > 512:
+                universe, address = universe + 1, 1
+            x = (k - (count - 1) / 2) * (14000 / max(count - 1, 1))
+            fid += 1
+            fixtures.append(
+                fixture_xml(f"{spec.split('@')[1][:-5]} {k + 1}", spec, mode_name, fid, k + 1, mvr_matrix(x, y, height), [(0, absolute(universe, address))], lights)
+            )
+            address += footprint
+    assert len(fixtures) == 150, len(fixtures)
+    layers = [el("Layer", [el("ChildList", fixtures)], name="Rig", uuid=uid("layer/show-rig"))]
+    aux = [el("Class", name="Lighting", uuid=lights)]
+    entries = {"GeneralSceneDescription.xml": gsd(layers, aux)}
+    for spec, *_ in SHOW:
+        entries[spec] = gdtf_bytes(spec)
+    return zip_bytes(entries)
+
+
+def minimal_gsd():
+    f = fixture_xml("Spot 1", "Footlight@Spot.gdtf", "Basic", 1, 1, mvr_matrix(0, 0, 6000), [(0, 1)])
+    return gsd([el("Layer", [el("ChildList", [f])], name="L", uuid=uid("layer/min"))], [])
+
+
+def patch_header(data, old_name, field_offsets, value):
+    """Overwrites the 4-byte uncompressed-size field of entry `old_name` in the local header and the central directory."""
+    b = bytearray(data)
+    name = old_name.encode()
+    i = 0
+    while True:
+        i = b.find(b"PK\x03\x04", i)
+        if i < 0:
+            break
+        n = struct.unpack_from("<H", b, i + 26)[0]
+        if bytes(b[i + 30 : i + 30 + n]) == name:
+            struct.pack_into("<I", b, i + field_offsets[0], value)
+        i += 4
+    i = 0
+    while True:
+        i = b.find(b"PK\x01\x02", i)
+        if i < 0:
+            break
+        n = struct.unpack_from("<H", b, i + 28)[0]
+        if bytes(b[i + 46 : i + 46 + n]) == name:
+            struct.pack_into("<I", b, i + field_offsets[1], value)
+        i += 4
+    return bytes(b)
+
+
+def bad_files():
+    gsd_text = minimal_gsd()
+    spot_bytes = gdtf_bytes("Footlight@Spot.gdtf")
+    out = {}
+    out["bad-dotdot.mvr"] = zip_bytes({"GeneralSceneDescription.xml": gsd_text, "../evil.gdtf": spot_bytes})
+    out["bad-absolute.mvr"] = zip_bytes({"GeneralSceneDescription.xml": gsd_text, "/etc/evil.gdtf": spot_bytes})
+    # 4 MiB of zeros deflate to ~4 KiB: a 1000:1 entry.
+    out["bad-ratio.mvr"] = zip_bytes({"GeneralSceneDescription.xml": gsd_text, "zeros.bin": b"\0" * (4 << 20)})
+    # A stored entry whose headers claim 3 GiB uncompressed.
+    stored = zip_bytes({"GeneralSceneDescription.xml": gsd_text, "huge.bin": b"x" * 1024}, compress=zipfile.ZIP_STORED)
+    out["bad-huge.mvr"] = patch_header(stored, "huge.bin", (22, 24), 3 << 30)
+    broken = gsd_text.replace("<GDTFMode>Basic</GDTFMode>", "<GDTFMode>Basic</GDTFMod>")
+    out["bad-xml.mvr"] = zip_bytes({"GeneralSceneDescription.xml": broken, "Footlight@Spot.gdtf": spot_bytes})
+    return out
+
+
+def outputs():
+    files = {}
+    for name in TYPES:
+        files[GDTF_DIR / name] = gdtf_bytes(name)
+    files[MVR_DIR / "features.mvr"] = features_mvr()
+    files[MVR_DIR / "show150.mvr"] = show_mvr()
+    for name, data in bad_files().items():
+        files[MVR_DIR / name] = data
+    return files
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--check", action="store_true", help="compare with the files on disk instead of writing")
+    args = ap.parse_args()
+    files = outputs()
+    stale = []
+    for path, data in files.items():
+        if args.check:
+            if not path.is_file() or path.read_bytes() != data:
+                stale.append(str(path.relative_to(ROOT)))
+            continue
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(data)
+    if stale:
+        print("out of date (run tools/gen_gdtf_mvr.py):", *stale, sep="\n  ", file=sys.stderr)
+        return 1
+    if not args.check:
+        print(f"wrote {len(files)} files under tests/data/gdtf and tests/data/mvr")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
