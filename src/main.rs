@@ -122,7 +122,7 @@ enum Command {
     },
     /// Validate a patch file: types, modes, addresses, values; every problem with file:line.
     Check {
-        /// The patch file.
+        /// The patch file (TOML or MVR).
         patch: PathBuf,
     },
     /// Measure the paper's figure 6 ratios and anti-aliasing error; writes a report.
@@ -229,7 +229,7 @@ struct SceneArgs {
     /// glTF 2.0 scene (.gltf/.glb).
     #[arg(long, default_value = footlight::DEFAULT_SCENE)]
     scene: PathBuf,
-    /// Patch file (TOML).
+    /// Patch file: TOML, or an MVR show (its GDTF fixture types; the scene stays `--scene`).
     #[arg(long, default_value = footlight::DEFAULT_PATCH)]
     patch: PathBuf,
 }
@@ -352,7 +352,8 @@ fn load_inputs(args: &SceneArgs) -> Result<(Scene, Patch)> {
         scene.materials.len(),
         t.elapsed().as_secs_f64() * 1e3
     );
-    let patch = Patch::load(&resolve(&args.patch))?;
+    // A TOML patch, or an MVR show whose fixtures come from its GDTF files.
+    let patch = footlight_mvr::load_patch(&resolve(&args.patch))?;
     tracing::info!("{}: {} fixtures", patch.path.display(), patch.fixtures.len());
     Ok((scene, patch))
 }
@@ -551,8 +552,11 @@ fn jobs_for(show: &Show, universes: &footlight::fixture::Universes) -> Vec<Light
 }
 
 fn check(path: &Path) -> Result<()> {
-    match footlight::fixture::check(path) {
-        Ok(patch) => {
+    match footlight_mvr::check_patch(path) {
+        Ok((patch, warnings)) => {
+            for w in &warnings {
+                eprintln!("warning: {w}");
+            }
             let show = Show::new(patch);
             let universes = show.universes();
             println!(
@@ -582,7 +586,7 @@ fn check_output(path: &Path, force: bool) -> Result<()> {
 
 fn record(args: RecordArgs) -> Result<()> {
     check_output(&args.out, args.force)?;
-    let show = Show::new(Patch::load(&resolve(&args.patch))?);
+    let show = Show::new(footlight_mvr::load_patch(&resolve(&args.patch))?);
     runtime()?.block_on(async move {
         let signals = Signals::install()?;
         let config = args.dmx.config(&show)?;
