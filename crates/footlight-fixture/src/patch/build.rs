@@ -35,6 +35,8 @@ pub(super) fn build(path: &Path, text: &str) -> Result<Patch, Vec<PatchError>> {
     b.addresses(&built);
     let look_universes = b.look(&file, &mut built);
     let inputs = b.inputs(&file.input);
+    let fixtures: Vec<Fixture> = built.iter().map(|x| x.fixture.clone()).collect();
+    let haze = super::haze::build_haze(path, text, &file, &fixtures, &mut b.errors);
     if !b.errors.is_empty() {
         return Err(b.errors);
     }
@@ -46,6 +48,7 @@ pub(super) fn build(path: &Path, text: &str) -> Result<Patch, Vec<PatchError>> {
         inputs,
         look_universes,
         gels,
+        haze,
     })
 }
 
