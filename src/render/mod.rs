@@ -9,7 +9,8 @@
 //!   with adaptive anti-aliasing of the illumination (§3.4).
 //! * [`photon`]: per-light photon maps for the indirect term (eq. 3),
 //!   progressive refinement, and the path-traced reference.
-//! * [`buffer`]: sparse tiled per-light buffers.
+//! * [`media`]: haze: per-light single scattering, density re-weighting.
+//! * [`buffer`]: sparse tiled per-light buffers (and haze buffers).
 //! * [`composite`]: I = Σ k_i ⊙ buffer_i (eq. 5, §3.3) on the CPU.
 //! * [`display`]: exposure, white balance, sRGB, PNG.
 //! * [`reference`]: single-pass eq. 1 renderer for the linearity tests.
@@ -19,6 +20,7 @@ pub mod buffer;
 pub mod composite;
 pub mod display;
 pub mod gbuffer;
+pub mod media;
 pub mod photon;
 pub mod reference;
 pub mod still;
