@@ -5,7 +5,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use footlight::render::display::{Display, check_finite, write_png};
 use footlight::render::photon::PhotonSettings;
-use footlight::render::still::{LightJob, render_still};
+use footlight::render::still::LightJob;
 use footlight::render::{RecursionLimits, RenderSettings, Sampling};
 use footlight::scene::Camera;
 use footlight::{Patch, Scene, bench};
@@ -524,7 +524,22 @@ fn render(args: RenderArgs) -> Result<()> {
     };
     let universes = still_universes(&args, &patch)?;
     let jobs = jobs_for(&patch, &universes);
-    let still = render_still(&scene, camera, &jobs, &settings)?;
+    // Haze from the patch's [haze] at the hazer channel's density (issue 15).
+    let haze = patch.haze.as_ref().and_then(|spec| {
+        let medium = footlight::render::media::Medium::from_spec(spec, &scene);
+        if medium.is_none() {
+            tracing::warn!("[haze] has no box and the scene has no volume: no haze");
+        }
+        Some(footlight::render::still::StillHaze {
+            medium: medium?,
+            density: match spec.dmx.and_then(|(u, _)| universes.get(&u)) {
+                Some(slots) => spec.density_from_slots(slots),
+                None => spec.density,
+            },
+            quality: footlight::render::media::HazeQuality::REFINED,
+        })
+    });
+    let still = footlight::render::still::render_still_hazy(&scene, camera, &jobs, &settings, haze.as_ref())?;
     if let Err((i, v)) = check_finite(&still.linear) {
         bail!("composite pixel {i} is {v}: this is a bug, please report it");
     }
@@ -532,12 +547,13 @@ fn render(args: RenderArgs) -> Result<()> {
         .with_context(|| format!("writing {}", args.out.display()))?;
     let t = &still.timings;
     tracing::info!(
-        "view {:.0} ms, {} light buffers {:.0} ms ({} pixels re-shaded for anti-aliasing), photon maps {:.0} ms, composite {:.1} ms",
+        "view {:.0} ms, {} light buffers {:.0} ms ({} pixels re-shaded for anti-aliasing), photon maps {:.0} ms, haze {:.0} ms, composite {:.1} ms",
         t.view.as_secs_f64() * 1e3,
         still.buffers.len(),
         t.lights.as_secs_f64() * 1e3,
         still.reshaded,
         t.photons.as_secs_f64() * 1e3,
+        t.haze.as_secs_f64() * 1e3,
         t.composite.as_secs_f64() * 1e3
     );
     println!("wrote {}", args.out.display());

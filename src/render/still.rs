@@ -6,6 +6,7 @@
 use super::RenderSettings;
 use super::buffer::{BadValue, LightBuffer};
 use super::composite::composite;
+use super::media::{HazeQuality, HazeView, Medium};
 use super::photon::{PhotonSettings, trace_photons};
 use super::view::{AaParams, View};
 use crate::fixture::Light;
@@ -44,6 +45,8 @@ pub struct StillTimings {
     pub lights: Duration,
     /// Photon tracing and indirect estimates.
     pub photons: Duration,
+    /// Haze: in-scattering and density re-weighting.
+    pub haze: Duration,
     /// Composite.
     pub composite: Duration,
 }
@@ -67,6 +70,17 @@ pub fn light_seed(seed: u64, index: usize) -> u64 {
     seed ^ (index as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15)
 }
 
+/// Haze for a still: the medium at 100 % density and the density now.
+#[derive(Clone, Copy, Debug)]
+pub struct StillHaze {
+    /// The patch's `[haze]` at 100 %.
+    pub medium: Medium,
+    /// Density 0-1 (the hazer channel or the patch's default).
+    pub density: f32,
+    /// Beam sampling.
+    pub quality: HazeQuality,
+}
+
 /// Renders `jobs` over `scene` from `camera`.
 pub fn render_still(
     scene: &Scene,
@@ -74,12 +88,28 @@ pub fn render_still(
     jobs: &[LightJob],
     settings: &RenderSettings,
 ) -> Result<Still, RenderError> {
+    render_still_hazy(scene, camera, jobs, settings, None)
+}
+
+/// As [`render_still`], in haze when `haze` is given: each light's buffer
+/// is its surface buffer re-weighted with its haze buffer at the density
+/// (`media::resolve`). Hook for `footlight render`; the live path gets the
+/// same through LightBuild's haze stage.
+pub fn render_still_hazy(
+    scene: &Scene,
+    camera: Camera,
+    jobs: &[LightJob],
+    settings: &RenderSettings,
+    haze: Option<&StillHaze>,
+) -> Result<Still, RenderError> {
     let t0 = Instant::now();
     let view = View::build(scene, camera, settings.width, settings.height, settings.sampling, settings.limits);
+    let hv = haze.map(|_| HazeView::new(scene, &view.gbuffer));
     let t1 = Instant::now();
     let mut buffers = Vec::with_capacity(jobs.len());
     let mut reshaded = 0;
     let mut photon_time = Duration::ZERO;
+    let mut haze_time = Duration::ZERO;
     for (i, job) in jobs.iter().enumerate() {
         let aa = AaParams { display_scale: job.k_full * settings.display.scale(), threshold: settings.aa_threshold };
         let (mut dense, n) = view.render_direct(scene, &job.light, Some(aa));
@@ -93,7 +123,13 @@ pub fn render_still(
             }
             photon_time += tp.elapsed();
         }
-        let buffer = LightBuffer::from_dense(view.width(), view.height(), &dense);
+        let mut buffer = LightBuffer::from_dense(view.width(), view.height(), &dense);
+        if let (Some(h), Some(hv)) = (haze, &hv) {
+            let th = Instant::now();
+            let beam = super::media::render_inscatter(scene, hv, &job.light, &h.medium, h.quality);
+            buffer = super::media::resolve(hv, &h.medium, job.light.position, &buffer, Some(&beam), h.density);
+            haze_time += th.elapsed();
+        }
         buffer.check().map_err(|source| RenderError { light: i, source })?;
         reshaded += n;
         buffers.push(buffer);
@@ -110,8 +146,9 @@ pub fn render_still(
         reshaded,
         timings: StillTimings {
             view: t1 - t0,
-            lights: t2 - t1 - photon_time,
+            lights: t2 - t1 - photon_time - haze_time,
             photons: photon_time,
+            haze: haze_time,
             composite: t3 - t2,
         },
     })

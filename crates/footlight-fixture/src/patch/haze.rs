@@ -86,6 +86,15 @@ impl HazeSpec {
         }
     }
 
+    /// Writes the default density into the default look's frames (the
+    /// hazer slot = density · 255, rounded), so a frame that starts from the
+    /// look keeps the patch's haze.
+    pub fn write_look(&self, look: &mut Universes) {
+        if let Some((u, a)) = self.dmx {
+            look.set_slot(u, a, (self.density * 255.0).round() as u8);
+        }
+    }
+
     /// Density from one universe's slots (the hazer's universe).
     pub fn density_from_slots(&self, slots: &[u8; SLOTS]) -> f32 {
         match self.dmx {
@@ -233,6 +242,8 @@ mod tests {
     #[test]
     fn hazer_channel_ends_map_to_zero_and_full() {
         let h = parse("scattering = 0.1\nuniverse = 1\naddress = 9\ndensity = 50\n").unwrap().haze.unwrap();
+        let p = parse("scattering = 0.1\nuniverse = 1\naddress = 9\ndensity = 50\n").unwrap();
+        assert_eq!(p.look_universes.get(1).unwrap()[8], 128, "the default look carries the density");
         let mut u = crate::Universes::new();
         assert_eq!(h.density_of(&u), 0.5, "default look until DMX arrives");
         u.set_slot(1, 9, 0);
