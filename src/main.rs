@@ -184,6 +184,10 @@ struct RenderArgs {
     /// Photons in each radiance estimate (paper: 150).
     #[arg(long, default_value_t = 150)]
     estimate: usize,
+    /// Roll highlights over display white off smoothly (beams in haze) instead
+    /// of clipping them; the linear image is unchanged (docs/rendering.md).
+    #[arg(long)]
+    rolloff: bool,
     /// Output PNG. An existing file is never replaced without --force.
     #[arg(long)]
     out: PathBuf,
@@ -543,7 +547,12 @@ fn render(args: RenderArgs) -> Result<()> {
     if let Err((i, v)) = check_finite(&still.linear) {
         bail!("composite pixel {i} is {v}: this is a bug, please report it");
     }
-    write_png(&args.out, settings.width, settings.height, settings.display.to_srgb8(&still.linear))
+    let rgb8 = if args.rolloff {
+        settings.display.to_srgb8_rolloff(&still.linear, footlight::render::display::HighlightRolloff::default())
+    } else {
+        settings.display.to_srgb8(&still.linear)
+    };
+    write_png(&args.out, settings.width, settings.height, rgb8)
         .with_context(|| format!("writing {}", args.out.display()))?;
     let t = &still.timings;
     tracing::info!(
