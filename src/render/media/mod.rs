@@ -29,6 +29,9 @@
 //! paths ([`Medium::sigma_t_light`]); what it leaves out is listed in
 //! `docs/rendering.md` ("Haze").
 
+// `!(x > 0.0)` rejects NaN along with out-of-range values: deliberate.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod medium;
 pub mod reference;
 pub mod resolve;

@@ -97,6 +97,7 @@ pub struct PathTraced {
 /// through `medium` (taken at face value: `multiple` is ignored, every
 /// path sees σ_t) with no geometry, lit by `light` at 1 cd. `paths`
 /// random walks, `max_order` scattering events at most, seeded by `seed`.
+#[allow(clippy::too_many_arguments)]
 pub fn path_traced_ray(
     medium: &Medium,
     light: &Light,
