@@ -6,7 +6,7 @@ use clap::{Args, Parser, Subcommand};
 use footlight::live::{Daemon, DaemonConfig, Decode, DmxSource, Show, TracerSettings};
 use footlight::render::display::{Display, check_finite, write_png};
 use footlight::render::photon::PhotonSettings;
-use footlight::render::still::{LightJob, render_still};
+use footlight::render::still::{LightJob, StillHaze, render_still_hazy};
 use footlight::render::{BuildSettings, RecursionLimits, RenderSettings, Sampling};
 use footlight::scene::Camera;
 use footlight::{Patch, Scene, bench};
@@ -272,6 +272,10 @@ struct RenderArgs {
     /// Photons in each radiance estimate (paper: 150).
     #[arg(long, default_value_t = PhotonSettings::default().estimate, value_parser = flags::estimate)]
     estimate: usize,
+    /// Roll highlights over display white off smoothly (beams in haze) instead
+    /// of clipping them; the linear image is unchanged (docs/rendering.md).
+    #[arg(long)]
+    rolloff: bool,
     /// Output PNG. An existing file is never replaced without --force.
     #[arg(long)]
     out: PathBuf,
@@ -623,20 +627,41 @@ fn render(args: RenderArgs) -> Result<()> {
     };
     let universes = still_universes(&args, &show)?;
     let jobs = jobs_for(&show, &universes);
-    let still = render_still(&scene, camera, &jobs, &settings)?;
+    // Haze from the patch's [haze] at the hazer channel's density (issue 15).
+    let haze = show.patch().haze.as_ref().and_then(|spec| {
+        let medium = footlight::render::media::Medium::from_spec(spec, &scene);
+        if medium.is_none() {
+            tracing::warn!("[haze] has no box and the scene has no volume: no haze");
+        }
+        Some(StillHaze {
+            medium: medium?,
+            density: match spec.dmx.and_then(|(u, _)| universes.get(u)) {
+                Some(slots) => spec.density_from_slots(slots),
+                None => spec.density,
+            },
+            quality: footlight::render::media::HazeQuality::REFINED,
+        })
+    });
+    let still = render_still_hazy(&scene, camera, &jobs, &settings, haze.as_ref())?;
     if let Err((i, v)) = check_finite(&still.linear) {
         bail!("composite pixel {i} is {v}: this is a bug, please report it");
     }
-    write_png(&args.out, settings.width, settings.height, settings.display.to_srgb8(&still.linear))
+    let rgb8 = if args.rolloff {
+        settings.display.to_srgb8_rolloff(&still.linear, footlight::render::display::HighlightRolloff::default())
+    } else {
+        settings.display.to_srgb8(&still.linear)
+    };
+    write_png(&args.out, settings.width, settings.height, rgb8)
         .with_context(|| format!("writing {}", args.out.display()))?;
     let t = &still.timings;
     tracing::info!(
-        "view {:.0} ms, {} light buffers {:.0} ms ({} pixels re-shaded for anti-aliasing), photon maps {:.0} ms, composite {:.1} ms",
+        "view {:.0} ms, {} light buffers {:.0} ms ({} pixels re-shaded for anti-aliasing), photon maps {:.0} ms, haze {:.0} ms, composite {:.1} ms",
         t.view.as_secs_f64() * 1e3,
         still.buffers.len(),
         t.lights.as_secs_f64() * 1e3,
         still.reshaded,
         t.photons.as_secs_f64() * 1e3,
+        t.haze.as_secs_f64() * 1e3,
         t.composite.as_secs_f64() * 1e3
     );
     println!("wrote {}", args.out.display());

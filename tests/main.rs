@@ -20,6 +20,8 @@ mod golden;
 mod photons;
 // The live daemon: frame clock, staged rebuilds, cache, HTTP preview.
 mod live;
+// Haze: single scattering vs quadrature, extinction, wedges, density, linearity.
+mod haze;
 // Numerical stress matrix: extremes stay finite and bounded.
 mod stress;
 // GPU compositor == CPU compositor (lavapipe in CI).

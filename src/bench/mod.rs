@@ -6,6 +6,7 @@
 //! figure is an MSE against the 9× oversampled render of the same state.
 //! Writes `report.md` and `report.json` into the output folder.
 
+pub mod haze;
 pub mod live;
 #[cfg(feature = "plots")]
 pub mod plots;
@@ -117,6 +118,8 @@ pub struct Report {
     pub live: live::LiveReport,
     /// The 600-fixture, 16-universe rig at 1920×1080 (full runs only).
     pub scale: Option<scale::ScaleReport>,
+    /// Haze: beam time vs error, density re-weighting, multiple scattering, rig cost.
+    pub haze: Option<haze::HazeReport>,
 }
 
 /// One point of a run-time-versus-error curve.
@@ -163,6 +166,9 @@ impl Report {
             s += &format!("  MSE vs 9x, {name:<10} R {:.5} G {:.5} B {:.5}\n", m[0], m[1], m[2]);
         }
         s += &format!("  linearity (composite vs eq. 1 render): max rel. error {:.2e}\n", self.linearity_max_rel_error);
+        if let Some(h) = &self.haze {
+            s += &h.lines();
+        }
         s
     }
 
@@ -301,6 +307,9 @@ impl Report {
                 r.dense_mib,
                 r.build_s
             );
+        }
+        if let Some(h) = &self.haze {
+            s += &format!("\n## Haze (issue 15)\n\n```text\n{}```\n", h.lines());
         }
         s += "\n## Raw timings (ms)\n\n| stage | ms |\n|---|---:|\n";
         for (n, t) in &self.timings_ms {
@@ -725,6 +734,23 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
             }
         }
     };
+    progress.set_message("haze");
+    let rig_lights = (!cfg.quick).then(|| {
+        let root = env!("CARGO_MANIFEST_DIR");
+        crate::Patch::parse(Path::new("generated-600-rig.toml"), &scale::rig_patch(root))
+            .map(|p| p.lights())
+            .unwrap_or_default()
+    });
+    let haze = haze::run(
+        scene,
+        camera,
+        w,
+        h,
+        light,
+        cfg.repeats,
+        if cfg.quick { 20_000 } else { 200_000 },
+        rig_lights.as_deref(),
+    );
     progress.finish_and_clear();
 
     let report = Report {
@@ -745,6 +771,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         stress,
         live,
         scale,
+        haze,
     };
     #[cfg(feature = "plots")]
     plots::write(&report, out)?;

@@ -153,6 +153,95 @@ impl LightBuffer {
     }
 }
 
+impl LightBuffer {
+    /// Builds a buffer from the tiles listed in `candidates` (tile x, tile
+    /// y), each filled by `fill(tx, ty, tile)` (TILE×TILE row-major, zeroed
+    /// beforehand; pixels past the image edge must stay 0). Tiles that stay
+    /// all zero are dropped. Parallel over tiles. Used by the haze density
+    /// re-weighting, which touches only the tiles a light covers.
+    pub fn from_tiles(
+        width: u32,
+        height: u32,
+        candidates: &[(usize, usize)],
+        fill: impl Fn(usize, usize, &mut [Vec3]) + Sync,
+    ) -> Self {
+        use rayon::prelude::*;
+        let mut buf = Self::empty(width, height);
+        let filled: Vec<(usize, Vec<Vec3>)> = candidates
+            .par_iter()
+            .filter_map(|&(tx, ty)| {
+                let mut tile = vec![Vec3::ZERO; TILE_PIXELS];
+                fill(tx, ty, &mut tile);
+                tile.iter().any(|p| *p != Vec3::ZERO).then_some((ty * buf.tiles_x + tx, tile))
+            })
+            .collect();
+        buf.data.reserve(filled.len() * TILE_PIXELS);
+        for (slot, tile) in filled {
+            buf.slot[slot] = (buf.data.len() / TILE_PIXELS) as u32;
+            buf.data.extend(tile);
+        }
+        buf
+    }
+
+    /// Tile coordinates (x, y) of every occupied tile.
+    pub fn occupied(&self) -> Vec<(usize, usize)> {
+        (0..self.slot.len()).filter(|&t| self.slot[t] != EMPTY).map(|t| (t % self.tiles_x, t / self.tiles_x)).collect()
+    }
+}
+
+/// One light's haze buffer (issue 15): per pixel the in-scattered light of
+/// a unit source along the pixel's centre ray, kept so that a density change
+/// is a re-weighting (`render::media::resolve`), stored tile-sparse like
+/// [`LightBuffer`]. Channels: x = a0 = ∫ p f_ε g / r² dt (per unit σ_s, no
+/// extinction), y = κ, the effective optical depth at the medium's full
+/// density (in-scattered radiance at density d = d σ_s a0 e^(−d κ)), z = 0.
+/// Pixels whose ray misses the beam hold (0, 0, 0) and cost no storage.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HazeBuffer(LightBuffer);
+
+impl HazeBuffer {
+    /// An all-zero haze buffer (the beam is nowhere in view, or no haze).
+    pub fn empty(width: u32, height: u32) -> Self {
+        Self(LightBuffer::empty(width, height))
+    }
+
+    /// Packs dense (a0, κ, 0) pixels, keeping tiles with any non-zero pixel.
+    pub fn from_dense(width: u32, height: u32, dense: &[Vec3]) -> Self {
+        Self(LightBuffer::from_dense(width, height, dense))
+    }
+
+    /// (a0, κ) at pixel (x, y).
+    pub fn get(&self, x: u32, y: u32) -> (f32, f32) {
+        let v = self.0.get(x, y);
+        (v.x, v.y)
+    }
+
+    /// The tiles as a [`LightBuffer`] (channels as documented on the type).
+    pub fn as_light_buffer(&self) -> &LightBuffer {
+        &self.0
+    }
+
+    /// Image width.
+    pub fn width(&self) -> u32 {
+        self.0.width
+    }
+
+    /// Image height.
+    pub fn height(&self) -> u32 {
+        self.0.height
+    }
+
+    /// Number of occupied tiles.
+    pub fn occupied_tiles(&self) -> usize {
+        self.0.occupied_tiles()
+    }
+
+    /// Bytes of pixel data held.
+    pub fn bytes(&self) -> usize {
+        self.0.bytes()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -169,6 +258,20 @@ mod tests {
         assert_eq!(b.to_dense(), dense);
         assert_eq!(b.get(36, 20), Vec3::new(1.0, 2.0, 3.0));
         assert!(b.check().is_ok());
+    }
+
+    #[test]
+    fn from_tiles_keeps_only_non_zero_candidates() {
+        let (w, h) = (40u32, 20u32);
+        let b = LightBuffer::from_tiles(w, h, &[(0, 0), (2, 1), (1, 0)], |tx, ty, tile| {
+            if (tx, ty) == (2, 1) {
+                tile[3 * TILE + 5] = Vec3::ONE; // pixel (37, 19)
+            }
+        });
+        assert_eq!(b.occupied_tiles(), 1);
+        assert_eq!(b.occupied(), vec![(2, 1)]);
+        assert_eq!(b.get(37, 19), Vec3::ONE);
+        assert_eq!(b.get(5, 5), Vec3::ZERO);
     }
 
     #[test]

@@ -53,6 +53,19 @@ impl Default for BuildSettings {
     }
 }
 
+/// Haze for light builds over one view: the medium at 100 % density, the
+/// view's haze geometry, the density now and the beam sampling.
+pub struct Haze {
+    /// The patch's `[haze]` at 100 %.
+    pub medium: super::media::Medium,
+    /// Camera rays through the medium (from the view's G-buffer).
+    pub view: super::media::HazeView,
+    /// Density 0-1 (the hazer channel or the patch's default).
+    pub density: f32,
+    /// Beam sampling.
+    pub quality: super::media::HazeQuality,
+}
+
 /// A build was abandoned because its [`Cancel`] token fired.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("light build cancelled")]
@@ -219,6 +232,21 @@ impl LightBuild {
         let sum: Vec<Vec3> = direct.iter().zip(&indirect).map(|(d, a)| *d + *a).collect();
         self.maps = Some(maps);
         Self::finish(view, &sum)
+    }
+
+    /// The haze stage (issue 15): the light's single-scattered beam at unit
+    /// intensity ([`super::media::render_inscatter`]), then `surface` (this
+    /// light's direct + indirect buffer) re-weighted with it at the medium's
+    /// density ([`super::media::resolve`]: extinction along camera and light
+    /// paths plus in-scattering). Linear in the light, so still eq. 5.
+    pub fn haze(&mut self, scene: &Scene, haze: &Haze, surface: &LightBuffer) -> Result<LightBuffer, BuildError> {
+        self.cancel.check()?;
+        let beam = super::media::render_inscatter(scene, &haze.view, &self.light, &haze.medium, haze.quality);
+        self.cancel.check()?;
+        let buffer =
+            super::media::resolve(&haze.view, &haze.medium, self.light.position, surface, Some(&beam), haze.density);
+        buffer.check()?;
+        Ok(buffer)
     }
 
     /// The light's photon maps, after [`LightBuild::photons`].

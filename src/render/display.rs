@@ -81,6 +81,64 @@ impl Display {
     }
 }
 
+/// An optional highlight roll-off for the *display* encoding, so beams in
+/// haze brighter than display white still read as beams instead of flat
+/// clipped areas (issue 15). Linear output (the composite, PFM/EXR, every
+/// measurement) never passes through it.
+///
+/// Applied to the largest channel m of a display-linear colour (1 = white),
+/// scaling all three by f(m)/m so hue and saturation stay: identity up to
+/// the `knee`, then an extended-Reinhard shoulder that is C¹ at the knee and
+/// reaches 1 exactly at `white`:
+///
+///   u = (m − knee) / (1 − knee),  U = (white − knee) / (1 − knee),
+///   f(m) = knee + (1 − knee) · u (1 + u / U²) / (1 + u)   (m ≤ white), 1 above.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HighlightRolloff {
+    /// Display-linear level (0-1) below which nothing changes (default 0.6).
+    pub knee: f32,
+    /// Display-linear level shown as white (default 16: four stops over).
+    pub white: f32,
+}
+
+impl Default for HighlightRolloff {
+    fn default() -> Self {
+        Self { knee: 0.6, white: 16.0 }
+    }
+}
+
+impl HighlightRolloff {
+    /// The roll-off of one display-linear colour (non-finite input → black).
+    pub fn apply(&self, c: Vec3) -> Vec3 {
+        if !c.is_finite() {
+            return Vec3::ZERO;
+        }
+        let m = c.max_element();
+        let knee = self.knee.clamp(0.0, 0.99);
+        let white = self.white.max(1.0 + 1e-3);
+        if m <= knee {
+            return c;
+        }
+        let f = if m >= white {
+            1.0
+        } else {
+            let (u, big_u) = ((m - knee) / (1.0 - knee), (white - knee) / (1.0 - knee));
+            knee + (1.0 - knee) * u * (1.0 + u / (big_u * big_u)) / (1.0 + u)
+        };
+        c * (f / m)
+    }
+}
+
+impl Display {
+    /// As [`Display::to_srgb8`] with `rolloff` applied to the display-linear
+    /// colour before the transfer function (exposure and white balance first).
+    pub fn to_srgb8_rolloff(&self, linear: &[Vec3], rolloff: HighlightRolloff) -> Vec<u8> {
+        let s = self.scale();
+        let shaped: Vec<Vec3> = linear.iter().map(|v| rolloff.apply(*v * s)).collect();
+        Display { exposure: 1.0, white_balance: Vec3::ONE }.to_srgb8(&shaped)
+    }
+}
+
 const SRGB_LUT_SIZE: usize = 1 << 16;
 
 /// 8-bit sRGB code values of a display-linear colour (1 = white), through
@@ -161,6 +219,27 @@ mod tests {
         }
         assert!(worst <= 1, "worst {worst}");
         assert_eq!(d.to_srgb8(&[Vec3::new(f32::NAN, -1.0, f32::INFINITY)]), vec![0, 0, 255]);
+    }
+
+    #[test]
+    fn rolloff_keeps_the_knee_and_grades_beams_over_white() {
+        let r = HighlightRolloff::default();
+        assert_eq!(r.apply(Vec3::new(0.5, 0.2, 0.1)), Vec3::new(0.5, 0.2, 0.1));
+        // C¹ at the knee: the slope just above it is 1.
+        let e = 1e-3;
+        assert!(((r.apply(Vec3::splat(0.6 + e)).x - 0.6) / e - 1.0).abs() < 1e-2);
+        assert!((r.apply(Vec3::splat(16.0)).x - 1.0).abs() < 1e-6);
+        assert_eq!(r.apply(Vec3::splat(100.0)), Vec3::ONE);
+        // 1x, 2x, 4x, 8x white stay distinct 8-bit codes (they all clip to 255 without it).
+        let d = Display { exposure: 1.0, white_balance: Vec3::ONE };
+        let codes: Vec<u8> =
+            [1.0f32, 2.0, 4.0, 8.0].iter().map(|&x| d.to_srgb8_rolloff(&[Vec3::new(x, 0.0, 0.0)], r)[0]).collect();
+        assert!(codes.windows(2).all(|w| w[0] < w[1]), "{codes:?}");
+        assert!(codes[3] < 255);
+        // Hue stays: a saturated beam keeps its channel ratios.
+        let c = r.apply(Vec3::new(4.0, 1.0, 0.0));
+        assert!((c.y / c.x - 0.25).abs() < 1e-6 && c.z == 0.0);
+        assert_eq!(r.apply(Vec3::new(f32::NAN, 1.0, 1.0)), Vec3::ZERO);
     }
 
     #[test]

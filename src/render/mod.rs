@@ -13,6 +13,7 @@
 //! * [`footprint`]: direct light in proportion to a beam's footprint (tile culling).
 //! * [`build`]: [`LightBuild`], the only builder of a light's buffer, one
 //!   method per stage (direct, Whitted + AA, photons, refinement).
+//! * [`media`]: haze: per-light single scattering, density re-weighting.
 //! * [`composite`]: I = Σ k_i ⊙ buffer_i (eq. 5, §3.3) on the CPU.
 //! * [`display`]: exposure, white balance, sRGB, PNG.
 //! * [`reference`]: single-pass eq. 1 renderer for the linearity tests.
@@ -24,6 +25,7 @@ pub mod composite;
 pub mod display;
 pub mod footprint;
 pub mod gbuffer;
+pub mod media;
 pub mod photon;
 pub mod reference;
 pub mod still;

@@ -24,10 +24,27 @@ pub fn render_eq1(
     set: SampleSet,
     limits: RecursionLimits,
 ) -> Vec<Vec3> {
+    render_eq1_weighted(scene, gbuffer, lights, |_, out| out.copy_from_slice(k), set, limits)
+}
+
+/// As [`render_eq1`] with per-pixel weights: `k_at(pixel, k)` fills the
+/// lights' weights for that pixel (row-major index). The haze reference
+/// (`media::reference`) folds each light's extinction into them.
+pub fn render_eq1_weighted(
+    scene: &Scene,
+    gbuffer: &GBuffer,
+    lights: &[Light],
+    k_at: impl Fn(usize, &mut [Vec3]) + Sync,
+    set: SampleSet,
+    limits: RecursionLimits,
+) -> Vec<Vec3> {
     let w = gbuffer.width as usize;
     let mut out = vec![Vec3::ZERO; w * gbuffer.height as usize];
     out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let mut k = vec![Vec3::ZERO; lights.len()];
         for (x, px) in row.iter_mut().enumerate() {
+            k_at(y * w + x, &mut k);
+            let k = &k[..];
             let samples = &gbuffer.samples[y * w + x];
             let mut weighted: Vec<(u32, f32, f32, f32)> = Vec::new();
             match set {

@@ -5,8 +5,9 @@
 
 use super::RenderSettings;
 use super::buffer::LightBuffer;
-use super::build::{BuildError, BuildSettings, Cancel, LightBuild};
+use super::build::{BuildError, BuildSettings, Cancel, Haze, LightBuild};
 use super::composite::composite;
+use super::media::{HazeQuality, HazeView, Medium};
 use super::view::View;
 use crate::fixture::Light;
 use crate::scene::{Camera, Scene};
@@ -45,6 +46,8 @@ pub struct StillTimings {
     pub lights: Duration,
     /// Photon tracing and indirect estimates.
     pub photons: Duration,
+    /// Haze: in-scattering and density re-weighting.
+    pub haze: Duration,
     /// Composite.
     pub composite: Duration,
 }
@@ -65,6 +68,17 @@ pub struct Still {
 
 pub use super::build::light_seed;
 
+/// Haze for a still: the medium at 100 % density and the density now.
+#[derive(Clone, Copy, Debug)]
+pub struct StillHaze {
+    /// The patch's `[haze]` at 100 %.
+    pub medium: Medium,
+    /// Density 0-1 (the hazer channel or the patch's default).
+    pub density: f32,
+    /// Beam sampling.
+    pub quality: HazeQuality,
+}
+
 /// Renders `jobs` over `scene` from `camera`.
 pub fn render_still(
     scene: &Scene,
@@ -72,8 +86,28 @@ pub fn render_still(
     jobs: &[LightJob],
     settings: &RenderSettings,
 ) -> Result<Still, RenderError> {
+    render_still_hazy(scene, camera, jobs, settings, None)
+}
+
+/// As [`render_still`], in haze when `haze` is given: each light's buffer
+/// is its surface buffer re-weighted with its beam at the density
+/// ([`LightBuild::haze`]).
+pub fn render_still_hazy(
+    scene: &Scene,
+    camera: Camera,
+    jobs: &[LightJob],
+    settings: &RenderSettings,
+    haze: Option<&StillHaze>,
+) -> Result<Still, RenderError> {
     let t0 = Instant::now();
     let view = View::build(scene, camera, settings.width, settings.height, settings.sampling, settings.limits);
+    let haze = haze.map(|h| Haze {
+        medium: h.medium,
+        view: HazeView::new(scene, &view.gbuffer),
+        density: h.density,
+        quality: h.quality,
+    });
+    let mut haze_time = Duration::ZERO;
     let t1 = Instant::now();
     let mut buffers = Vec::with_capacity(jobs.len());
     let mut reshaded = 0;
@@ -96,6 +130,15 @@ pub fn render_still(
                 Ok(b)
             }
         });
+        let buffer = buffer.and_then(|b| match &haze {
+            Some(h) => {
+                let th = Instant::now();
+                let hazy = build.haze(scene, h, &b);
+                haze_time += th.elapsed();
+                hazy
+            }
+            None => Ok(b),
+        });
         let buffer = buffer.map_err(|source| RenderError { light: i, source })?;
         reshaded += build.reshaded();
         buffers.push(buffer);
@@ -112,7 +155,8 @@ pub fn render_still(
         reshaded,
         timings: StillTimings {
             view: t1 - t0,
-            lights: t2 - t1 - photon_time,
+            lights: t2 - t1 - photon_time - haze_time,
+            haze: haze_time,
             photons: photon_time,
             composite: t3 - t2,
         },

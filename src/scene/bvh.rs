@@ -57,6 +57,9 @@ impl Accel {
         if !origin.is_finite() || !dir.is_finite() {
             return None;
         }
+        // −0.0 components make the CWBVH traversal miss (found by the haze
+        // shadow rays, issue 15); adding +0.0 turns them into +0.0.
+        let dir = dir + Vec3::ZERO;
         let ray = Ray::new(origin.into(), dir.into(), 0.0, t_max);
         let mut hit = RayHit::none();
         if !bvh.ray_traverse(ray, &mut hit, |ray, id| self.ordered[id].intersect(ray)) {
@@ -74,6 +77,7 @@ impl Accel {
         if !origin.is_finite() || !dir.is_finite() || t_max <= 0.0 {
             return false;
         }
+        let dir = dir + Vec3::ZERO; // −0.0 → +0.0, as in `intersect`
         let ray = Ray::new(origin.into(), dir.into(), 0.0, t_max);
         !bvh.ray_traverse_miss(ray, |ray, id| self.ordered[id].intersect(ray))
     }

@@ -41,7 +41,7 @@ pub use beam::{Beam, BeamSample, BeamSampler, HermiteBeam, HermitePattern, Measu
 pub use error::PatchError;
 pub use fixture_type::{Attribute, FixtureType, Manual, Mode, Optics};
 pub use light::Light;
-pub use patch::{CameraSpec, Fixture, FixtureModel, InputProtocol, InputRoute, Patch, check, check_text};
+pub use patch::{CameraSpec, Fixture, FixtureModel, HazeSpec, InputProtocol, InputRoute, Patch, check, check_text};
 pub use state::{Change, DmxSlots, FixtureState, Universes, classify};
 
 #[cfg(test)]

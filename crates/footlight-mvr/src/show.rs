@@ -444,6 +444,7 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
         inputs: Vec::new(),
         look_universes: frames,
         gels: None,
+        haze: None,
     };
     Ok(Import { patch, warnings, scene: m.scene })
 }

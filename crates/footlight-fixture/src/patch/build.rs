@@ -33,8 +33,13 @@ pub(super) fn build(path: &Path, text: &str) -> Result<Patch, Vec<PatchError>> {
         }
     }
     b.addresses(&built);
-    let look_universes = b.look(&file, &mut built);
+    let mut look_universes = b.look(&file, &mut built);
     let inputs = b.inputs(&file.input);
+    let fixtures: Vec<Fixture> = built.iter().map(|x| x.fixture.clone()).collect();
+    let haze = super::haze::build_haze(path, text, &file, &fixtures, &mut b.errors);
+    if let Some(h) = &haze {
+        h.write_look(&mut look_universes);
+    }
     if !b.errors.is_empty() {
         return Err(b.errors);
     }
@@ -46,6 +51,7 @@ pub(super) fn build(path: &Path, text: &str) -> Result<Patch, Vec<PatchError>> {
         inputs,
         look_universes,
         gels,
+        haze,
     })
 }
 

@@ -23,6 +23,8 @@ pub struct PatchFile {
     /// Protocol universe → patch universe overrides.
     #[serde(default)]
     pub input: Vec<Spanned<InputFile>>,
+    /// The haze medium (`[haze]`, see `patch/haze.rs`).
+    pub haze: Option<Spanned<super::haze::HazeFile>>,
 }
 
 /// `[camera]`: eye position, target and vertical field of view.

@@ -26,8 +26,10 @@
 
 mod build;
 pub mod file;
+pub mod haze;
 
 pub use file::PatchFile;
+pub use haze::HazeSpec;
 
 use crate::beam::{Beam, SpotBeam};
 use crate::error::PatchError;
@@ -274,6 +276,8 @@ pub struct Patch {
     pub look_universes: Universes,
     /// The gel library, when the patch uses gels.
     pub gels: Option<Arc<GelLibrary>>,
+    /// The haze medium (`[haze]`), if any.
+    pub haze: Option<HazeSpec>,
 }
 
 impl Patch {

@@ -1,0 +1,42 @@
+//! Haze: beams in the air, per light, still re-lit by a weighted sum
+//! (issue 15; the paper's future work, Vierjahn 2010, section 5).
+//!
+//! Single scattering in a homogeneous medium is linear in a light's
+//! intensity, so it fits eq. 5 unchanged: each light gets a haze buffer at
+//! unit intensity next to its surface buffer, and dimmer and colour
+//! changes stay one composite. Data flow:
+//!
+//! ```text
+//! patch [haze] ─> Medium (100 % density)        View's G-buffer ─> HazeView (centre rays)
+//!                      │                                  │
+//!  moved light ─> render_inscatter(scene, hv, light, medium, HazeQuality::COARSE)  → HazeBuffer
+//!                 then HazeQuality::REFINED                                         (a0, κ per pixel)
+//!                      │
+//!  surface buffer S_i ─┴─> resolve(hv, medium, light.position, S_i, haze_i, density) → LightBuffer
+//!  (direct + indirect)        (hazer channel change: only this runs)          → composite (eq. 5)
+//! ```
+//!
+//! # Layout
+//! * [`medium`]: coefficients, Henyey-Greenstein phase, the haze box.
+//! * [`single`]: per-light single scattering along camera rays
+//!   (equiangular, shadowed, coarse-then-refined): the stage function.
+//! * [`resolve`]: the composite-time density re-weighting and the
+//!   extinction of the surface terms.
+//! * [`reference`]: the single-pass haze reference and a Monte Carlo
+//!   volume path tracer (multiple scattering).
+//!
+//! Multiple scattering is approximated by the similarity relation on light
+//! paths ([`Medium::sigma_t_light`]); what it leaves out is listed in
+//! `docs/rendering.md` ("Haze").
+
+// `!(x > 0.0)` rejects NaN along with out-of-range values: deliberate.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+pub mod medium;
+pub mod reference;
+pub mod resolve;
+pub mod single;
+
+pub use medium::{Medium, MediumError};
+pub use resolve::resolve;
+pub use single::{HazeQuality, HazeView, InScatter, integrate_ray, render_inscatter};

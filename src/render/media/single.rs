@@ -1,0 +1,429 @@
+//! Single scattering of one light at unit intensity (1 cd) along camera
+//! rays, the in-scattered term of the light's haze buffer.
+//!
+//! Along a camera ray x(t) = o + t·ω the light scattered toward the camera is
+//!
+//!   L = σ_s ∫ p(cos θ) f_ε(x → from P) / r² · g(x) · T_cam(t) · T_light(x) dt
+//!
+//! over the part of the ray inside the haze box, in front of the first
+//! surface, and inside the beam's cut-off cone (`notes/productions.md`;
+//! Kulla and Fajardo 2012). r = |x − P|, g is a shadow ray from x to the
+//! light (so geometry cuts dark wedges out of the beam),
+//! T_cam = exp(−σ_t τ_cam) and T_light = exp(−σ_t* τ_light) with τ the
+//! metres of haze on each path ([`super::Medium::sigma_t_light`]).
+//!
+//! # Sampling
+//! The ray is cut to the cone analytically ([`cone_interval`]): a ray that
+//! misses the cone costs that one test and stores nothing. Inside, the
+//! integral is taken in the equiangular variable θ (Kulla and Fajardo 2012,
+//! eq. 7): t = Δ + D tan θ, with D the light's distance from the ray and Δ
+//! its foot point, turns dt / r² into dθ / D, so the 1/r² peak near the lamp
+//! is flat in θ. Samples are the midpoints of `n` equal θ strata: no noise,
+//! no seed, exact for the unshadowed part to O(n⁻²).
+//!
+//! # What is stored per pixel
+//! a0 = ∫ p f g / r² dt (no extinction) and the effective optical depth
+//! κ = −ln(a1 / a0) with a1 the same integral with T_cam T_light at this
+//! medium. The in-scattered radiance at density d is then
+//! d σ_s a0 exp(−d κ): exact at d = 0 and d = 1, a one-exponential fit in
+//! between ([`super::resolve`]). Both are per unit σ_s and grey (the haze is
+//! grey; the light's colour is in k_i), so a buffer holds (a0, κ, 0).
+//!
+//! # Coarse first, then refined
+//! [`HazeQuality`] sets a beam-buffer scale: rays are traced at every
+//! `scale`-th pixel and upsampled with depth-aware weights (joint
+//! bilateral: a neighbour whose surface is at a different depth gets no
+//! weight). With `refine_edges`, full-resolution pixels whose four coarse
+//! neighbours disagree (a beam or shadow edge, a depth edge) are traced
+//! exactly (Engelhardt and Dachsbacher 2010 refine the same way along
+//! epipolar lines).
+
+use super::medium::Medium;
+use crate::fixture::Light;
+use crate::render::buffer::HazeBuffer;
+use crate::render::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT};
+use crate::scene::{Camera, Scene};
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// How finely a light's beam is sampled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct HazeQuality {
+    /// Beam-buffer scale: trace every `scale`-th pixel in x and y (1 = all).
+    pub scale: u32,
+    /// Equiangular samples per ray inside the cone.
+    pub samples: u32,
+    /// Trace pixels at beam, shadow and depth edges at full resolution.
+    pub refine_edges: bool,
+}
+
+impl HazeQuality {
+    /// The first, fast stage after a beam moved: quarter resolution, 8 samples.
+    pub const COARSE: Self = Self { scale: 4, samples: 8, refine_edges: false };
+    /// The refined stage: quarter-resolution interior, edges traced at full
+    /// resolution, 32 samples.
+    pub const REFINED: Self = Self { scale: 4, samples: 32, refine_edges: true };
+    /// Every pixel traced with 64 samples (the reference of the bench).
+    pub const FULL: Self = Self { scale: 1, samples: 64, refine_edges: false };
+}
+
+/// Light-independent per-pixel data of the haze for one camera: the centre
+/// ray of every pixel (the G-buffer's centre sample) and where it ends.
+pub struct HazeView {
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// The camera.
+    pub camera: Camera,
+    /// Per pixel: unit ray direction.
+    dirs: Vec<Vec3>,
+    /// Per pixel: distance to the first surface (∞ for a miss).
+    t_hit: Vec<f32>,
+}
+
+impl HazeView {
+    /// From a view's G-buffer (its centre samples; no new rays).
+    pub fn new(scene: &Scene, gbuffer: &GBuffer) -> Self {
+        let (w, h) = (gbuffer.width, gbuffer.height);
+        let camera = gbuffer.camera;
+        let mut dirs = Vec::with_capacity((w * h) as usize);
+        let mut t_hit = Vec::with_capacity((w * h) as usize);
+        for y in 0..h {
+            for x in 0..w {
+                let s = gbuffer.samples[(y * w + x) as usize][CENTRE_SAMPLE];
+                let d = camera.direction(x as f32 + 0.5, y as f32 + 0.5, w, h);
+                let t = if s.triangle == NO_HIT {
+                    f32::INFINITY
+                } else {
+                    scene.point_on(s.triangle, s.u, s.v).distance(camera.position)
+                };
+                dirs.push(d);
+                t_hit.push(t);
+            }
+        }
+        Self { width: w, height: h, camera, dirs, t_hit }
+    }
+
+    /// Centre-ray direction of pixel `i` (row-major).
+    pub fn dir(&self, i: usize) -> Vec3 {
+        self.dirs[i]
+    }
+
+    /// Distance to the surface the centre ray of pixel `i` hits (∞: none).
+    pub fn t_hit(&self, i: usize) -> f32 {
+        self.t_hit[i]
+    }
+
+    /// Point the centre ray of pixel `i` hits, if any.
+    pub fn hit_point(&self, i: usize) -> Option<Vec3> {
+        let t = self.t_hit[i];
+        t.is_finite().then(|| self.camera.position + self.dirs[i] * t)
+    }
+}
+
+/// The in-scattered light of one camera ray at unit intensity, per unit σ_s.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct InScatter {
+    /// ∫ p f_ε g / r² dt without extinction.
+    pub a0: f32,
+    /// The same with T_cam · T_light at the medium's density.
+    pub a1: f32,
+}
+
+impl InScatter {
+    /// Effective optical depth κ = −ln(a1 / a0) (0 when a0 = 0).
+    pub fn kappa(&self) -> f32 {
+        if self.a0 > 0.0 && self.a1 > 0.0 { (self.a0 / self.a1).ln().max(0.0) } else { 0.0 }
+    }
+
+    /// The stored pixel (a0, κ, 0).
+    pub fn pixel(&self) -> Vec3 {
+        if self.a0 > 0.0 && self.a0.is_finite() { Vec3::new(self.a0, self.kappa(), 0.0) } else { Vec3::ZERO }
+    }
+}
+
+/// Margin on the cut-off angle for the analytic cone test (radians), so
+/// rounding never drops a sample the pattern would light.
+const CONE_MARGIN: f32 = 1e-3;
+
+/// The interval of t in [t_lo, t_hi] where `origin + t·dir` (unit dir) is
+/// inside the cone of half-angle acos(`cos_cut`) around `axis` (unit) with
+/// apex `apex`; `None` when the ray misses it. Cones of 90° or wider are
+/// not convex: the whole interval is returned (the pattern decides).
+pub fn cone_interval(
+    apex: Vec3,
+    axis: Vec3,
+    cos_cut: f32,
+    origin: Vec3,
+    dir: Vec3,
+    t_lo: f32,
+    t_hi: f32,
+) -> Option<(f32, f32)> {
+    if !(t_hi > t_lo) {
+        return None;
+    }
+    let angle = cos_cut.clamp(-1.0, 1.0).acos() + CONE_MARGIN;
+    if angle >= std::f32::consts::FRAC_PI_2 - 1e-3 {
+        return Some((t_lo, t_hi));
+    }
+    let c2 = angle.cos().powi(2);
+    let co = origin - apex;
+    let (da, ca) = (dir.dot(axis), co.dot(axis));
+    // f(t) = (x·a)² − c² |x|² ≥ 0 with x = co + t·dir: the double cone.
+    let a = da * da - c2;
+    let b = 2.0 * (da * ca - c2 * dir.dot(co));
+    let c = ca * ca - c2 * co.length_squared();
+    let mut pieces: [(f32, f32); 2] = [(f32::NAN, f32::NAN); 2];
+    if a.abs() < 1e-9 {
+        // Ray parallel to a cone generator: f is linear.
+        if b.abs() < 1e-12 {
+            if c >= 0.0 {
+                pieces[0] = (f32::NEG_INFINITY, f32::INFINITY);
+            }
+        } else {
+            let r = -c / b;
+            pieces[0] = if b > 0.0 { (r, f32::INFINITY) } else { (f32::NEG_INFINITY, r) };
+        }
+    } else {
+        let disc = b * b - 4.0 * a * c;
+        if disc < 0.0 {
+            if a > 0.0 {
+                pieces[0] = (f32::NEG_INFINITY, f32::INFINITY);
+            }
+        } else {
+            // Numerically stable roots.
+            let q = -0.5 * (b + b.signum() * disc.sqrt());
+            let (r1, r2) = (q / a, if q != 0.0 { c / q } else { 0.0 });
+            let (r1, r2) = (r1.min(r2), r1.max(r2));
+            if a > 0.0 {
+                pieces = [(f32::NEG_INFINITY, r1), (r2, f32::INFINITY)];
+            } else {
+                pieces[0] = (r1, r2);
+            }
+        }
+    }
+    // Keep the forward nappe: (co + t·dir)·a ≥ 0.
+    let (h_lo, h_hi) = if da.abs() < 1e-12 {
+        if ca >= 0.0 { (f32::NEG_INFINITY, f32::INFINITY) } else { return None }
+    } else if da > 0.0 {
+        (-ca / da, f32::INFINITY)
+    } else {
+        (f32::NEG_INFINITY, -ca / da)
+    };
+    let mut out: Option<(f32, f32)> = None;
+    for (p0, p1) in pieces {
+        if p0.is_nan() {
+            continue;
+        }
+        let lo = p0.max(h_lo).max(t_lo);
+        let hi = p1.min(h_hi).min(t_hi);
+        if hi > lo {
+            out = Some(out.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+        }
+    }
+    out
+}
+
+/// Single scattering of `light` (1 cd) along one camera ray: `origin` +
+/// t·`dir` (unit), t from 0 to `t_surface` (∞: no surface), with `samples`
+/// equiangular midpoints inside the cone. Occlusion by `scene` included.
+pub fn integrate_ray(
+    scene: &Scene,
+    medium: &Medium,
+    light: &Light,
+    origin: Vec3,
+    dir: Vec3,
+    t_surface: f32,
+    samples: u32,
+) -> InScatter {
+    let Some((tb0, tb1)) = medium.clip(origin, dir, t_surface) else { return InScatter::default() };
+    let Some((t0, t1)) = cone_interval(light.position, light.axis(), light.beam.cos_cutoff(), origin, dir, tb0, tb1)
+    else {
+        return InScatter::default();
+    };
+    let n = samples.max(1);
+    // Equiangular parameterisation (Kulla and Fajardo 2012, eq. 7).
+    let delta = (light.position - origin).dot(dir);
+    let d = (light.position - origin - dir * delta).length().max(1e-4);
+    let (th0, th1) = (((t0 - delta) / d).atan(), ((t1 - delta) / d).atan());
+    let step = (th1 - th0) / n as f32;
+    if !(step > 0.0) || !step.is_finite() {
+        return InScatter::default();
+    }
+    let (sigma_t, sigma_tl) = (medium.sigma_t(), medium.sigma_t_light());
+    let mut out = InScatter::default();
+    for k in 0..n {
+        let th = th0 + (k as f32 + 0.5) * step;
+        let t = delta + d * th.tan();
+        let x = origin + dir * t;
+        let to_x = x - light.position;
+        let r = to_x.length();
+        if !(r > 1e-6) || !r.is_finite() {
+            continue;
+        }
+        let w_in = to_x / r;
+        let f = light.pattern_toward(w_in);
+        if f <= 0.0 {
+            continue;
+        }
+        // Light propagates along w_in, then toward the camera along −dir.
+        let h = medium.phase(w_in.dot(-dir)) * f;
+        if scene.accel.occluded(x, -w_in, r * (1.0 - 1e-4)) {
+            continue;
+        }
+        let tau_cam = t.clamp(tb0, tb1) - tb0;
+        let tau_light = medium.length_inside(x, light.position);
+        out.a0 += h;
+        out.a1 += h * (-(sigma_t * tau_cam + sigma_tl * tau_light)).exp();
+    }
+    // dt / r² = dθ / D.
+    let scale = step / d;
+    InScatter { a0: out.a0 * scale, a1: out.a1 * scale }
+}
+
+/// Renders `light`'s haze buffer (a0, κ per pixel, tile-sparse) for the
+/// view `hv` at `quality`. The stage function for a moved light: call it
+/// with [`HazeQuality::COARSE`] first, then [`HazeQuality::REFINED`].
+pub fn render_inscatter(
+    scene: &Scene,
+    hv: &HazeView,
+    light: &Light,
+    medium: &Medium,
+    quality: HazeQuality,
+) -> HazeBuffer {
+    let (w, h) = (hv.width as usize, hv.height as usize);
+    if medium.is_clear() || medium.sigma_s <= 0.0 {
+        return HazeBuffer::empty(hv.width, hv.height);
+    }
+    let trace =
+        |i: usize| integrate_ray(scene, medium, light, hv.camera.position, hv.dirs[i], hv.t_hit[i], quality.samples);
+    let s = quality.scale.max(1) as usize;
+    if s == 1 {
+        let mut dense = vec![Vec3::ZERO; w * h];
+        dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            for (x, px) in row.iter_mut().enumerate() {
+                *px = trace(y * w + x).pixel();
+            }
+        });
+        return HazeBuffer::from_dense(hv.width, hv.height, &dense);
+    }
+    // Coarse grid: coarse pixel (cx, cy) is full pixel (rep(cx), rep(cy)).
+    let (cw, ch) = (w.div_ceil(s), h.div_ceil(s));
+    let rep = |c: usize, n: usize| (c * s + s / 2).min(n - 1);
+    let mut coarse = vec![InScatter::default(); cw * ch];
+    coarse.par_chunks_mut(cw).enumerate().for_each(|(cy, row)| {
+        for (cx, px) in row.iter_mut().enumerate() {
+            *px = trace(rep(cy, h) * w + rep(cx, w));
+        }
+    });
+    let mut dense = vec![Vec3::ZERO; w * h];
+    dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        // Coarse rows around y and the bilinear weight between them.
+        let (cy0, cy1, fy) = neighbours(y, s, ch, h);
+        for (x, px) in row.iter_mut().enumerate() {
+            let (cx0, cx1, fx) = neighbours(x, s, cw, w);
+            let i = y * w + x;
+            let t_here = hv.t_hit[i];
+            let corners = [
+                (cx0, cy0, (1.0 - fx) * (1.0 - fy)),
+                (cx1, cy0, fx * (1.0 - fy)),
+                (cx0, cy1, (1.0 - fx) * fy),
+                (cx1, cy1, fx * fy),
+            ];
+            let mut sum = InScatter::default();
+            let mut wsum = 0.0;
+            let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
+            let mut depth_edge = false;
+            for (cx, cy, wb) in corners {
+                let c = coarse[cy * cw + cx];
+                let wd = depth_weight(t_here, hv.t_hit[rep(cy, h) * w + rep(cx, w)]);
+                depth_edge |= wd < 0.5;
+                lo = lo.min(c.a1);
+                hi = hi.max(c.a1);
+                let wt = wb * wd;
+                sum.a0 += wt * c.a0;
+                sum.a1 += wt * c.a1;
+                wsum += wt;
+            }
+            // Edge: neighbours differ by over 20 % (beam or shadow edge), or
+            // a depth discontinuity the weights cannot bridge.
+            let edge = depth_edge || hi > 1.25 * lo + 1e-12;
+            *px = if quality.refine_edges && edge {
+                trace(i).pixel()
+            } else if wsum > 1e-6 {
+                InScatter { a0: sum.a0 / wsum, a1: sum.a1 / wsum }.pixel()
+            } else {
+                // No neighbour at this depth (a thin object): trace it.
+                trace(i).pixel()
+            };
+        }
+    });
+    HazeBuffer::from_dense(hv.width, hv.height, &dense)
+}
+
+/// The two coarse samples around full pixel `p` (coarse scale `s`, `n`
+/// coarse and `full` full pixels on the axis) and the weight of the second.
+fn neighbours(p: usize, s: usize, n: usize, full: usize) -> (usize, usize, f32) {
+    let centre = |c: usize| (c * s + s / 2).min(full - 1) as f32;
+    let c0 = (p.saturating_sub(s / 2) / s).min(n - 1);
+    let c1 = (c0 + 1).min(n - 1);
+    if c1 == c0 {
+        return (c0, c1, 0.0);
+    }
+    let f = ((p as f32 - centre(c0)) / (centre(c1) - centre(c0)).max(1.0)).clamp(0.0, 1.0);
+    (c0, c1, f)
+}
+
+/// Joint-bilateral depth weight: 1 at the same depth, falling to ~0 at 10 %
+/// relative depth difference; two misses match, a miss and a hit do not.
+fn depth_weight(a: f32, b: f32) -> f32 {
+    match (a.is_finite(), b.is_finite()) {
+        (false, false) => 1.0,
+        (true, true) => {
+            let rel = (a - b).abs() / a.min(b).max(1e-3);
+            (-(rel / 0.05).powi(2)).exp()
+        }
+        _ => 0.0,
+    }
+}
+
+/// A dense in-scatter buffer in radiance at density 1 (σ_s a1): for tests
+/// and the bench, which compare it with references pixel by pixel.
+pub fn radiance_at_full(buffer: &HazeBuffer, medium: &Medium) -> Vec<f32> {
+    buffer.as_light_buffer().to_dense().iter().map(|v| medium.sigma_s * v.x * (-v.y).exp()).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cone_interval_matches_a_direct_test() {
+        let apex = Vec3::new(0.0, 5.0, 0.0);
+        let axis = Vec3::NEG_Y;
+        let cos_cut = 15f32.to_radians().cos();
+        let inside = |x: Vec3| (x - apex).normalize().dot(axis) >= cos_cut;
+        let mut rng = 1u64;
+        let mut next = || {
+            rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((rng >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+        };
+        for _ in 0..500 {
+            let o = Vec3::new(next() * 6.0, next() * 6.0 + 3.0, next() * 6.0 + 8.0);
+            let d = Vec3::new(next(), next(), next() - 0.5).normalize();
+            let got = cone_interval(apex, axis, cos_cut, o, d, 0.0, 30.0);
+            // March and compare membership away from the boundary.
+            for k in 0..600 {
+                let t = k as f32 * 0.05;
+                let x = o + d * t;
+                let c = (x - apex).normalize().dot(axis);
+                if (c - cos_cut).abs() < 2e-3 {
+                    continue;
+                }
+                let in_interval = got.is_some_and(|(a, b)| t >= a && t <= b);
+                assert_eq!(in_interval, inside(x), "o {o} d {d} t {t} got {got:?}");
+            }
+        }
+    }
+}
