@@ -346,6 +346,7 @@ fn run_daemon(
                     speed: args.speed,
                     start: std::time::Duration::ZERO,
                     patch: dmx_input_patch(&patch, Vec::new()),
+                    ..footlight_dmx::ReplayOptions::default()
                 };
                 footlight::live::input::start_replay(recording, options, inputs_tx, stopped(stop_rx.clone()))
             }

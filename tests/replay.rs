@@ -63,6 +63,7 @@ impl Daemon {
                             speed: f64::INFINITY,
                             start: Duration::ZERO,
                             patch: footlight_dmx::InputPatch::default(),
+                            ..Default::default()
                         };
                         (start_replay(rec, options, inputs_tx, stopped(stop_inputs_rx)), None)
                     }
