@@ -374,7 +374,8 @@ impl Recording {
             .take(8)
             .map(|(i, (_, n))| {
                 let default = UniverseMap::default_route(*i).map(|p| format!(", patch universe {p} by default"));
-                format!("{i} ({n} packets{})", default.unwrap_or_default())
+                let plural = if *n == 1 { "" } else { "s" };
+                format!("{i} ({n} packet{plural}{})", default.unwrap_or_default())
             })
             .collect();
         if self.inputs.len() > 8 || self.inputs_overflow {
