@@ -296,14 +296,14 @@ async fn tcpdump_captures_replay_ethernet_and_linux_cooked() {
 /// ArtDmx Port-Address 1 at 1.0 s (10) and 2.0 s (20), sACN universe 101 at
 /// 1.2 s (50), ArtDmx Port-Address 0 at 1.5 s (99).
 fn ola_like_capture(path: &Path, with_dmx: bool) {
-    use artnet_protocol::{ArtCommand, Poll, PollReply};
+    use artnet_protocol::{ArtCommand, Poll};
     let file = std::fs::File::create(path).unwrap();
     let mut w = PcapngWriter::new(std::io::BufWriter::new(file)).unwrap();
     let (ola, bcast) = ("192.0.2.1:6454".parse().unwrap(), "192.0.2.255:6454".parse().unwrap());
     let t0 = Duration::from_secs(1_700_000_000);
     let ms = |n: u64| t0 + Duration::from_millis(n);
     let poll = ArtCommand::Poll(Poll::default()).write_to_buffer().unwrap();
-    let reply = ArtCommand::PollReply(Box::new(PollReply::default())).write_to_buffer().unwrap();
+    let reply = ArtCommand::PollReply(Box::default()).write_to_buffer().unwrap();
     // ArtTodRequest (OpCode 0x8000): ID, OpCode LE, ProtVer 14, filler, Net, Command, AddCount, Address.
     let mut tod = b"Art-Net\0\x00\x80\x00\x0e".to_vec();
     tod.extend([0; 9]);
