@@ -11,8 +11,9 @@
 //! Linux cooked, loopback or raw-IP link types; IPv4 UDP), recognises Art-Net
 //! and sACN by their headers (any port), and feeds them through
 //! [`ArtNetReceiver`]/[`SacnReceiver`] and [`Merge`](crate::Merge) with the
-//! recorded clock: `now` = replay start + (packet time - first DMX packet
-//! time). USB Pro frames (by their comment) re-enter as the widget's source.
+//! recorded clock: `now` = replay start + (packet time - time 0), where time 0
+//! is the first DMX data packet of a patched universe after routing
+//! ([`Recording::start_for`]; OLA's leading ArtPoll/ArtPollReply do not count). USB Pro frames (by their comment) re-enter as the widget's source.
 //! [`replay`] paces packets in real time (or `speed` times faster);
 //! [`state_at`] computes the merged universes at a time without waiting.
 
