@@ -14,9 +14,9 @@
 //! Unpatched data is also logged: one `warn` per input universe at most
 //! every 10 s (and at most [`WARNINGS_PER_PERIOD`] such lines per 10 s in
 //! all), naming the universe, the patch universe the default mapping would
-//! give it and what to do, e.g. "Art-Net Port-Address 1 (would be patch
+//! give it and what to do, e.g. `Art-Net Port-Address 1 (would be patch
 //! universe 2 by default) is not patched: 40 packets dropped; route it with
-//! [[input]] in the patch".
+//! [[input]] in the patch`.
 
 use std::collections::BTreeMap;
 use std::net::IpAddr;
