@@ -138,6 +138,10 @@ struct DmxArgs {
     /// sACN (E1.31) bind address, or `off`. Joins the multicast groups of the routed universes.
     #[arg(long, default_value = "0.0.0.0:5568")]
     sacn: String,
+    /// Network interface (its IPv4 address) for the sACN multicast joins on a machine with
+    /// several network cards; 0.0.0.0 lets the kernel choose (docs/dmx.md).
+    #[arg(long, default_value = "0.0.0.0")]
+    sacn_iface: std::net::Ipv4Addr,
     /// Serial port of an Enttec DMX USB Pro (e.g. /dev/ttyUSB0).
     #[arg(long)]
     usbpro: Option<String>,
@@ -157,7 +161,11 @@ impl DmxArgs {
         use footlight_dmx::{artnet::ArtNetConfig, sacn::SacnConfig, usbpro::UsbProConfig};
         Ok(DmxSource::Network {
             artnet: bind_address("artnet", &self.artnet)?.map(|bind| ArtNetConfig { bind, ..ArtNetConfig::default() }),
-            sacn: bind_address("sacn", &self.sacn)?.map(|bind| SacnConfig { bind, ..SacnConfig::default() }),
+            sacn: bind_address("sacn", &self.sacn)?.map(|bind| SacnConfig {
+                bind,
+                interface: self.sacn_iface,
+                ..SacnConfig::default()
+            }),
             usbpro: self.usbpro.as_ref().map(UsbProConfig::new),
         })
     }

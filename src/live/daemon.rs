@@ -192,26 +192,20 @@ pub struct LightStatus {
     pub build: Option<LightReport>,
 }
 
-/// The DMX input in `/api/status`.
+/// The DMX input in `/api/status`: the DMX crate's typed status
+/// (`footlight_dmx::InputStatus`: per patch universe its inputs, sources,
+/// packets, age and `stale`; unpatched input universes) plus totals.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct InputSummary {
-    /// `network`, `replay` or `none`.
+    /// `network`, `replay`, `channel` or `none`.
     pub kind: &'static str,
     /// DMX packets received (all protocols).
     pub packets: u64,
     /// Malformed packets.
     pub malformed: u64,
-    /// Patch universes with their staleness.
-    pub universes: Vec<UniverseSummary>,
-}
-
-/// One patch universe in `/api/status`.
-#[derive(Clone, Debug, Serialize)]
-pub struct UniverseSummary {
-    /// Patch universe (1-based).
-    pub universe: u16,
-    /// Every source left: the last levels are held.
-    pub stale: bool,
+    /// Per universe and unpatched input, with counters per protocol.
+    #[serde(flatten)]
+    pub dmx: footlight_dmx::InputStatus,
 }
 
 /// Cache usage in `/api/status`.
@@ -365,7 +359,7 @@ impl Daemon {
         let input_patch = show.as_ref().map(|s| s.input_patch().clone()).unwrap_or_default();
         let mut input_kind = "none";
         let (universes_tx, universes_rx) = watch::channel(Universes::default());
-        let mut dmx_stats = None;
+        let mut dmx_status = footlight_dmx::StatusHandle::new();
         let mut local = None;
         let mut network = None;
         let mut replay = None;
@@ -377,15 +371,24 @@ impl Daemon {
                     footlight_dmx::DmxInput::bind(InputConfig { artnet, sacn, usbpro, patch: input_patch.clone() })
                         .await?;
                 local = Some(input.local_addrs());
-                dmx_stats = Some(input.stats());
+                dmx_status = input.status();
                 input_kind = "network";
                 network = Some(input);
             }
             DmxSource::Replay { recording, speed } => {
                 input_kind = "replay";
-                replay = Some((recording, ReplayOptions { speed, start: Duration::ZERO, patch: input_patch.clone() }));
+                let options = ReplayOptions {
+                    speed,
+                    start: Duration::ZERO,
+                    patch: input_patch.clone(),
+                    status: dmx_status.clone(),
+                };
+                replay = Some((recording, options));
             }
-            DmxSource::Channel(rx) => external = Some(rx),
+            DmxSource::Channel(rx) => {
+                input_kind = "channel";
+                external = Some(rx);
+            }
         }
         let inputs = match (&network, external) {
             (Some(input), _) => input.frames(),
@@ -399,17 +402,17 @@ impl Daemon {
         };
         let (frames_tx, frames_rx) = watch::channel(first);
         let clock_status = Arc::new(Mutex::new(ClockStatus { compositor, ..ClockStatus::default() }));
-        let replay_packets = Arc::new(std::sync::atomic::AtomicU64::new(0));
 
         let status_fn: Arc<dyn Fn() -> DaemonStatus + Send + Sync> = {
             let (frames, inputs, tracer, decoder) =
                 (frames_rx.clone(), inputs.clone(), tracer.clone(), decoder.clone());
-            let (clock_status, replay_packets) = (clock_status.clone(), replay_packets.clone());
+            let clock_status = clock_status.clone();
+            let map = input_patch.map.clone();
             let labels = decoder.labels();
             let cache_budget = config.tracer.cache_bytes;
             Arc::new(move || {
                 let frame = frames.borrow().clone();
-                let universes = inputs.borrow().clone();
+                let universes = inputs.borrow();
                 let slots = LiveSlots(&universes);
                 let lights = labels
                     .iter()
@@ -421,27 +424,15 @@ impl Daemon {
                         build: tracer.report(i),
                     })
                     .collect();
-                let mut input = InputSummary {
+                let dmx = dmx_status.snapshot();
+                let counters = [dmx.counters.artnet, dmx.counters.sacn, dmx.counters.usbpro];
+                let warnings = warnings(&dmx, &map);
+                let input = InputSummary {
                     kind: input_kind,
-                    universes: universes
-                        .iter()
-                        .map(|f| UniverseSummary { universe: f.universe, stale: f.stale })
-                        .collect(),
-                    ..InputSummary::default()
+                    packets: counters.iter().map(|c| c.received).sum(),
+                    malformed: counters.iter().map(|c| c.malformed).sum(),
+                    dmx,
                 };
-                if let Some(stats) = &dmx_stats {
-                    let s = stats.snapshot();
-                    input.packets = s.artnet.received + s.sacn.received + s.usbpro.received;
-                    input.malformed = s.artnet.malformed + s.sacn.malformed + s.usbpro.malformed;
-                } else {
-                    input.packets = replay_packets.load(std::sync::atomic::Ordering::Relaxed);
-                }
-                let warnings = input
-                    .universes
-                    .iter()
-                    .filter(|u| u.stale)
-                    .map(|u| format!("universe {}: every source stopped sending; holding the last levels", u.universe))
-                    .collect();
                 let (entries, bytes) = tracer.cache_usage();
                 DaemonStatus {
                     version: env!("CARGO_PKG_VERSION"),
@@ -477,15 +468,11 @@ impl Daemon {
         }
         if let Some((recording, options)) = replay {
             let replay_stop = stop.clone();
-            let counted = replay_packets.clone();
             tasks.spawn(async move {
                 let result = footlight_dmx::replay(
                     &recording,
                     &options,
-                    |frame| {
-                        counted.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        universes_tx.send_modify(|u| u.update(frame));
-                    },
+                    |frame| universes_tx.send_modify(|u| u.update(frame)),
                     replay_stop.fired(),
                 )
                 .await;
@@ -547,6 +534,26 @@ impl Daemon {
             None => Ok(()),
         }
     }
+}
+
+/// What the page should warn about: stale universes and DMX that reaches
+/// no patch universe.
+fn warnings(dmx: &footlight_dmx::InputStatus, map: &footlight_dmx::UniverseMap) -> Vec<String> {
+    use footlight_dmx::{FeedState, InputUniverse, Protocol};
+    let stale = dmx
+        .universes
+        .iter()
+        .filter(|u| u.state == FeedState::Stale)
+        .map(|u| format!("patch universe {}: every source stopped sending; holding the last levels", u.universe));
+    let unpatched = dmx.unpatched.iter().filter(|u| !u.blocked).map(|u| {
+        let input = match u.input.protocol {
+            Protocol::ArtNet => InputUniverse::ArtNet(u.input.universe),
+            Protocol::Sacn => InputUniverse::Sacn(u.input.universe),
+            Protocol::UsbPro => InputUniverse::UsbPro(u8::try_from(u.input.universe).unwrap_or(u8::MAX)),
+        };
+        footlight_dmx::status::unpatched_message(map, input, u.packets)
+    });
+    stale.chain(unpatched).collect()
 }
 
 fn task_error(task: &'static str, e: tokio::task::JoinError) -> DaemonError {

@@ -77,7 +77,7 @@ impl LightBuffer {
     /// Packs tiles given by tile index (row-major over the tile grid), each
     /// TILE×TILE row-major; all-zero tiles and indices outside the grid are
     /// dropped. What a footprint-culled stage produces (no dense buffer).
-    pub fn from_tiles(width: u32, height: u32, tiles: Vec<(usize, Vec<Vec3>)>) -> Self {
+    pub fn from_tile_list(width: u32, height: u32, tiles: Vec<(usize, Vec<Vec3>)>) -> Self {
         let mut buf = Self::empty(width, height);
         for (t, pixels) in tiles {
             if t >= buf.slot.len() || pixels.len() != TILE_PIXELS || pixels.iter().all(|p| *p == Vec3::ZERO) {

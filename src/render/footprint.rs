@@ -160,5 +160,5 @@ pub fn primary_direct(
     let stats =
         FootprintStats { tiles: bounds.len(), tiles_in_beam: tiles.len(), vertices: evaluated.load(Ordering::Relaxed) };
     debug_assert_eq!(bounds.tiles_y * bounds.tiles_x, bounds.len());
-    (LightBuffer::from_tiles(view.width(), view.height(), shaded), stats)
+    (LightBuffer::from_tile_list(view.width(), view.height(), shaded), stats)
 }

@@ -61,7 +61,7 @@ fn pure(
         for p in &mut packets {
             p[seq_at] = (round % 255 + 1) as u8;
             handle(p, &mut |e| {
-                if let (EventKind::Levels { priority, timeout, levels }, Some(u)) =
+                if let (EventKind::Levels { priority, timeout, levels, .. }, Some(u)) =
                     (&e.kind, map.patch_universe(e.input))
                 {
                     let _ = merge.apply(u, e.source, *priority, *timeout, levels, base);

@@ -40,6 +40,15 @@ pub enum Error {
         /// What is wrong with it, with the byte offset.
         source: CaptureError,
     },
+    /// A recording holds no DMX data for the patch (wrong routes, or no
+    /// ArtDmx / E1.31 data at all).
+    #[error("{}: {holds}", path.display())]
+    NoPatchedDmx {
+        /// The recording.
+        path: PathBuf,
+        /// Which input universes it does hold, or that it holds no DMX.
+        holds: String,
+    },
     /// A configuration value is out of range (e.g. a replay speed of 0).
     #[error("invalid DMX input configuration: {0}")]
     Config(String),

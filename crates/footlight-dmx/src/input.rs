@@ -41,13 +41,14 @@ use tokio::time::Instant;
 
 use crate::artnet::{ArtNetConfig, ArtNetNode, ArtNetReceiverConfig};
 use crate::error::Error;
-use crate::map::UniverseMap;
+use crate::map::{UniverseFilter, UniverseMap};
 use crate::merge::{Merge, MergeConfig, SlotMask, UniverseFrame};
 use crate::net::{self, LogLimiter, NodeContext};
 use crate::record::{Captures, Tap};
 use crate::sacn::{SacnConfig, SacnNode, SacnReceiverConfig};
-use crate::source::{EventKind, InputUniverse, Protocol, SourceEvent};
+use crate::source::{EventKind, Protocol, SourceEvent};
 use crate::stats::StatsHandle;
+use crate::status::{self, StatusHandle};
 use crate::usbpro::{UsbProConfig, UsbProNode};
 
 /// Events queued between the nodes and the merge stage.
@@ -58,9 +59,11 @@ const EVENT_QUEUE: usize = 1024;
 pub struct InputPatch {
     /// Input universe → patch universe.
     pub map: UniverseMap,
-    /// Patch universes in use: the sACN groups joined, the Art-Net ports
-    /// announced, and the only universes accepted. Empty: accept every mapped
-    /// universe, join no group, announce Port-Address 0.
+    /// Patch universes in use. The input universes routed to them decide the
+    /// sACN groups joined and the Art-Net Port-Addresses announced; data for
+    /// any other patch universe is dropped as not patched (counted, shown in
+    /// the status, logged). Empty: accept every mapped universe, join no
+    /// group, announce Port-Address 0.
     pub universes: Vec<u16>,
     /// Slots that merge LTP, per patch universe (the rest merge HTP).
     pub ltp: BTreeMap<u16, SlotMask>,
@@ -131,38 +134,56 @@ impl Universes {
     }
 }
 
-/// Events → patch universes → merge, with counting. Shared by the live input
-/// and replay so both merge the same way.
+/// Events → patch universes → merge, with counting and the status board.
+/// Shared by the live input and replay so both merge (and report) the same way.
 pub(crate) struct MergeStage {
     map: UniverseMap,
+    /// The patch universes taken (all when the patch lists none).
+    patched: UniverseFilter,
     pub(crate) merge: Merge,
     stats: StatsHandle,
+    status: StatusHandle,
     refused_log: LogLimiter,
+    /// Universes whose sources timed out in one `expire` (reused, no allocation).
+    expired: Vec<u16>,
 }
 
 impl MergeStage {
-    pub(crate) fn new(patch: &InputPatch, stats: StatsHandle) -> Self {
+    /// A stage for `patch` reporting into `status` (reset for this patch).
+    pub(crate) fn new(patch: &InputPatch, status: StatusHandle) -> Self {
+        status.configure(patch);
         let mut merge = Merge::new(patch.merge);
         for (&u, mask) in &patch.ltp {
             merge.set_ltp(u, mask.clone());
         }
-        MergeStage { map: patch.map.clone(), merge, stats, refused_log: LogLimiter::new() }
+        MergeStage {
+            map: patch.map.clone(),
+            patched: status::patched_filter(patch),
+            merge,
+            stats: status.stats(),
+            status,
+            refused_log: LogLimiter::new(),
+            expired: Vec::new(),
+        }
     }
 
     /// Applies one event; returns the frame it changed.
     pub(crate) fn apply(&mut self, event: &SourceEvent) -> Option<&UniverseFrame> {
         let (source, at) = (event.source, event.at);
-        let Some(universe) = self.map.patch_universe(event.input) else {
+        let patched = self.map.patch_universe(event.input).filter(|&u| self.patched.accepts(u));
+        let Some(universe) = patched else {
             if matches!(event.kind, EventKind::Levels { .. }) {
-                self.stats.lock().merge_dropped(source);
+                self.stats.lock().not_patched(source);
+                self.status.not_patched(event.input, at);
             }
             return None;
         };
         match &event.kind {
-            EventKind::Levels { priority, timeout, levels } => {
+            EventKind::Levels { priority, timeout, levels, name } => {
                 match self.merge.apply(universe, source, *priority, *timeout, levels, at) {
                     Ok(frame) => {
                         self.stats.lock().applied(source);
+                        self.status.lock().levels(universe, (source, event.input), *priority, name, at);
                         Some(frame)
                     }
                     Err(e) => {
@@ -176,10 +197,29 @@ impl MergeStage {
             }
             EventKind::Alive => {
                 self.merge.keep_alive(universe, source, at);
+                self.status.lock().alive(universe, source, at);
                 None
             }
-            EventKind::Gone => self.merge.remove(universe, source, at),
+            EventKind::Gone => {
+                let frame = self.merge.remove(universe, source, at)?;
+                self.status.lock().left(universe, frame.stale, self.merge.source_ids(universe));
+                self.merge.frame(universe)
+            }
         }
+    }
+
+    /// Drops sources whose timeout has passed; calls `changed` with each frame that changed.
+    pub(crate) fn expire(&mut self, now: Instant, mut changed: impl FnMut(&UniverseFrame)) {
+        let mut expired = std::mem::take(&mut self.expired);
+        expired.clear();
+        self.merge.expire(now, |f| expired.push(f.universe));
+        for &u in &expired {
+            if let Some(frame) = self.merge.frame(u) {
+                changed(frame);
+                self.status.lock().left(u, frame.stale, self.merge.source_ids(u));
+            }
+        }
+        self.expired = expired;
     }
 }
 
@@ -199,7 +239,7 @@ pub struct DmxInput {
     usbpro: Option<UsbProNode>,
     stage: MergeStage,
     frames: watch::Sender<Universes>,
-    stats: StatsHandle,
+    status: StatusHandle,
     tap: Option<Tap>,
     local: LocalAddrs,
 }
@@ -213,20 +253,11 @@ impl DmxInput {
         if let Some(0) = patch.universes.iter().copied().min() {
             return Err(Error::Config("patch universes count from 1".into()));
         }
-        let stats = StatsHandle::new();
+        let status = StatusHandle::new();
         let mut local = LocalAddrs::default();
-        let inputs = |protocol| -> Vec<u16> {
-            let mut v: Vec<u16> = (patch.universes.iter())
-                .flat_map(|&u| patch.map.inputs_for(protocol, u))
-                .filter_map(|i| match i {
-                    InputUniverse::ArtNet(n) | InputUniverse::Sacn(n) => Some(n),
-                    InputUniverse::UsbPro(_) => None,
-                })
-                .collect();
-            v.sort_unstable();
-            v.dedup();
-            v
-        };
+        // The Port-Addresses to announce and the sACN groups to join: the
+        // input universes routed to patched universes.
+        let inputs = |protocol| patch.map.input_universes(protocol, &patch.universes);
         let artnet = match &config.artnet {
             None => None,
             Some(c) => {
@@ -252,9 +283,9 @@ impl DmxInput {
             artnet,
             sacn,
             usbpro,
-            stage: MergeStage::new(patch, stats.clone()),
+            stage: MergeStage::new(patch, status.clone()),
             frames: watch::Sender::new(Universes::default()),
-            stats,
+            status,
             tap: None,
             local,
         })
@@ -273,7 +304,25 @@ impl DmxInput {
 
     /// The packet counters.
     pub fn stats(&self) -> StatsHandle {
-        self.stats.clone()
+        self.status.stats()
+    }
+
+    /// The typed status (per patch universe, unpatched data, counters); the
+    /// handle keeps working after [`Self::run`] consumed the input.
+    pub fn status(&self) -> StatusHandle {
+        self.status.clone()
+    }
+
+    /// The Port-Addresses each ArtPollReply announces (reply `i` has
+    /// BindIndex `i + 1`); empty when Art-Net is off.
+    pub fn announced_ports(&self) -> Vec<Vec<u16>> {
+        self.artnet.as_ref().map(|n| n.announced().to_vec()).unwrap_or_default()
+    }
+
+    /// The sACN universes whose multicast groups were joined; empty when sACN
+    /// or multicast is off.
+    pub fn joined_groups(&self) -> Vec<u16> {
+        self.sacn.as_ref().map(SacnNode::joined).unwrap_or_default()
     }
 
     /// Where the sockets are bound.
@@ -291,7 +340,7 @@ impl DmxInput {
 
     /// Runs until `shutdown` resolves, then stops every node and returns.
     pub async fn run(self, shutdown: impl Future<Output = ()>) -> Result<(), Error> {
-        let DmxInput { artnet, sacn, usbpro, mut stage, frames, stats, tap, .. } = self;
+        let DmxInput { artnet, sacn, usbpro, mut stage, frames, status, tap, .. } = self;
         let (events, mut rx) = mpsc::channel(EVENT_QUEUE);
         let (stop, stopped) = watch::channel(false);
         let stop_signal = move || {
@@ -300,7 +349,7 @@ impl DmxInput {
                 let _ = stopped.wait_for(|s| *s).await;
             }
         };
-        let ctx = NodeContext { events, stats, tap };
+        let ctx = NodeContext { events, stats: status.stats(), status, tap };
         let mut nodes = JoinSet::new();
         if let Some(node) = artnet {
             nodes.spawn(node.run(ctx.clone(), stop_signal()));
@@ -321,7 +370,7 @@ impl DmxInput {
                 () = &mut shutdown => break,
                 // Timeouts before events, so a flood cannot starve them.
                 () = sleep_until(deadline) => {
-                    stage.merge.expire(Instant::now(), |f| frames.send_modify(|u| u.update(f)));
+                    stage.expire(Instant::now(), |f| frames.send_modify(|u| u.update(f)));
                 }
                 event = rx.recv() => match event {
                     Some(event) => {

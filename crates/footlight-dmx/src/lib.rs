@@ -26,6 +26,8 @@
 //! - [`map`]: which input universe feeds which patch universe (Art-Net N-1 and sACN N → patch N).
 //! - [`merge`]: per patch universe and slot: priority, HTP/LTP, timeouts, stale hold.
 //! - [`stats`]: received/applied/malformed/dropped/ignored counters per protocol and source.
+//! - [`status`]: the typed status ([`InputStatus`]): per patch universe its routes, sources,
+//!   packets, age and staleness; data on unpatched universes (logged, rate-limited).
 //! - [`input`]: [`DmxInput`] runs the nodes as tokio tasks and publishes merged frames.
 //! - [`record`](mod@record): pcapng writer, pcap/pcapng reader, [`record()`], [`replay`], [`state_at`].
 //! - `net` (private): sockets bound with SO_REUSEADDR/SO_REUSEPORT, and the loop both UDP nodes share.
@@ -45,6 +47,7 @@ pub mod record;
 pub mod sacn;
 pub mod source;
 pub mod stats;
+pub mod status;
 pub mod usbpro;
 
 pub use error::Error;
@@ -53,5 +56,6 @@ pub use map::{UniverseFilter, UniverseMap};
 pub use merge::{Merge, MergeConfig, SlotMask, UniverseFrame};
 pub use net::NodeContext;
 pub use record::{Recording, ReplayOptions, ReplaySummary, record, record_input, replay, state_at};
-pub use source::{Disposition, InputUniverse, Levels, Protocol, SLOTS, SourceEvent, SourceId};
+pub use source::{Disposition, InputUniverse, Levels, Protocol, SLOTS, SourceEvent, SourceId, SourceName};
 pub use stats::{Counters, Stats, StatsHandle};
+pub use status::{FeedState, InputRef, InputStatus, SourceStatus, StatusHandle, UniverseStatus, UnpatchedStatus};

@@ -345,6 +345,12 @@ impl Merge {
         self.universes.iter().map(|u| &u.frame)
     }
 
+    /// The ids of the sources feeding `universe` (no allocation).
+    pub fn source_ids(&self, universe: u16) -> impl Iterator<Item = SourceId> + Clone + '_ {
+        let sources = self.find(universe).ok().map_or(&[][..], |i| &self.universes[i].sources[..]);
+        sources.iter().map(|s| s.id)
+    }
+
     /// The sources feeding `universe` with their priorities.
     pub fn sources(&self, universe: u16) -> Vec<(SourceId, u8)> {
         let Ok(i) = self.find(universe) else { return Vec::new() };

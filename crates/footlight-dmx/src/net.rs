@@ -17,8 +17,9 @@ use tokio::time::Instant;
 
 use crate::error::Error;
 use crate::record::Tap;
-use crate::source::{Disposition, Protocol, SourceEvent, SourceId};
+use crate::source::{Disposition, InputUniverse, Protocol, SourceEvent, SourceId};
 use crate::stats::StatsHandle;
+use crate::status::StatusHandle;
 
 /// How often node timers run (ArtSync fallback, sync loss, poll replies).
 pub(crate) const TICK: Duration = Duration::from_millis(50);
@@ -63,6 +64,8 @@ pub struct NodeContext {
     pub events: tokio::sync::mpsc::Sender<SourceEvent>,
     /// Packet counters.
     pub stats: StatsHandle,
+    /// The typed status (unpatched universes are reported here).
+    pub status: StatusHandle,
     /// Raw packets for a recording, if one runs.
     pub tap: Option<Tap>,
 }
@@ -71,6 +74,8 @@ pub struct NodeContext {
 pub(crate) struct Tally<E> {
     pub source: Option<SourceId>,
     pub disposition: Disposition<E>,
+    /// The input universe of a data packet no patch universe takes.
+    pub unpatched: Option<InputUniverse>,
 }
 
 /// A protocol the shared UDP loop can drive.
@@ -173,6 +178,9 @@ pub(crate) async fn run_datagram_node<P: DatagramProtocol>(
                         tracing::warn!(%from, suppressed, "malformed {name} packet: {e}");
                     }
                     ctx.stats.lock().packet(name, tally.source, Some(from.ip()), &tally.disposition);
+                    if let Some(input) = tally.unpatched {
+                        ctx.status.not_patched(input, now);
+                    }
                 }
                 Err(e) if transient(&e) => tracing::debug!(%e, "{name} socket"),
                 Err(e) => {

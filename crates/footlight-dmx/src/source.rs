@@ -15,8 +15,10 @@ use tokio::time::Instant;
 /// Slots in a DMX512 universe (the START code is not counted).
 pub const SLOTS: usize = 512;
 
-/// The input protocols.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+/// The input protocols. Serialised as `"artnet"`, `"sacn"`, `"usbpro"` (the
+/// patch file's `[[input]] protocol` values).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Protocol {
     /// Art-Net 4 over UDP 6454.
     ArtNet,
@@ -95,7 +97,27 @@ pub enum InputUniverse {
     UsbPro(u8),
 }
 
+impl fmt::Display for InputUniverse {
+    /// As a user reads it: `Art-Net Port-Address 1`, `sACN universe 101`, `USB Pro widget 0`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            InputUniverse::ArtNet(n) => write!(f, "Art-Net Port-Address {n}"),
+            InputUniverse::Sacn(n) => write!(f, "sACN universe {n}"),
+            InputUniverse::UsbPro(w) => write!(f, "USB Pro widget {w}"),
+        }
+    }
+}
+
 impl InputUniverse {
+    /// The universe number as the protocol counts it (Port-Address, sACN
+    /// universe, widget index).
+    pub fn number(&self) -> u16 {
+        match self {
+            InputUniverse::ArtNet(n) | InputUniverse::Sacn(n) => *n,
+            InputUniverse::UsbPro(w) => u16::from(*w),
+        }
+    }
+
     /// The protocol of this universe.
     pub fn protocol(&self) -> Protocol {
         match self {
@@ -177,6 +199,52 @@ impl fmt::Debug for Levels {
     }
 }
 
+/// A source's name as it sent it (the 64-byte E1.31 Source Name; empty for
+/// Art-Net and USB Pro). Fixed size so events never allocate.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub struct SourceName {
+    len: u8,
+    bytes: [u8; 64],
+}
+
+impl Default for SourceName {
+    fn default() -> Self {
+        SourceName { len: 0, bytes: [0; 64] }
+    }
+}
+
+impl SourceName {
+    /// The name in a NUL-terminated field (cut at the first NUL, at most 64 bytes).
+    pub fn new(field: &[u8]) -> Self {
+        let field = &field[..field.len().min(64)];
+        let len = field.iter().position(|&b| b == 0).unwrap_or(field.len());
+        let mut name = SourceName { len: len as u8, bytes: [0; 64] };
+        name.bytes[..len].copy_from_slice(&field[..len]);
+        name
+    }
+
+    /// The raw bytes.
+    pub fn as_bytes(&self) -> &[u8] {
+        &self.bytes[..usize::from(self.len)]
+    }
+
+    /// True when the source sent no name.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The name as text (invalid UTF-8 replaced).
+    pub fn to_text(&self) -> String {
+        String::from_utf8_lossy(self.as_bytes()).into_owned()
+    }
+}
+
+impl fmt::Debug for SourceName {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Debug::fmt(&self.to_text(), f)
+    }
+}
+
 /// One thing a node tells the merge.
 #[derive(Clone, Debug)]
 pub struct SourceEvent {
@@ -205,6 +273,8 @@ pub enum EventKind {
         timeout: Option<Duration>,
         /// The slot values.
         levels: Levels,
+        /// The source's name (sACN), for the status.
+        name: SourceName,
     },
     /// The source is alive but its data is held (waiting for a sync).
     Alive,

@@ -21,7 +21,7 @@ use crate::source::{Disposition, Protocol, SourceId};
 pub const MAX_TRACKED: usize = 256;
 
 /// One set of packet counters.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Counters {
     /// Datagrams or serial frames read.
     pub received: u64,
@@ -33,7 +33,7 @@ pub struct Counters {
     /// widget overrun, merge limits).
     pub dropped: u64,
     /// Valid packets we do not use (other OpCodes, preview, other START
-    /// codes, unpatched universes).
+    /// codes, unpatched or blocked universes).
     pub ignored: u64,
 }
 
@@ -118,9 +118,15 @@ impl Stats {
         self.bump(source.protocol(), Some(source), |c| c.applied += 1);
     }
 
-    /// Counts levels the merge refused (limits) or no patch universe wanted.
+    /// Counts levels the merge refused (limits).
     pub fn merge_dropped(&mut self, source: SourceId) {
         self.bump(source.protocol(), Some(source), |c| c.dropped += 1);
+    }
+
+    /// Counts levels that reached the merge stage but no patch universe takes
+    /// (as ignored, like a receiver's unpatched universes).
+    pub fn not_patched(&mut self, source: SourceId) {
+        self.bump(source.protocol(), Some(source), |c| c.ignored += 1);
     }
 }
 

@@ -164,3 +164,222 @@ fn sample_capture() -> Vec<u8> {
     w.write_udp(Duration::from_secs(3), a, b, &encode(5, &[0, 0, 1]), None).unwrap();
     w.into_inner()
 }
+
+// ---- pcap / pcapng reader: a seed corpus in tests/corpus/capture/ ----
+
+/// The seed captures: every format, byte order and link type the reader
+/// knows, one or a few DMX datagrams each, built by hand from the pcap and
+/// pcapng layouts (draft-ietf-opsawg-pcap, -pcapng) and kept in the repo.
+fn seeds() -> Vec<(&'static str, Vec<u8>)> {
+    let art = build_dmx(1, 0, 3, &[1, 2, 3, 4]);
+    let sacn = build_data(&DataSpec {
+        cid: [7; 16],
+        source_name: "seed",
+        priority: 100,
+        sync_address: 0,
+        sequence: 1,
+        options: 0,
+        universe: 9,
+        start_code: 0,
+        slots: &[5, 6],
+    });
+    let ip = |payload: &[u8], dport: u16| -> Vec<u8> {
+        let total = (20 + 8 + payload.len()) as u16;
+        let mut p = vec![0x45, 0];
+        p.extend(total.to_be_bytes());
+        p.extend([0, 1, 0x40, 0, 64, 17, 0, 0, 192, 0, 2, 1, 192, 0, 2, 2]); // id, DF, TTL, UDP, src, dst
+        p.extend(6454u16.to_be_bytes());
+        p.extend(dport.to_be_bytes());
+        p.extend((8 + payload.len() as u16).to_be_bytes());
+        p.extend([0, 0]);
+        p.extend(payload);
+        p
+    };
+    let ether_vlan = |ip: Vec<u8>| [&[0xFF; 6][..], &[2, 0, 0, 0, 0, 1], &[0x81, 0], &[0, 5], &[8, 0], &ip].concat();
+    let sll = |ip: Vec<u8>| [&[0, 0, 0, 1, 0, 6][..], &[2, 0, 0, 0, 0, 1, 0, 0], &[8, 0], &ip].concat();
+    let sll2 = |ip: Vec<u8>| [&[8, 0, 0, 0][..], &[0, 0, 0, 2], &[0, 1, 0, 6], &[2, 0, 0, 0, 0, 1, 0, 0], &ip].concat();
+    let null_le = |ip: Vec<u8>| [&[2, 0, 0, 0][..], &ip].concat();
+
+    // Classic pcap: magic, version 2.4, zone, sigfigs, snaplen, link type; then records.
+    let pcap = |big: bool, nanos: bool, link: u32, frames: &[Vec<u8>]| -> Vec<u8> {
+        let u32b = |v: u32| if big { v.to_be_bytes() } else { v.to_le_bytes() };
+        let u16b = |v: u16| if big { v.to_be_bytes() } else { v.to_le_bytes() };
+        let mut f = u32b(if nanos { 0xA1B2_3C4D } else { 0xA1B2_C3D4 }).to_vec();
+        f.extend(u16b(2));
+        f.extend(u16b(4));
+        f.extend([0; 8]);
+        f.extend(u32b(65535));
+        f.extend(u32b(link));
+        for (i, data) in frames.iter().enumerate() {
+            f.extend(u32b(1_700_000_000 + i as u32));
+            f.extend(u32b(if nanos { 500_000_000 } else { 500_000 }));
+            f.extend(u32b(data.len() as u32));
+            f.extend(u32b(data.len() as u32));
+            f.extend(data);
+        }
+        f
+    };
+    // pcapng blocks in either byte order.
+    let block = |big: bool, kind: u32, body: &[u8]| -> Vec<u8> {
+        let u32b = |v: u32| if big { v.to_be_bytes() } else { v.to_le_bytes() };
+        let mut body = body.to_vec();
+        body.resize(body.len().div_ceil(4) * 4, 0);
+        let total = (12 + body.len()) as u32;
+        [&u32b(kind)[..], &u32b(total), &body, &u32b(total)].concat()
+    };
+    let pcapng = |big: bool, link: u16, frames: &[Vec<u8>]| -> Vec<u8> {
+        let u32b = |v: u32| if big { v.to_be_bytes() } else { v.to_le_bytes() };
+        let u16b = |v: u16| if big { v.to_be_bytes() } else { v.to_le_bytes() };
+        let shb = [&u32b(0x1A2B_3C4D)[..], &u16b(1), &u16b(0), &[0xFF; 8]].concat();
+        let mut f = block(big, 0x0A0D_0D0A, &shb);
+        // IDB with if_tsresol = 2^-20 (option 9), then opt_endofopt.
+        let idb = [&u16b(link)[..], &[0, 0], &u32b(0), &u16b(9), &u16b(1), &[0x94, 0, 0, 0], &[0; 4]].concat();
+        f.extend(block(big, 1, &idb));
+        f.extend(block(big, 0x0000_0BAD, b"custom block, skipped")); // an unknown block type
+        for (i, data) in frames.iter().enumerate() {
+            let ticks = (1_700_000_000u64 + i as u64) << 20;
+            let stamp = [&u32b((ticks >> 32) as u32)[..], &u32b(ticks as u32)].concat();
+            let len = u32b(data.len() as u32);
+            let mut padded = data.clone();
+            padded.resize(data.len().div_ceil(4) * 4, 0);
+            match i % 3 {
+                0 => {
+                    let comment = [&u16b(1)[..], &u16b(4), b"seed", &[0; 4]].concat();
+                    let epb = [&u32b(0)[..], &stamp, &len, &len, &padded, &comment].concat();
+                    f.extend(block(big, 6, &epb));
+                }
+                1 => f.extend(block(big, 3, &[&len[..], data].concat())), // simple packet block
+                _ => {
+                    let pb = [&u16b(0)[..], &u16b(0), &stamp, &len, &len, &padded].concat();
+                    f.extend(block(big, 2, &pb)); // obsolete packet block
+                }
+            }
+        }
+        f
+    };
+    vec![
+        ("ours.pcapng", sample_capture()),
+        ("ethernet-vlan-us-le.pcap", pcap(false, false, 1, &[ether_vlan(ip(&art, 6454)), ether_vlan(ip(&sacn, 5568))])),
+        ("linux-sll-ns-be.pcap", pcap(true, true, 113, &[sll(ip(&sacn, 5568))])),
+        ("raw-ip-us-be.pcap", pcap(true, false, 101, &[ip(&art, 6454)])),
+        ("sll2-be.pcapng", pcapng(true, 276, &[sll2(ip(&art, 6454)), sll2(ip(&sacn, 5568)), sll2(ip(&art, 6454))])),
+        (
+            "null-le.pcapng",
+            [pcapng(false, 0, &[null_le(ip(&sacn, 5568))]), pcapng(false, 101, &[ip(&art, 1)])].concat(),
+        ),
+    ]
+}
+
+fn corpus_dir() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus/capture")
+}
+
+/// The committed seed files (FOOTLIGHT_BLESS=1 rewrites them from [`seeds`]).
+fn corpus() -> Vec<(String, Vec<u8>)> {
+    let bless = std::env::var_os("FOOTLIGHT_BLESS").is_some();
+    seeds()
+        .into_iter()
+        .map(|(name, bytes)| {
+            let path = corpus_dir().join(name);
+            if bless {
+                std::fs::create_dir_all(corpus_dir()).unwrap();
+                std::fs::write(&path, &bytes).unwrap();
+            }
+            let committed = std::fs::read(&path)
+                .unwrap_or_else(|e| panic!("{}: {e} (FOOTLIGHT_BLESS=1 writes it)", path.display()));
+            assert!(committed == bytes, "{name} differs from its generator (FOOTLIGHT_BLESS=1 rewrites it)");
+            (name.to_string(), committed)
+        })
+        .collect()
+}
+
+/// Reads a capture to its end (at most 256 frames): the DMX payloads found,
+/// or the error. Panics if an error's offset lies past the input.
+fn read_all(bytes: &[u8]) -> Result<Vec<Vec<u8>>, footlight_dmx::record::CaptureError> {
+    let check = |e: footlight_dmx::record::CaptureError| {
+        assert!(e.offset() <= bytes.len() as u64, "offset {} past {} bytes: {e}", e.offset(), bytes.len());
+        assert!(e.to_string().contains("byte"), "the message names the byte: {e}");
+        e
+    };
+    let mut r = CaptureReader::new(bytes).map_err(check)?;
+    let mut out = Vec::new();
+    for _ in 0..256 {
+        match r.next_frame().map_err(check)? {
+            Some(f) => out.extend(udp_datagram(&f).map(|d| d.payload.to_vec())),
+            None => break,
+        }
+    }
+    Ok(out)
+}
+
+#[test]
+fn capture_seeds_decode_to_their_datagrams() {
+    for (name, bytes) in corpus() {
+        let payloads = read_all(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let expected = match name.as_str() {
+            "ours.pcapng" | "sll2-be.pcapng" => 3,
+            "ethernet-vlan-us-le.pcap" | "null-le.pcapng" => 2,
+            _ => 1,
+        };
+        assert_eq!(payloads.len(), expected, "{name}");
+        // tshark, an independent reader, finds the same UDP payloads.
+        if crate::common::have("tshark") {
+            let path = corpus_dir().join(&name);
+            let out = std::process::Command::new("tshark")
+                .arg("-r")
+                .arg(&path)
+                .args(["-T", "fields", "-e", "udp.length"])
+                .output()
+                .expect("tshark runs");
+            let lengths: Vec<usize> = String::from_utf8_lossy(&out.stdout)
+                .lines()
+                .filter_map(|l| l.trim().parse::<usize>().ok())
+                .map(|udp| udp - 8)
+                .collect();
+            assert_eq!(lengths, payloads.iter().map(Vec::len).collect::<Vec<_>>(), "{name}: tshark agrees");
+        }
+        for p in &payloads {
+            let dmx = artnet::packet::parse(p).is_ok() || sacn::packet::parse(p).is_ok();
+            assert!(dmx || name == "ours.pcapng", "{name}: a DMX payload");
+        }
+    }
+}
+
+/// A seed with edits: bytes overwritten, a range cut out, a range repeated, the end cut.
+fn mutated_seed() -> impl Strategy<Value = Vec<u8>> {
+    let seeds: Vec<Vec<u8>> = seeds().into_iter().map(|(_, b)| b).collect();
+    (
+        prop::sample::select(seeds),
+        prop::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 0..8),
+        any::<(prop::sample::Index, prop::sample::Index)>(),
+        0u8..4,
+        any::<prop::sample::Index>(),
+    )
+        .prop_map(|(mut p, edits, (a, b), op, cut)| {
+            for (at, v) in edits {
+                let i = at.index(p.len());
+                p[i] = v;
+            }
+            let (a, b) = (a.index(p.len()), b.index(p.len()));
+            let (lo, hi) = (a.min(b), a.max(b));
+            match op {
+                0 => drop(p.drain(lo..hi)),
+                1 => {
+                    let chunk = p[lo..hi].to_vec();
+                    p.splice(hi..hi, chunk);
+                }
+                2 => p.truncate(cut.index(p.len() + 1)),
+                _ => {}
+            }
+            p
+        })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 1024, ..ProptestConfig::default() })]
+
+    #[test]
+    fn capture_reader_mutated_seeds_never_panic_and_errors_carry_offsets(p in mutated_seed()) {
+        let _ = read_all(&p);
+    }
+}

@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use footlight_dmx::sacn::packet::{DataSpec, build_data};
 use footlight_dmx::sacn::{SacnConfig, multicast_group};
-use footlight_dmx::{InputConfig, InputPatch};
+use footlight_dmx::{InputConfig, InputPatch, InputUniverse};
 
 use crate::common::Running;
 
@@ -90,5 +90,38 @@ async fn multicast_child() {
     tokio::time::sleep(Duration::from_millis(200)).await;
     assert!(input.frames.borrow().get(30).is_none(), "universe 30's group was not joined");
     assert_eq!(input.stats.snapshot().sacn.received, 2);
+    input.stop().await;
+
+    // Routes decide the groups: sACN 101 → patch 2 (patch 1 is routed from
+    // Art-Net), so the node joins 239.255.0.101 on the chosen interface, not
+    // the groups of patch universes 1 and 2.
+    let mut patch = InputPatch { universes: vec![1, 2], ..InputPatch::default() };
+    patch.map.route(InputUniverse::ArtNet(1), 1).route(InputUniverse::Sacn(101), 2);
+    let config = InputConfig {
+        artnet: None,
+        sacn: Some(SacnConfig { bind, multicast: true, interface: Ipv4Addr::LOCALHOST }),
+        usbpro: None,
+        patch,
+    };
+    let input = footlight_dmx::DmxInput::bind(config).await.unwrap();
+    assert_eq!(input.joined_groups(), vec![101]);
+    let mut input = Running::start_input(input).await;
+    for u in [2u16, 101] {
+        let p = build_data(&DataSpec {
+            cid: [4; 16],
+            source_name: "netns routes",
+            priority: 100,
+            sync_address: 0,
+            sequence: 1,
+            options: 0,
+            universe: u,
+            start_code: 0,
+            slots: &[u as u8],
+        });
+        tx.send_to(&p, (multicast_group(u), 5568)).unwrap();
+    }
+    input.wait_slots(2, &[101]).await;
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    assert_eq!(input.stats.snapshot().sacn.received, 1, "universe 2's group was not joined");
     input.stop().await;
 }

@@ -6,7 +6,7 @@ use std::process::Command;
 
 use footlight_dmx::sacn::SacnConfig;
 use footlight_dmx::sacn::packet::{DataSpec, build_data};
-use footlight_dmx::{InputConfig, InputPatch, SourceId};
+use footlight_dmx::{InputConfig, InputPatch, InputUniverse, Protocol, SourceId};
 
 use crate::common::{Running, loopback_config, python_module, sender};
 
@@ -111,5 +111,51 @@ s.stop()
     assert_eq!(s.sacn.malformed, 0, "{s:?}");
     let python_source = s.sources.keys().find(|k| matches!(k, SourceId::Sacn { cid } if *cid != [0xAB; 16]));
     assert!(python_source.is_some(), "the Python CID is counted as a source");
+    input.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn python_senders_follow_the_patch_routes() {
+    if !python_module("stupidArtnet") || !python_module("sacn") {
+        return;
+    }
+    // Art-Net Port-Address 1 → patch universe 1, sACN 101 → patch universe 2
+    // (OLA's and many desks' numbering), patch universes 1 and 2.
+    let sacn_at: SocketAddr = "127.0.0.78:5568".parse().unwrap();
+    let mut config = loopback_config(vec![1, 2]);
+    config.sacn = Some(SacnConfig { bind: sacn_at, multicast: false, ..SacnConfig::default() });
+    config.patch.map.route(InputUniverse::ArtNet(1), 1).route(InputUniverse::Sacn(101), 2);
+    let mut input = Running::start(config).await;
+    let port = input.artnet().port();
+    let script = format!(
+        r#"
+import sacn, time
+from stupidArtnet import StupidArtnet
+a = StupidArtnet(target_ip='127.0.0.1', universe=1, packet_size=4, fps=30, port={port})
+a.set(bytearray([1, 2, 3, 4]))
+a.show()
+z = StupidArtnet(target_ip='127.0.0.1', universe=0, packet_size=4, fps=30, port={port})
+z.set(bytearray([99, 99, 99, 99]))
+z.show()
+a.close(); z.close()
+s = sacn.sACNsender(bind_address='127.0.0.1', bind_port=0, universeDiscovery=False, source_name='python routes')
+s.start()
+s.activate_output(101)
+s[101].destination = '127.0.0.78'
+s[101].dmx_data = (5, 6, 7)
+time.sleep(0.5)
+s.stop()
+"#
+    );
+    tokio::task::block_in_place(|| python(&script));
+    input.wait_slots(1, &[1, 2, 3, 4]).await;
+    input.wait_slots(2, &[5, 6, 7, 0]).await;
+    let status = input.status.snapshot();
+    let u2 = &status.universes[1];
+    assert_eq!(u2.sources[0].name.as_deref(), Some("python routes"));
+    assert_eq!((u2.sources[0].input.protocol, u2.sources[0].input.universe), (Protocol::Sacn, 101));
+    let pa0 = status.unpatched.iter().find(|u| u.input.protocol == Protocol::ArtNet).expect("Art-Net 0 unpatched");
+    assert_eq!((pa0.input.universe, pa0.packets, pa0.default_patch_universe), (0, 1, Some(1)));
+    assert_eq!(input.frames.borrow().get(1).unwrap().slots[0], 1, "Port-Address 0 does not reach patch universe 1");
     input.stop().await;
 }

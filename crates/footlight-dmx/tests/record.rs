@@ -11,7 +11,8 @@ use footlight_dmx::sacn::packet::{DataSpec, OPTION_TERMINATED, build_data};
 use footlight_dmx::usbpro::packet::encode;
 use footlight_dmx::usbpro::{Opener, UsbProConfig, UsbProNode};
 use footlight_dmx::{
-    DmxInput, InputPatch, Recording, ReplayOptions, UniverseFrame, Universes, record_input, replay, state_at,
+    DmxInput, InputPatch, InputUniverse, Recording, ReplayOptions, StatusHandle, UniverseFrame, Universes,
+    record_input, replay, state_at,
 };
 use serialport::{SerialPort, TTYPort};
 use tokio::sync::oneshot;
@@ -288,4 +289,155 @@ async fn tcpdump_captures_replay_ethernet_and_linux_cooked() {
         }
     }
     input.stop().await;
+}
+
+/// An OLA-like capture: ArtPoll, ArtPollReply and ArtTodRequest during the
+/// first second (encoded by artnet_protocol or from the spec table), then
+/// ArtDmx Port-Address 1 at 1.0 s (10) and 2.0 s (20), sACN universe 101 at
+/// 1.2 s (50), ArtDmx Port-Address 0 at 1.5 s (99).
+fn ola_like_capture(path: &Path, with_dmx: bool) {
+    use artnet_protocol::{ArtCommand, Poll};
+    let file = std::fs::File::create(path).unwrap();
+    let mut w = PcapngWriter::new(std::io::BufWriter::new(file)).unwrap();
+    let (ola, bcast) = ("192.0.2.1:6454".parse().unwrap(), "192.0.2.255:6454".parse().unwrap());
+    let t0 = Duration::from_secs(1_700_000_000);
+    let ms = |n: u64| t0 + Duration::from_millis(n);
+    let poll = ArtCommand::Poll(Poll::default()).write_to_buffer().unwrap();
+    let reply = ArtCommand::PollReply(Box::default()).write_to_buffer().unwrap();
+    // ArtTodRequest (OpCode 0x8000): ID, OpCode LE, ProtVer 14, filler, Net, Command, AddCount, Address.
+    let mut tod = b"Art-Net\0\x00\x80\x00\x0e".to_vec();
+    tod.extend([0; 9]);
+    tod.extend([0, 0, 1, 0]);
+    w.write_udp(ms(0), ola, bcast, &poll, None).unwrap();
+    w.write_udp(ms(10), ola, bcast, &reply, None).unwrap();
+    w.write_udp(ms(500), ola, bcast, &tod, None).unwrap();
+    if with_dmx {
+        w.write_udp(ms(1000), ola, bcast, &build_dmx(0, 0, 1, &[10, 11]), None).unwrap();
+        let (from, to) = ("192.0.2.1:49152".parse().unwrap(), "239.255.0.101:5568".parse().unwrap());
+        w.write_udp(ms(1200), from, to, &sacn(1, 100, 1, 101, 0, &[50]), None).unwrap();
+        w.write_udp(ms(1500), ola, bcast, &build_dmx(0, 0, 0, &[99]), None).unwrap();
+        w.write_udp(ms(2000), ola, bcast, &build_dmx(0, 0, 1, &[20, 21]), None).unwrap();
+    }
+    w.flush().unwrap();
+}
+
+/// Art-Net Port-Address 1 → patch 1, sACN 101 → patch 2; patch universes 1 and 2.
+fn routed_patch() -> InputPatch {
+    let mut patch = InputPatch { universes: vec![1, 2], ..InputPatch::default() };
+    patch.map.route(InputUniverse::ArtNet(1), 1).route(InputUniverse::Sacn(101), 2);
+    patch
+}
+
+fn slots_of(frames: &[UniverseFrame], u: u16) -> Option<Vec<u8>> {
+    frames.iter().find(|f| f.universe == u).map(|f| f.slots[..2].to_vec())
+}
+
+#[test]
+fn state_at_0_is_the_first_patched_dmx_not_the_first_artpoll() {
+    let path = temp("ola-like.pcapng");
+    ola_like_capture(&path, true);
+    let rec = Recording::open(&path).unwrap();
+    assert_eq!(rec.dmx_packets(), 4, "ArtPoll, ArtPollReply and ArtTodRequest are not DMX data");
+    assert_eq!(rec.duration(), Duration::from_secs(1));
+    let routed = routed_patch();
+    assert_eq!(rec.start_for(&routed).unwrap(), Duration::from_secs(1_700_000_001));
+    let at = |t: u64, patch: &InputPatch| state_at(&rec, Duration::from_millis(t), patch).unwrap();
+    let s = at(0, &routed);
+    assert_eq!((slots_of(&s, 1), slots_of(&s, 2)), (Some(vec![10, 11]), None), "the first DMX levels at 0");
+    let s = at(200, &routed);
+    assert_eq!(slots_of(&s, 2), Some(vec![50, 0]), "sACN 101 drives patch universe 2");
+    let s = at(1000, &routed);
+    assert_eq!((slots_of(&s, 1), s.len()), (Some(vec![20, 21]), 2), "Port-Address 0 reaches nothing");
+    // Without routes Port-Address 1 is patch universe 2, and 0 is 1.
+    let s = at(600, &InputPatch::default());
+    assert_eq!((slots_of(&s, 1), slots_of(&s, 2)), (Some(vec![99, 0]), Some(vec![10, 11])));
+    // Patch universe 1 alone with the default map: time 0 is Port-Address 0's first packet (1.5 s).
+    let only1 = InputPatch { universes: vec![1], ..InputPatch::default() };
+    assert_eq!(slots_of(&at(0, &only1), 1), Some(vec![99, 0]));
+    let _ = std::fs::remove_file(&path);
+}
+
+#[test]
+fn a_recording_without_patched_dmx_is_an_error_that_names_what_it_holds() {
+    let path = temp("unpatched.pcapng");
+    ola_like_capture(&path, true);
+    let rec = Recording::open(&path).unwrap();
+    let far = InputPatch { universes: vec![7], ..InputPatch::default() };
+    let err = state_at(&rec, Duration::ZERO, &far).unwrap_err().to_string();
+    assert!(err.starts_with(&format!("{}: none of its DMX reaches patch universes 7", path.display())), "{err}");
+    assert!(err.contains("Art-Net Port-Address 0 (1 packet, patch universe 1 by default)"), "{err}");
+    assert!(err.contains("Art-Net Port-Address 1 (2 packets, patch universe 2 by default)"), "{err}");
+    assert!(err.contains("sACN universe 101 (1 packet, patch universe 101 by default)"), "{err}");
+    let empty = temp("no-dmx.pcapng");
+    ola_like_capture(&empty, false);
+    let rec = Recording::open(&empty).unwrap();
+    let err = state_at(&rec, Duration::ZERO, &InputPatch::default()).unwrap_err().to_string();
+    assert!(err.ends_with("it holds no DMX data at all (no ArtDmx, no E1.31 data with START code 0)"), "{err}");
+    let _ = (std::fs::remove_file(&path), std::fs::remove_file(&empty));
+}
+
+#[tokio::test]
+async fn replay_applies_routes_and_reports_status_like_live_input() {
+    let path = temp("ola-like-replay.pcapng");
+    ola_like_capture(&path, true);
+    let recording = Recording::open(&path).unwrap();
+    let status = StatusHandle::new();
+    let options = ReplayOptions {
+        speed: f64::INFINITY,
+        patch: routed_patch(),
+        status: status.clone(),
+        ..ReplayOptions::default()
+    };
+    let mut seen = Vec::new();
+    let summary = replay(&recording, &options, |f| seen.push(look(f)), std::future::pending()).await.unwrap();
+    assert_eq!(summary.packets, 7, "every Art-Net and sACN datagram is fed");
+    let last = |u: u16| seen.iter().rev().find(|l| l.0 == u).map(|l| l.1[..2].to_vec());
+    assert_eq!((last(1), last(2)), (Some(vec![20, 21]), Some(vec![50, 0])));
+    let s = status.snapshot();
+    let fed: Vec<(u16, u64)> = s.universes.iter().map(|u| (u.universe, u.packets)).collect();
+    assert_eq!(fed, vec![(1, 2), (2, 1)]);
+    assert_eq!(s.universes[1].sources[0].input.universe, 101);
+    assert_eq!(s.unpatched.len(), 1);
+    assert_eq!((s.unpatched[0].input.universe, s.unpatched[0].packets), (0, 1));
+    assert_eq!((s.counters.artnet.received, s.counters.sacn.received), (6, 1));
+    assert_eq!(
+        s.counters,
+        footlight_dmx::status::ProtocolCounters {
+            artnet: summary.stats.artnet,
+            sacn: summary.stats.sacn,
+            usbpro: summary.stats.usbpro,
+        }
+    );
+    let _ = std::fs::remove_file(&path);
+}
+
+#[tokio::test]
+async fn recording_follows_routes_live_and_the_file_replays_with_them() {
+    let path = temp("routed.pcapng");
+    let mut config = loopback_config(vec![1, 2]);
+    config.patch = routed_patch();
+    let input = DmxInput::bind(config).await.unwrap();
+    let (mut frames, addrs) = (input.frames(), input.local_addrs());
+    let (stop, stopped) = oneshot::channel::<()>();
+    let out = path.clone();
+    let recorder = tokio::spawn(async move { record_input(&out, input, async { stopped.await.unwrap() }).await });
+    let tx = sender();
+    tx.send_to(&build_dmx(0, 0, 1, &[1, 2]), addrs.artnet.unwrap()).unwrap();
+    tx.send_to(&sacn(1, 100, 1, 101, 0, &[3, 4]), addrs.sacn.unwrap()).unwrap();
+    tx.send_to(&build_dmx(0, 0, 0, &[9, 9]), addrs.artnet.unwrap()).unwrap();
+    let both = |u: &Universes| {
+        u.get(1).is_some_and(|f| f.slots[..2] == [1, 2]) && u.get(2).is_some_and(|f| f.slots[..2] == [3, 4])
+    };
+    tokio::time::timeout(Duration::from_secs(5), frames.wait_for(both)).await.unwrap().unwrap();
+    // Let the last datagram be counted before stopping (bounded).
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    stop.send(()).unwrap();
+    assert_eq!(recorder.await.unwrap().unwrap().packets, 3, "every datagram is recorded, routed or not");
+    let (seen, _) = replay_all(&path, routed_patch()).await;
+    let universes: std::collections::BTreeSet<u16> = seen.iter().map(|l| l.0).collect();
+    assert_eq!(universes.into_iter().collect::<Vec<_>>(), vec![1, 2]);
+    let (seen, _) = replay_all(&path, InputPatch::default()).await;
+    let universes: std::collections::BTreeSet<u16> = seen.iter().map(|l| l.0).collect();
+    assert_eq!(universes.into_iter().collect::<Vec<_>>(), vec![1, 2, 101], "without routes: the defaults");
+    let _ = std::fs::remove_file(&path);
 }

@@ -175,3 +175,45 @@ async fn socat_pair_opened_by_path_recovers_from_unplugging() {
     input.stop().await;
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_routed_widget_feeds_its_patch_universe_and_an_unrouted_one_is_unpatched() {
+    // Widget 0 → patch universe 3; patch universes 3 only.
+    let mut patch = InputPatch { universes: vec![3], ..InputPatch::default() };
+    patch.map.route(footlight_dmx::InputUniverse::UsbPro(0), 3);
+    let start = async |widget: u8, patch: InputPatch| {
+        let (master, slave) = TTYPort::pair().unwrap();
+        let mut slave = Some(slave);
+        let opener: Opener = Box::new(move || {
+            slave.take().map(|p| Box::new(p) as Box<dyn SerialPort>).ok_or_else(|| io::Error::other("gone"))
+        });
+        let node = UsbProNode::with_opener(UsbProConfig { widget, ..config("pty") }, opener);
+        let only_usb = InputConfig { artnet: None, sacn: None, usbpro: None, patch };
+        (master, Running::start_input(DmxInput::bind(only_usb).await.unwrap().with_usbpro(node)).await)
+    };
+    let (mut master, mut input) = start(0, patch.clone()).await;
+    tokio::task::block_in_place(|| read_n(&mut master, 6));
+    master.write_all(&encode(5, &[0, 0, 7, 8])).unwrap();
+    input.wait_slots(3, &[7, 8]).await;
+    assert!(input.frames.borrow().get(1).is_none());
+    let status = input.status.snapshot();
+    assert_eq!(status.universes[0].sources[0].widget, Some(0));
+    input.stop().await;
+
+    // Widget 1 has no route and its default (patch 2) is not patched: counted, shown, dropped.
+    let (mut master, input) = start(1, patch).await;
+    tokio::task::block_in_place(|| read_n(&mut master, 6));
+    master.write_all(&encode(5, &[0, 0, 9])).unwrap();
+    for _ in 0..500 {
+        if input.stats.snapshot().usbpro.ignored == 1 {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    let status = input.status.snapshot();
+    assert_eq!(status.counters.usbpro.ignored, 1);
+    let u = &status.unpatched[0];
+    assert_eq!((u.input.universe, u.packets, u.default_patch_universe), (1, 1, Some(2)));
+    assert!(input.frames.borrow().is_empty());
+    input.stop().await;
+}

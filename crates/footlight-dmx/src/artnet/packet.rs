@@ -252,7 +252,19 @@ pub fn build_poll(flags: u8, target: Option<PortRange>) -> Vec<u8> {
     p
 }
 
-/// What one ArtPollReply says about the node and one of its ports.
+/// Most ports one ArtPollReply describes (the four-entry port arrays).
+pub const PORTS_PER_REPLY: usize = 4;
+
+/// One output port in an ArtPollReply.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReplyPort {
+    /// Its 15-bit Port-Address.
+    pub port_address: u16,
+    /// GoodOutputA bits (0x80 data is arriving, 0x08 merging, 0x02 LTP).
+    pub good_output: u8,
+}
+
+/// What one ArtPollReply says about the node and up to four of its ports.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct PollReplyInfo<'a> {
     /// The IP the poller reaches us at.
@@ -263,19 +275,43 @@ pub struct PollReplyInfo<'a> {
     pub short_name: &'a str,
     /// Long name (63 characters kept).
     pub long_name: &'a str,
-    /// Node report text after `#0001 [count] ` (RcPowerOk).
+    /// Node report text after `#0001 [count] ` (RcPowerOk); 50 characters kept.
     pub report: &'a str,
     /// Counts replies sent, shown in the node report.
     pub report_count: u32,
-    /// The Port-Address this reply describes.
-    pub port_address: u16,
-    /// 1..n: which of the node's ports this reply is (Art-Net 4: one port per reply).
+    /// The ports (at most [`PORTS_PER_REPLY`] are used). They must share Net
+    /// and Sub-Net (bits 14-4): the reply carries those once (NetSwitch,
+    /// SubSwitch) and only the low nibble per port (SwOut). [`reply_groups`]
+    /// groups a node's ports that way.
+    pub ports: &'a [ReplyPort],
+    /// 1..n: which of the node's replies this is (Art-Net 4 BindIndex).
     pub bind_index: u8,
-    /// GoodOutputA bits for the port (0x80 data, 0x08 merging, 0x02 LTP).
-    pub good_output: u8,
 }
 
-/// Builds a 239-byte ArtPollReply with one output port (Art-Net → DMX).
+/// Splits a node's Port-Addresses into ArtPollReplies: sorted, without
+/// duplicates, grouped by Net + Sub-Net (bits 14-4, which one reply carries
+/// once), at most [`PORTS_PER_REPLY`] per reply. Reply `i` gets BindIndex `i + 1`.
+///
+/// ```
+/// use footlight_dmx::artnet::packet::reply_groups;
+/// // Port-Addresses 0-4 share Net 0 / Sub-Net 0 but one reply holds 4; 16 is Sub-Net 1.
+/// assert_eq!(reply_groups(&[16, 4, 3, 2, 1, 0, 1]), vec![vec![0, 1, 2, 3], vec![4], vec![16]]);
+/// ```
+pub fn reply_groups(port_addresses: &[u16]) -> Vec<Vec<u16>> {
+    let mut ports: Vec<u16> = port_addresses.iter().map(|p| p & 0x7FFF).collect();
+    ports.sort_unstable();
+    ports.dedup();
+    let mut groups: Vec<Vec<u16>> = Vec::new();
+    for p in ports {
+        match groups.last_mut() {
+            Some(g) if g.len() < PORTS_PER_REPLY && g[0] >> 4 == p >> 4 => g.push(p),
+            _ => groups.push(vec![p]),
+        }
+    }
+    groups
+}
+
+/// Builds a 239-byte ArtPollReply for up to four output ports (Art-Net → DMX).
 ///
 /// Offsets (Art-Net 4; KSY `artpollreply`), sizes in parentheses:
 ///
@@ -291,33 +327,57 @@ pub struct PollReplyInfo<'a> {
 /// ```
 pub fn build_poll_reply(info: &PollReplyInfo<'_>) -> [u8; POLL_REPLY_LEN] {
     let mut p = [0u8; POLL_REPLY_LEN];
+    let ports = &info.ports[..info.ports.len().min(PORTS_PER_REPLY)];
+    let top = ports.first().map_or(0, |p| p.port_address);
     p[..8].copy_from_slice(ID);
     p[8..10].copy_from_slice(&opcode::POLL_REPLY.to_le_bytes());
     p[10..14].copy_from_slice(&info.ip.octets());
     p[14..16].copy_from_slice(&PORT.to_le_bytes());
     p[16..18].copy_from_slice(&1u16.to_be_bytes()); // VersInfo: our firmware revision 1
-    p[18] = ((info.port_address >> 8) & 0x7F) as u8; // NetSwitch
-    p[19] = ((info.port_address >> 4) & 0x0F) as u8; // SubSwitch
+    p[18] = ((top >> 8) & 0x7F) as u8; // NetSwitch
+    p[19] = ((top >> 4) & 0x0F) as u8; // SubSwitch
     p[20..22].copy_from_slice(&0x00FFu16.to_be_bytes()); // Oem: 0x00FF = unknown/unregistered
     p[23] = 0xD0; // Status1: indicators normal, Port-Address set locally (config), no RDM
     copy_str(&mut p[26..44], info.short_name);
     copy_str(&mut p[44..108], info.long_name);
-    let report = format!("#0001 [{:04}] {}", info.report_count % 10_000, info.report);
-    copy_str(&mut p[108..172], &report);
-    p[172..174].copy_from_slice(&1u16.to_be_bytes()); // NumPorts
-    p[174] = 0x80; // PortTypes[0]: outputs Art-Net data, DMX512
-    p[182] = info.good_output; // GoodOutputA[0]
-    p[190] = (info.port_address & 0x0F) as u8; // SwOut[0]
+    // "#xxxx [yyyy] text": a short stack buffer, so building a reply does not allocate.
+    let mut report = [0u8; 64];
+    let head = format_report_head(info.report_count, &mut report);
+    let text = info.report.as_bytes();
+    let n = text.len().min(report.len() - 1 - head);
+    report[head..head + n].copy_from_slice(&text[..n]);
+    p[108..172].copy_from_slice(&report);
+    p[171] = 0;
+    p[172..174].copy_from_slice(&(ports.len() as u16).to_be_bytes()); // NumPorts
+    for (i, port) in ports.iter().enumerate() {
+        p[174 + i] = 0x80; // PortTypes: outputs Art-Net data, DMX512
+        p[182 + i] = port.good_output; // GoodOutputA
+        p[190 + i] = (port.port_address & 0x0F) as u8; // SwOut
+        p[213 + i] = 0x80; // GoodOutputB: RDM disabled (not supported)
+    }
     p[194] = 100; // AcnPriority
     p[200] = 0x06; // Style: StVisual
     p[201..207].copy_from_slice(&info.mac);
     p[207..211].copy_from_slice(&info.ip.octets()); // BindIp: we are our own root device
     p[211] = info.bind_index;
     p[212] = 0x08; // Status2: 15-bit Port-Addresses
-    p[213] = 0x80; // GoodOutputB[0]: RDM disabled (not supported)
     p[217] = 0x00; // Status3: failsafe = hold last state
     p[226..228].copy_from_slice(&44u16.to_be_bytes()); // RefreshRate: DMX512 rate
     p
+}
+
+/// Writes `#0001 [nnnn] ` (RcPowerOk and the reply counter mod 10000) and
+/// returns its length (13).
+fn format_report_head(count: u32, out: &mut [u8; 64]) -> usize {
+    let head = b"#0001 [";
+    out[..7].copy_from_slice(head);
+    let n = count % 10_000;
+    for (i, d) in [n / 1000, n / 100 % 10, n / 10 % 10, n % 10].into_iter().enumerate() {
+        out[7 + i] = b'0' + d as u8;
+    }
+    out[11] = b']';
+    out[12] = b' ';
+    13
 }
 
 /// Copies a string into a fixed, NUL-terminated field (truncating).
@@ -391,20 +451,40 @@ mod tests {
             short_name: "Footlight",
             long_name: "Footlight stage visualiser with a name longer than sixty-three characters in all",
             report: "ok",
-            report_count: 3,
-            port_address: 0x0123,
+            report_count: 10_003,
+            ports: &[
+                ReplyPort { port_address: 0x0123, good_output: 0x80 },
+                ReplyPort { port_address: 0x0125, good_output: 0x88 },
+            ],
             bind_index: 2,
-            good_output: 0x80,
         };
         let p = build_poll_reply(&info);
         assert_eq!(&p[8..10], &[0x00, 0x21]);
         assert_eq!(&p[10..14], &[192, 0, 2, 7]);
         assert_eq!(&p[14..16], &[0x36, 0x19]);
-        assert_eq!((p[18], p[19], p[190]), (0x01, 0x02, 0x03));
+        assert_eq!((p[18], p[19], p[190], p[191], p[192]), (0x01, 0x02, 0x03, 0x05, 0));
         assert_eq!(&p[26..36], b"Footlight\0");
         assert_eq!(p[44 + 63], 0); // long name NUL-terminated
         assert!(p[108..172].starts_with(b"#0001 [0003] ok\0"));
-        assert_eq!((p[174], p[182], p[200], p[211], p[212]), (0x80, 0x80, 6, 2, 0x08));
+        assert_eq!(u16::from_be_bytes([p[172], p[173]]), 2, "NumPorts");
+        assert_eq!(&p[174..178], &[0x80, 0x80, 0, 0], "PortTypes");
+        assert_eq!(&p[182..186], &[0x80, 0x88, 0, 0], "GoodOutputA");
+        assert_eq!((p[200], p[211], p[212]), (6, 2, 0x08));
         assert_eq!(&p[201..207], &[1, 2, 3, 4, 5, 6]);
+        // A long report is cut, and the field stays NUL-terminated.
+        let long = "x".repeat(80);
+        let p = build_poll_reply(&PollReplyInfo { report: &long, ..info });
+        assert_eq!((p[170], p[171]), (b'x', 0));
+    }
+
+    #[test]
+    fn reply_groups_share_net_and_subnet_and_hold_four() {
+        assert_eq!(reply_groups(&[]), Vec::<Vec<u16>>::new());
+        let ports: Vec<u16> = (0..10).chain([0x10, 0x7FFF, 0x0100]).collect();
+        let g = reply_groups(&ports);
+        assert_eq!(g, vec![vec![0, 1, 2, 3], vec![4, 5, 6, 7], vec![8, 9], vec![0x10], vec![0x100], vec![0x7FFF]]);
+        for group in &g {
+            assert!(group.len() <= PORTS_PER_REPLY && group.iter().all(|p| p >> 4 == group[0] >> 4));
+        }
     }
 }

@@ -22,7 +22,7 @@ use tokio::time::Instant;
 use super::packet::{self, ArtDmx, ArtNetError, ArtPacket, ArtPoll};
 use crate::map::UniverseFilter;
 use crate::source::{Disposition, sequence_is_stale};
-use crate::source::{DropReason, EventKind, IgnoreReason, InputUniverse, Levels, SourceEvent, SourceId};
+use crate::source::{DropReason, EventKind, IgnoreReason, InputUniverse, Levels, SourceEvent, SourceId, SourceName};
 
 /// Art-Net sources merge as if they had sACN priority 100.
 pub const PRIORITY: u8 = 100;
@@ -64,11 +64,13 @@ pub struct ArtNetHandled {
     pub source: Option<SourceId>,
     /// An ArtPoll the node should answer.
     pub poll: Option<ArtPoll>,
+    /// The Port-Address of an ArtDmx (also when it is not patched).
+    pub input: Option<InputUniverse>,
 }
 
 impl ArtNetHandled {
     fn of(disposition: Disposition<ArtNetError>) -> Self {
-        ArtNetHandled { disposition, source: None, poll: None }
+        ArtNetHandled { disposition, source: None, poll: None, input: None }
     }
 }
 
@@ -79,6 +81,9 @@ pub struct PortStatus {
     pub data: bool,
     /// Two sources are merging.
     pub merging: bool,
+    /// Data arrived once, but every source has timed out: the merge holds the
+    /// last values.
+    pub stale: bool,
 }
 
 struct Sender {
@@ -147,8 +152,9 @@ impl ArtNetReceiver {
 
     fn dmx(&mut self, dmx: &ArtDmx<'_>, ip: IpAddr, now: Instant, out: &mut impl FnMut(SourceEvent)) -> ArtNetHandled {
         let source = SourceId::ArtNet { ip, physical: dmx.physical };
-        let handled = |d| ArtNetHandled { source: Some(source), ..ArtNetHandled::of(d) };
         let port = dmx.port_address;
+        let input = Some(InputUniverse::ArtNet(port));
+        let handled = |d| ArtNetHandled { source: Some(source), input, ..ArtNetHandled::of(d) };
         if !self.config.filter.accepts(port) {
             return handled(Disposition::Ignored(IgnoreReason::NotPatched));
         }
@@ -195,7 +201,8 @@ impl ArtNetReceiver {
     }
 
     fn levels_event(&self, port: u16, source: SourceId, levels: Levels, now: Instant) -> SourceEvent {
-        let kind = EventKind::Levels { priority: PRIORITY, timeout: Some(self.config.source_timeout), levels };
+        let timeout = Some(self.config.source_timeout);
+        let kind = EventKind::Levels { priority: PRIORITY, timeout, levels, name: SourceName::default() };
         SourceEvent { at: now, input: InputUniverse::ArtNet(port), source, kind }
     }
 
@@ -248,7 +255,7 @@ impl ArtNetReceiver {
         let Some(state) = self.ports.get(&port) else { return PortStatus::default() };
         let live = state.senders.iter().filter(|s| now.saturating_duration_since(s.seen) < self.config.source_timeout);
         let n = live.count();
-        PortStatus { data: n > 0, merging: n > 1 }
+        PortStatus { data: n > 0, merging: n > 1, stale: n == 0 }
     }
 }
 

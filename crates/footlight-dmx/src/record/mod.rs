@@ -11,14 +11,16 @@
 //! Linux cooked, loopback or raw-IP link types; IPv4 UDP), recognises Art-Net
 //! and sACN by their headers (any port), and feeds them through
 //! [`ArtNetReceiver`]/[`SacnReceiver`] and [`Merge`](crate::Merge) with the
-//! recorded clock: `now` = replay start + (packet time - first DMX packet
-//! time). USB Pro frames (by their comment) re-enter as the widget's source.
+//! recorded clock: `now` = replay start + (packet time - time 0), where time 0
+//! is the first DMX data packet of a patched universe after routing
+//! ([`Recording::start_for`]; OLA's leading ArtPoll/ArtPollReply do not count). USB Pro frames (by their comment) re-enter as the widget's source.
 //! [`replay`] paces packets in real time (or `speed` times faster);
 //! [`state_at`] computes the merged universes at a time without waiting.
 
 mod pcapng;
 mod reader;
 
+use std::collections::BTreeMap;
 use std::fs::File;
 use std::future::Future;
 use std::io::{BufReader, BufWriter};
@@ -37,12 +39,19 @@ pub use reader::{CaptureError, CaptureReader, Datagram, Frame, link, udp_datagra
 use crate::artnet::{self, ArtNetReceiver, ArtNetReceiverConfig};
 use crate::error::Error;
 use crate::input::{DmxInput, InputConfig, InputPatch, MergeStage};
+use crate::map::UniverseMap;
 use crate::merge::UniverseFrame;
 use crate::net::TICK;
 use crate::sacn::{self, SacnReceiver, SacnReceiverConfig};
-use crate::source::{Disposition, EventKind, IgnoreReason, InputUniverse, Levels, Protocol, SourceEvent, SourceId};
+use crate::source::{
+    Disposition, EventKind, IgnoreReason, InputUniverse, Levels, Protocol, SourceEvent, SourceId, SourceName,
+};
 use crate::stats::{Stats, StatsHandle};
+use crate::status::{self, StatusHandle};
 use crate::usbpro::receiver::{self as usb, ReceiveMode};
+
+/// Latest time `state_at` looks at (a century; keeps `Instant` arithmetic in range).
+const MAX_STATE_AT: Duration = Duration::from_secs(100 * 365 * 24 * 3600);
 
 /// Comment prefix that marks a synthetic ArtDmx as a USB Pro frame; the
 /// widget index follows, then ` changes-only` for label 9 mode.
@@ -206,9 +215,17 @@ fn write_captures(
 pub struct Recording {
     path: PathBuf,
     dmx_packets: usize,
+    /// First and last DMX data packet (any universe).
     first: Option<Duration>,
     last: Option<Duration>,
+    /// Per input universe: its first DMX data packet and how many it holds.
+    inputs: BTreeMap<InputUniverse, (Duration, u64)>,
+    /// More input universes than [`MAX_SCANNED_INPUTS`] held data.
+    inputs_overflow: bool,
 }
+
+/// Input universes [`Recording::open`] notes one by one.
+const MAX_SCANNED_INPUTS: usize = 4096;
 
 /// What a UDP payload is.
 fn classify(payload: &[u8]) -> Option<Protocol> {
@@ -221,18 +238,66 @@ fn classify(payload: &[u8]) -> Option<Protocol> {
     }
 }
 
+/// The widget of a USB Pro frame recorded as ArtDmx (by its packet comment),
+/// and whether it was in changes-only mode.
+fn usb_widget(comment: Option<&str>) -> Option<(u8, bool)> {
+    let rest = comment?.strip_prefix(USB_COMMENT)?;
+    let (widget, changes_only) = match rest.strip_suffix(USB_CHANGES_ONLY) {
+        Some(w) => (w, true),
+        None => (rest, false),
+    };
+    widget.parse::<u8>().ok().map(|w| (w, changes_only))
+}
+
+/// The input universe of a DMX *data* packet: an ArtDmx, or E1.31 data with
+/// START code 0 (not preview, not a termination). Control packets (ArtPoll,
+/// ArtPollReply, ArtTodRequest, ArtSync, E1.31 sync and discovery, …) are not data.
+pub fn dmx_data_input(payload: &[u8], comment: Option<&str>) -> Option<InputUniverse> {
+    match classify(payload)? {
+        Protocol::ArtNet => match artnet::packet::parse(payload) {
+            Ok(artnet::ArtPacket::Dmx(d)) => Some(match usb_widget(comment) {
+                Some((widget, _)) => InputUniverse::UsbPro(widget),
+                None => InputUniverse::ArtNet(d.port_address),
+            }),
+            _ => None,
+        },
+        Protocol::Sacn => match sacn::packet::parse(payload) {
+            Ok(sacn::SacnPacket::Data(d)) if d.start_code == 0 && !d.preview() && !d.terminated() => {
+                Some(InputUniverse::Sacn(d.universe))
+            }
+            _ => None,
+        },
+        Protocol::UsbPro => None,
+    }
+}
+
 impl Recording {
     /// Opens a pcap or pcapng file and scans it once (streaming) for its DMX
-    /// packets and time span.
+    /// data packets, their input universes and time span.
     pub fn open(path: impl AsRef<Path>) -> Result<Recording, Error> {
         let path = path.as_ref().to_path_buf();
-        let mut recording = Recording { path, dmx_packets: 0, first: None, last: None };
+        let mut recording = Recording {
+            path,
+            dmx_packets: 0,
+            first: None,
+            last: None,
+            inputs: BTreeMap::new(),
+            inputs_overflow: false,
+        };
         let mut reader = recording.reader()?;
         while let Some(frame) = reader.next_frame().map_err(|e| recording.capture_error(e))? {
-            if udp_datagram(&frame).and_then(|d| classify(d.payload)).is_some() {
-                recording.dmx_packets += 1;
-                recording.first.get_or_insert(frame.timestamp);
-                recording.last = Some(frame.timestamp);
+            let Some(d) = udp_datagram(&frame) else { continue };
+            let Some(input) = dmx_data_input(d.payload, frame.comment) else { continue };
+            recording.dmx_packets += 1;
+            recording.first.get_or_insert(frame.timestamp);
+            recording.last = Some(frame.timestamp);
+            let full = recording.inputs.len() >= MAX_SCANNED_INPUTS;
+            match recording.inputs.get_mut(&input) {
+                Some((_, n)) => *n += 1,
+                None if full => recording.inputs_overflow = true,
+                None => {
+                    recording.inputs.insert(input, (frame.timestamp, 1));
+                }
             }
         }
         Ok(recording)
@@ -252,12 +317,18 @@ impl Recording {
         &self.path
     }
 
-    /// Art-Net and sACN packets in the file.
+    /// DMX data packets in the file (ArtDmx, E1.31 data with START code 0).
     pub fn dmx_packets(&self) -> usize {
         self.dmx_packets
     }
 
-    /// From the first to the last DMX packet.
+    /// The input universes holding DMX data, with their packet counts (the
+    /// first 4096 universes).
+    pub fn inputs(&self) -> impl Iterator<Item = (InputUniverse, u64)> + '_ {
+        self.inputs.iter().map(|(i, (_, n))| (*i, *n))
+    }
+
+    /// From the first to the last DMX data packet.
     pub fn duration(&self) -> Duration {
         match (self.first, self.last) {
             (Some(a), Some(b)) => b.saturating_sub(a),
@@ -265,9 +336,62 @@ impl Recording {
         }
     }
 
-    /// Wall-clock time of the first DMX packet.
+    /// Wall-clock time of the first DMX data packet.
     pub fn started_at(&self) -> Option<SystemTime> {
         self.first.map(|d| UNIX_EPOCH + d)
+    }
+
+    /// Time 0 of a replay with `patch`: the capture time of the first DMX data
+    /// packet of a patched universe (after routing). Fails, naming the input
+    /// universes the file holds, when none of its data reaches the patch.
+    pub fn start_for(&self, patch: &InputPatch) -> Result<Duration, Error> {
+        let patched = status::patched_filter(patch);
+        let takes = |input: InputUniverse| patch.map.patch_universe(input).is_some_and(|u| patched.accepts(u));
+        let found = self.inputs.iter().filter(|(i, _)| takes(**i)).map(|(_, (first, _))| *first).min();
+        if let Some(first) = found {
+            return Ok(first);
+        }
+        if self.inputs_overflow {
+            // Universes past the scan's list: look through the file.
+            let mut reader = self.reader()?;
+            while let Some(frame) = reader.next_frame().map_err(|e| self.capture_error(e))? {
+                let input = udp_datagram(&frame).and_then(|d| dmx_data_input(d.payload, frame.comment));
+                if input.is_some_and(takes) {
+                    return Ok(frame.timestamp);
+                }
+            }
+        }
+        Err(Error::NoPatchedDmx { path: self.path.clone(), holds: self.holds(patch) })
+    }
+
+    /// "holds …" text for [`Error::NoPatchedDmx`].
+    fn holds(&self, patch: &InputPatch) -> String {
+        if self.inputs.is_empty() {
+            return "it holds no DMX data at all (no ArtDmx, no E1.31 data with START code 0)".into();
+        }
+        let mut list: Vec<String> = self
+            .inputs
+            .iter()
+            .take(8)
+            .map(|(i, (_, n))| {
+                let default = UniverseMap::default_route(*i).map(|p| format!(", patch universe {p} by default"));
+                let plural = if *n == 1 { "" } else { "s" };
+                format!("{i} ({n} packet{plural}{})", default.unwrap_or_default())
+            })
+            .collect();
+        if self.inputs.len() > 8 || self.inputs_overflow {
+            list.push(format!("and {} more", self.inputs.len().saturating_sub(8).max(1)));
+        }
+        let patched = if patch.universes.is_empty() {
+            "any patch universe".to_string()
+        } else {
+            let u: Vec<String> = patch.universes.iter().map(u16::to_string).collect();
+            format!("patch universes {}", u.join(", "))
+        };
+        format!(
+            "none of its DMX reaches {patched}; it holds {}; route them with [[input]] in the patch",
+            list.join(", ")
+        )
     }
 }
 
@@ -280,11 +404,14 @@ pub struct ReplayOptions {
     pub start: Duration,
     /// Mapping, universes (empty: all) and merge policy.
     pub patch: InputPatch,
+    /// Where the replay reports its status and counters, as a live input
+    /// does (reset when the replay starts). Keep a clone to read it.
+    pub status: StatusHandle,
 }
 
 impl Default for ReplayOptions {
     fn default() -> Self {
-        ReplayOptions { speed: 1.0, start: Duration::ZERO, patch: InputPatch::default() }
+        ReplayOptions { speed: 1.0, start: Duration::ZERO, patch: InputPatch::default(), status: StatusHandle::new() }
     }
 }
 
@@ -305,33 +432,35 @@ struct Player {
     sacn: SacnReceiver,
     stage: MergeStage,
     stats: StatsHandle,
+    status: StatusHandle,
     base: Instant,
-    first: Option<Duration>,
+    /// Capture time of the first patched DMX data packet: replay time 0.
+    first: Duration,
     last_tick: Instant,
     events: Vec<SourceEvent>,
 }
 
 impl Player {
-    fn new(patch: &InputPatch, base: Instant) -> Self {
-        let stats = StatsHandle::new();
+    fn new(patch: &InputPatch, base: Instant, first: Duration, status: StatusHandle) -> Self {
         let artnet_filter = patch.map.filter(Protocol::ArtNet, &patch.universes);
         let sacn_filter = patch.map.filter(Protocol::Sacn, &patch.universes);
         Player {
             artnet: ArtNetReceiver::new(ArtNetReceiverConfig { filter: artnet_filter, ..Default::default() }),
             sacn: SacnReceiver::new(SacnReceiverConfig { filter: sacn_filter, ..Default::default() }),
-            stage: MergeStage::new(patch, stats.clone()),
-            stats,
+            stage: MergeStage::new(patch, status.clone()),
+            stats: status.stats(),
+            status,
             base,
-            first: None,
+            first,
             last_tick: base,
             events: Vec::new(),
         }
     }
 
-    /// The recorded time of a frame on the replay clock.
-    fn now_of(&mut self, timestamp: Duration) -> Instant {
-        let first = *self.first.get_or_insert(timestamp);
-        self.base + timestamp.saturating_sub(first)
+    /// The recorded time of a frame on the replay clock (packets before time
+    /// 0, such as OLA's ArtPoll and ArtPollReply, count as time 0).
+    fn now_of(&self, timestamp: Duration) -> Instant {
+        self.base + timestamp.saturating_sub(self.first)
     }
 
     /// Runs timers if due: receivers every [`TICK`] (as live nodes do), merge timeouts.
@@ -339,7 +468,7 @@ impl Player {
         if now >= self.last_tick + TICK {
             self.tick(now, sink);
         } else if self.stage.merge.next_deadline().is_some_and(|d| d <= now) {
-            self.stage.merge.expire(now, &mut *sink);
+            self.stage.expire(now, &mut *sink);
         }
     }
 
@@ -350,7 +479,7 @@ impl Player {
         self.artnet.tick(now, &mut |e| events.push(e));
         self.sacn.tick(now, &mut |e| events.push(e));
         self.flush_events(sink);
-        self.stage.merge.expire(now, &mut *sink);
+        self.stage.expire(now, &mut *sink);
     }
 
     fn flush_events(&mut self, sink: &mut impl FnMut(&UniverseFrame)) {
@@ -373,21 +502,16 @@ impl Player {
         let from = SocketAddr::V4(datagram.from);
         let peer = Some(from.ip());
         let events = &mut self.events;
-        let usb = comment.and_then(|c| c.strip_prefix(USB_COMMENT)).and_then(|rest| {
-            let (widget, changes_only) = match rest.strip_suffix(USB_CHANGES_ONLY) {
-                Some(w) => (w, true),
-                None => (rest, false),
-            };
-            widget.parse::<u8>().ok().map(|w| (w, changes_only))
-        });
-        match (classify(datagram.payload), usb) {
+        let mut unpatched = None;
+        match (classify(datagram.payload), usb_widget(comment)) {
             (Some(Protocol::ArtNet), Some((widget, changes_only))) => {
                 let source = SourceId::UsbPro { widget };
                 let d = match artnet::packet::parse(datagram.payload) {
                     Ok(artnet::ArtPacket::Dmx(dmx)) => {
                         let timeout = (!changes_only).then_some(usb::SOURCE_TIMEOUT);
-                        let kind =
-                            EventKind::Levels { priority: usb::PRIORITY, timeout, levels: Levels::new(dmx.data) };
+                        let levels = Levels::new(dmx.data);
+                        let name = SourceName::default();
+                        let kind = EventKind::Levels { priority: usb::PRIORITY, timeout, levels, name };
                         events.push(SourceEvent { at: now, input: InputUniverse::UsbPro(widget), source, kind });
                         Disposition::Applied
                     }
@@ -399,12 +523,21 @@ impl Player {
             (Some(Protocol::ArtNet), None) => {
                 let h = self.artnet.handle(datagram.payload, from, now, &mut |e| events.push(e));
                 self.stats.lock().packet(Protocol::ArtNet, h.source, peer, &h.disposition);
+                if h.disposition == Disposition::Ignored(IgnoreReason::NotPatched) {
+                    unpatched = h.input;
+                }
             }
             (Some(Protocol::Sacn), _) => {
                 let h = self.sacn.handle(datagram.payload, from, now, &mut |e| events.push(e));
                 self.stats.lock().packet(Protocol::Sacn, h.source, peer, &h.disposition);
+                if h.disposition == Disposition::Ignored(IgnoreReason::NotPatched) {
+                    unpatched = h.input;
+                }
             }
             _ => return,
+        }
+        if let Some(input) = unpatched {
+            self.status.not_patched(input, now);
         }
         self.flush_events(sink);
     }
@@ -422,9 +555,10 @@ pub async fn replay(
     if options.speed.is_nan() || options.speed <= 0.0 {
         return Err(Error::Config(format!("replay speed must be above 0, got {}", options.speed)));
     }
+    let first = recording.start_for(&options.patch)?;
     let mut reader = recording.reader()?;
     let started = Instant::now();
-    let mut player = Player::new(&options.patch, started);
+    let mut player = Player::new(&options.patch, started, first, options.status.clone());
     let mut summary = ReplaySummary::default();
     let mut skipping = !options.start.is_zero();
     tokio::pin!(shutdown);
@@ -439,7 +573,10 @@ pub async fn replay(
             player.stage.merge.frames().for_each(&mut sink);
         }
         if !skipping && options.speed.is_finite() {
-            let wait = offset.saturating_sub(options.start).div_f64(options.speed);
+            // A tiny speed must not overflow Duration or Instant: wait at most a century.
+            let wait = Duration::try_from_secs_f64(offset.saturating_sub(options.start).as_secs_f64() / options.speed)
+                .unwrap_or(MAX_STATE_AT)
+                .min(MAX_STATE_AT);
             tokio::select! {
                 biased;
                 () = &mut shutdown => {
@@ -464,12 +601,16 @@ pub async fn replay(
     Ok(summary)
 }
 
-/// The merged universes `t` after the first DMX packet of `recording`, as
-/// live input would have had them then (for `footlight render --dmx FILE --at T`).
+/// The merged universes `t` after the first DMX data packet of a patched
+/// universe in `recording` ([`Recording::start_for`]), as live input would
+/// have had them then (for `footlight render --dmx FILE --at T`). A recording
+/// with no DMX for the patch is an error naming the universes it holds.
 pub fn state_at(recording: &Recording, t: Duration, patch: &InputPatch) -> Result<Vec<UniverseFrame>, Error> {
+    let first = recording.start_for(patch)?;
     let mut reader = recording.reader()?;
     let base = Instant::now();
-    let mut player = Player::new(patch, base);
+    let t = t.min(MAX_STATE_AT);
+    let mut player = Player::new(patch, base, first, StatusHandle::new());
     while let Some(frame) = reader.next_frame().map_err(|e| recording.capture_error(e))? {
         let Some(datagram) = udp_datagram(&frame).filter(|d| classify(d.payload).is_some()) else { continue };
         let now = player.now_of(frame.timestamp);

@@ -13,15 +13,21 @@ use super::pcapng::{BLOCK_EPB, BLOCK_IDB, BLOCK_PB, BLOCK_SHB, BLOCK_SPB, BYTE_O
 /// Largest block or record accepted.
 const MAX_BLOCK: usize = 16 << 20;
 
-/// Why a capture cannot be read.
+/// Why a capture cannot be read. Every variant knows the byte offset where
+/// reading stopped ([`CaptureError::offset`]).
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum CaptureError {
     /// Reading failed.
-    #[error("read error: {0}")]
-    Io(#[from] io::Error),
+    #[error("read error at byte {offset}: {source}")]
+    Io {
+        /// Where the block or record being read starts.
+        offset: u64,
+        /// What the OS said.
+        source: io::Error,
+    },
     /// The first bytes are neither a pcap nor a pcapng magic number.
-    #[error("not a pcap or pcapng file")]
+    #[error("not a pcap or pcapng file (no magic number at byte 0)")]
     NotACapture,
     /// The file ends inside a block or record.
     #[error("truncated at byte {offset}")]
@@ -37,6 +43,19 @@ pub enum CaptureError {
         /// What is wrong.
         reason: &'static str,
     },
+}
+
+impl CaptureError {
+    /// The byte offset of the block or record where reading stopped (0 for
+    /// a file that is not a capture).
+    pub fn offset(&self) -> u64 {
+        match self {
+            CaptureError::Io { offset, .. }
+            | CaptureError::Truncated { offset }
+            | CaptureError::BadBlock { offset, .. } => *offset,
+            CaptureError::NotACapture => 0,
+        }
+    }
 }
 
 /// One captured frame, borrowing the reader's buffer.
@@ -326,7 +345,7 @@ fn options(mut b: &[u8], big: bool) -> impl Iterator<Item = (u16, &[u8])> {
 fn read_exact_or(r: &mut impl Read, buf: &mut [u8], offset: u64) -> Result<(), CaptureError> {
     r.read_exact(buf).map_err(|e| match e.kind() {
         io::ErrorKind::UnexpectedEof => CaptureError::Truncated { offset },
-        _ => CaptureError::Io(e),
+        _ => CaptureError::Io { offset, source: e },
     })
 }
 
@@ -339,7 +358,7 @@ fn read_or_eof(r: &mut impl Read, buf: &mut [u8], offset: u64) -> Result<bool, C
             Ok(0) => return Err(CaptureError::Truncated { offset }),
             Ok(n) => got += n,
             Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(CaptureError::Io(e)),
+            Err(e) => return Err(CaptureError::Io { offset, source: e }),
         }
     }
     Ok(true)

@@ -12,7 +12,7 @@
 //! default IP_MULTICAST_ALL the receiving socket still gets every group the
 //! host has joined on its port.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::future::Future;
 use std::io;
 use std::net::{Ipv4Addr, SocketAddr};
@@ -24,7 +24,7 @@ use tokio::time::Instant;
 use super::packet::{self, SacnError};
 use super::receiver::{SacnReceiver, SacnReceiverConfig};
 use crate::net::{self, DatagramProtocol, NodeContext, Tally};
-use crate::source::{Protocol, SourceEvent};
+use crate::source::{Disposition, IgnoreReason, Protocol, SourceEvent};
 
 /// sACN node settings.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -33,8 +33,10 @@ pub struct SacnConfig {
     pub bind: SocketAddr,
     /// Join the multicast groups of the patched universes (off: unicast only).
     pub multicast: bool,
-    /// Interface address to join on (`0.0.0.0`: the kernel's choice, the
-    /// default route's interface).
+    /// The address of the network card to join the multicast groups on
+    /// (`--sacn-iface`; `0.0.0.0`: the kernel's choice, the card of the
+    /// default route). On a machine with several cards set it to the card on
+    /// the show network, and keep `bind` at `0.0.0.0:5568`.
     pub interface: Ipv4Addr,
 }
 
@@ -60,7 +62,10 @@ const MAX_RUNTIME_JOINS: usize = 64;
 /// Group memberships of one receiving socket.
 struct Memberships {
     interface: Ipv4Addr,
-    joined: BTreeSet<u16>,
+    /// Joined groups by universe: `None` on the receiving socket, `Some(i)` on helper `i`.
+    joined: BTreeMap<u16, Option<usize>>,
+    /// The patched universes' groups (kept for the node's life).
+    fixed: BTreeSet<u16>,
     /// Most groups joined: the patched universes plus [`MAX_RUNTIME_JOINS`].
     limit: usize,
     /// Extra sockets holding memberships past the per-socket limit.
@@ -69,34 +74,59 @@ struct Memberships {
 
 impl Memberships {
     fn join(&mut self, socket: &UdpSocket, universe: u16) {
-        if self.joined.contains(&universe) || self.joined.len() >= self.limit {
+        if self.joined.contains_key(&universe) || self.joined.len() >= self.limit {
             return;
         }
         let group = multicast_group(universe);
-        let result = SockRef::from(socket).join_multicast_v4(&group, &self.interface).or_else(|first| {
-            tracing::debug!(%group, %first, "joining on a helper socket");
-            self.join_on_helper(&group)
-        });
-        match result {
-            Ok(()) => {
-                self.joined.insert(universe);
-                tracing::debug!(universe, %group, "joined sACN multicast group");
+        let result = match SockRef::from(socket).join_multicast_v4(&group, &self.interface) {
+            Ok(()) => Ok(None),
+            Err(first) => {
+                tracing::debug!(%group, %first, "joining on a helper socket");
+                self.join_on_helper(&group).map(Some)
             }
-            Err(e) => tracing::warn!(universe, %group, %e, "cannot join sACN multicast group; unicast still works"),
+        };
+        match result {
+            Ok(at) => {
+                self.joined.insert(universe, at);
+                tracing::debug!(universe, %group, interface = %self.interface, "joined sACN multicast group");
+            }
+            Err(e) => tracing::warn!(
+                "cannot join the sACN multicast group {group} (universe {universe}) on interface {}: {e}; \
+                 unicast still works",
+                self.interface
+            ),
         }
     }
 
-    fn join_on_helper(&mut self, group: &Ipv4Addr) -> io::Result<()> {
+    fn join_on_helper(&mut self, group: &Ipv4Addr) -> io::Result<usize> {
         if let Some(h) = self.helpers.last()
             && h.join_multicast_v4(group, &self.interface).is_ok()
         {
-            return Ok(());
+            return Ok(self.helpers.len() - 1);
         }
         let h = Socket::new(Domain::IPV4, Type::DGRAM, Some(socket2::Protocol::UDP))?;
         h.bind(&SocketAddr::from(([0, 0, 0, 0], 0)).into())?;
         h.join_multicast_v4(group, &self.interface)?;
         self.helpers.push(h);
-        Ok(())
+        Ok(self.helpers.len() - 1)
+    }
+
+    /// Leaves the run-time groups (sync addresses) that `keep` no longer wants.
+    fn leave_unused(&mut self, socket: &UdpSocket, keep: impl Fn(u16) -> bool) {
+        let fixed = &self.fixed;
+        let leave: Vec<(u16, Option<usize>)> =
+            self.joined.iter().filter(|(u, _)| !fixed.contains(u) && !keep(**u)).map(|(u, at)| (*u, *at)).collect();
+        for (universe, at) in leave {
+            let group = multicast_group(universe);
+            let result = match at {
+                None => SockRef::from(socket).leave_multicast_v4(&group, &self.interface),
+                Some(i) => self.helpers[i].leave_multicast_v4(&group, &self.interface),
+            };
+            if let Err(e) = result {
+                tracing::debug!(%group, %e, "leaving sACN multicast group");
+            }
+            self.joined.remove(&universe);
+        }
     }
 }
 
@@ -121,11 +151,20 @@ impl DatagramProtocol for SacnProtocol {
         if let (Some(universe), Some(m)) = (handled.join, &mut self.memberships) {
             m.join(socket, universe);
         }
-        Tally { source: handled.source, disposition: handled.disposition }
+        let unpatched = match (&handled.disposition, handled.input) {
+            (Disposition::Ignored(IgnoreReason::NotPatched), Some(input)) => Some(input),
+            _ => None,
+        };
+        Tally { source: handled.source, disposition: handled.disposition, unpatched }
     }
 
-    fn tick(&mut self, now: Instant, events: &mut Vec<SourceEvent>, _socket: &UdpSocket) {
+    fn tick(&mut self, now: Instant, events: &mut Vec<SourceEvent>, socket: &UdpSocket) {
         self.receiver.tick(now, &mut |e| events.push(e));
+        // Leave the groups of sync addresses the receiver has forgotten.
+        if let Some(m) = &mut self.memberships {
+            let receiver = &self.receiver;
+            m.leave_unused(socket, |u| receiver.tracks_sync_address(u));
+        }
     }
 }
 
@@ -140,10 +179,31 @@ impl SacnNode {
     /// (sACN universe numbers) when `config.multicast` is on. Join failures
     /// are logged, not fatal: unicast still arrives.
     pub fn new(socket: UdpSocket, config: &SacnConfig, receiver: SacnReceiverConfig, universes: &[u16]) -> Self {
+        let bound = socket.local_addr().ok();
+        if config.multicast
+            && let Some(SocketAddr::V4(a)) = bound
+            && !a.ip().is_unspecified()
+            && !a.ip().is_multicast()
+        {
+            // Linux delivers a group's datagrams only to sockets bound to the
+            // wildcard or to the group address itself, never to a unicast address.
+            tracing::warn!(
+                "the sACN socket is bound to {a}: multicast sACN (the usual way desks send it) will not \
+                 arrive on an address like this; bind 0.0.0.0:{} and choose the network card with the \
+                 multicast interface option (--sacn-iface {})",
+                a.port(),
+                a.ip()
+            );
+        }
         let memberships = config.multicast.then(|| {
             let limit = universes.len() + MAX_RUNTIME_JOINS;
-            let mut m =
-                Memberships { interface: config.interface, joined: BTreeSet::new(), limit, helpers: Vec::new() };
+            let mut m = Memberships {
+                interface: config.interface,
+                joined: BTreeMap::new(),
+                fixed: universes.iter().copied().collect(),
+                limit,
+                helpers: Vec::new(),
+            };
             for &u in universes {
                 m.join(&socket, u);
             }
@@ -154,7 +214,7 @@ impl SacnNode {
 
     /// The sACN universes whose groups are joined.
     pub fn joined(&self) -> Vec<u16> {
-        self.protocol.memberships.as_ref().map(|m| m.joined.iter().copied().collect()).unwrap_or_default()
+        self.protocol.memberships.as_ref().map(|m| m.joined.keys().copied().collect()).unwrap_or_default()
     }
 
     /// The address the socket is bound to.

@@ -28,7 +28,9 @@ use tokio::time::Instant;
 use super::packet::{self, DataPacket, SacnError, SacnPacket, SyncPacket};
 use crate::map::UniverseFilter;
 use crate::source::sequence_is_stale;
-use crate::source::{Disposition, DropReason, EventKind, IgnoreReason, InputUniverse, Levels, SourceEvent, SourceId};
+use crate::source::{
+    Disposition, DropReason, EventKind, IgnoreReason, InputUniverse, Levels, SourceEvent, SourceId, SourceName,
+};
 
 /// E131_NETWORK_DATA_LOSS_TIMEOUT.
 pub const SOURCE_TIMEOUT: Duration = Duration::from_millis(2500);
@@ -67,6 +69,8 @@ pub struct SacnHandled {
     /// A synchronisation universe seen for the first time: the node should
     /// join its multicast group (sync packets go there).
     pub join: Option<u16>,
+    /// The universe of a data packet (also when it is not patched).
+    pub input: Option<InputUniverse>,
 }
 
 /// Data waiting for a sync packet.
@@ -75,6 +79,7 @@ struct Held {
     priority: u8,
     sync_address: u16,
     force_sync: bool,
+    name: SourceName,
 }
 
 struct Stream {
@@ -86,6 +91,10 @@ struct Stream {
 struct SyncAddress {
     /// The last sync packet; `None` until the first one (no holding before it).
     last_sync: Option<Instant>,
+    /// The last data or sync packet naming this address: an entry unused for
+    /// the data loss timeout is forgotten, so junk or departed desks cannot
+    /// fill the table for good.
+    used: Instant,
 }
 
 /// E1.31 receive state for one socket.
@@ -115,7 +124,7 @@ impl SacnReceiver {
         now: Instant,
         out: &mut impl FnMut(SourceEvent),
     ) -> SacnHandled {
-        let of = |disposition, source| SacnHandled { disposition, source, join: None };
+        let of = |disposition, source| SacnHandled { disposition, source, join: None, input: None };
         match packet::parse(buf) {
             Err(e) => of(Disposition::Malformed(e), None),
             Ok(SacnPacket::Data(d)) => self.data(&d, now, out),
@@ -126,14 +135,21 @@ impl SacnReceiver {
         }
     }
 
-    fn levels_event(&self, universe: u16, source: SourceId, priority: u8, levels: Levels, now: Instant) -> SourceEvent {
-        let kind = EventKind::Levels { priority, timeout: Some(self.config.source_timeout), levels };
-        SourceEvent { at: now, input: InputUniverse::Sacn(universe), source, kind }
+    /// How many synchronisation addresses are tracked.
+    pub fn sync_addresses(&self) -> usize {
+        self.sync_addresses.len()
+    }
+
+    /// Whether synchronisation address `address` is tracked (its multicast
+    /// group is worth staying in).
+    pub fn tracks_sync_address(&self, address: u16) -> bool {
+        self.sync_addresses.contains_key(&address)
     }
 
     fn data(&mut self, d: &DataPacket<'_>, now: Instant, out: &mut impl FnMut(SourceEvent)) -> SacnHandled {
         let source = SourceId::Sacn { cid: d.cid };
-        let handled = |disposition, join| SacnHandled { disposition, source: Some(source), join };
+        let input = Some(InputUniverse::Sacn(d.universe));
+        let handled = |disposition, join| SacnHandled { disposition, source: Some(source), join, input };
         if !self.config.filter.accepts(d.universe) {
             return handled(Disposition::Ignored(IgnoreReason::NotPatched), None);
         }
@@ -179,9 +195,16 @@ impl SacnReceiver {
         let hold = match d.sync_address {
             0 => false,
             s => {
-                if !self.sync_addresses.contains_key(&s) && self.sync_addresses.len() < self.config.max_sync_addresses {
-                    self.sync_addresses.insert(s, SyncAddress { last_sync: None });
-                    join = Some(s);
+                if let Some(a) = self.sync_addresses.get_mut(&s) {
+                    a.used = now;
+                } else {
+                    if self.sync_addresses.len() >= self.config.max_sync_addresses {
+                        Self::forget_unused(&mut self.sync_addresses, timeout, now);
+                    }
+                    if self.sync_addresses.len() < self.config.max_sync_addresses {
+                        self.sync_addresses.insert(s, SyncAddress { last_sync: None, used: now });
+                        join = Some(s);
+                    }
                 }
                 match self.sync_addresses.get(&s).and_then(|a| a.last_sync) {
                     None => false, // never synced (or untracked): act now
@@ -196,18 +219,26 @@ impl SacnReceiver {
                 Some(h) => {
                     h.levels.set(d.slots);
                     (h.priority, h.sync_address, h.force_sync) = (d.priority, d.sync_address, d.force_sync());
+                    h.name = SourceName::new(d.source_name);
                 }
                 None => {
                     let levels = Levels::new(d.slots);
                     let (priority, sync_address, force_sync) = (d.priority, d.sync_address, d.force_sync());
-                    stream.held = Some(Held { levels, priority, sync_address, force_sync });
+                    let name = SourceName::new(d.source_name);
+                    stream.held = Some(Held { levels, priority, sync_address, force_sync, name });
                 }
             }
             out(SourceEvent { at: now, input: InputUniverse::Sacn(d.universe), source, kind: EventKind::Alive });
             return handled(Disposition::Held, join);
         }
         stream.held = None;
-        out(self.levels_event(d.universe, source, d.priority, Levels::new(d.slots), now));
+        let kind = EventKind::Levels {
+            priority: d.priority,
+            timeout: Some(timeout),
+            levels: Levels::new(d.slots),
+            name: SourceName::new(d.source_name),
+        };
+        out(SourceEvent { at: now, input: InputUniverse::Sacn(d.universe), source, kind });
         handled(Disposition::Applied, join)
     }
 
@@ -235,7 +266,7 @@ impl SacnReceiver {
             }
         }
         if let Some(a) = self.sync_addresses.get_mut(&s.sync_address) {
-            a.last_sync = Some(now);
+            (a.last_sync, a.used) = (Some(now), now);
         }
         Self::release(&mut self.streams, timeout, now, out, |h| h.sync_address == s.sync_address);
         Disposition::Control
@@ -252,7 +283,8 @@ impl SacnReceiver {
     ) {
         for (&(cid, universe), stream) in streams.iter_mut() {
             if let Some(h) = stream.held.take_if(|h| which(h)) {
-                let kind = EventKind::Levels { priority: h.priority, timeout: Some(timeout), levels: h.levels };
+                let kind =
+                    EventKind::Levels { priority: h.priority, timeout: Some(timeout), levels: h.levels, name: h.name };
                 let source = SourceId::Sacn { cid };
                 out(SourceEvent { at: now, input: InputUniverse::Sacn(universe), source, kind });
             }
@@ -270,6 +302,14 @@ impl SacnReceiver {
         });
         self.streams.retain(|_, s| now.saturating_duration_since(s.seen) < timeout);
         self.sync_sequences.retain(|_, (_, seen)| now.saturating_duration_since(*seen) < timeout);
+        Self::forget_unused(&mut self.sync_addresses, timeout, now);
+    }
+
+    /// Forgets sync addresses no data or sync packet named for `timeout`.
+    /// Held data of a departed address cannot be stranded: the stream holding
+    /// it names the address in every packet, and a silent stream expires with it.
+    fn forget_unused(addresses: &mut HashMap<u16, SyncAddress>, timeout: Duration, now: Instant) {
+        addresses.retain(|_, a| now.saturating_duration_since(a.used) < timeout);
     }
 }
 
@@ -382,5 +422,60 @@ mod tests {
         assert_eq!(d, Disposition::Held);
         let (_, e) = run(&mut rx, &build_sync(&[9; 16], 2, 7000), ms(2700));
         assert_eq!(values(&e), vec![61]);
+    }
+
+    #[test]
+    fn sync_addresses_expire_so_a_new_desk_synchronises_after_junk() {
+        let t = Instant::now();
+        let ms = |n| t + Duration::from_millis(n);
+        let mut rx = SacnReceiver::new(SacnReceiverConfig::default());
+        // 64 junk sync addresses fill the table.
+        for (i, s) in (1000..1064u16).enumerate() {
+            let d = data(1, i as u8, 0, s, &[1]);
+            assert_eq!(run(&mut rx, &d, t).0, Disposition::Applied);
+        }
+        assert_eq!(rx.sync_addresses(), 64);
+        // A new desk with sync address 7000 while the table is full: not tracked,
+        // its sync packet is unused and its data is never held (no synchronisation).
+        assert_eq!(run(&mut rx, &data(2, 1, 0, 7000, &[10]), ms(1000)).0, Disposition::Applied);
+        assert!(!rx.tracks_sync_address(7000));
+        assert_eq!(
+            run(&mut rx, &build_sync(&[9; 16], 1, 7000), ms(1001)).0,
+            Disposition::Ignored(IgnoreReason::SyncUnused)
+        );
+        assert_eq!(run(&mut rx, &data(2, 2, 0, 7000, &[11]), ms(1002)).0, Disposition::Applied);
+        // Nothing names the junk addresses for 2.5 s: the timer forgets them.
+        rx.tick(ms(2499), &mut |_| {});
+        assert_eq!(rx.sync_addresses(), 64);
+        rx.tick(ms(2500), &mut |_| {});
+        assert_eq!(rx.sync_addresses(), 0);
+        // Now the desk synchronises: first data tracks 7000, the sync packet
+        // starts holding, data waits for the next sync packet.
+        assert_eq!(run(&mut rx, &data(2, 3, 0, 7000, &[12]), ms(2600)).0, Disposition::Applied);
+        assert!(rx.tracks_sync_address(7000));
+        assert_eq!(run(&mut rx, &build_sync(&[9; 16], 2, 7000), ms(2610)).0, Disposition::Control);
+        let (d, e) = run(&mut rx, &data(2, 4, 0, 7000, &[13]), ms(2620));
+        assert_eq!((d, values(&e)), (Disposition::Held, vec![]));
+        let (_, e) = run(&mut rx, &build_sync(&[9; 16], 3, 7000), ms(2630));
+        assert_eq!(values(&e), vec![13]);
+        // A full table also makes room by itself when a new address arrives
+        // after the old ones went unused (no tick in between).
+        for (i, s) in (2000..2063u16).enumerate() {
+            run(&mut rx, &data(3, i as u8, 0, s, &[1]), ms(3000));
+        }
+        assert_eq!(rx.sync_addresses(), 64);
+        assert_eq!(run(&mut rx, &data(4, 1, 0, 7100, &[1]), ms(5600)).0, Disposition::Applied);
+        assert!(rx.tracks_sync_address(7100));
+    }
+
+    #[test]
+    fn data_carries_the_source_name() {
+        let t = Instant::now();
+        let mut rx = SacnReceiver::new(SacnReceiverConfig::default());
+        let (_, e) = run(&mut rx, &data(1, 1, 0, 0, &[5]), t);
+        match &e[0].kind {
+            EventKind::Levels { name, .. } => assert_eq!(name.to_text(), "t"),
+            other => panic!("{other:?}"),
+        }
     }
 }

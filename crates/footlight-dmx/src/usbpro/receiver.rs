@@ -15,7 +15,9 @@ use std::time::Duration;
 use tokio::time::Instant;
 
 use super::packet::{Decoder, Message, UsbProError, label};
-use crate::source::{Disposition, DropReason, EventKind, IgnoreReason, InputUniverse, Levels, SourceEvent, SourceId};
+use crate::source::{
+    Disposition, DropReason, EventKind, IgnoreReason, InputUniverse, Levels, SourceEvent, SourceId, SourceName,
+};
 
 /// USB Pro sources merge as if they had sACN priority 100.
 pub const PRIORITY: u8 = 100;
@@ -91,7 +93,12 @@ impl UsbProReceiver {
                 Some(Ok(message)) => apply(message, &mut self.levels),
             };
             if disposition == Disposition::Applied {
-                let kind = EventKind::Levels { priority: PRIORITY, timeout, levels: self.levels.clone() };
+                let kind = EventKind::Levels {
+                    priority: PRIORITY,
+                    timeout,
+                    levels: self.levels.clone(),
+                    name: SourceName::default(),
+                };
                 out(SourceEvent { at: now, input, source, kind });
             }
             tally(disposition);

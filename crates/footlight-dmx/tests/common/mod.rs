@@ -6,7 +6,9 @@ use std::time::Duration;
 
 use footlight_dmx::artnet::ArtNetConfig;
 use footlight_dmx::sacn::SacnConfig;
-use footlight_dmx::{DmxInput, Error, InputConfig, InputPatch, LocalAddrs, StatsHandle, UniverseFrame, Universes};
+use footlight_dmx::{
+    DmxInput, Error, InputConfig, InputPatch, LocalAddrs, StatsHandle, StatusHandle, UniverseFrame, Universes,
+};
 use tokio::sync::{oneshot, watch};
 use tokio::task::JoinHandle;
 
@@ -29,6 +31,7 @@ pub fn loopback_config(universes: Vec<u16>) -> InputConfig {
 pub struct Running {
     pub frames: watch::Receiver<Universes>,
     pub stats: StatsHandle,
+    pub status: StatusHandle,
     pub addrs: LocalAddrs,
     stop: Option<oneshot::Sender<()>>,
     task: JoinHandle<Result<(), Error>>,
@@ -40,12 +43,12 @@ impl Running {
     }
 
     pub async fn start_input(input: DmxInput) -> Running {
-        let (frames, stats, addrs) = (input.frames(), input.stats(), input.local_addrs());
+        let (frames, stats, status, addrs) = (input.frames(), input.stats(), input.status(), input.local_addrs());
         let (stop, stopped) = oneshot::channel::<()>();
         let task = tokio::spawn(input.run(async {
             let _ = stopped.await;
         }));
-        Running { frames, stats, addrs, stop: Some(stop), task }
+        Running { frames, stats, status, addrs, stop: Some(stop), task }
     }
 
     pub fn artnet(&self) -> SocketAddr {
