@@ -284,7 +284,7 @@ fn run(args: RunArgs) -> Result<()> {
         http: args.http,
         display,
         limits: RecursionLimits::default(),
-        tracer: TracerSettings { display_scale: display.scale(), photons, ..TracerSettings::default() },
+        tracer: TracerSettings { photons, ..TracerSettings::default() },
         compositor: args.compositor,
     };
     if args.window && !cfg!(feature = "window") {

@@ -141,12 +141,8 @@ pub fn run(
     // Latency: a light moves; time each published stage.
     let (w, h) = bench_size;
     let view = Arc::new(View::build(scene, camera, w, h, Sampling::Adaptive, RecursionLimits::default()));
-    let settings = TracerSettings {
-        photons: Some(PhotonSettings::default()),
-        refine_passes,
-        display_scale: display.scale(),
-        ..TracerSettings::default()
-    };
+    let settings =
+        TracerSettings { photons: Some(PhotonSettings::default()), refine_passes, ..TracerSettings::default() };
     let tracer = Tracer::new(scene.clone(), view, 1, settings);
     let t0 = Instant::now();
     tracer.request(0, light.clone(), k_full, 1.0);

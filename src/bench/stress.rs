@@ -38,9 +38,8 @@ type Lit = (Light, Vec3);
 fn render(scene: &Scene, camera: Camera, lights: &[Lit], photons: usize) -> Result<Vec<Vec3>, String> {
     let view = View::build(scene, camera, W, H, Sampling::Adaptive, RecursionLimits::default());
     let mut buffers = Vec::new();
-    for (i, (light, k)) in lights.iter().enumerate() {
-        let aa =
-            crate::render::AaParams { display_scale: *k * crate::render::Display::default().scale(), threshold: 20.0 };
+    for (i, (light, _)) in lights.iter().enumerate() {
+        let aa = crate::render::AaParams::new(20.0);
         let (mut dense, _) = view.render_direct(scene, light, Some(aa));
         let settings = PhotonSettings { stored: photons, seed: 17 + i as u64, ..PhotonSettings::default() };
         let maps = trace_photons(scene, light, &settings);

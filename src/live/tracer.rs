@@ -53,10 +53,8 @@ pub struct TracerSettings {
     pub workers: usize,
     /// Threads of the build pool.
     pub threads: usize,
-    /// Anti-aliasing threshold (0-255).
+    /// Anti-aliasing threshold (0-255, relative to each light's own level).
     pub aa_threshold: f32,
-    /// Display scale (exposure · white balance) for anti-aliasing decisions.
-    pub display_scale: Vec3,
     /// Photon mapping, or `None` for direct light only.
     pub photons: Option<PhotonSettings>,
     /// Progressive passes per light before it counts as converged.
@@ -73,7 +71,6 @@ impl Default for TracerSettings {
             workers: 1,
             threads: std::thread::available_parallelism().map(|n| n.get()).unwrap_or(2),
             aa_threshold: 20.0,
-            display_scale: crate::render::Display::default().scale(),
             photons: Some(PhotonSettings::default()),
             refine_passes: 16,
             max_refining: 4,
@@ -100,7 +97,6 @@ pub struct Published {
 struct Request {
     id: u64,
     light: Light,
-    k_full: Vec3,
     at: Instant,
 }
 
@@ -196,8 +192,9 @@ impl Tracer {
 
     /// Asks for light `index` to be rebuilt with new geometry. Replaces any
     /// pending request and cancels a build in progress at its next stage.
-    /// A geometry state found in the cache is published at once.
-    pub fn request(&self, index: usize, light: Light, k_full: Vec3, priority: f32) {
+    /// A geometry state found in the cache is published at once. `_k_full`
+    /// is no longer used: anti-aliasing is decided on the light's own buffer.
+    pub fn request(&self, index: usize, light: Light, _k_full: Vec3, priority: f32) {
         let s = &self.shared;
         let Some(slot) = s.slots.get(index) else { return };
         let id = s.next_id.fetch_add(1, Ordering::Relaxed);
@@ -214,7 +211,7 @@ impl Tracer {
             tracing::debug!("light {index}: geometry found in cache");
             return;
         }
-        *slot.pending.lock().expect("pending lock") = Some(Request { id, light, k_full, at: Instant::now() });
+        *slot.pending.lock().expect("pending lock") = Some(Request { id, light, at: Instant::now() });
         *slot.priority.lock().expect("priority lock") = priority;
         let (lock, cv) = &s.wake;
         *lock.lock().expect("wake lock") += 1;
@@ -325,7 +322,7 @@ fn build(s: &Shared, index: usize, req: Request) {
     if !current() {
         return;
     }
-    let aa = AaParams { display_scale: req.k_full * s.settings.display_scale, threshold: s.settings.aa_threshold };
+    let aa = AaParams::new(s.settings.aa_threshold);
     let (direct, _) = s.pool.install(|| view.render_direct(scene, &req.light, Some(aa)));
     let stage = if s.settings.photons.is_some() { Stage::Whitted } else { Stage::Ready };
     if !publish(s, index, req.id, LightBuffer::from_dense(w, h, &direct), stage) || !current() {

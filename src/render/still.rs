@@ -81,7 +81,7 @@ pub fn render_still(
     let mut reshaded = 0;
     let mut photon_time = Duration::ZERO;
     for (i, job) in jobs.iter().enumerate() {
-        let aa = AaParams { display_scale: job.k_full * settings.display.scale(), threshold: settings.aa_threshold };
+        let aa = AaParams::new(settings.aa_threshold);
         let (mut dense, n) = view.render_direct(scene, &job.light, Some(aa));
         if let Some(photons) = &settings.photons {
             let tp = Instant::now();
