@@ -3,7 +3,9 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
-use footlight::render::display::{Display, check_finite, write_png};
+use footlight::render::display::{
+    Display, balanced, check_finite, parse_white_balance, write_exr, write_pfm, write_png,
+};
 use footlight::render::photon::PhotonSettings;
 use footlight::render::still::{LightJob, render_still};
 use footlight::render::{RecursionLimits, RenderSettings, Sampling};
@@ -184,9 +186,14 @@ struct RenderArgs {
     /// Photons in each radiance estimate (paper: 150).
     #[arg(long, default_value_t = 150)]
     estimate: usize,
-    /// Output PNG. An existing file is never replaced without --force.
+    /// Output file: `.png` (8-bit sRGB, exposure and clipping as on screen), or
+    /// `.exr` / `.pfm` (linear cd/m² times the white balance, float, unclipped).
+    /// An existing file is never replaced without --force.
     #[arg(long)]
     out: PathBuf,
+    /// White balance: none, tungsten (3200 K neutral) or a colour temperature such as 5600K.
+    #[arg(long, default_value = "tungsten")]
+    white_balance: String,
     /// Replace an existing output file.
     #[arg(long)]
     force: bool,
@@ -507,6 +514,13 @@ fn render(args: RenderArgs) -> Result<()> {
         bail!("--depth {} is past the supported 64 bounces", args.depth);
     }
     check_output(&args.out, args.force)?;
+    let gains = parse_white_balance(&args.white_balance).map_err(|e| anyhow::anyhow!("--white-balance {e}"))?;
+    let format = match args.out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("png") => "png",
+        Some("exr") => "exr",
+        Some("pfm") => "pfm",
+        _ => bail!("--out {}: the name must end in .png, .exr or .pfm", args.out.display()),
+    };
     let (scene, patch) = load_inputs(&args.input)?;
     let camera = choose_camera(&scene, &patch);
     let settings = RenderSettings {
@@ -515,7 +529,7 @@ fn render(args: RenderArgs) -> Result<()> {
         limits: RecursionLimits { max_depth: args.depth, ..RecursionLimits::default() },
         sampling: args.sampling,
         aa_threshold: args.aa_threshold,
-        display: Display::for_white_lux(args.white_lux),
+        display: Display { white_balance: gains, ..Display::for_white_lux(args.white_lux) },
         photons: (args.photons > 0).then(|| PhotonSettings {
             stored: args.photons,
             estimate: args.estimate.max(2),
@@ -528,8 +542,14 @@ fn render(args: RenderArgs) -> Result<()> {
     if let Err((i, v)) = check_finite(&still.linear) {
         bail!("composite pixel {i} is {v}: this is a bug, please report it");
     }
-    write_png(&args.out, settings.width, settings.height, settings.display.to_srgb8(&still.linear))
-        .with_context(|| format!("writing {}", args.out.display()))?;
+    let (w, h) = (settings.width, settings.height);
+    match format {
+        "exr" => write_exr(&args.out, w, h, &balanced(&still.linear, gains)).map_err(anyhow::Error::msg)?,
+        "pfm" => write_pfm(&args.out, w, h, &balanced(&still.linear, gains))
+            .with_context(|| format!("writing {}", args.out.display()))?,
+        _ => write_png(&args.out, w, h, settings.display.to_srgb8(&still.linear))
+            .with_context(|| format!("writing {}", args.out.display()))?,
+    }
     let t = &still.timings;
     tracing::info!(
         "view {:.0} ms, {} light buffers {:.0} ms ({} pixels re-shaded for anti-aliasing), photon maps {:.0} ms, composite {:.1} ms",
