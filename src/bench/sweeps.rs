@@ -110,6 +110,7 @@ pub fn depth_curve(
 }
 
 /// Time saved by skipping work a scene does not need, as same-run ratios.
+#[allow(clippy::too_many_arguments)]
 pub fn skips(
     scene: &Scene,
     plain: &Scene,
