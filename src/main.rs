@@ -4,7 +4,9 @@
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use footlight::live::{Daemon, DaemonConfig, Decode, DmxSource, Show, TracerSettings};
-use footlight::render::display::{Display, check_finite, write_png};
+use footlight::render::display::{
+    Display, balanced, check_finite, parse_white_balance, write_exr, write_pfm, write_png,
+};
 use footlight::render::photon::PhotonSettings;
 use footlight::render::still::{LightJob, StillHaze, render_still_hazy};
 use footlight::render::{BuildSettings, RecursionLimits, RenderSettings, Sampling};
@@ -281,12 +283,17 @@ struct RenderArgs {
     #[arg(long, default_value_t = PhotonSettings::default().estimate, value_parser = flags::estimate)]
     estimate: usize,
     /// Roll highlights over display white off smoothly (beams in haze) instead
-    /// of clipping them; the linear image is unchanged (docs/rendering.md).
+    /// of clipping them in a PNG; linear outputs are never rolled off (docs/rendering.md).
     #[arg(long)]
     rolloff: bool,
-    /// Output PNG. An existing file is never replaced without --force.
+    /// Output file: `.png` (8-bit sRGB, exposure and clipping as on screen), or
+    /// `.exr` / `.pfm` (linear cd/m² times the white balance, float, unclipped).
+    /// An existing file is never replaced without --force.
     #[arg(long)]
     out: PathBuf,
+    /// White balance: none, tungsten (3200 K neutral) or a colour temperature such as 5600K.
+    #[arg(long, default_value = "tungsten")]
+    white_balance: String,
     /// Replace an existing output file.
     #[arg(long)]
     force: bool,
@@ -478,10 +485,7 @@ fn run_daemon(
             fps: args.fps,
             display,
             compositor: args.compositor,
-            tracer: TracerSettings {
-                build: BuildSettings { display_scale: display.scale(), photons, ..defaults.tracer.build },
-                ..defaults.tracer
-            },
+            tracer: TracerSettings { build: BuildSettings { photons, ..defaults.tracer.build }, ..defaults.tracer },
             ..defaults
         };
         let source = match &args.replay {
@@ -617,6 +621,13 @@ fn record(args: RecordArgs) -> Result<()> {
 
 fn render(args: RenderArgs) -> Result<()> {
     check_output(&args.out, args.force)?;
+    let gains = parse_white_balance(&args.white_balance).map_err(|e| anyhow::anyhow!("--white-balance {e}"))?;
+    let format = match args.out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("png") => "png",
+        Some("exr") => "exr",
+        Some("pfm") => "pfm",
+        _ => bail!("--out {}: the name must end in .png, .exr or .pfm", args.out.display()),
+    };
     let (scene, patch) = load_inputs(&args.input)?;
     let camera = choose_camera(&scene, &patch);
     let show = Show::new(patch);
@@ -626,7 +637,7 @@ fn render(args: RenderArgs) -> Result<()> {
         limits: RecursionLimits { max_depth: args.depth, ..RecursionLimits::default() },
         sampling: args.sampling,
         aa_threshold: args.aa_threshold,
-        display: Display::for_white_lux(args.white_lux),
+        display: Display { white_balance: gains, ..Display::for_white_lux(args.white_lux) },
         photons: (args.photons > 0).then(|| PhotonSettings {
             stored: args.photons,
             estimate: args.estimate,
@@ -654,13 +665,22 @@ fn render(args: RenderArgs) -> Result<()> {
     if let Err((i, v)) = check_finite(&still.linear) {
         bail!("composite pixel {i} is {v}: this is a bug, please report it");
     }
-    let rgb8 = if args.rolloff {
-        settings.display.to_srgb8_rolloff(&still.linear, footlight::render::display::HighlightRolloff::default())
-    } else {
-        settings.display.to_srgb8(&still.linear)
-    };
-    write_png(&args.out, settings.width, settings.height, rgb8)
-        .with_context(|| format!("writing {}", args.out.display()))?;
+    let (w, h) = (settings.width, settings.height);
+    match format {
+        "exr" => write_exr(&args.out, w, h, &balanced(&still.linear, gains)).map_err(anyhow::Error::msg)?,
+        "pfm" => write_pfm(&args.out, w, h, &balanced(&still.linear, gains))
+            .with_context(|| format!("writing {}", args.out.display()))?,
+        _ => {
+            let rgb8 = if args.rolloff {
+                settings
+                    .display
+                    .to_srgb8_rolloff(&still.linear, footlight::render::display::HighlightRolloff::default())
+            } else {
+                settings.display.to_srgb8(&still.linear)
+            };
+            write_png(&args.out, w, h, rgb8).with_context(|| format!("writing {}", args.out.display()))?
+        }
+    }
     let t = &still.timings;
     tracing::info!(
         "view {:.0} ms, {} light buffers {:.0} ms ({} pixels re-shaded for anti-aliasing), photon maps {:.0} ms, haze {:.0} ms, composite {:.1} ms",

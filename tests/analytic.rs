@@ -107,3 +107,84 @@ fn light_behind_a_surface_does_not_light_its_front() {
     let (buf, _) = v.render_light(&scene, &light, None);
     assert_eq!(buf.occupied_tiles(), 0, "light below the floor leaks through it");
 }
+
+/// Writes a glTF 2.0 file (JSON + external .bin) with one 40 m square at
+/// y = 0 facing +Y, using material `material` (a glTF material object), and
+/// returns its path. Built here byte by byte, independent of the importer.
+pub fn gltf_plane(name: &str, material: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("footlight-gltf-plane-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let h = 20.0f32;
+    let positions = [[-h, 0.0, h], [h, 0.0, h], [h, 0.0, -h], [-h, 0.0, -h]];
+    let mut bin = Vec::new();
+    for p in positions {
+        for c in p {
+            bin.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    for _ in 0..4 {
+        for c in [0.0f32, 1.0, 0.0] {
+            bin.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    for i in [0u16, 1, 2, 0, 2, 3] {
+        bin.extend_from_slice(&i.to_le_bytes());
+    }
+    std::fs::write(dir.join("plane.bin"), &bin).unwrap();
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"NORMAL":1}},"indices":2,"material":0}}]}}],
+"materials":[{material}],
+"buffers":[{{"uri":"plane.bin","byteLength":{len}}}],
+"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":48}},{{"buffer":0,"byteOffset":96,"byteLength":12}}],
+"accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-20,0,-20],"max":[20,0,20]}},
+{{"bufferView":1,"componentType":5126,"count":4,"type":"VEC3"}},
+{{"bufferView":2,"componentType":5123,"count":6,"type":"SCALAR"}}]}}"#,
+        len = bin.len()
+    );
+    let path = dir.join(format!("{name}.gltf"));
+    std::fs::write(&path, json).unwrap();
+    path
+}
+
+#[test]
+fn matte_gltf_plane_is_lambert_through_the_importer() {
+    // Issue 13.1: a white (and a grey) matte glTF material, read by the
+    // importer, must give L = ρ/π · E for every light/view direction, E the
+    // irradiance of a 1 cd point light: cos θ / d².
+    for (rho, roughness) in [(1.0f32, 1.0f32), (0.5, 0.5), (0.8, 0.75)] {
+        let material = format!(
+            r#"{{"name":"matte","pbrMetallicRoughness":{{"baseColorFactor":[{rho},{rho},{rho},1],"metallicFactor":0,"roughnessFactor":{roughness}}}}}"#
+        );
+        let scene = footlight::scene::load(&gltf_plane(&format!("matte-{roughness}"), &material)).unwrap();
+        let light_pos = Vec3::new(0.3, 2.0, -0.2);
+        let light = omni(light_pos);
+        // A grazing camera too: a Phong lobe would show most there.
+        for cam in [
+            Camera::look_at(Vec3::new(0.0, 6.0, 0.01), Vec3::ZERO, 60f32.to_radians()),
+            Camera::look_at(Vec3::new(-9.0, 0.4, 3.0), Vec3::new(2.0, 0.0, -1.0), 50f32.to_radians()),
+        ] {
+            let (w, h) = (40, 30);
+            let v = view(&scene, cam, w, h, Sampling::One, 0);
+            let (buf, _) = v.render_light(&scene, &light, None);
+            let mut checked = 0;
+            for y in 0..h {
+                for x in 0..w {
+                    let s = v.gbuffer.samples[(y * w + x) as usize][footlight::render::gbuffer::CENTRE_SAMPLE];
+                    let Some(p) = v.gbuffer.position(&scene, &s) else { continue };
+                    let d = light_pos - p;
+                    let irradiance = d.y / d.length() / d.length_squared();
+                    let got = buf.get(x, y);
+                    let per_irradiance = got / irradiance;
+                    let want = rho / std::f32::consts::PI;
+                    assert!(
+                        (per_irradiance - Vec3::splat(want)).abs().max_element() <= 1e-4 * want,
+                        "ρ {rho} roughness {roughness} ({x},{y}): L/E = {per_irradiance}, want {want}"
+                    );
+                    checked += 1;
+                }
+            }
+            assert!(checked > 300, "{checked}");
+        }
+    }
+}

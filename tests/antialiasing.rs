@@ -16,7 +16,7 @@ fn adaptive_aa_beats_one_sample_against_nine_times_oversampling() {
     let mut total = [[0f64; 3]; 3];
     for f in &patch.fixtures[..2] {
         let k_full = f.k_full();
-        let aa = AaParams { display_scale: k_full * display.scale(), threshold: 20.0 };
+        let aa = AaParams::new(20.0);
         let mut imgs = Vec::new();
         for sampling in [Sampling::One, Sampling::Adaptive, Sampling::Nine] {
             let v = view(&scene, cam, w, h, sampling, 5);
@@ -38,4 +38,27 @@ fn adaptive_aa_beats_one_sample_against_nine_times_oversampling() {
         assert!(adaptive[c] < 0.5 * one[c], "channel {c}: adaptive MSE {} vs one-sample {}", adaptive[c], one[c]);
     }
     assert!(one.iter().sum::<f64>() > 0.0);
+}
+
+#[test]
+fn reshaded_pixels_do_not_depend_on_exposure_or_dimmer() {
+    // Issue 13.5: the decision is the light's own relative gradient, so the
+    // set of re-shaded pixels is the same for the buffer at any scale
+    // (exposure ×0.01 and ×100, any dimmer or k_i).
+    let scene = stage();
+    let patch = default_patch();
+    let cam = scene.camera.unwrap();
+    let v = view(&scene, cam, 160, 100, Sampling::Adaptive, 5);
+    let aa = AaParams::new(20.0);
+    for f in &patch.fixtures[..2] {
+        let (dense, _) = v.render_direct(&scene, &f.light, None);
+        let at = |s: f32| v.gradient_flags(&scene, &dense.iter().map(|x| *x * s).collect::<Vec<_>>(), aa);
+        let base = at(1.0);
+        let n = base.iter().filter(|&&b| b).count();
+        assert!(n > 0 && n < base.len() / 4, "{}: {n} pixels flagged", f.name);
+        assert_eq!(at(0.01), base, "{}: exposure ×0.01 changed the re-shaded set", f.name);
+        assert_eq!(at(100.0), base, "{}: exposure ×100 changed the re-shaded set", f.name);
+        // The renderer's own count agrees.
+        assert_eq!(v.render_direct(&scene, &f.light, Some(aa)).1, n);
+    }
 }

@@ -225,3 +225,114 @@ fn the_binarys_run_routes_artnet_and_stops_cleanly_on_sigterm() {
     assert!(!stderr.contains('\u{1b}'), "no ANSI codes when stderr is not a terminal: {stderr}");
     assert!(!stderr.contains("ERROR"), "a healthy run logs no error: {stderr}");
 }
+
+/// Reads an RGB(A) OpenEXR file with the `exr` crate: (width, height, pixels row-major from the top).
+fn read_exr(path: &std::path::Path) -> (usize, usize, Vec<[f32; 3]>) {
+    use exr::prelude::*;
+    let image = read_first_rgba_layer_from_file(
+        path,
+        |resolution, _| {
+            (resolution.width(), resolution.height(), vec![[0f32; 3]; resolution.width() * resolution.height()])
+        },
+        |(w, _, px), pos, (r, g, b, _a): (f32, f32, f32, f32)| px[pos.y() * *w + pos.x()] = [r, g, b],
+    )
+    .unwrap();
+    image.layer_data.channel_data.pixels
+}
+
+/// Reads a little-endian RGB Portable Float Map written bottom row first.
+fn read_pfm(path: &std::path::Path) -> (usize, usize, Vec<[f32; 3]>) {
+    let bytes = std::fs::read(path).unwrap();
+    let mut lines = 0;
+    let mut at = 0;
+    while lines < 3 {
+        if bytes[at] == b'\n' {
+            lines += 1;
+        }
+        at += 1;
+    }
+    let header = String::from_utf8_lossy(&bytes[..at]).to_string();
+    let mut parts = header.split_whitespace();
+    assert_eq!(parts.next(), Some("PF"));
+    let w: usize = parts.next().unwrap().parse().unwrap();
+    let h: usize = parts.next().unwrap().parse().unwrap();
+    assert!(parts.next().unwrap().parse::<f32>().unwrap() < 0.0, "little-endian");
+    let floats: Vec<f32> = bytes[at..].chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+    assert_eq!(floats.len(), w * h * 3);
+    let mut px = vec![[0f32; 3]; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let i = ((h - 1 - y) * w + x) * 3;
+            px[y * w + x] = [floats[i], floats[i + 1], floats[i + 2]];
+        }
+    }
+    (w, h, px)
+}
+
+#[test]
+fn exr_round_trip_equals_the_composite_buffer() {
+    // Issue 13.7, library side: what write_exr stores reads back bit-exact.
+    use footlight::render::display::{balanced, write_exr, write_pfm};
+    use glam::Vec3;
+    let dir = temp_dir("exr-lib");
+    let (w, h) = (7u32, 5u32);
+    let mut rng = Rng(42);
+    // HDR values far above display white and tiny ones: nothing is clipped or quantised.
+    let linear: Vec<Vec3> =
+        (0..w * h).map(|_| Vec3::new(rng.next_f32() * 5000.0, rng.next_f32() * 1e-3, rng.next_f32() * 300.0)).collect();
+    let gains = Vec3::new(0.8, 1.0, 1.7);
+    let stored = balanced(&linear, gains);
+    write_exr(&dir.join("a.exr"), w, h, &stored).unwrap();
+    write_pfm(&dir.join("a.pfm"), w, h, &stored).unwrap();
+    for (name, (rw, rh, px)) in [("exr", read_exr(&dir.join("a.exr"))), ("pfm", read_pfm(&dir.join("a.pfm")))] {
+        assert_eq!((rw, rh), (w as usize, h as usize), "{name}");
+        for (i, (a, b)) in px.iter().zip(&stored).enumerate() {
+            assert_eq!(*a, b.to_array(), "{name} pixel {i}");
+        }
+    }
+}
+
+#[test]
+fn render_writes_linear_exr_and_pfm() {
+    // Issue 13.7 through the binary: the same render as EXR and PFM, linear
+    // and unclipped, with and without white balance.
+    let dir = temp_dir("exr-cli");
+    let run = |out: &std::path::Path, wb: &str| {
+        let o = footlight()
+            .args(["render", "--width", "48", "--height", "30", "--photons", "0", "--white-balance", wb, "--out"])
+            .arg(out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    run(&dir.join("n.exr"), "none");
+    run(&dir.join("n.pfm"), "none");
+    run(&dir.join("t.exr"), "tungsten");
+    let (w, h, none) = read_exr(&dir.join("n.exr"));
+    assert_eq!((w, h), (48, 30));
+    assert_eq!(read_pfm(&dir.join("n.pfm")).2, none, "EXR and PFM hold the same linear values");
+    // No exposure and no clipping: at --white-lux 10 a PNG would clip most of
+    // the stage to white (white = 10/π cd/m²); the EXR values stay the same.
+    let peak = none.iter().flatten().fold(0f32, |m, &v| m.max(v));
+    assert!(peak > 10.0 / std::f32::consts::PI, "peak {peak} cd/m²");
+    let o = footlight()
+        .args(["render", "--width", "48", "--height", "30", "--photons", "0", "--white-balance", "none"])
+        .args(["--white-lux", "10", "--out"])
+        .arg(dir.join("bright.exr"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(read_exr(&dir.join("bright.exr")).2, none);
+    // Tungsten balance = none × the 3200 K gains, pixel by pixel.
+    let gains = footlight_photometry::WhiteBalance::default().gains.to_array();
+    let (_, _, tungsten) = read_exr(&dir.join("t.exr"));
+    for (a, b) in tungsten.iter().zip(&none) {
+        for c in 0..3 {
+            assert!((a[c] - b[c] * gains[c]).abs() <= 1e-6 * b[c].abs().max(1.0), "{a:?} vs {b:?}");
+        }
+    }
+    let o = footlight().args(["render", "--white-balance", "blue", "--out"]).arg(dir.join("x.exr")).output().unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--white-balance"));
+    let o = footlight().args(["render", "--out"]).arg(dir.join("x.tiff")).output().unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains(".exr"));
+}

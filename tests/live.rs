@@ -278,11 +278,10 @@ fn a_moving_light_never_starts_its_later_stages_and_settles_to_the_same_buffer()
     // A long settle time: a stalled test thread can never make the light look still.
     let settings = TracerSettings { threads: 1, build, settle: Duration::from_secs(2), ..TracerSettings::default() };
     let tracer = Tracer::new(scene.clone(), view.clone(), 1, settings);
-    let k_full = Vec3::splat(1000.0);
     let mut last = spot_at(-1.0, 30.0);
     for step in 0..25 {
         last = spot_at(-1.0 + 0.08 * step as f32, 30.0);
-        tracer.request(0, last.clone(), k_full, 1.0);
+        tracer.request(0, last.clone(), 1.0);
         std::thread::sleep(Duration::from_millis(20));
         let stage = tracer.published(0).stage;
         assert!(matches!(stage, Stage::Queued | Stage::Direct), "step {step}: {stage:?} while moving");
@@ -292,7 +291,7 @@ fn a_moving_light_never_starts_its_later_stages_and_settles_to_the_same_buffer()
     let report = tracer.report(0).unwrap();
     assert!(!report.moving && report.pending_ms.is_none(), "{report:?}");
     assert!(report.direct_updates >= 2, "{report:?}");
-    let mut fresh = LightBuild::new(last, 0, k_full, build, Cancel::never());
+    let mut fresh = LightBuild::new(last, 0, build, Cancel::never());
     let expected = fresh.photons(&scene, &view).unwrap();
     assert_eq!(*tracer.published(0).buffer, expected);
     tracer.shutdown(Duration::from_secs(30));

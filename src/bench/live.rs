@@ -145,14 +145,13 @@ pub fn run(
         build: crate::render::BuildSettings {
             photons: Some(PhotonSettings::default()),
             refine_passes,
-            display_scale: display.scale(),
             ..crate::render::BuildSettings::default()
         },
         ..TracerSettings::default()
     };
     let tracer = Tracer::new(scene.clone(), view, 1, settings);
     let t0 = Instant::now();
-    tracer.request(0, light.clone(), k_full, 1.0);
+    tracer.request(0, light.clone(), 1.0);
     let mut seen = [None::<f64>; 4];
     while t0.elapsed() < Duration::from_secs(300) {
         let stage = tracer.published(0).stage;

@@ -101,6 +101,9 @@ pub struct Report {
     pub mse_vs_nine: Vec<(String, [f64; 3])>,
     /// Pixels re-shaded by adaptive AA, as a share of the image.
     pub adaptive_reshaded_share: f64,
+    /// Issue 13.5: the anti-aliasing decision before (displayed value) and
+    /// after (light-relative gradient): cost, error, re-shaded share.
+    pub aa_rules: Vec<sweeps::AaRule>,
     /// Composite linearity check: max relative difference between the
     /// composite of per-light buffers and their eq. 1 single-pass render.
     pub linearity_max_rel_error: f64,
@@ -165,6 +168,15 @@ impl Report {
         for (name, m) in &self.mse_vs_nine {
             s += &format!("  MSE vs 9x, {name:<10} R {:.5} G {:.5} B {:.5}\n", m[0], m[1], m[2]);
         }
+        for r in &self.aa_rules {
+            s += &format!(
+                "  AA {:<62} cost {:>5.0} %  MSE {:.2e}  re-shaded {:.2} %\n",
+                r.rule,
+                r.cost_percent,
+                r.mse_vs_nine.iter().sum::<f64>(),
+                r.reshaded_share * 100.0
+            );
+        }
         s += &format!("  linearity (composite vs eq. 1 render): max rel. error {:.2e}\n", self.linearity_max_rel_error);
         if let Some(h) = &self.haze {
             s += &h.lines();
@@ -203,6 +215,19 @@ impl Report {
             self.adaptive_reshaded_share * 100.0,
             self.linearity_max_rel_error
         );
+        s += "\n## Anti-aliasing decision (issue 13.5): before and after\n\n| rule | cost / 1 sample (%) | MSE vs 9× R | G | B | re-shaded |\n|---|---:|---:|---:|---:|---:|\n";
+        for r in &self.aa_rules {
+            s += &format!(
+                "| {} | {:.0} | {:.2e} | {:.2e} | {:.2e} | {:.2} % |\n",
+                r.rule,
+                r.cost_percent,
+                r.mse_vs_nine[0],
+                r.mse_vs_nine[1],
+                r.mse_vs_nine[2],
+                r.reshaded_share * 100.0
+            );
+        }
+        s += "| paper (adaptive) | 119 | 0.006 | 0.004 | 0.0004 | |\n";
         let p = &self.photons;
         s += &format!(
             "\n## Photon maps (one light, {} stored, {} in the estimate)\n\nTrace + build {:.1} ms, indirect buffer {:.1} ms. \
@@ -488,7 +513,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         patch.fixtures.first().ok_or_else(|| std::io::Error::other("the patch has no fixtures to benchmark"))?;
     let light = &fixture.light;
     let k_full = fixture.k_full();
-    let aa = AaParams { display_scale: k_full * display.scale(), threshold: cfg.aa_threshold };
+    let aa = AaParams::new(cfg.aa_threshold);
     let progress = indicatif::ProgressBar::new(7).with_style(
         indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} {msg}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
@@ -579,15 +604,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     let buffers: Vec<LightBuffer> = patch
         .fixtures
         .iter()
-        .map(|f| {
-            adaptive_view
-                .render_light(
-                    scene,
-                    &f.light,
-                    Some(AaParams { display_scale: f.k_full() * display.scale(), threshold: cfg.aa_threshold }),
-                )
-                .0
-        })
+        .map(|f| adaptive_view.render_light(scene, &f.light, Some(AaParams::new(cfg.aa_threshold))).0)
         .collect();
     let refs: Vec<&LightBuffer> = buffers.iter().collect();
     let k: Vec<Vec3> = patch.fixtures.iter().map(|f| f.k()).collect();
@@ -688,6 +705,8 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         .map(|(a, b)| ((*a - *b).abs().max_element() / b.abs().max_element().max(1e-3)) as f64)
         .fold(0.0, f64::max);
 
+    let aa_rules = sweeps::aa_rules(scene, &gbuffer, light, k_full, &display, cfg.limits, cfg.aa_threshold, n);
+
     progress.set_message("photon maps and SPPM");
     progress.inc(1);
     let (photons, mut curves) = photon_section(scene, &adaptive_view, light, k_full, &display, cfg);
@@ -702,7 +721,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         *m = crate::scene::Material::lambert(&m.name, m.diffuse + m.k_r + m.k_t);
     }
     let skip_lights = many_lights(16);
-    let skips = sweeps::skips(scene, &plain, &gbuffer, &skip_lights, aa, cfg.limits, n);
+    let skips = sweeps::skips(scene, &plain, &gbuffer, &skip_lights, aa, k_full, cfg.limits, n);
     progress.set_message("accuracy over ten renders");
     progress.inc(1);
     let accuracy_photons = if cfg.quick {
@@ -763,6 +782,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         ratios,
         mse_vs_nine,
         adaptive_reshaded_share,
+        aa_rules,
         linearity_max_rel_error,
         photons,
         curves,

@@ -43,8 +43,8 @@ fn render(scene: &Scene, camera: Camera, lights: &[Lit], photons: usize) -> Resu
         refine_passes: 0,
         ..BuildSettings::default()
     };
-    for (i, (light, k)) in lights.iter().enumerate() {
-        let mut build = LightBuild::new(light.clone(), i, *k, settings, Cancel::never());
+    for (i, (light, _)) in lights.iter().enumerate() {
+        let mut build = LightBuild::new(light.clone(), i, settings, Cancel::never());
         let b = build.photons(scene, &view).map_err(|e| format!("light {i}: {e}"))?;
         if let Some(maps) = build.maps() {
             for p in maps.global.photons.iter().chain(&maps.caustic.photons) {

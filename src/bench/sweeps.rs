@@ -64,7 +64,7 @@ pub fn aa_threshold_curve(
     let reference = shown(&nine.render_direct(scene, light, None).0, k_full);
     let mut points = Vec::new();
     for threshold in [5.0f32, 10.0, 15.0, 20.0, 25.0, 40.0, 80.0, 256.0] {
-        let aa = AaParams { display_scale: k_full * display.scale(), threshold };
+        let aa = AaParams::new(threshold);
         // Each run on a fresh copy of the view: the 9-sample cache starts cold.
         let (ms, (dense, _)) = super::time_ms_with(
             repeats,
@@ -89,7 +89,7 @@ pub fn depth_curve(
     display: &Display,
     repeats: usize,
 ) -> Curve {
-    let aa = AaParams { display_scale: k_full * display.scale(), threshold: 20.0 };
+    let aa = AaParams::new(20.0);
     let limits = |d: u32| RecursionLimits { max_depth: d, ..RecursionLimits::default() };
     let deep = View::from_gbuffer(scene, gbuffer.clone(), Sampling::Adaptive, limits(8));
     let reference = shown(&deep.render_direct(scene, light, Some(aa)).0, k_full);
@@ -110,19 +110,19 @@ pub fn depth_curve(
 }
 
 /// Time saved by skipping work a scene does not need, as same-run ratios.
+#[allow(clippy::too_many_arguments)]
 pub fn skips(
     scene: &Scene,
     plain: &Scene,
     gbuffer: &GBuffer,
     lights: &[Light],
     aa: AaParams,
+    k_full: Vec3,
     limits: RecursionLimits,
     repeats: usize,
 ) -> Vec<Ratio> {
     let (w, h) = (gbuffer.width, gbuffer.height);
     let view = View::from_gbuffer(scene, gbuffer.clone(), Sampling::Adaptive, limits);
-    // A display-white scale: k such that k·exposure = the AA scale.
-    let k_full = aa.display_scale / Display::default().scale();
     let buffers: Vec<LightBuffer> = lights.iter().map(|l| view.render_light(scene, l, Some(aa)).0).collect();
     let refs: Vec<&LightBuffer> = buffers.iter().collect();
     let mut frame = vec![Vec3::ZERO; (w * h) as usize];
@@ -216,7 +216,7 @@ pub fn accuracy(
 ) -> Accuracy {
     let adaptive = View::from_gbuffer(scene, gbuffer.clone(), Sampling::Adaptive, limits);
     let nine = View::from_gbuffer(scene, gbuffer.clone(), Sampling::Nine, limits);
-    let aa = AaParams { display_scale: k_full * display.scale(), threshold: 20.0 };
+    let aa = AaParams::new(20.0);
     let mut a = [0f64; 3];
     let mut b = [0f64; 3];
     for (i, light) in lights.iter().enumerate() {
@@ -238,4 +238,84 @@ pub fn accuracy(
         }
     }
     Accuracy { renders: lights.len(), adaptive_vs_nine: a, nine_seed_baseline: b }
+}
+
+/// One anti-aliasing decision rule measured on one light (issue 13.5).
+#[derive(Clone, Debug, Serialize)]
+pub struct AaRule {
+    /// Which rule.
+    pub rule: String,
+    /// Expansion + shading time with this rule / 1-sample expansion + shading, %.
+    pub cost_percent: f64,
+    /// Display-space MSE (R, G, B) against 9× oversampling, light at full.
+    pub mse_vs_nine: [f64; 3],
+    /// Share of pixels re-shaded.
+    pub reshaded_share: f64,
+}
+
+/// The pixels the pre-issue-13 rule re-shaded: the displayed 0-255 value
+/// (k_i at full · exposure · white balance, sRGB) against the threshold,
+/// across every neighbour pair. Kept here as the "before" of the bench.
+pub fn display_rule_flags(dense: &[Vec3], w: usize, h: usize, display_scale: Vec3, threshold: f32) -> Vec<bool> {
+    let shown: Vec<Vec3> = dense
+        .iter()
+        .map(|&l| Vec3::from_array(crate::render::display::srgb8(l * display_scale).map(f32::from)))
+        .collect();
+    crate::render::view::mark_gradients(&shown, w, h, threshold, |_, _| true)
+}
+
+/// Cost and error of the old display-value rule (at the bench light's own
+/// k_i and at 0.1× and 10× exposure) and of the light-relative rule.
+#[allow(clippy::too_many_arguments)]
+pub fn aa_rules(
+    scene: &Scene,
+    gbuffer: &GBuffer,
+    light: &Light,
+    k_full: Vec3,
+    display: &Display,
+    limits: RecursionLimits,
+    threshold: f32,
+    repeats: usize,
+) -> Vec<AaRule> {
+    let (w, h) = (gbuffer.width as usize, gbuffer.height as usize);
+    let nine = View::from_gbuffer(scene, gbuffer.clone(), Sampling::Nine, limits);
+    let reference = shown(&nine.render_direct(scene, light, None).0, k_full);
+    let (t_one, _) = super::time_ms_with(
+        repeats,
+        || gbuffer.clone(),
+        |g| View::from_gbuffer(scene, g, Sampling::One, limits).render_direct(scene, light, None),
+    );
+    let mut out = Vec::new();
+    let mut measure = |rule: String, flags: &dyn Fn(&View, &[Vec3]) -> Vec<bool>| {
+        let (ms, (dense, n)) = super::time_ms_with(
+            repeats,
+            || gbuffer.clone(),
+            |g| {
+                let v = View::from_gbuffer(scene, g, Sampling::Adaptive, limits);
+                let (mut dense, _) = v.render_direct(scene, light, None);
+                let f = flags(&v, &dense);
+                let n = v.reshade(scene, light, &mut dense, &f);
+                (dense, n)
+            },
+        );
+        out.push(AaRule {
+            rule,
+            cost_percent: ms / t_one * 100.0,
+            mse_vs_nine: mse_display(&shown(&dense, k_full), &reference, display),
+            reshaded_share: n as f64 / (w * h) as f64,
+        });
+    };
+    for (name, factor) in [
+        ("before: displayed value, this light at full", 1.0f32),
+        ("before: displayed value, exposure ×10", 10.0),
+        ("before: displayed value, exposure ×0.1", 0.1),
+    ] {
+        let scale = k_full * display.scale() * factor;
+        measure(name.into(), &|_, dense| display_rule_flags(dense, w, h, scale, threshold));
+    }
+    measure("after: light-relative gradient, same surface (any exposure)".into(), &|v, dense| {
+        v.gradient_flags(scene, dense, AaParams::new(threshold))
+    });
+    measure("geometry bins only (no re-shading)".into(), &|_, _| vec![false; w * h]);
+    out
 }

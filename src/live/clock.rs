@@ -139,7 +139,7 @@ impl FrameClock {
                 Some(old) => classify(old, &input.state) == Change::Geometry,
             };
             if moved {
-                self.tracer.request(i, input.light.clone(), input.k_full, priority);
+                self.tracer.request(i, input.light.clone(), priority);
             } else {
                 self.tracer.set_priority(i, priority);
             }

@@ -39,7 +39,6 @@ use crate::render::build::{BuildError, BuildSettings, Cancel, LightBuild, Refine
 use crate::render::footprint::DirectQuality;
 use crate::render::{LightBuffer, View};
 use crate::scene::Scene;
-use glam::Vec3;
 use serde::Serialize;
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -125,7 +124,6 @@ pub struct LightReport {
 struct Request {
     id: u64,
     light: Light,
-    k_full: Vec3,
     at: Instant,
 }
 
@@ -282,7 +280,7 @@ impl Tracer {
     /// Asks for light `index` to be rebuilt with new geometry. Replaces any
     /// pending request and cancels a build in progress. A geometry state
     /// found in the cache is published at once.
-    pub fn request(&self, index: usize, light: Light, k_full: Vec3, priority: f32) {
+    pub fn request(&self, index: usize, light: Light, priority: f32) {
         let s = &self.shared;
         let Some(slot) = s.slots.get(index) else { return };
         let id = s.next_id.fetch_add(1, Ordering::Relaxed);
@@ -304,7 +302,7 @@ impl Tracer {
             tracing::debug!("light {index}: geometry found in cache");
             return;
         }
-        st.pending = Some(Request { id, light, k_full, at: now });
+        st.pending = Some(Request { id, light, at: now });
         st.waiting_since.get_or_insert(now);
         drop(st);
         s.notify();
@@ -490,7 +488,7 @@ fn direct_stage(s: &Shared, index: usize) {
     };
     let quality = if quality { DirectQuality::Moving } else { DirectQuality::Full };
     let cancel = Cancel::new(slot.latest.clone(), req.id, s.stop.clone());
-    let mut build = LightBuild::new(req.light, index, req.k_full, s.settings.build, cancel);
+    let mut build = LightBuild::new(req.light, index, s.settings.build, cancel);
     let result = s.pool.install(|| build.direct(&s.scene, &s.view, quality));
     let (buffer, stats) = match result {
         Ok(r) => r,

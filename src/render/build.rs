@@ -31,8 +31,6 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 pub struct BuildSettings {
     /// Anti-aliasing gradient threshold on a 0-255 scale (paper: 15-25).
     pub aa_threshold: f32,
-    /// Display scale (exposure · white balance) for anti-aliasing decisions.
-    pub display_scale: Vec3,
     /// Photon mapping for the indirect term; `None`: direct light (and
     /// Whitted recursion) only.
     pub photons: Option<PhotonSettings>,
@@ -44,12 +42,7 @@ impl Default for BuildSettings {
     /// The paper's settings (section 4): threshold 20, 50,000 photons, 150
     /// in the estimate; 16 refinement passes while idle.
     fn default() -> Self {
-        Self {
-            aa_threshold: 20.0,
-            display_scale: super::Display::default().scale(),
-            photons: Some(PhotonSettings::default()),
-            refine_passes: 16,
-        }
+        Self { aa_threshold: 20.0, photons: Some(PhotonSettings::default()), refine_passes: 16 }
     }
 }
 
@@ -130,7 +123,6 @@ pub fn light_seed(seed: u64, index: usize) -> u64 {
 pub struct LightBuild {
     light: Light,
     index: usize,
-    k_full: Vec3,
     settings: BuildSettings,
     cancel: Cancel,
     /// The Whitted direct term D, once built (kept for the indirect sum).
@@ -142,10 +134,9 @@ pub struct LightBuild {
 }
 
 impl LightBuild {
-    /// A build of light number `index` (its photon seed) with k_i at full
-    /// dimmer `k_full` (anti-aliasing decisions).
-    pub fn new(light: Light, index: usize, k_full: Vec3, settings: BuildSettings, cancel: Cancel) -> Self {
-        Self { light, index, k_full, settings, cancel, direct: None, reshaded: 0, maps: None }
+    /// A build of light number `index` (its photon seed).
+    pub fn new(light: Light, index: usize, settings: BuildSettings, cancel: Cancel) -> Self {
+        Self { light, index, settings, cancel, direct: None, reshaded: 0, maps: None }
     }
 
     /// The build's cancellation token.
@@ -202,10 +193,9 @@ impl LightBuild {
     /// with adaptive anti-aliasing (§3.4).
     pub fn whitted(&mut self, scene: &Scene, view: &View) -> Result<LightBuffer, BuildError> {
         self.cancel.check()?;
-        let aa = AaParams {
-            display_scale: self.k_full * self.settings.display_scale,
-            threshold: self.settings.aa_threshold,
-        };
+        // Decided on the light's own relative gradient: independent of
+        // exposure, dimmer and colour (issue 13).
+        let aa = AaParams::new(self.settings.aa_threshold);
         let (dense, reshaded) = view.render_direct(scene, &self.light, Some(aa));
         self.cancel.check()?;
         self.reshaded = reshaded;

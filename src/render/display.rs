@@ -7,7 +7,8 @@
 //! luminance-preserving).
 //! Values above white clip at the display, like an overexposed camera; a
 //! non-finite value is an error found before this step ([`check_finite`]),
-//! never clamped away here.
+//! never clamped away here. Stills can also be written linear and unclipped
+//! ([`write_exr`], [`write_pfm`]): cd/m² times the white-balance gains only.
 
 use glam::Vec3;
 
@@ -175,6 +176,69 @@ pub fn check_finite(linear: &[Vec3]) -> Result<(), (usize, Vec3)> {
         None => Ok(()),
         Some(i) => Err((i, linear[i])),
     }
+}
+
+/// White balance gains from a command-line value: `none` (gains 1),
+/// `tungsten` (3200 K at full is neutral, the default) or a colour
+/// temperature in kelvin (a Planckian source at that temperature is neutral).
+pub fn parse_white_balance(value: &str) -> Result<Vec3, String> {
+    use footlight_photometry::{Lamp, WhiteBalance};
+    let v = value.trim();
+    if v.eq_ignore_ascii_case("none") {
+        return Ok(Vec3::ONE);
+    }
+    if v.eq_ignore_ascii_case("tungsten") {
+        return Ok(WhiteBalance::default().gains);
+    }
+    let kelvin: f32 = v
+        .trim_end_matches(['K', 'k'])
+        .parse()
+        .map_err(|_| format!("{value:?}: expected none, tungsten or a colour temperature such as 5600K"))?;
+    if !(1000.0..=25_000.0).contains(&kelvin) {
+        return Err(format!("{value:?}: colour temperature must be 1000-25000 K"));
+    }
+    Ok(WhiteBalance::for_lamp(&Lamp::Discharge { cct: kelvin }, 1.0).gains)
+}
+
+/// `linear` (cd/m²) times per-channel white-balance `gains`: what the HDR
+/// writers store. No exposure, no clipping, no transfer curve.
+pub fn balanced(linear: &[Vec3], gains: Vec3) -> Vec<Vec3> {
+    linear.iter().map(|v| *v * gains).collect()
+}
+
+/// Writes a linear, unclipped RGB OpenEXR image (32-bit float channels,
+/// through the `exr` crate), row-major from the top, values as given.
+pub fn write_exr(path: &std::path::Path, width: u32, height: u32, linear: &[Vec3]) -> Result<(), String> {
+    let w = width as usize;
+    if linear.len() != w * height as usize {
+        return Err(format!("{}: {} pixels for a {width}×{height} image", path.display(), linear.len()));
+    }
+    exr::prelude::write_rgb_file(path, w, height as usize, |x, y| {
+        let v = linear[y * w + x];
+        (v.x, v.y, v.z)
+    })
+    .map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Writes a linear, unclipped Portable Float Map (`PF`, RGB f32). The format
+/// is three text lines (`PF`, `width height`, scale; a negative scale means
+/// little-endian) and the rows bottom to top; written by hand because it is
+/// that small and no maintained crate writes it.
+pub fn write_pfm(path: &std::path::Path, width: u32, height: u32, linear: &[Vec3]) -> std::io::Result<()> {
+    let w = width as usize;
+    if linear.len() != w * height as usize {
+        return Err(std::io::Error::other(format!("{} pixels for a {width}×{height} image", linear.len())));
+    }
+    let mut out = format!("PF\n{width} {height}\n-1.0\n").into_bytes();
+    out.reserve(linear.len() * 12);
+    for row in linear.chunks(w.max(1)).rev() {
+        for v in row {
+            for c in v.to_array() {
+                out.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(path, out)
 }
 
 /// Writes an 8-bit sRGB PNG.

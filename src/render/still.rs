@@ -112,14 +112,10 @@ pub fn render_still_hazy(
     let mut buffers = Vec::with_capacity(jobs.len());
     let mut reshaded = 0;
     let mut photon_time = Duration::ZERO;
-    let build_settings = BuildSettings {
-        aa_threshold: settings.aa_threshold,
-        display_scale: settings.display.scale(),
-        photons: settings.photons,
-        refine_passes: 0,
-    };
+    let build_settings =
+        BuildSettings { aa_threshold: settings.aa_threshold, photons: settings.photons, refine_passes: 0 };
     for (i, job) in jobs.iter().enumerate() {
-        let mut build = LightBuild::new(job.light.clone(), i, job.k_full, build_settings, Cancel::never());
+        let mut build = LightBuild::new(job.light.clone(), i, build_settings, Cancel::never());
         let buffer = build.whitted(scene, &view).and_then(|b| {
             if build.has_photons() {
                 let tp = Instant::now();

@@ -5,13 +5,23 @@
 //!
 //! [`View::render_light`] produces one light's unit-intensity buffer
 //! I_h,ε_i (eq. 5) from it, with the paper's adaptive anti-aliasing of the
-//! illumination: where the displayed value jumps by more than a threshold
+//! illumination (section 3.4): where the value jumps by more than a threshold
 //! (0-255 scale) to a neighbour, the pixel and its 8 neighbours are re-shaded
-//! with all 9 samples. The decision uses the light's buffer at dimmer 1 through
-//! exposure and sRGB, so dimming never changes the sample set.
+//! with all 9 samples. The paper compares displayed values; Footlight
+//! compares the light's *own relative* values instead: the buffer is shown as
+//! if its brightest pixels (the 99th percentile) were display white, through
+//! the sRGB curve. That is a gradient relative to the light itself, so the
+//! sample set depends on neither exposure nor dimmer nor k_i: a dim light
+//! anti-aliases its shadow edges the same way a bright one does, and a
+//! re-shaded light never changes when the operator changes the exposure.
+//! Neighbours on different surfaces (another triangle with a normal more than
+//! ~8° off, or another material) are not compared: the triangle-ID bins
+//! already anti-alias those edges, and a jump there is geometry, not
+//! illumination.
 
 use super::buffer::LightBuffer;
 use super::display::srgb8;
+use super::gbuffer::PrimarySample;
 use super::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT, SAMPLES_PER_PIXEL, bin_samples};
 use super::photon::{PhotonMaps, Progressive};
 use super::whitted::{RecursionLimits, ShadingVertex, direct, expand};
@@ -58,15 +68,30 @@ impl Sampling {
     }
 }
 
-/// Adaptive anti-aliasing parameters for one light.
+/// Adaptive anti-aliasing parameters (the same for every light: the decision
+/// is relative to each light's own buffer, see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AaParams {
-    /// Linear factor from the unit buffer to display units at dimmer 1:
-    /// k_i(v = 1) · exposure · white balance.
-    pub display_scale: Vec3,
-    /// Gradient threshold on the 0-255 display scale (paper: 15-25).
+    /// Gradient threshold on the 0-255 scale, with the light's 99th-percentile
+    /// pixel at 255 (paper: 15-25 on the displayed image).
     pub threshold: f32,
 }
+
+impl AaParams {
+    /// Parameters with the given threshold (0-255 scale).
+    pub fn new(threshold: f32) -> Self {
+        Self { threshold }
+    }
+}
+
+/// Share of a light's lit pixels at or below its reference level (the level
+/// shown as 255 for the anti-aliasing decision): the 99th percentile, so a
+/// few hot pixels next to the lamp do not darken the rest.
+pub const AA_REFERENCE_PERCENTILE: f32 = 0.99;
+
+/// Cosine of the largest normal difference between neighbours still compared
+/// for anti-aliasing (about 8°).
+const AA_SAME_SURFACE_COS: f32 = 0.99;
 
 /// Expanded camera paths of every pixel for one sample set, stored as a
 /// compressed row list (pixel i owns vertices[start[i]..start[i+1]]).
@@ -235,22 +260,49 @@ impl View {
         });
         let mut reshaded = 0;
         if let (Sampling::Adaptive, Some(aa)) = (self.sampling, aa) {
-            let flags = gradient_flags(&dense, w, h, aa);
-            reshaded = flags.iter().filter(|&&f| f).count();
-            dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-                let mut scratch = Vec::new();
-                for (x, out) in row.iter_mut().enumerate() {
-                    if flags[y * w + x] {
-                        *out = shade(scene, light, self.nine_samples(scene, y * w + x, &mut scratch));
-                    }
-                }
-            });
+            let flags = self.gradient_flags(scene, &dense, aa);
+            reshaded = self.reshade(scene, light, &mut dense, &flags);
         }
         (dense, reshaded)
     }
 }
 
 impl View {
+    /// Re-shades the flagged pixels of `dense` with all 9 samples; returns how many.
+    pub fn reshade(&self, scene: &Scene, light: &Light, dense: &mut [Vec3], flags: &[bool]) -> usize {
+        let w = self.width() as usize;
+        dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            let mut scratch = Vec::new();
+            for (x, out) in row.iter_mut().enumerate() {
+                if flags[y * w + x] {
+                    *out = shade(scene, light, self.nine_samples(scene, y * w + x, &mut scratch));
+                }
+            }
+        });
+        flags.iter().filter(|&&f| f).count()
+    }
+
+    /// The pixels adaptive anti-aliasing re-shades for a light whose base
+    /// buffer is `dense`: every pixel whose relative value (the light's
+    /// 99th-percentile pixel = 255, through the sRGB curve) differs from a
+    /// right or lower neighbour on the same surface by more than the
+    /// threshold in any channel, plus its 8 neighbours. Scale-free: `dense`
+    /// times any positive factor gives the same set.
+    pub fn gradient_flags(&self, scene: &Scene, dense: &[Vec3], aa: AaParams) -> Vec<bool> {
+        let (w, h) = (self.width() as usize, self.height() as usize);
+        let Some(reference) = reference_level(dense) else { return vec![false; w * h] };
+        let scale = Vec3::splat(1.0 / reference);
+        let display: Vec<Vec3> = dense.par_iter().map(|&l| Vec3::from_array(srgb8(l * scale).map(f32::from))).collect();
+        // Centre sample's surface per pixel: material and shading normal.
+        let surface: Vec<Option<(u32, Vec3)>> =
+            self.gbuffer.samples.par_iter().map(|s| centre_surface(scene, &s[CENTRE_SAMPLE])).collect();
+        let same = |a: usize, b: usize| match (surface[a], surface[b]) {
+            (Some((ma, na)), Some((mb, nb))) => ma == mb && na.dot(nb) >= AA_SAME_SURFACE_COS,
+            _ => false,
+        };
+        mark_gradients(&display, w, h, aa.threshold, same)
+    }
+
     /// The indirect buffer I_h,ε_A,i (eq. 3, 5) of a light from its photon
     /// maps: Σ over each pixel's vertices of path weight ⊙ ρ_d/π ⊙ E(x).
     /// Indirect light is smooth, so it is evaluated on the base sample set
@@ -360,11 +412,36 @@ pub fn expand_pixel(
     }
 }
 
-/// Marks pixels whose display value differs from a right or lower neighbour
-/// by more than the threshold in any channel, plus their 8 neighbours.
-fn gradient_flags(dense: &[Vec3], w: usize, h: usize, aa: AaParams) -> Vec<bool> {
-    let display: Vec<Vec3> =
-        dense.par_iter().map(|&l| Vec3::from_array(srgb8(l * aa.display_scale).map(f32::from))).collect();
+/// Material and shading normal at a primary sample (`None` for a miss).
+fn centre_surface(scene: &Scene, s: &PrimarySample) -> Option<(u32, Vec3)> {
+    (s.triangle != NO_HIT).then(|| {
+        let sp = scene.surface(&Hit { triangle: s.triangle, t: 0.0, u: s.u, v: s.v });
+        (sp.material, sp.shading_normal)
+    })
+}
+
+/// The light's reference level: the 99th percentile of the largest channel
+/// over its lit pixels; `None` when nothing is lit.
+fn reference_level(dense: &[Vec3]) -> Option<f32> {
+    let mut lit: Vec<f32> = dense.iter().map(|v| v.max_element()).filter(|&m| m > 0.0 && m.is_finite()).collect();
+    if lit.is_empty() {
+        return None;
+    }
+    let i = ((lit.len() - 1) as f32 * AA_REFERENCE_PERCENTILE) as usize;
+    let (_, level, _) = lit.select_nth_unstable_by(i, f32::total_cmp);
+    Some(*level)
+}
+
+/// Marks pixels whose value differs from a right or lower neighbour with
+/// `comparable(a, b)` by more than the threshold in any channel, plus their
+/// 8 neighbours.
+pub fn mark_gradients(
+    display: &[Vec3],
+    w: usize,
+    h: usize,
+    threshold: f32,
+    comparable: impl Fn(usize, usize) -> bool,
+) -> Vec<bool> {
     let mut flags = vec![false; w * h];
     let mut mark = |x: usize, y: usize| {
         for yy in y.saturating_sub(1)..(y + 2).min(h) {
@@ -375,9 +452,10 @@ fn gradient_flags(dense: &[Vec3], w: usize, h: usize, aa: AaParams) -> Vec<bool>
     };
     for y in 0..h {
         for x in 0..w {
-            let here = display[y * w + x];
-            let right = (x + 1 < w) && (display[y * w + x + 1] - here).abs().max_element() > aa.threshold;
-            let down = (y + 1 < h) && (display[(y + 1) * w + x] - here).abs().max_element() > aa.threshold;
+            let i = y * w + x;
+            let here = display[i];
+            let right = (x + 1 < w) && (display[i + 1] - here).abs().max_element() > threshold && comparable(i, i + 1);
+            let down = (y + 1 < h) && (display[i + w] - here).abs().max_element() > threshold && comparable(i, i + w);
             if right {
                 mark(x, y);
                 mark(x + 1, y);

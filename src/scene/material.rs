@@ -5,15 +5,16 @@
 //! glTF describes materials physically (base colour, metallic, roughness,
 //! `KHR_materials_transmission`, `KHR_materials_ior`); [`Material::from_pbr`]
 //! maps them onto the Phong/Whitted model. The mapping is documented in
-//! `docs/rendering.md` and chosen so a Lambert surface stays a Lambert
-//! surface exactly (analytic tests depend on that).
+//! `docs/rendering.md` and chosen so that it conserves energy and a matte
+//! (rough, non-metallic) glTF material is exactly Lambert (ρ/π; the analytic
+//! tests and the path-traced references depend on that).
 
 use glam::Vec3;
 
-/// Roughness at and above which a surface gets no mirror recursion (k_R = 0):
-/// its specular term is carried by the Phong lobe alone. This keeps secondary
-/// rays on surfaces that look like mirrors, which is what Whitted's model is
-/// for, and skips them on matte paint.
+/// Roughness at and above which a surface gets no mirror recursion (k_R = 0)
+/// and a dielectric no specular lobe: matte paint is exactly Lambert (ρ/π),
+/// and secondary rays stay on surfaces that look like mirrors, which is what
+/// Whitted's model is for. Below it, gloss fades in as (1 − roughness/0.5)².
 pub const MIRROR_ROUGHNESS_LIMIT: f32 = 0.5;
 
 /// Phong exponents are clamped to this, so a perfect mirror's highlight is a
@@ -53,12 +54,21 @@ impl Material {
         }
     }
 
-    /// Maps glTF metallic-roughness parameters to the Phong/Whitted model.
+    /// Maps glTF metallic-roughness parameters to the Phong/Whitted model
+    /// (table in `docs/rendering.md`).
     ///
-    /// * F0 = mix(((ior-1)/(ior+1))², base, metallic): normal-incidence reflectance.
-    /// * ρ_d = base · (1 − metallic) · (1 − transmission).
-    /// * ρ_s = F0 (for a non-black Phong lobe); exponent n = 2/α² − 2 with α = roughness².
-    /// * k_R = F0 · (1 − roughness/0.5)²: mirror recursion fades out with roughness.
+    /// * F0_d = ((ior−1)/(ior+1))²: a dielectric's normal-incidence reflectance.
+    /// * gloss g = (1 − roughness/0.5)² below roughness 0.5, else 0: how much
+    ///   of a dielectric's Fresnel reflection stays a distinct lobe. A rough
+    ///   dielectric (roughness ≥ 0.5) has g = 0 and is exactly Lambert: its
+    ///   surface reflection is spread over the hemisphere like the diffuse part.
+    /// * ρ_s = (1 − metallic) · F0_d · g + metallic · base (metals keep their
+    ///   coloured lobe at any roughness: they have no diffuse part).
+    /// * ρ_d = base · (1 − metallic) · (1 − transmission) · (1 − F0_d · g):
+    ///   the specular albedo is taken out of the diffuse part, so
+    ///   ρ_d + ρ_s ≤ 1 per channel (energy conservation).
+    /// * exponent n = 2/α² − 2 with α = roughness², clamped to [1, 10⁴].
+    /// * k_R = mix(F0_d, base, metallic) · g: mirror recursion fades out with roughness.
     /// * k_T = transmission · (1 − metallic) · base (tinted glass).
     ///
     /// All inputs are clamped into their glTF ranges first, so absurd files
@@ -74,10 +84,13 @@ impl Material {
         let alpha = (roughness * roughness).max(1e-3);
         let exponent = (2.0 / (alpha * alpha) - 2.0).clamp(1.0, MAX_PHONG_EXPONENT);
         let gloss = (1.0 - roughness / MIRROR_ROUGHNESS_LIMIT).max(0.0).powi(2);
+        let dielectric_specular = f0_dielectric * gloss;
+        let specular = Vec3::splat(dielectric_specular * (1.0 - metallic)) + base * metallic;
         let k_t = base * (transmission * (1.0 - metallic));
-        // Energy: the diffuse part only gets what is neither mirrored nor transmitted.
-        let diffuse = base * ((1.0 - metallic) * (1.0 - transmission));
-        Self { name: name.to_string(), diffuse, specular: f0, exponent, k_r: f0 * gloss, k_t, ior }
+        // Energy: the diffuse part only gets what is neither mirrored,
+        // transmitted nor reflected by the dielectric's specular lobe.
+        let diffuse = base * ((1.0 - metallic) * (1.0 - transmission) * (1.0 - dielectric_specular));
+        Self { name: name.to_string(), diffuse, specular, exponent, k_r: f0 * gloss, k_t, ior }
     }
 
     /// True when the material spawns secondary rays (k_R or k_T non-zero):
@@ -128,6 +141,7 @@ mod tests {
         assert_eq!(m.k_r, Vec3::ZERO);
         assert_eq!(m.k_t, Vec3::ZERO);
         assert!((m.diffuse - Vec3::splat(0.5)).length() < 1e-6);
+        assert_eq!(m.specular, Vec3::ZERO);
         assert!(!m.is_specular());
     }
 
@@ -145,6 +159,20 @@ mod tests {
         assert!((m.k_t - Vec3::splat(0.9)).length() < 1e-6);
         assert!((m.k_r.x - 0.04).abs() < 1e-6);
         assert!(m.is_transmissive());
+    }
+
+    #[test]
+    fn diffuse_plus_specular_never_exceeds_one() {
+        for r in [0.0, 0.1, 0.3, 0.49, 0.5, 1.0] {
+            for metallic in [0.0, 0.5, 1.0] {
+                let m = Material::from_pbr("x", Vec3::ONE, metallic, r, 0.0, 2.5);
+                let total = m.diffuse + m.specular;
+                assert!(total.max_element() <= 1.0 + 1e-6, "r {r} m {metallic}: {total}");
+            }
+        }
+        // Glossy white plastic: the lobe's F0 comes out of the diffuse albedo.
+        let m = Material::from_pbr("plastic", Vec3::ONE, 0.0, 0.0, 0.0, 1.5);
+        assert!((m.diffuse.x + m.specular.x - 1.0).abs() < 1e-6 && (m.specular.x - 0.04).abs() < 1e-6);
     }
 
     #[test]

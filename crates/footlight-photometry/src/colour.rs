@@ -20,11 +20,13 @@ use crate::lamp::Lamp;
 use crate::response::Response;
 use crate::spectrum::Sampled;
 use crate::srgb;
+use crate::white_balance::WhiteBalance;
 use glam::Vec3;
 
 /// c_F ⊙ c_I: colour of `lamp` at dimmer `v` through `gel` (or open), linear
 /// sRGB, Y = luminous transmittance × the lamp's own Y. Black at v = 0;
-/// never negative or NaN (out-of-gamut colours are desaturated at equal Y).
+/// never negative or NaN (out-of-gamut colours are desaturated at equal
+/// white-balanced luminance toward the 3200 K white, see `fit`).
 pub fn colour(lamp: &Lamp, v: f32, gel: Option<&Gel>) -> Vec3 {
     colour_mix(lamp, v, &GelMix::single(gel))
 }
@@ -37,7 +39,17 @@ pub fn colour_mix(lamp: &Lamp, v: f32, mix: &GelMix) -> Vec3 {
     if f > 0.0 {
         xyz = xyz * (1.0 - f) + lamp.xyz_through(v, response(mix.b)) * f;
     }
-    srgb::fit_gamut(srgb::xyz_to_linear_srgb(xyz))
+    fit(srgb::xyz_to_linear_srgb(xyz))
+}
+
+/// Brings an out-of-gamut colour into sRGB *after* the stage's default white
+/// balance (tungsten 3200 K at full neutral, [`WhiteBalance::default`]):
+/// the fit desaturates toward the balanced display's white, so a saturated
+/// gel keeps the hue it shows on the balanced picture (issue 13: fitting
+/// before the balance showed LEE 106 on tungsten with blue at 0.21 × red).
+fn fit(rgb: Vec3) -> Vec3 {
+    static GAINS: std::sync::OnceLock<Vec3> = std::sync::OnceLock::new();
+    srgb::fit_gamut_balanced(rgb, *GAINS.get_or_init(|| WhiteBalance::default().gains))
 }
 
 /// The precomputed response of a filter slot (`None`: open beam).
@@ -74,7 +86,7 @@ pub fn colour_exact(lamp: &Lamp, v: f32, transmission: Option<&Sampled>) -> Vec3
         Some(t) => spectrum.mul(t),
         None => spectrum,
     };
-    srgb::fit_gamut(srgb::xyz_to_linear_srgb(sampled_to_xyz(&filtered).as_vec3()))
+    fit(srgb::xyz_to_linear_srgb(sampled_to_xyz(&filtered).as_vec3()))
 }
 
 #[cfg(test)]
@@ -132,6 +144,64 @@ mod tests {
         assert_eq!(k(&lamp, 0.5, &mix, -3.0), Vec3::ZERO);
         // Open beam, full: k = c_I · Î with luminance Î.
         assert!((luminance(k(&lamp, 1.0, &GelMix::OPEN, 1000.0)) - 1000.0).abs() < 0.1);
+    }
+
+    /// Independent reference for a gel on 3200 K tungsten: Planck's law and
+    /// the CIE 1931 functions summed here at 1 nm, the sRGB matrix, the
+    /// tungsten white balance, and the gamut fit done after the balance by
+    /// hand. Returns the balanced colour relative to its largest channel.
+    fn balanced_by_quadrature(transmission: &Sampled) -> Vec3 {
+        let planck = |nm: f64| {
+            let l = nm * 1e-9;
+            1.0 / (l.powi(5) * ((1.438_776_877e-2 / (l * 3200.0)).exp() - 1.0))
+        };
+        let mut white = glam::DVec3::ZERO;
+        let mut gel = glam::DVec3::ZERO;
+        for nm in 360..=830 {
+            let (cmf, b) = (crate::cie::cmf_f64(f64::from(nm)), planck(f64::from(nm)));
+            white += cmf * b;
+            gel += cmf * b * transmission.at(f64::from(nm));
+        }
+        let to_rgb = |xyz: glam::DVec3| {
+            let m = [
+                [3.2406255, -1.537208, -0.4986286],
+                [-0.9689307, 1.8757561, 0.0415175],
+                [0.0557101, -0.2040211, 1.0569959],
+            ];
+            glam::DVec3::new(
+                m[0][0] * xyz.x + m[0][1] * xyz.y + m[0][2] * xyz.z,
+                m[1][0] * xyz.x + m[1][1] * xyz.y + m[1][2] * xyz.z,
+                m[2][0] * xyz.x + m[2][1] * xyz.y + m[2][2] * xyz.z,
+            )
+        };
+        let (w, g) = (to_rgb(white), to_rgb(gel));
+        let balanced = g / w; // tungsten white -> (1, 1, 1) up to a common scale
+        let y = 0.2126 * balanced.x + 0.7152 * balanced.y + 0.0722 * balanced.z;
+        let low = balanced.min_element();
+        let fitted = if low < 0.0 {
+            glam::DVec3::splat(y) + (balanced - glam::DVec3::splat(y)) * (y / (y - low))
+        } else {
+            balanced
+        };
+        (fitted / fitted.max_element()).as_vec3()
+    }
+
+    #[test]
+    fn saturated_gels_keep_their_hue_after_white_balance() {
+        // Issue 13.6: LEE 106 (primary red) and 119 (dark blue) on 3200 K tungsten,
+        // as the balanced display shows them, against the quadrature above.
+        let gains = WhiteBalance::default().gains;
+        for id in ["L106", "L119"] {
+            let g = library().get(library().find(id).unwrap()).unwrap();
+            let shown = colour(&Lamp::tungsten(), 1.0, Some(g)) * gains;
+            let shown = shown / shown.max_element();
+            let want = balanced_by_quadrature(g.sampled());
+            eprintln!("{id}: balanced, relative to the largest channel: {shown} (quadrature {want})");
+            assert!((shown - want).abs().max_element() < 2e-3, "{id}: shown {shown}, quadrature {want}");
+        }
+        // Red stays red: little blue once balanced (fitting before the balance gave 0.21).
+        let red = colour(&Lamp::tungsten(), 1.0, library().get(library().find("L106").unwrap())) * gains;
+        assert!(red.z < 0.06 * red.x, "{red}");
     }
 
     fn any_lamp() -> impl Strategy<Value = Lamp> {

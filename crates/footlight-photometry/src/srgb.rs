@@ -106,6 +106,31 @@ pub fn fit_gamut(rgb: Vec3) -> Vec3 {
     (Vec3::splat(y) + (rgb - Vec3::splat(y)) * s).max(Vec3::ZERO)
 }
 
+/// [`fit_gamut`] in the white-balanced space of per-channel `gains`: the
+/// colour is balanced, desaturated toward the grey of equal (balanced)
+/// luminance there, and unbalanced again. Gains are positive, so the result
+/// has no negative channel either way; what changes is the direction of the
+/// desaturation: toward the reference white the picture is balanced for, so
+/// the hue seen on the balanced display is kept (a saturated red gel on
+/// tungsten stays red instead of turning magenta). The result is scaled to
+/// the input's luminance Y, as [`fit_gamut`] keeps it. Gains that are not
+/// positive and finite fall back to [`fit_gamut`].
+pub fn fit_gamut_balanced(rgb: Vec3, gains: Vec3) -> Vec3 {
+    if !(gains.is_finite() && gains.min_element() > 0.0) {
+        return fit_gamut(rgb);
+    }
+    if !rgb.is_finite() {
+        return Vec3::ZERO;
+    }
+    if rgb.min_element() >= 0.0 {
+        return rgb;
+    }
+    let fitted = fit_gamut(rgb * gains) / gains;
+    // Keep the colour's own luminance Y (its photometric meaning).
+    let (y, y_fit) = (luminance(rgb), luminance(fitted));
+    if y > 0.0 && y_fit > 0.0 { fitted * (y / y_fit) } else { Vec3::ZERO }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

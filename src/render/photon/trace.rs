@@ -66,9 +66,33 @@ impl PhotonMaps {
     }
 
     /// Indirect irradiance (global + caustic) at a diffuse point, from the
-    /// precomputed irradiance cache.
+    /// precomputed irradiance cache; where no cache point fits (their normals
+    /// disagree or their gather balls do not reach: box corners, thin parts),
+    /// from the direct kNN estimates of both maps, so a lit region never
+    /// reads zero.
     pub fn irradiance(&self, x: Vec3, n: Vec3) -> Vec3 {
-        self.irradiance.lookup(x, n)
+        self.irradiance.lookup(x, n).unwrap_or_else(|| self.direct_estimate(x, n))
+    }
+
+    /// Global + caustic irradiance at `x` from kNN gathers in the maps (no
+    /// cache). The global gather reaches at most twice the nearest cache
+    /// point's radius (the local photon spacing at k photons): a point far
+    /// from every photon of its own surface (the floor under a closed box)
+    /// must not collect the photons of a nearby parallel one.
+    pub fn direct_estimate(&self, x: Vec3, n: Vec3) -> Vec3 {
+        let reach = self.irradiance.radius_near(x).map_or(self.max_radius, |r| (2.0 * r).min(self.max_radius));
+        let g = self.global.estimate(x, n, self.settings.estimate, reach).irradiance;
+        let c = if !self.caustic.is_empty() && self.caustic.nearest_distance(x) < self.caustic_radius() {
+            self.caustic.estimate(x, n, self.settings.caustic_estimate, self.caustic_radius()).irradiance
+        } else {
+            Vec3::ZERO
+        };
+        g + c
+    }
+
+    /// Gather radius limit of caustic estimates.
+    pub fn caustic_radius(&self) -> f32 {
+        self.max_radius * CAUSTIC_RADIUS_SHARE
     }
 }
 
