@@ -6,6 +6,7 @@
 //! figure is an MSE against the 9× oversampled render of the same state.
 //! Writes `report.md` and `report.json` into the output folder.
 
+pub mod chase;
 pub mod haze;
 pub mod live;
 #[cfg(feature = "plots")]
@@ -123,6 +124,8 @@ pub struct Report {
     pub scale: Option<scale::ScaleReport>,
     /// Haze: beam time vs error, density re-weighting, multiple scattering, rig cost.
     pub haze: Option<haze::HazeReport>,
+    /// Issue 18: 44 moving heads in a chase through the daemon.
+    pub chase: Option<chase::ChaseReport>,
 }
 
 /// One point of a run-time-versus-error curve.
@@ -180,6 +183,9 @@ impl Report {
         s += &format!("  linearity (composite vs eq. 1 render): max rel. error {:.2e}\n", self.linearity_max_rel_error);
         if let Some(h) = &self.haze {
             s += &h.lines();
+        }
+        if let Some(c) = &self.chase {
+            s += &c.lines();
         }
         s
     }
@@ -335,6 +341,9 @@ impl Report {
         }
         if let Some(h) = &self.haze {
             s += &format!("\n## Haze (issue 15)\n\n```text\n{}```\n", h.lines());
+        }
+        if let Some(c) = &self.chase {
+            s += &c.markdown();
         }
         s += "\n## Raw timings (ms)\n\n| stage | ms |\n|---|---:|\n";
         for (n, t) in &self.timings_ms {
@@ -770,6 +779,13 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         if cfg.quick { 20_000 } else { 200_000 },
         rig_lights.as_deref(),
     );
+    progress.set_message("44 moving heads in a chase");
+    let chase = if cfg.quick {
+        chase::run(&scene_arc, camera, (200, 125), 2.0, 0)
+    } else {
+        chase::run(&scene_arc, camera, (800, 500), 10.0, crate::render::photon::PhotonSettings::default().stored)
+    };
+    let chase = chase.map_err(|e| tracing::error!("chase: {e}")).ok();
     progress.finish_and_clear();
 
     let report = Report {
@@ -792,6 +808,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         live,
         scale,
         haze,
+        chase,
     };
     #[cfg(feature = "plots")]
     plots::write(&report, out)?;

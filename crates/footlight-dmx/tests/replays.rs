@@ -122,6 +122,50 @@ fn pan_tilt_sweep() -> Vec<u8> {
     w.w.into_inner()
 }
 
+/// Heads in the 44-head chase (`chase-44.pcapng`, `chase-44.toml`).
+const CHASE_HEADS: usize = 44;
+/// Heads per universe (16 slots apart: 22 × 16 = 352 slots).
+const CHASE_PER_UNIVERSE: usize = 22;
+
+/// One head's 16-bit pan and tilt at `t` seconds: a smooth chase, each head
+/// a phase behind the previous one (pan ±49°, tilt 15° ± 12° off straight down).
+pub fn chase_pan_tilt(head: usize, t: f64) -> (u16, u16) {
+    use std::f64::consts::TAU;
+    let phase = head as f64 * 0.3;
+    let pan = 32768.0 + 6000.0 * (TAU * 0.25 * t + phase).sin();
+    let tilt = 32768.0 + 3640.0 + 3000.0 * (TAU * 0.2 * t + phase).sin();
+    (pan.round() as u16, tilt.round() as u16)
+}
+
+/// 44 generic moving spots (13-channel standard mode, 18° zoom, dimmer 25 %),
+/// 22 on each of Art-Net Port-Addresses 0 and 1 (patch universes 1 and 2),
+/// a smooth pan/tilt chase at 40 Hz for 5 s (issue 18).
+fn chase_44() -> Vec<u8> {
+    let mut w = Writer::new();
+    for i in 0..200u32 {
+        let t = f64::from(i) / 40.0;
+        for u in 0..2u16 {
+            let mut s = [0u8; 512];
+            for k in 0..CHASE_PER_UNIVERSE {
+                let head = usize::from(u) * CHASE_PER_UNIVERSE + k;
+                let (pan, tilt) = chase_pan_tilt(head, t);
+                let at = k * 16; // address 16k + 1
+                s[at..at + 2].copy_from_slice(&pan.to_be_bytes());
+                s[at + 2..at + 4].copy_from_slice(&tilt.to_be_bytes());
+                s[at + 7] = 64; // zoom: 12° + 24° × 64/255 = 18°
+                s[at + 10] = 255; // shutter open
+                s[at + 11] = 64; // dimmer at 25 %: the beams stay apart on the floor
+                s[at + 12] = 0; // dimmer fine
+            }
+            let from: SocketAddrV4 = format!("{DESK}:6454").parse().unwrap();
+            let to: SocketAddrV4 = "192.0.2.255:6454".parse().unwrap();
+            let packet = build_dmx((i % 255 + 1) as u8, 0, u, &s[..CHASE_PER_UNIVERSE * 16]);
+            w.w.write_udp(CURTAIN + Duration::from_secs_f64(t), from, to, &packet, None).unwrap();
+        }
+    }
+    w.w.into_inner()
+}
+
 fn check_or_bless(name: &str, bytes: &[u8]) -> PathBuf {
     let path = dir().join(name);
     assert!(bytes.len() < 200_000, "{name} is {} bytes", bytes.len());
@@ -175,4 +219,30 @@ fn pan_tilt_sweep_recording() {
     assert!((i32::from(pan) - 32768).abs() < 400, "pan at 3 s: {pan}");
     assert!((i32::from(tilt) - 49152).abs() < 20, "tilt at 3 s: {tilt}");
     assert_eq!(s[14], 255);
+}
+
+#[test]
+fn chase_44_recording() {
+    let path = check_or_bless("chase-44.pcapng", &chase_44());
+    assert_eq!(CHASE_HEADS, 2 * CHASE_PER_UNIVERSE);
+    let rec = Recording::open(&path).unwrap();
+    let patch = InputPatch { universes: vec![1, 2], ..InputPatch::default() };
+    for t in [0.0, 2.5, 4.9] {
+        let frames = state_at(&rec, Duration::from_secs_f64(t), &patch).unwrap();
+        assert_eq!(frames.len(), 2, "both universes at {t} s");
+        for f in &frames {
+            for k in 0..CHASE_PER_UNIVERSE {
+                let head = usize::from(f.universe - 1) * CHASE_PER_UNIVERSE + k;
+                let s = &f.slots[k * 16..];
+                // The state at t is the last packet at or before t (40 Hz).
+                let sent = chase_pan_tilt(head, (t * 40.0).floor() / 40.0);
+                assert_eq!(
+                    (u16::from_be_bytes([s[0], s[1]]), u16::from_be_bytes([s[2], s[3]])),
+                    sent,
+                    "head {head} at {t} s"
+                );
+                assert_eq!((s[7], s[10], s[11], s[12]), (64, 255, 64, 0));
+            }
+        }
+    }
 }
