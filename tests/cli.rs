@@ -336,3 +336,71 @@ fn render_writes_linear_exr_and_pfm() {
     let o = footlight().args(["render", "--out"]).arg(dir.join("x.tiff")).output().unwrap();
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains(".exr"));
 }
+
+/// Every numeric flag is checked when the command line is parsed: a bad
+/// value is refused at once with a message naming the flag and its range,
+/// never a panic, a dead task or a silent substitute (issue 12, item 6).
+#[test]
+fn bad_flag_values_are_refused_at_parse_time_naming_the_flag() {
+    let dir = temp_dir("flags");
+    let out = dir.join("never.png");
+    let out = out.to_str().unwrap();
+    let cases: &[(&[&str], &str)] = &[
+        (&["render", "--dmx", "tests/replays/cue-fades.pcapng", "--at", "1e30", "--out", out], "--at"),
+        (&["render", "--dmx", "tests/replays/cue-fades.pcapng", "--at", "1e19", "--out", out], "--at"),
+        (&["render", "--at=-1", "--out", out], "--at"),
+        (&["render", "--photons", "1000000000000", "--out", out], "--photons"),
+        (&["render", "--photons=-5", "--out", out], "--photons"),
+        (&["render", "--white-lux", "0", "--out", out], "--white-lux"),
+        (&["render", "--white-lux=-1", "--out", out], "--white-lux"),
+        (&["render", "--white-lux", "nan", "--out", out], "--white-lux"),
+        (&["render", "--aa-threshold", "inf", "--out", out], "--aa-threshold"),
+        (&["render", "--width", "0", "--out", out], "--width"),
+        (&["render", "--depth", "1000", "--out", out], "--depth"),
+        (&["render", "--estimate", "1", "--out", out], "--estimate"),
+        (&["run", "--fps", "nan"], "--fps"),
+        (&["run", "--fps", "0"], "--fps"),
+        (&["run", "--fps", "1000"], "--fps"),
+        (&["run", "--white-lux", "nan"], "--white-lux"),
+        (&["replay", "tests/replays/cue-fades.pcapng", "--speed", "1e-300"], "--speed"),
+        (&["replay", "tests/replays/cue-fades.pcapng", "--speed", "0"], "--speed"),
+        (&["replay", "tests/replays/cue-fades.pcapng", "--speed=-1"], "--speed"),
+        (&["replay", "tests/replays/cue-fades.pcapng", "--speed", "nan"], "--speed"),
+    ];
+    for (args, flag) in cases {
+        let o = footlight().args(*args).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?} must be a usage error: {err}");
+        assert!(err.contains(flag), "{args:?}: the message names {flag}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+    assert!(!dir.join("never.png").exists());
+    // The photon message gives the memory it would need.
+    let o = footlight().args(["render", "--photons", "1000000000000", "--out", out]).output().unwrap();
+    assert!(String::from_utf8_lossy(&o.stderr).contains("GB"), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// `render --dmx` of a recording with no DMX for the patch says which
+/// universes it holds instead of rendering the default look.
+#[test]
+fn render_of_a_recording_without_patched_dmx_names_its_universes() {
+    let dir = temp_dir("unpatched");
+    let patch = dir.join("far.toml");
+    let text = std::fs::read_to_string(root().join("tests/replays/replay-patch.toml")).unwrap();
+    let text = text
+        .replace("fixtures = \"fixtures\"", &format!("fixtures = {:?}", root().join("tests/replays/fixtures")))
+        .replace("gels = \"../../patch/gels.toml\"", &format!("gels = {:?}", root().join("patch/gels.toml")))
+        .replace("universe = 1", "universe = 7");
+    std::fs::write(&patch, text).unwrap();
+    let o = footlight()
+        .args(["render", "--width", "32", "--height", "20", "--dmx", "tests/replays/cue-fades.pcapng", "--patch"])
+        .arg(&patch)
+        .arg("--out")
+        .arg(dir.join("x.png"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(err.contains("sACN universe 1"), "names what the recording holds: {err}");
+    assert!(!dir.join("x.png").exists());
+}
