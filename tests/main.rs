@@ -28,3 +28,5 @@ mod gpu;
 mod replay;
 // The command line as a user runs it.
 mod cli;
+// The preview server under hostile clients: timeouts, limits, Host check, shared encodes.
+mod serve;
