@@ -28,5 +28,7 @@ mod gpu;
 mod replay;
 // The command line as a user runs it.
 mod cli;
+// Hostile and broken glTF files: cycles, budgets, buffer URIs, accessors.
+mod scene_import;
 // The preview server under hostile clients: timeouts, limits, Host check, shared encodes.
 mod serve;

@@ -323,6 +323,12 @@ impl Importer<'_> {
     /// The scene file's bytes; it must be a regular file.
     fn read_scene_file(&self) -> Result<Vec<u8>, SceneError> {
         let err = |what: String| SceneError::Read { path: self.path.to_path_buf(), what };
+        // Checked before opening: opening a FIFO for reading blocks until a writer comes.
+        match std::fs::metadata(self.path) {
+            Ok(m) if !m.is_file() => return Err(err("not a regular file".into())),
+            Ok(_) => {}
+            Err(e) => return Err(err(format!("cannot open: {e}"))),
+        }
         let mut file = std::fs::File::open(self.path).map_err(|e| err(format!("cannot open: {e}")))?;
         let meta = file.metadata().map_err(|e| err(format!("cannot read: {e}")))?;
         if !meta.is_file() {
@@ -458,13 +464,16 @@ impl Importer<'_> {
                         break;
                     }
                 }
-                let first = first.map_or("the scene".to_string(), node_name);
+                let hint =
+                    "glTF nodes must form trees (to place a mesh several times, give several nodes the same mesh)";
                 let again = from.map_or("the scene".to_string(), node_name);
-                return Err(self.invalid(format!(
-                    "{} is reached twice (from {first} and from {again}); glTF nodes must form trees \
-                     (to place a mesh several times, give several nodes the same mesh)",
-                    node_name(i)
-                )));
+                if first == from {
+                    return Err(self.invalid(format!("{again} lists {} twice; {hint}", node_name(i))));
+                }
+                let first = first.map_or("the scene".to_string(), node_name);
+                return Err(
+                    self.invalid(format!("{} is reached twice (from {first} and from {again}); {hint}", node_name(i)))
+                );
             }
             parent[i] = Some(from);
             let n = &nodes[i];
@@ -702,6 +711,10 @@ impl Importer<'_> {
         let target = dir.join(rel).canonicalize().map_err(|e| refuse(&format!("cannot open ({e})")))?;
         if !target.starts_with(&dir) {
             return Err(refuse(&format!("it resolves outside the scene folder {}", dir.display())));
+        }
+        // Checked before opening: opening a FIFO for reading blocks until a writer comes.
+        if !std::fs::metadata(&target).is_ok_and(|m| m.is_file()) {
+            return Err(refuse("not a regular file"));
         }
         let file = std::fs::File::open(&target).map_err(|e| refuse(&format!("cannot open ({e})")))?;
         let meta = file.metadata().map_err(|e| refuse(&format!("cannot read ({e})")))?;
