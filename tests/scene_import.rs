@@ -264,11 +264,9 @@ fn accessors_are_bound_checked_before_use() {
     let sp = |i: u32| {
         let mut b = sparse.clone();
         b[36..38].copy_from_slice(&(i as u16).to_le_bytes());
-        let acc = format!(
-            r#"[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,0,2],
-            "sparse":{{"count":1,"indices":{{"bufferView":1,"componentType":5123}},"values":{{"bufferView":2}}}}}}]"#
-        );
-        gltf(node, &acc, views, &buffer(&b), "")
+        let acc = r#"[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,0,2],
+            "sparse":{"count":1,"indices":{"bufferView":1,"componentType":5123},"values":{"bufferView":2}}}]"#;
+        gltf(node, acc, views, &buffer(&b), "")
     };
     let s = load(&write(&d, "sparse.gltf", &sp(2))).unwrap();
     assert_eq!(s.positions[0][2], glam::Vec3::new(0.0, 0.0, 2.0));
