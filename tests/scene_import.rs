@@ -133,7 +133,31 @@ fn triangle_budget_is_checked_before_reading() {
         }
         other => panic!("expected the budget error, got {:?}", other.map(|s| s.triangle_count())),
     }
+    match load_with(&p, &ImportLimits { max_triangles: 500 }) {
+        Ok(s) => assert_eq!(s.triangle_count(), 500),
+        Err(e) => panic!("{e}"),
+    }
     assert_eq!(ImportLimits::default().max_triangles, 20_000_000);
+    // Few triangles but many vertices per instance: 1 indexed triangle over 12 vertices, 500 times.
+    let mut b = Vec::new();
+    for k in 0..12 {
+        b.extend([k as f32, 0.0, (k % 2) as f32].iter().flat_map(|f| f.to_le_bytes()));
+    }
+    b.extend([0u16, 1, 2].iter().flat_map(|i| i.to_le_bytes()));
+    let json = gltf(
+        &format!("[{}]", nodes.join(",")),
+        r#"[{"bufferView":0,"componentType":5126,"count":12,"type":"VEC3","min":[0,0,0],"max":[11,0,1]},
+            {"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}]"#,
+        r#"[{"buffer":0,"byteLength":144},{"buffer":0,"byteOffset":144,"byteLength":6}]"#,
+        &format!(r#"[{{"byteLength":150,"uri":"{}"}}]"#, data_uri(&b)),
+        "",
+    )
+    .replace(r#""POSITION":0}"#, r#""POSITION":0},"indices":1"#);
+    let p = write(&d, "spread.gltf", &json);
+    match load_with(&p, &ImportLimits { max_triangles: 1000 }) {
+        Err(SceneError::VertexBudget { vertices: 6000, limit: 3000, .. }) => {}
+        other => panic!("expected the vertex budget error, got {:?}", other.map(|s| s.triangle_count())),
+    }
 }
 
 #[test]

@@ -27,8 +27,9 @@
 //!    likewise. This module reads accessors itself (the gltf crate's reader
 //!    returns `None` for every kind of problem, and its sparse iterator
 //!    unwraps), so a bad count names the accessor and the bound.
-//! 5. The triangle budget ([`ImportLimits`]): instances × triangles, summed
-//!    from the declared counts before anything is allocated.
+//! 5. The budget ([`ImportLimits`]): instances × triangles and instances ×
+//!    vertices (at most 3 per triangle allowed), summed from the declared
+//!    counts before anything is allocated.
 //! 6. Buffers: `data:` URIs (base64), the GLB binary chunk, or a *relative*
 //!    path that, canonicalised, stays inside the scene's folder and is a
 //!    regular file; at most `byteLength` bytes are read, and a shorter file is
@@ -85,6 +86,20 @@ pub enum SceneError {
         /// Triangles the file declares.
         triangles: u64,
         /// The limit.
+        limit: u64,
+    },
+    /// The scene's mesh instances read more vertices than the budget allows
+    /// (each instance reads its mesh's vertices again).
+    #[error(
+        "{path}: the scene reads {vertices} vertices (mesh instances × vertices per mesh), \
+         over the limit of {limit}; simplify or decimate the scene"
+    )]
+    VertexBudget {
+        /// The scene file.
+        path: PathBuf,
+        /// Vertices the file declares, summed over instances.
+        vertices: u64,
+        /// The limit (3 × [`ImportLimits::max_triangles`]).
         limit: u64,
     },
     /// A mesh primitive's data is inconsistent (e.g. an index past the vertex count).
@@ -194,7 +209,7 @@ impl Importer<'_> {
         let instances = self.walk_nodes(&doc)?;
 
         // Accessors and the budget, from declared sizes only (nothing allocated yet).
-        let mut triangles: u64 = 0;
+        let (mut triangles, mut vertices): (u64, u64) = (0, 0);
         for &(node, _) in &instances {
             let Some(mesh) = root.nodes[node].mesh else { continue };
             for (pi, prim) in root.meshes[mesh.value()].primitives.iter().enumerate() {
@@ -202,10 +217,15 @@ impl Importer<'_> {
                 let (positions, _normals, indices) = self.primitive_spans(root, mesh.value(), pi, prim)?;
                 let n = indices.as_ref().map_or(positions.count, |i| i.count);
                 triangles = triangles.saturating_add(triangle_count(mode, n));
+                vertices = vertices.saturating_add(positions.count);
             }
         }
         if triangles > self.limits.max_triangles {
             return Err(SceneError::Budget { path: path.to_path_buf(), triangles, limit: self.limits.max_triangles });
+        }
+        let vertex_limit = self.limits.max_triangles.saturating_mul(3);
+        if vertices > vertex_limit {
+            return Err(SceneError::VertexBudget { path: path.to_path_buf(), vertices, limit: vertex_limit });
         }
 
         let buffers = self.buffers(root, blob)?;
