@@ -30,5 +30,7 @@ mod replay;
 mod cli;
 // Hostile and broken glTF files: cycles, budgets, buffer URIs, accessors.
 mod scene_import;
+// Seeded property-based fuzzing of the glTF importer and the patch loader.
+mod fuzz_import;
 // The preview server under hostile clients: timeouts, limits, Host check, shared encodes.
 mod serve;
