@@ -159,6 +159,7 @@ fn idle_and_slow_connections_are_closed() {
     let mut srv = start(config);
     let mut s = connect(srv.addr);
     s.write_all(b"GET / HTTP/1.1\r\n").unwrap();
+    srv.wait_open(1);
     let t = Instant::now();
     let mut closed = false;
     while t.elapsed() < Duration::from_secs(10) {

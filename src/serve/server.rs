@@ -24,6 +24,12 @@
 //!   period is dropped.
 //!
 //! Every default is one constant on [`ServeConfig`].
+//!
+//! A connection upgraded to another protocol (a WebSocket route, issue 17)
+//! leaves hyper's connection: its task ends, so it no longer counts toward
+//! the connection limit and is not dropped at shutdown by this loop. The
+//! upgraded handler must watch the shutdown signal and bound its own
+//! connections.
 
 use super::{ServeState, routes};
 use axum::Router;
