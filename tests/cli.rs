@@ -51,7 +51,7 @@ fn broken_patch_and_scene_name_file_and_line() {
     let o = footlight().args(["render", "--out"]).arg(dir.join("x.png")).arg("--patch").arg(&patch).output().unwrap();
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("bad.toml:1:") && err.contains("intensity"), "{err}");
+    assert!(err.contains("bad.toml:6:") && err.contains("intensity"), "{err}");
 
     let scene = dir.join("bad.glb");
     std::fs::write(&scene, b"glTF\x02\0\0\0garbage").unwrap();

@@ -30,3 +30,9 @@ mod gpu;
 mod replay;
 // The command line as a user runs it.
 mod cli;
+// Hostile and broken glTF files: cycles, budgets, buffer URIs, accessors.
+mod scene_import;
+// Seeded property-based fuzzing of the glTF importer and the patch loader.
+mod fuzz_import;
+// The preview server under hostile clients: timeouts, limits, Host check, shared encodes.
+mod serve;

@@ -28,7 +28,7 @@ use super::tracer::{LightReport, Tracer, TracerSettings};
 use crate::render::composite::Compositor;
 use crate::render::{Display, RecursionLimits, Sampling, View};
 use crate::scene::{Camera, Scene};
-use crate::serve::{ServeState, StatusFn};
+use crate::serve::{ServeConfig, ServeState, StatusFn};
 use footlight_dmx::artnet::ArtNetConfig;
 use footlight_dmx::sacn::SacnConfig;
 use footlight_dmx::usbpro::UsbProConfig;
@@ -135,9 +135,10 @@ pub enum DaemonError {
     },
 }
 
-/// Binds the preview listener first, so a taken port is reported before any work starts.
+/// Binds the preview listener first, so a taken port is reported before any
+/// work starts (a 1024-connection backlog: [`crate::serve::bind`]).
 pub async fn bind_http(addr: SocketAddr) -> Result<tokio::net::TcpListener, DaemonError> {
-    tokio::net::TcpListener::bind(addr).await.map_err(|source| DaemonError::Bind { addr, source })
+    crate::serve::bind(addr).map_err(|source| DaemonError::Bind { addr, source })
 }
 
 /// One stop signal for every task (mini-redis `Shutdown`): cloneable,
@@ -455,10 +456,16 @@ impl Daemon {
                 let status_fn = status_fn.clone();
                 Arc::new(move || serde_json::to_value(status_fn()).unwrap_or_default())
             };
-            let app = crate::serve::router(ServeState { frames: frames_rx.clone(), status });
+            // Timeouts, connection limit and Host check; loopback-only Host
+            // unless the address is public on purpose (docs/live.md).
+            let serve_config = match listener.local_addr() {
+                Ok(addr) => ServeConfig::for_address(addr),
+                Err(_) => ServeConfig::default(),
+            };
+            let server = crate::serve::Server::new(ServeState { frames: frames_rx.clone(), status }, serve_config);
             let http_stop = stop.clone();
             tasks.spawn(async move {
-                let result = axum::serve(listener, app).with_graceful_shutdown(http_stop.fired()).await;
+                let result = server.run(listener, http_stop.fired()).await;
                 ("HTTP", result.map_err(|e| e.to_string()))
             });
         }

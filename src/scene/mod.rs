@@ -12,7 +12,7 @@ pub mod material;
 
 pub use bvh::{Accel, Hit};
 pub use camera::Camera;
-pub use gltf_import::{SceneError, load};
+pub use gltf_import::{ImportLimits, SceneError, load, load_with};
 pub use material::Material;
 
 use glam::Vec3;
@@ -60,6 +60,8 @@ pub struct ImportReport {
     pub non_finite: usize,
     /// Triangles dropped because their area was (numerically) zero.
     pub degenerate: usize,
+    /// Vertex normals that were NaN/Inf in the file (the face normal is used instead).
+    pub non_finite_normals: usize,
 }
 
 /// Triangle mesh scene with materials, an optional camera and its BVH.
@@ -237,7 +239,7 @@ mod tests {
         assert!(!b.add_triangle([Vec3::ONE; 3], None, 0));
         assert!(b.add_triangle([Vec3::ZERO, Vec3::X, Vec3::Y], Some([Vec3::NAN, Vec3::Z, Vec3::ZERO]), 99));
         let s = b.build();
-        assert_eq!(s.report, ImportReport { non_finite: 1, degenerate: 2 });
+        assert_eq!(s.report, ImportReport { non_finite: 1, degenerate: 2, non_finite_normals: 0 });
         assert_eq!(s.triangle_count(), 1);
         assert_eq!(s.material_of[0], 0);
         assert!(s.normals[0].iter().all(|n| (n.length() - 1.0).abs() < 1e-5));

@@ -1,11 +1,30 @@
-//! The live preview over HTTP (axum), read-only: nothing here changes the show.
+//! The live preview over HTTP, read-only: nothing here changes the show.
 //!
 //! * `/`: a page with the live picture (the browser fetches the next frame
 //!   as soon as the previous one has loaded, so the rate follows what the
 //!   network allows) and, beside it, each light's name, DMX values, build
 //!   state and last build time.
 //! * `/api/status`: the same as JSON, plus frame rate and input counters.
-//! * `/api/frame.png`: a snapshot of the latest frame.
+//! * `/api/frame.png`: the latest frame as PNG.
+//!
+//! Frames come from the frame clock's `watch` channel ([`ServeState::frames`]);
+//! each published picture is PNG-encoded at most once, on one blocking
+//! thread, and the bytes are shared by every client ([`png`]). The accept
+//! loop ([`server`]) is ours, not `axum::serve`: it bounds the time a client
+//! may take to send its request head, closes connections on which nothing
+//! moves, caps the number of open connections, checks the Host header
+//! against DNS rebinding, and on shutdown closes every connection after a
+//! short grace period, so no client can hold the daemon open. [`load`] is a
+//! bounded loopback client for the tests and `footlight bench`.
+//!
+//! Routes live in [`router`]; a later WebSocket route (the browser stream)
+//! belongs there too: connections are served with upgrades enabled.
+
+pub mod load;
+pub mod png;
+pub mod server;
+
+pub use server::{HostPolicy, LISTEN_BACKLOG, ServeConfig, ServeError, ServeStats, Server, StatsSnapshot, bind, serve};
 
 use crate::live::clock::Frame;
 use axum::Router;
@@ -28,22 +47,36 @@ pub struct ServeState {
     pub status: StatusFn,
 }
 
-/// The preview's routes.
+/// What the handlers share: the daemon's state, the PNG cache and the counters.
+#[derive(Clone)]
+struct App {
+    state: ServeState,
+    png: Arc<png::PngCache>,
+}
+
+/// The preview's routes, with their own counters (no Host check, no
+/// timeouts: [`serve`] adds those around it).
 pub fn router(state: ServeState) -> Router {
+    routes(state, Arc::new(ServeStats::default()))
+}
+
+/// The routes counting into `stats`.
+fn routes(state: ServeState, stats: Arc<ServeStats>) -> Router {
+    let app = App { state, png: Arc::new(png::PngCache::new(stats)) };
     Router::new()
         .route("/", get(index))
         .route("/api/status", get(status))
         .route("/api/frame.png", get(frame_png))
-        .with_state(state)
+        .with_state(app)
 }
 
 async fn index() -> Html<&'static str> {
     Html(include_str!("preview.html"))
 }
 
-async fn status(State(s): State<ServeState>) -> Response {
-    let frame = s.frames.borrow().clone();
-    let mut v = (s.status)();
+async fn status(State(app): State<App>) -> Response {
+    let frame = app.state.frames.borrow().clone();
+    let mut v = (app.state.status)();
     if let Some(obj) = v.as_object_mut() {
         obj.insert("frame".into(), frame.number.into());
         obj.insert("width".into(), frame.width.into());
@@ -53,16 +86,19 @@ async fn status(State(s): State<ServeState>) -> Response {
     axum::Json(v).into_response()
 }
 
-async fn frame_png(State(s): State<ServeState>) -> Response {
-    let frame = s.frames.borrow().clone();
-    // PNG encoding is CPU work: keep it off the async workers.
-    let encoded = tokio::task::spawn_blocking(move || encode_png(&frame)).await;
-    match encoded {
-        Ok(Ok(png)) => {
-            ([(header::CONTENT_TYPE, "image/png"), (header::CACHE_CONTROL, "no-store")], png).into_response()
-        }
-        Ok(Err(e)) => (StatusCode::INTERNAL_SERVER_ERROR, format!("encoding the frame failed: {e}")).into_response(),
-        Err(e) => (StatusCode::INTERNAL_SERVER_ERROR, format!("encoder task failed: {e}")).into_response(),
+async fn frame_png(State(app): State<App>) -> Response {
+    let frame = app.state.frames.borrow().clone();
+    match app.png.get(frame).await {
+        Ok(png) => (
+            [
+                (header::CONTENT_TYPE, "image/png".to_string()),
+                (header::CACHE_CONTROL, "no-store".to_string()),
+                (header::HeaderName::from_static(png::FRAME_HEADER), png.number.to_string()),
+            ],
+            png.bytes,
+        )
+            .into_response(),
+        Err(e) => (StatusCode::INTERNAL_SERVER_ERROR, format!("encoding the frame failed: {e}")).into_response(),
     }
 }
 

@@ -44,6 +44,18 @@ pub(super) fn build(path: &Path, text: &str) -> Result<Patch, Vec<PatchError>> {
         return Err(b.errors);
     }
     let gels = b.gels.flatten();
+    let mut warnings = Vec::new();
+    if file.fixture.is_empty() {
+        warnings.push(PatchError::new(
+            path,
+            1,
+            "warning: the patch has no [[fixture]] entries, so the stage stays dark; \
+             add fixtures (docs/patch-format.md)",
+        ));
+    }
+    for w in &warnings {
+        tracing::warn!("{w}");
+    }
     Ok(Patch {
         path: path.to_path_buf(),
         camera,
@@ -52,6 +64,7 @@ pub(super) fn build(path: &Path, text: &str) -> Result<Patch, Vec<PatchError>> {
         look_universes,
         gels,
         haze,
+        warnings,
     })
 }
 
@@ -179,32 +192,38 @@ impl<'a> Builder<'a> {
 
     fn camera(&mut self, file: &PatchFile) -> Option<CameraSpec> {
         let c = file.camera.as_ref()?;
-        let (span, c) = (c.span(), c.get_ref());
-        let (p, t) = (Vec3::from(c.position), Vec3::from(c.look_at));
-        if !p.is_finite() || !t.is_finite() || p.distance(t) < 1e-6 {
-            self.err(span, "camera position and look_at must be finite and distinct");
+        let c = c.get_ref();
+        let (p, t) = (Vec3::from(*c.position.get_ref()), Vec3::from(*c.look_at.get_ref()));
+        if !p.is_finite() {
+            self.err(c.position.span(), "camera position must be three finite numbers");
             return None;
         }
-        if !(c.fov_y > 0.0 && c.fov_y < 179.0) {
-            self.err(span, format!("camera fov_y {} must be between 0 and 179 degrees", c.fov_y));
+        if !t.is_finite() || p.distance(t) < 1e-6 {
+            self.err(c.look_at.span(), "camera look_at must be three finite numbers, distinct from position");
             return None;
         }
-        Some(CameraSpec { position: p, look_at: t, fov_y: c.fov_y.to_radians() })
+        let fov_y = c.fov_y.as_ref().map_or(super::file::DEFAULT_FOV_Y, |f| *f.get_ref());
+        if !(fov_y > 0.0 && fov_y < 179.0) {
+            let span = c.fov_y.as_ref().map_or(0..0, |f| f.span());
+            self.err(span, format!("camera fov_y {fov_y} must be between 0 and 179 degrees"));
+            return None;
+        }
+        Some(CameraSpec { position: p, look_at: t, fov_y: fov_y.to_radians() })
     }
 
     fn fixture(&mut self, f: &Spanned<FixtureFile>) -> Option<Built> {
         let span = f.span();
         let line = line_of(self.text, span.start);
         let f = f.get_ref();
-        let id = f.id;
+        let id = *f.id.get_ref();
         let before = self.errors.len();
         if let Some(&(_, l)) = self.ids.iter().find(|(other, _)| *other == id) {
-            self.err_line(line, format!("fixture {id}: id already used on line {l}; give each fixture its own id"));
+            self.err(f.id.span(), format!("fixture {id}: id already used on line {l}; give each fixture its own id"));
         }
         self.ids.push((id, line));
-        let position = Vec3::from(f.position);
+        let position = Vec3::from(*f.position.get_ref());
         if !position.is_finite() {
-            self.err_line(line, format!("fixture {id}: position must be three finite numbers"));
+            self.err(f.position.span(), format!("fixture {id}: position must be three finite numbers"));
         }
         let dmx = self.dmx(f, id);
         let made = if f.kind.get_ref().trim() == "spot" {
@@ -274,9 +293,9 @@ impl<'a> Builder<'a> {
     /// The orientation: the light frame (beam −Z) of a conventional fixture,
     /// the body mount of a moving head (identity hangs it).
     fn orientation(&mut self, f: &FixtureFile, id: u32, line: usize, position: Vec3, head: bool) -> Quat {
-        match (f.aim, f.rotation) {
-            (Some(_), Some(_)) => {
-                self.err_line(line, format!("fixture {id}: give either aim or rotation, not both"));
+        match (&f.aim, &f.rotation) {
+            (Some(_), Some(r)) => {
+                self.err(r.span(), format!("fixture {id}: give either aim or rotation, not both"));
                 Quat::IDENTITY
             }
             (None, None) if head => Quat::IDENTITY,
@@ -284,10 +303,10 @@ impl<'a> Builder<'a> {
                 self.err_line(line, format!("fixture {id}: needs an aim point or a rotation"));
                 Quat::IDENTITY
             }
-            (Some(aim), None) => {
-                let aim = Vec3::from(aim);
+            (Some(aim_key), None) => {
+                let aim = Vec3::from(*aim_key.get_ref());
                 if !aim.is_finite() || aim.distance(position) < 1e-6 {
-                    self.err_line(line, format!("fixture {id}: aim must be finite and differ from position"));
+                    self.err(aim_key.span(), format!("fixture {id}: aim must be finite and differ from position"));
                     return Quat::IDENTITY;
                 }
                 if head {
@@ -296,11 +315,11 @@ impl<'a> Builder<'a> {
                     Quat::from_rotation_arc(Vec3::NEG_Z, (aim - position).normalize())
                 }
             }
-            (None, Some(q)) => {
-                let q = Quat::from_array(q);
+            (None, Some(key)) => {
+                let q = Quat::from_array(*key.get_ref());
                 if !q.is_finite() || q.length() < 1e-6 {
-                    self.err_line(
-                        line,
+                    self.err(
+                        key.span(),
                         format!("fixture {id}: rotation must be a non-zero finite quaternion [x, y, z, w]"),
                     );
                     return Quat::IDENTITY;
@@ -312,16 +331,16 @@ impl<'a> Builder<'a> {
 
     fn builtin(&mut self, f: &FixtureFile, id: u32, line: usize, position: Vec3) -> Option<Made> {
         let typed_only = [
-            ("zoom", f.zoom.is_some()),
-            ("focus", f.focus.is_some()),
-            ("iris", f.iris.is_some()),
-            ("pan", f.pan.is_some()),
-            ("tilt", f.tilt.is_some()),
-            ("frames", f.frames.is_some()),
+            ("zoom", f.zoom.as_ref().map(|v| v.span())),
+            ("focus", f.focus.as_ref().map(|v| v.span())),
+            ("iris", f.iris.as_ref().map(|v| v.span())),
+            ("pan", f.pan.as_ref().map(|v| v.span())),
+            ("tilt", f.tilt.as_ref().map(|v| v.span())),
+            ("frames", f.frames.as_ref().map(|v| v.span())),
         ];
-        for (key, set) in typed_only {
-            if set {
-                self.err_line(line, format!("fixture {id}: the built-in spot has no {key}; use a fixture type for it"));
+        for (key, span) in typed_only {
+            if let Some(span) = span {
+                self.err(span, format!("fixture {id}: the built-in spot has no {key}; use a fixture type for it"));
             }
         }
         if let Some(m) = &f.mode
@@ -332,31 +351,47 @@ impl<'a> Builder<'a> {
             self.err(m.span(), msg);
         }
         let rotation = self.orientation(f, id, line, position, false);
-        let beam_angle = f.beam_angle.unwrap_or(25.0);
-        let field = f.field_angle.unwrap_or(beam_angle + 10.0);
+        let beam_angle = f.beam_angle.as_ref().map_or(25.0, |v| *v.get_ref());
+        let field = f.field_angle.as_ref().map_or(beam_angle + 10.0, |v| *v.get_ref());
         if !(beam_angle > 0.0 && beam_angle <= 360.0 && field >= beam_angle && field <= 360.0) {
-            self.err_line(
-                line,
+            // Blame the key that is out of range (the field angle when only the pair is inconsistent).
+            let beam_ok = beam_angle > 0.0 && beam_angle <= 360.0;
+            let span = match (&f.beam_angle, &f.field_angle) {
+                (Some(b), _) if !beam_ok => b.span(),
+                (_, Some(fa)) => fa.span(),
+                (Some(b), None) => b.span(),
+                (None, None) => line_span(self.text, line),
+            };
+            self.err(
+                span,
                 format!(
                     "fixture {id}: beam_angle {beam_angle} and field_angle {field} \
                      must satisfy 0 < beam <= field <= 360"
                 ),
             );
         }
-        let Some(intensity) = f.intensity else {
+        let Some(intensity_key) = &f.intensity else {
             self.err_line(line, format!("fixture {id}: the built-in spot needs intensity (Î in candela)"));
             return None;
         };
+        let intensity = *intensity_key.get_ref();
         if !(intensity.is_finite() && intensity >= 0.0) {
-            self.err_line(line, format!("fixture {id}: intensity {intensity} cd must be a finite number >= 0"));
+            self.err(
+                intensity_key.span(),
+                format!("fixture {id}: intensity {intensity} cd must be a finite number >= 0"),
+            );
         }
-        let mut colour = Vec3::from(f.colour.unwrap_or([1.0; 3]));
-        if !colour.is_finite() || colour.min_element() < 0.0 {
-            self.err_line(line, format!("fixture {id}: colour must be three finite numbers >= 0"));
+        let mut colour = Vec3::from(f.colour.as_ref().map_or([1.0; 3], |c| *c.get_ref()));
+        if let Some(c) = &f.colour
+            && (!colour.is_finite() || colour.min_element() < 0.0)
+        {
+            self.err(c.span(), format!("fixture {id}: colour must be three finite numbers >= 0"));
         }
-        let level = f.level.unwrap_or(1.0);
-        if !(0.0..=1.0).contains(&level) {
-            self.err_line(line, format!("fixture {id}: level {level} must be in 0..1"));
+        let level = f.level.as_ref().map_or(1.0, |l| *l.get_ref());
+        if let Some(l) = &f.level
+            && !(0.0..=1.0).contains(&level)
+        {
+            self.err(l.span(), format!("fixture {id}: level {level} must be in 0..1"));
         }
         if let Some(g) = &f.gel
             && let Some(lib) = self.gels(g.span())
@@ -384,16 +419,16 @@ impl<'a> Builder<'a> {
         let kind = f.kind.get_ref().trim().to_string();
         let ty = self.fixture_type(&f.kind)?;
         let builtin_only = [
-            ("beam_angle", f.beam_angle.is_some()),
-            ("field_angle", f.field_angle.is_some()),
-            ("intensity", f.intensity.is_some()),
-            ("colour", f.colour.is_some()),
-            ("level", f.level.is_some()),
+            ("beam_angle", f.beam_angle.as_ref().map(|v| v.span())),
+            ("field_angle", f.field_angle.as_ref().map(|v| v.span())),
+            ("intensity", f.intensity.as_ref().map(|v| v.span())),
+            ("colour", f.colour.as_ref().map(|v| v.span())),
+            ("level", f.level.as_ref().map(|v| v.span())),
         ];
-        for (key, set) in builtin_only {
-            if set {
-                self.err_line(
-                    line,
+        for (key, span) in builtin_only {
+            if let Some(span) = span {
+                self.err(
+                    span,
                     format!(
                         "fixture {id}: type {kind:?} takes {key} from its type file or the [look]; remove {key} here"
                     ),
@@ -804,13 +839,19 @@ impl<'a> Builder<'a> {
                 }
             };
             if let Some(o) = out.iter().find(|o| o.protocol == protocol && o.universe == u as u16) {
-                self.err_line(line, format!("this input is already routed on line {}", o.line));
+                self.err(d.universe.span(), format!("this input is already routed on line {}", o.line));
                 continue;
             }
             out.push(InputRoute { protocol, universe: u as u16, patch_universe, line });
         }
         out
     }
+}
+
+/// The byte range of 1-based `line` in `text` (for errors about a key that is absent).
+fn line_span(text: &str, line: usize) -> Range<usize> {
+    let start: usize = text.split_inclusive('\n').take(line.saturating_sub(1)).map(str::len).sum();
+    start..start
 }
 
 /// A manual-value key: its name, value, attribute and allowed range (`None`: the type lacks it).

@@ -1,5 +1,6 @@
 //! The patch file as written: plain serde structs (first stage). The
-//! schema is `docs/patch-format.md`.
+//! schema is `docs/patch-format.md`. Values that a later check may reject
+//! keep their span, so the error points at the key's own line.
 
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -32,24 +33,22 @@ pub struct PatchFile {
 #[serde(deny_unknown_fields)]
 pub struct CameraFile {
     /// Eye position in metres.
-    pub position: [f32; 3],
+    pub position: Spanned<[f32; 3]>,
     /// Point looked at.
-    pub look_at: [f32; 3],
-    /// Vertical field of view in degrees (default 40).
-    #[serde(default = "default_fov")]
-    pub fov_y: f32,
+    pub look_at: Spanned<[f32; 3]>,
+    /// Vertical field of view in degrees (default [`DEFAULT_FOV_Y`]).
+    pub fov_y: Option<Spanned<f32>>,
 }
 
-fn default_fov() -> f32 {
-    40.0
-}
+/// The camera's vertical field of view when `fov_y` is not given, degrees.
+pub const DEFAULT_FOV_Y: f32 = 40.0;
 
 /// One `[[fixture]]` entry as written.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FixtureFile {
     /// Fixture id as the desk shows it (unique in the patch).
-    pub id: u32,
+    pub id: Spanned<u32>,
     /// Human-readable name.
     #[serde(default)]
     pub name: Option<String>,
@@ -67,11 +66,11 @@ pub struct FixtureFile {
     /// Scroller string for this instance (gel ids), replacing the type's.
     pub frames: Option<Spanned<Vec<String>>>,
     /// Position in metres (stage coordinates, +Y up).
-    pub position: [f32; 3],
+    pub position: Spanned<[f32; 3]>,
     /// Point the beam aims at (a moving head: at pan 0, tilt 0).
-    pub aim: Option<[f32; 3]>,
+    pub aim: Option<Spanned<[f32; 3]>>,
     /// Orientation quaternion [x, y, z, w] (a moving head: its body; identity hangs it).
-    pub rotation: Option<[f32; 4]>,
+    pub rotation: Option<Spanned<[f32; 4]>>,
     /// Manual field angle (degrees) for a zoom without a DMX channel.
     pub zoom: Option<Spanned<f32>>,
     /// Manual focus 0..1.
@@ -83,15 +82,15 @@ pub struct FixtureFile {
     /// Manual tilt, degrees.
     pub tilt: Option<Spanned<f32>>,
     /// Built-in spot: full beam angle (50 % of peak), degrees.
-    pub beam_angle: Option<f32>,
+    pub beam_angle: Option<Spanned<f32>>,
     /// Built-in spot: full field angle (10 % of peak), degrees.
-    pub field_angle: Option<f32>,
+    pub field_angle: Option<Spanned<f32>>,
     /// Built-in spot: Î in candela.
-    pub intensity: Option<f32>,
+    pub intensity: Option<Spanned<f32>>,
     /// Built-in spot: linear RGB colour at full.
-    pub colour: Option<[f32; 3]>,
+    pub colour: Option<Spanned<[f32; 3]>>,
     /// Built-in spot: dimmer level v of the default look.
-    pub level: Option<f32>,
+    pub level: Option<Spanned<f32>>,
 }
 
 /// One `[[input]]` entry.

@@ -278,6 +278,10 @@ pub struct Patch {
     pub gels: Option<Arc<GelLibrary>>,
     /// The haze medium (`[haze]`), if any.
     pub haze: Option<HazeSpec>,
+    /// Problems that do not stop the patch from loading (e.g. no fixtures),
+    /// each with its file and line; also logged with `tracing::warn!` when
+    /// the patch is built, which is how `footlight check` prints them.
+    pub warnings: Vec<PatchError>,
 }
 
 impl Patch {
@@ -335,8 +339,12 @@ impl Patch {
 /// photometry, gels), collecting every problem: what `footlight check`
 /// prints. Each error names its file and line and says what to do.
 pub fn check(path: &Path) -> Result<Patch, Vec<PatchError>> {
-    let text =
-        std::fs::read_to_string(path).map_err(|e| vec![PatchError::new(path, 0, format!("cannot read: {e}"))])?;
+    let bytes = std::fs::read(path).map_err(|e| vec![PatchError::new(path, 0, format!("cannot read: {e}"))])?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        let line = e.as_bytes()[..at].iter().filter(|&&b| b == b'\n').count() + 1;
+        vec![PatchError::new(path, line, format!("byte offset {at} is not valid UTF-8; save the patch as UTF-8 text"))]
+    })?;
     check_text(path, &text)
 }
 
@@ -400,19 +408,89 @@ address = 10
     fn errors_name_file_and_line() {
         let dup = GOOD.replace("id = 2", "id = 1");
         let e = error_of(&dup);
-        assert!(e.starts_with("bad.toml:14:") && e.contains("already used on line 6"), "{e}");
+        assert!(e.starts_with("bad.toml:15:") && e.contains("already used on line 6"), "{e}");
         let e = error_of(&GOOD.replace("type = \"spot\"\nposition = [1.0", "type = \"moving\"\nposition = [1.0"));
         assert!(e.starts_with("bad.toml:16:") && e.contains("unknown fixture type"), "{e}");
         let e = error_of(&GOOD.replace("level = 0.5", "level = 5.0"));
-        assert!(e.starts_with("bad.toml:6:") && e.contains("level"), "{e}");
+        assert!(e.starts_with("bad.toml:12:") && e.contains("level"), "{e}");
         let e = error_of(&GOOD.replace("intensity = 1000.0", "intensity = \"bright\""));
         assert!(e.starts_with("bad.toml:11:"), "{e}");
         let e = error_of(&GOOD.replace("address = 10", "address = 600"));
         assert!(e.contains("address 600"), "{e}");
         let e = error_of("[[fixture]]\nid = 1\ntype = \"spot\"\nposition = [0,0,0]\naim = [0,0,0]\nintensity = 1\n");
-        assert!(e.starts_with("bad.toml:1:") && e.contains("aim"), "{e}");
+        assert!(e.starts_with("bad.toml:5:") && e.contains("aim"), "{e}");
         let e = error_of("[[fixtur]]\nid = 1\n");
         assert!(e.starts_with("bad.toml:1:"), "{e}");
+    }
+
+    /// Each check that used to blame the `[[fixture]]`/`[camera]`/`[[input]]`
+    /// header now names the offending key's own line (issue 12 item 10).
+    #[test]
+    fn errors_point_at_the_offending_key() {
+        // GOOD's lines: 2 [camera], 3 position, 4 look_at; 6 [[fixture]] id 1:
+        // 7 id, 8 type, 9 position, 10 aim, 11 intensity, 12 level; 14 [[fixture]] id 2:
+        // 15 id, 16 type, 17 position, 18 rotation, 19 beam_angle, 20 field_angle,
+        // 21 intensity, 22 colour, 23 universe, 24 address.
+        let cases: Vec<(String, usize, &str)> = vec![
+            (GOOD.replace("id = 2", "id = 1"), 15, "already used on line 6"),
+            (
+                GOOD.replace("position = [0.0, 6.0, 6.0]", "position = [0.0, nan, 6.0]"),
+                9,
+                "position must be three finite",
+            ),
+            (GOOD.replace("aim = [0.0, 0.0, 0.0]", "aim = [0.0, 6.0, 6.0]"), 10, "aim must be finite"),
+            (
+                GOOD.replace("rotation = [0.0, 0.0, 0.0, 1.0]", "rotation = [0.0, 0.0, 0.0, 0.0]"),
+                18,
+                "rotation must be",
+            ),
+            (GOOD.replace("level = 0.5", "level = 0.5\nrotation = [0.0, 0.0, 0.0, 1.0]"), 13, "either aim or rotation"),
+            (GOOD.replace("field_angle = 40", "field_angle = 20"), 20, "beam_angle 30 and field_angle 20"),
+            (GOOD.replace("beam_angle = 30", "beam_angle = -30"), 19, "beam_angle -30"),
+            (GOOD.replace("intensity = 2000.0", "intensity = -2000.0"), 21, "intensity -2000"),
+            (GOOD.replace("colour = [1.0, 0.5, 0.25]", "colour = [1.0, -0.5, 0.25]"), 22, "colour must be"),
+            (GOOD.replace("level = 0.5", "level = 1.5"), 12, "level 1.5"),
+            (GOOD.replace("level = 0.5", "level = 0.5\npan = 10.0"), 13, "built-in spot has no pan"),
+            (GOOD.replace("look_at = [0.0, 1.0, 0.0]", "look_at = [0.0, 2.0, 10.0]"), 4, "camera look_at"),
+            (GOOD.replace("position = [0.0, 2.0, 10.0]", "position = [0.0, inf, 10.0]"), 3, "camera position"),
+            (GOOD.replace("look_at = [0.0, 1.0, 0.0]", "look_at = [0.0, 1.0, 0.0]\nfov_y = 190.0"), 5, "fov_y 190"),
+            (
+                format!(
+                    "{GOOD}\n[[input]]\nprotocol = \"sacn\"\nuniverse = 3\npatch_universe = 1\n\n[[input]]\nprotocol = \"sacn\"\nuniverse = 3\nblock = true\n"
+                ),
+                33,
+                "already routed on line 26",
+            ),
+        ];
+        for (text, line, what) in cases {
+            let e = error_of(&text);
+            assert!(e.starts_with(&format!("bad.toml:{line}:")) && e.contains(what), "want line {line} {what:?}: {e}");
+        }
+    }
+
+    #[test]
+    fn non_utf8_patch_reports_the_byte_offset() {
+        let dir = std::env::temp_dir().join(format!("footlight-patch-utf8-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("latin1.toml");
+        let mut bytes = b"[[fixture]]\nid = 1\nname = \"Fa".to_vec();
+        let at = bytes.len();
+        bytes.extend(b"\xe7ade\"\n");
+        std::fs::write(&path, &bytes).unwrap();
+        let errors = check(&path).unwrap_err();
+        let e = errors[0].to_string();
+        assert_eq!(errors[0].line, 3, "{e}");
+        assert!(e.contains(&format!("byte offset {at} is not valid UTF-8")), "{e}");
+    }
+
+    #[test]
+    fn empty_patch_loads_with_a_warning() {
+        let p = Patch::parse(Path::new("empty.toml"), "# nothing hung yet\n").unwrap();
+        assert!(p.fixtures.is_empty());
+        assert_eq!(p.warnings.len(), 1);
+        let w = p.warnings[0].to_string();
+        assert!(w.starts_with("empty.toml:1: warning:") && w.contains("no [[fixture]]"), "{w}");
+        assert!(Patch::parse(Path::new("good.toml"), GOOD).unwrap().warnings.is_empty());
     }
 
     #[test]

@@ -193,8 +193,9 @@ patch_universe = 1
     let show = format!("{e:#?}");
     assert!(has(&e, line(body, "gel = \"L201\"", 0), "either a fixed gel or the scroller"), "{show}");
     assert!(has(&e, line(body, "L777", 0), "unknown gel \"L777\" in frames"), "{show}");
-    assert!(has(&e, line(body, "[[fixture]]", 1), "id already used on line 3"), "{show}");
-    assert!(has(&e, line(body, "[[fixture]]", 1), "remove intensity"), "{show}");
+    // Both point at the key itself, not the [[fixture]] header (issue 12 item 10).
+    assert!(has(&e, line(body, "id = 1", 1), "id already used on line 3"), "{show}");
+    assert!(has(&e, line(body, "intensity = 5", 0), "remove intensity"), "{show}");
     assert!(
         has(&e, line(body, "generic-led-par-rgbw", 0), "several modes")
             && has(&e, line(body, "generic-led-par-rgbw", 0), "\"4ch\""),

@@ -1,0 +1,366 @@
+//! Hostile and broken glTF files (issue 12 items 2, 3 and 10): each is
+//! rejected with an error naming the file and the element, or loaded with
+//! the documented warning, and none panics or allocates without bound.
+//! Every file is built here as JSON.
+
+use footlight::scene::{ImportLimits, SceneError, load, load_with};
+use std::path::{Path, PathBuf};
+
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("footlight-import-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// One triangle's positions (x, y, z) as little-endian f32.
+fn tri_bytes() -> Vec<u8> {
+    [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]].iter().flatten().flat_map(|f| f.to_le_bytes()).collect()
+}
+
+fn data_uri(bytes: &[u8]) -> String {
+    format!("data:application/octet-stream;base64,{}", base64::encode(bytes))
+}
+
+/// A one-mesh glTF: `nodes`, `accessors`, `views`, `buffers` and `extra`
+/// top-level members are spliced in as JSON.
+fn gltf(nodes: &str, accessors: &str, views: &str, buffers: &str, extra: &str) -> String {
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":{nodes},
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+        "accessors":{accessors},"bufferViews":{views},"buffers":{buffers}{extra}}}"#
+    )
+}
+
+const POS: &str = r#"{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,0,1]}"#;
+
+/// The one-triangle scene with its buffer given by `buffer` (JSON).
+fn triangle_with_buffer(buffer: &str) -> String {
+    gltf(r#"[{"mesh":0}]"#, &format!("[{POS}]"), r#"[{"buffer":0,"byteLength":36}]"#, &format!("[{buffer}]"), "")
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn error(path: &Path) -> String {
+    match load(path) {
+        Ok(s) => panic!("{} loaded ({} triangles)", path.display(), s.triangle_count()),
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn a_good_triangle_loads() {
+    let d = dir("good");
+    let p = write(
+        &d,
+        "good.gltf",
+        &triangle_with_buffer(&format!(r#"{{"byteLength":36,"uri":"{}"}}"#, data_uri(&tri_bytes()))),
+    );
+    let s = load(&p).unwrap();
+    assert_eq!(s.triangle_count(), 1);
+    assert_eq!(s.positions[0][1], glam::Vec3::X);
+}
+
+#[test]
+fn node_cycles_and_shared_subtrees_are_rejected() {
+    let d = dir("cycle");
+    let buffer = format!(r#"{{"byteLength":36,"uri":"{}"}}"#, data_uri(&tri_bytes()));
+    let accessors = format!("[{POS}]");
+    let views = r#"[{"buffer":0,"byteLength":36}]"#;
+    // Node 0 is its own child.
+    let p = write(
+        &d,
+        "self.gltf",
+        &gltf(r#"[{"mesh":0,"children":[0],"name":"loop"}]"#, &accessors, views, &format!("[{buffer}]"), ""),
+    );
+    let e = error(&p);
+    assert!(e.contains("self.gltf") && e.contains("node 0 \"loop\"") && e.contains("cycle"), "{e}");
+    // 0 → 1 → 2 → 0.
+    let p = write(
+        &d,
+        "ring.gltf",
+        &gltf(
+            r#"[{"children":[1]},{"children":[2]},{"mesh":0,"children":[0]}]"#,
+            &accessors,
+            views,
+            &format!("[{buffer}]"),
+            "",
+        ),
+    );
+    let e = error(&p);
+    assert!(e.contains("ring.gltf") && e.contains("node 0") && e.contains("cycle"), "{e}");
+    // 2^40 instances: 41 nodes, each listing the next one twice.
+    let nodes: Vec<String> = (0..40)
+        .map(|k| format!(r#"{{"children":[{},{}]}}"#, k + 1, k + 1))
+        .chain([r#"{"mesh":0}"#.to_string()])
+        .collect();
+    let p =
+        write(&d, "bomb.gltf", &gltf(&format!("[{}]", nodes.join(",")), &accessors, views, &format!("[{buffer}]"), ""));
+    let e = error(&p);
+    assert!(e.contains("bomb.gltf") && e.contains("node 39 lists node 40 twice"), "{e}");
+}
+
+#[test]
+fn triangle_budget_is_checked_before_reading() {
+    let d = dir("budget");
+    let buffer = format!(r#"{{"byteLength":36,"uri":"{}"}}"#, data_uri(&tri_bytes()));
+    // 500 nodes instancing the one-triangle mesh side by side: legal glTF, 500 triangles.
+    let nodes: Vec<String> = std::iter::once(format!(
+        r#"{{"children":[{}]}}"#,
+        (1..=500).map(|i| i.to_string()).collect::<Vec<_>>().join(",")
+    ))
+    .chain((0..500).map(|k| format!(r#"{{"mesh":0,"translation":[{},0,{}]}}"#, k % 25, k / 25)))
+    .collect();
+    let p = write(
+        &d,
+        "crowd.gltf",
+        &gltf(
+            &format!("[{}]", nodes.join(",")),
+            &format!("[{POS}]"),
+            r#"[{"buffer":0,"byteLength":36}]"#,
+            &format!("[{buffer}]"),
+            "",
+        ),
+    );
+    assert_eq!(load(&p).unwrap().triangle_count(), 500);
+    match load_with(&p, &ImportLimits { max_triangles: 499 }) {
+        Err(e @ SceneError::Budget { triangles: 500, limit: 499, .. }) => {
+            assert!(e.to_string().contains("crowd.gltf"), "{e}");
+        }
+        other => panic!("expected the budget error, got {:?}", other.map(|s| s.triangle_count())),
+    }
+    match load_with(&p, &ImportLimits { max_triangles: 500 }) {
+        Ok(s) => assert_eq!(s.triangle_count(), 500),
+        Err(e) => panic!("{e}"),
+    }
+    assert_eq!(ImportLimits::default().max_triangles, 20_000_000);
+    // Few triangles but many vertices per instance: 1 indexed triangle over 12 vertices, 500 times.
+    let mut b = Vec::new();
+    for k in 0..12 {
+        b.extend([k as f32, 0.0, (k % 2) as f32].iter().flat_map(|f| f.to_le_bytes()));
+    }
+    b.extend([0u16, 1, 2].iter().flat_map(|i| i.to_le_bytes()));
+    let json = gltf(
+        &format!("[{}]", nodes.join(",")),
+        r#"[{"bufferView":0,"componentType":5126,"count":12,"type":"VEC3","min":[0,0,0],"max":[11,0,1]},
+            {"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}]"#,
+        r#"[{"buffer":0,"byteLength":144},{"buffer":0,"byteOffset":144,"byteLength":6}]"#,
+        &format!(r#"[{{"byteLength":150,"uri":"{}"}}]"#, data_uri(&b)),
+        "",
+    )
+    .replace(r#""POSITION":0}"#, r#""POSITION":0},"indices":1"#);
+    let p = write(&d, "spread.gltf", &json);
+    match load_with(&p, &ImportLimits { max_triangles: 1000 }) {
+        Err(SceneError::VertexBudget { vertices: 6000, limit: 3000, .. }) => {}
+        other => panic!("expected the vertex budget error, got {:?}", other.map(|s| s.triangle_count())),
+    }
+}
+
+#[test]
+fn buffer_uris_stay_inside_the_scene_folder() {
+    let top = dir("uris");
+    let d = top.join("scene");
+    std::fs::create_dir_all(&d).unwrap();
+    std::fs::write(top.join("outside.bin"), tri_bytes()).unwrap();
+    let uri = |u: &str| triangle_with_buffer(&format!(r#"{{"byteLength":36,"uri":"{u}"}}"#));
+    for (name, u, why) in [
+        ("devzero.gltf", "../../../../../../../../dev/zero", "outside the scene folder"),
+        ("fileuri.gltf", "file:///dev/zero", "only data: URIs and paths relative"),
+        ("passwd.gltf", "/etc/passwd", "absolute paths are not allowed"),
+        ("outside.gltf", "../outside.bin", "outside the scene folder"),
+        ("escaped.gltf", "%2E%2E/outside.bin", "outside the scene folder"),
+        ("http.gltf", "http://example.com/x.bin", "only data: URIs"),
+        ("missing.gltf", "nothere.bin", "cannot open"),
+    ] {
+        let p = write(&d, name, &uri(u));
+        let e = error(&p);
+        assert!(e.contains(name) && e.contains("buffer 0") && e.contains(why), "{u}: {e}");
+    }
+    // A symlink inside the folder that points at a device or outside it.
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink("/dev/zero", d.join("zero.bin")).unwrap();
+        std::os::unix::fs::symlink(top.join("outside.bin"), d.join("link.bin")).unwrap();
+        for link in ["zero.bin", "link.bin"] {
+            let p = write(&d, "link.gltf", &uri(link));
+            let e = error(&p);
+            assert!(e.contains("outside the scene folder"), "{link}: {e}");
+        }
+        // A FIFO inside the folder is not a regular file (and is never opened for a blocking read).
+        let fifo = d.join("fifo.bin");
+        if std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success()) {
+            let p = write(&d, "fifo.gltf", &uri("fifo.bin"));
+            let e = error(&p);
+            assert!(e.contains("not a regular file"), "{e}");
+        }
+    }
+    // Inside the folder: read exactly byteLength bytes of a longer file; a shorter file is an error.
+    let mut long = tri_bytes();
+    long.extend([0xFFu8; 100]);
+    std::fs::write(d.join("long.bin"), &long).unwrap();
+    std::fs::create_dir_all(d.join("sub")).unwrap();
+    std::fs::write(d.join("sub/short.bin"), &tri_bytes()[..20]).unwrap();
+    let s = load(&write(&d, "long.gltf", &uri("long.bin"))).unwrap();
+    assert_eq!(s.triangle_count(), 1);
+    let e = error(&write(&d, "short.gltf", &uri("sub/short.bin")));
+    assert!(e.contains("byteLength is 36") && e.contains("only 20 bytes"), "{e}");
+    // A data URI shorter than byteLength too.
+    let p = write(
+        &d,
+        "shortdata.gltf",
+        &triangle_with_buffer(&format!(r#"{{"byteLength":36,"uri":"{}"}}"#, data_uri(&tri_bytes()[..24]))),
+    );
+    let e = error(&p);
+    assert!(e.contains("only 24 bytes"), "{e}");
+}
+
+#[test]
+fn accessors_are_bound_checked_before_use() {
+    let d = dir("accessors");
+    let bytes = tri_bytes();
+    let buffer = |b: &[u8]| format!(r#"[{{"byteLength":{},"uri":"{}"}}]"#, b.len(), data_uri(b));
+    let node = r#"[{"mesh":0}]"#;
+    let view36 = r#"[{"buffer":0,"byteLength":36}]"#;
+
+    // A count of 4e9 names the accessor and the bound (not "no POSITION").
+    let huge = r#"[{"bufferView":0,"componentType":5126,"count":4000000000,"type":"VEC3","min":[0,0,0],"max":[1,0,1],"name":"big"}]"#;
+    let e = error(&write(&d, "huge.gltf", &gltf(node, huge, view36, &buffer(&bytes), "")));
+    assert!(
+        e.contains("huge.gltf")
+            && e.contains("accessor 0 \"big\"")
+            && e.contains("count 4000000000")
+            && e.contains("bufferView 0 has 36"),
+        "{e}"
+    );
+    assert!(!e.contains("no POSITION"), "{e}");
+
+    // A view past its buffer.
+    let e = error(&write(
+        &d,
+        "view.gltf",
+        &gltf(node, &format!("[{POS}]"), r#"[{"buffer":0,"byteOffset":8,"byteLength":36}]"#, &buffer(&bytes), ""),
+    ));
+    assert!(e.contains("bufferView 0") && e.contains("run past the 36 bytes of buffer 0"), "{e}");
+
+    // A POSITION accessor index past the accessors: no validator panic.
+    let bad_index =
+        gltf(node, &format!("[{POS}]"), view36, &buffer(&bytes), "").replace(r#""POSITION":0"#, r#""POSITION":7"#);
+    let e = error(&write(&d, "index.gltf", &bad_index));
+    assert!(e.contains("index.gltf") && e.contains("accessor 7") && !e.contains("panicked"), "{e}");
+
+    // Wrong type.
+    let vec2 = POS.replace("VEC3", "VEC2");
+    let e = error(&write(&d, "vec2.gltf", &gltf(node, &format!("[{vec2}]"), view36, &buffer(&bytes), "")));
+    assert!(e.contains("accessor 0") && e.contains("VEC3 of FLOAT"), "{e}");
+
+    // A stride shorter than the element.
+    let e = error(&write(
+        &d,
+        "stride.gltf",
+        &gltf(node, &format!("[{POS}]"), r#"[{"buffer":0,"byteLength":36,"byteStride":4}]"#, &buffer(&bytes), ""),
+    ));
+    assert!(e.contains("byteStride 4") && e.contains("12-byte element"), "{e}");
+
+    // Indices: an index accessor past its view, and an index value past the vertices.
+    let mut with_idx = bytes.clone();
+    with_idx.extend([0u16, 1, 7].iter().flat_map(|i| i.to_le_bytes()));
+    let views = r#"[{"buffer":0,"byteLength":36},{"buffer":0,"byteOffset":36,"byteLength":6}]"#;
+    let idx =
+        |count: u32| format!(r#"[{POS},{{"bufferView":1,"componentType":5123,"count":{count},"type":"SCALAR"}}]"#);
+    let indexed = |count: u32| {
+        gltf(node, &idx(count), views, &buffer(&with_idx), "")
+            .replace(r#""POSITION":0}"#, r#""POSITION":0},"indices":1"#)
+    };
+    let e = error(&write(&d, "idxview.gltf", &indexed(6)));
+    assert!(e.contains("accessor 1") && e.contains("count 6") && e.contains("bufferView 1 has 6"), "{e}");
+    let e = error(&write(&d, "idxvalue.gltf", &indexed(3)));
+    assert!(e.contains("idxvalue.gltf") && e.contains("index 7 past the 3 vertices"), "{e}");
+
+    // Sparse: one value replaced (checked against the closed result), and an index out of range.
+    let mut sparse = bytes.clone();
+    sparse.extend(2u16.to_le_bytes());
+    sparse.extend([0.0f32, 0.0, 2.0].iter().flat_map(|f| f.to_le_bytes()));
+    let views = r#"[{"buffer":0,"byteLength":36},{"buffer":0,"byteOffset":36,"byteLength":2},{"buffer":0,"byteOffset":38,"byteLength":12}]"#;
+    let sp = |i: u32| {
+        let mut b = sparse.clone();
+        b[36..38].copy_from_slice(&(i as u16).to_le_bytes());
+        let acc = r#"[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,0,2],
+            "sparse":{"count":1,"indices":{"bufferView":1,"componentType":5123},"values":{"bufferView":2}}}]"#;
+        gltf(node, acc, views, &buffer(&b), "")
+    };
+    let s = load(&write(&d, "sparse.gltf", &sp(2))).unwrap();
+    assert_eq!(s.positions[0][2], glam::Vec3::new(0.0, 0.0, 2.0));
+    let e = error(&write(&d, "sparsebad.gltf", &sp(3)));
+    assert!(e.contains("sparse index 3 past the 3 elements"), "{e}");
+}
+
+#[test]
+fn cameras_materials_and_normals_are_checked() {
+    let d = dir("values");
+    let bytes = tri_bytes();
+    let buffer = format!(r#"[{{"byteLength":36,"uri":"{}"}}]"#, data_uri(&bytes));
+    let view = r#"[{"buffer":0,"byteLength":36}]"#;
+    let with_camera = |yfov: &str| {
+        gltf(
+            r#"[{"mesh":0,"children":[1]},{"camera":0}]"#,
+            &format!("[{POS}]"),
+            view,
+            &buffer,
+            &format!(
+                r#","cameras":[{{"type":"perspective","name":"front","perspective":{{"yfov":{yfov},"znear":0.1}}}}]"#
+            ),
+        )
+    };
+    assert!(load(&write(&d, "cam.gltf", &with_camera("0.7"))).unwrap().camera.is_some());
+    for yfov in ["0", "-1", "3.2"] {
+        let e = error(&write(&d, "cam.gltf", &with_camera(yfov)));
+        assert!(e.contains("cam.gltf") && e.contains("camera 0 \"front\"") && e.contains("yfov"), "{yfov}: {e}");
+    }
+    // Factors: out of range is clamped (with a warning), non-finite is an error.
+    let with_material = |roughness: &str| {
+        gltf(
+            r#"[{"mesh":0}]"#,
+            &format!("[{POS}]"),
+            view,
+            &buffer,
+            &format!(r#","materials":[{{"name":"floor","pbrMetallicRoughness":{{"roughnessFactor":{roughness}}}}}]"#),
+        )
+        .replace(r#""POSITION":0}"#, r#""POSITION":0},"material":0"#)
+    };
+    let s = load(&write(&d, "mat.gltf", &with_material("1.5"))).unwrap();
+    assert_eq!(s.material_of[0], 1);
+    assert_eq!(
+        format!("{:?}", s.materials[1]),
+        format!("{:?}", footlight::scene::Material::from_pbr("floor", glam::Vec3::ONE, 1.0, 1.0, 0.0, 1.5)),
+        "roughness 1.5 clamps to 1"
+    );
+    let e = error(&write(&d, "mat.gltf", &with_material("1e39")));
+    assert!(e.contains("material 0 \"floor\"") && e.contains("roughnessFactor is inf"), "{e}");
+    // A NaN normal (bit pattern in the buffer) is replaced by the face normal and counted.
+    let mut b = bytes.clone();
+    b.extend([[f32::NAN, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, 0.0]].iter().flatten().flat_map(|f| f.to_le_bytes()));
+    let json = gltf(
+        r#"[{"mesh":0}]"#,
+        &format!(r#"[{POS},{{"bufferView":1,"componentType":5126,"count":3,"type":"VEC3"}}]"#),
+        r#"[{"buffer":0,"byteLength":36},{"buffer":0,"byteOffset":36,"byteLength":36}]"#,
+        &format!(r#"[{{"byteLength":72,"uri":"{}"}}]"#, data_uri(&b)),
+        "",
+    )
+    .replace(r#""POSITION":0}"#, r#""POSITION":0,"NORMAL":1}"#);
+    let s = load(&write(&d, "normals.gltf", &json)).unwrap();
+    assert_eq!(s.report.non_finite_normals, 1);
+    assert!(s.normals[0].iter().all(|n| n.is_finite() && (n.length() - 1.0).abs() < 1e-5));
+}
+
+#[test]
+fn the_scene_file_must_be_a_regular_file() {
+    let e = error(Path::new("/dev/null"));
+    assert!(e.contains("/dev/null") && e.contains("not a regular file"), "{e}");
+    let d = dir("nofile");
+    let e = error(&d.join("absent.glb"));
+    assert!(e.contains("absent.glb") && e.contains("cannot open"), "{e}");
+}
