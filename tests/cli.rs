@@ -207,6 +207,28 @@ fn the_binarys_run_routes_artnet_and_stops_cleanly_on_sigterm() {
         assert!(t.elapsed() < std::time::Duration::from_secs(60), "routed DMX never arrived: {s}");
     };
     assert_eq!(seen["lights"][0]["fixture"], 1, "fixture ids as in the patch: {seen}");
+    // DMX on a universe nothing takes is counted and warned about, naming it.
+    for _ in 0..3 {
+        sock.send_to(&art_dmx(9, 0, &slots), artnet).unwrap();
+    }
+    let t = std::time::Instant::now();
+    let warned = loop {
+        let s = status();
+        let w = s["warnings"].to_string();
+        if w.contains("Port-Address 9") {
+            break s;
+        }
+        assert!(t.elapsed() < std::time::Duration::from_secs(30), "no unpatched warning: {s}");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let unpatched = warned["input"]["unpatched"].as_array().unwrap();
+    assert!(unpatched.iter().any(|u| u["input"]["universe"] == 9 && u["packets"] == 3), "{warned}");
+    let blocked = unpatched.iter().find(|u| u["input"]["universe"] == 0).expect("the blocked Port-Address 0 is listed");
+    assert_eq!(blocked["blocked"], true);
+    assert!(
+        !warned["warnings"].to_string().contains("Port-Address 0 "),
+        "a blocked input is not warned about: {warned}"
+    );
     assert_eq!(seen["input"]["kind"], "network");
     assert!(seen["frame"].as_u64().unwrap() > 0);
     let stopped = std::process::Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap();

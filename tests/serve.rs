@@ -24,7 +24,7 @@ fn frame(number: u64) -> Arc<Frame> {
         width: W,
         height: H,
         rgb: Arc::new(vec![(number % 251) as u8; (W * H * 3) as usize]),
-        lights: Arc::new(Vec::new()),
+        intensity: Arc::new(Vec::new()),
         composite_time: Duration::ZERO,
         update: UpdateStats::default(),
     })

@@ -7,6 +7,7 @@
 //! Writes `report.md` and `report.json` into the output folder.
 
 pub mod chase;
+pub mod clients;
 pub mod haze;
 pub mod live;
 #[cfg(feature = "plots")]
@@ -126,6 +127,8 @@ pub struct Report {
     pub haze: Option<haze::HazeReport>,
     /// Issue 18: 44 moving heads in a chase through the daemon.
     pub chase: Option<chase::ChaseReport>,
+    /// Issues 12/17: the frame clock under N preview clients.
+    pub clients: Vec<clients::ClientsRow>,
 }
 
 /// One point of a run-time-versus-error curve.
@@ -341,6 +344,9 @@ impl Report {
         }
         if let Some(h) = &self.haze {
             s += &format!("\n## Haze (issue 15)\n\n```text\n{}```\n", h.lines());
+        }
+        if !self.clients.is_empty() {
+            s += &clients::markdown(&self.clients);
         }
         if let Some(c) = &self.chase {
             s += &c.markdown();
@@ -786,6 +792,13 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         chase::run(&scene_arc, camera, (800, 500), 10.0, crate::render::photon::PhotonSettings::default().stored)
     };
     let chase = chase.map_err(|e| tracing::error!("chase: {e}")).ok();
+    progress.set_message("preview clients");
+    let clients = if cfg.quick {
+        clients::run(&scene_arc, patch, camera, (200, 125), &[0, 20], 1.0)
+    } else {
+        clients::run(&scene_arc, patch, camera, (800, 500), &[0, 20, 200], 10.0)
+    };
+    let clients = clients.map_err(|e| tracing::error!("preview clients: {e}")).unwrap_or_default();
     progress.finish_and_clear();
 
     let report = Report {
@@ -809,6 +822,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         scale,
         haze,
         chase,
+        clients,
     };
     #[cfg(feature = "plots")]
     plots::write(&report, out)?;
