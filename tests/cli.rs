@@ -336,3 +336,21 @@ fn render_writes_linear_exr_and_pfm() {
     let o = footlight().args(["render", "--out"]).arg(dir.join("x.tiff")).output().unwrap();
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains(".exr"));
 }
+
+#[test]
+fn check_and_render_a_toml_patch_with_gdtf_types() {
+    let o = footlight().args(["check", "tests/data/gdtf-patch.toml"]).output().unwrap();
+    let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{err}");
+    assert!(out.contains("ok, 3 fixtures on universes 1, 2"), "{out}");
+    let dir = temp_dir("gdtf-patch");
+    let png = dir.join("gdtf.png");
+    let o = footlight()
+        .args(["render", "--width", "64", "--height", "40", "--patch", "tests/data/gdtf-patch.toml", "--out"])
+        .arg(&png)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let img = image::open(&png).unwrap().to_rgb8();
+    assert!(img.pixels().any(|p| p.0.iter().any(|&c| c > 40)), "the GDTF fixtures light the stage");
+}

@@ -27,7 +27,7 @@ use crate::gdtf::{BeamInfo, ChannelInfo, Gdtf, GeometryKind, GeometryNode, LampT
 use crate::mvr::{Mvr, Scene, stage_pose};
 use footlight_fixture::beam::SpotBeam;
 use footlight_fixture::fixture_type::{Attribute, Channel, Mode, Movement, Optics, SpotOptics};
-use footlight_fixture::patch::{BuiltinSpot, TypedFixture};
+use footlight_fixture::patch::{BuiltinSpot, TypeLoader, TypedFixture};
 use footlight_fixture::state::{MAX_MIX, SLOTS, Universes};
 use footlight_fixture::{Beam, Fixture, FixtureModel, FixtureState, FixtureType, Light, Manual, Patch, PatchError};
 use footlight_photometry::{Chroma, DimmerCurve, Emitter, Lamp};
@@ -460,14 +460,29 @@ fn quat(q: DQuat) -> Quat {
     Quat::from_xyzw(q.x as f32, q.y as f32, q.z as f32, q.w as f32).normalize()
 }
 
+/// The GDTF reader for TOML patches: `type = "types/x.gdtf"` (relative to
+/// the patch) with `mode = "…"` becomes a [`FixtureType`] through
+/// [`fixture_type`], every mode included. Handed to
+/// [`footlight_fixture::patch::check_with`] as a trait object because the
+/// fixture crate cannot depend on this one (this crate builds on its types).
+/// The patch's `position` is where the light is (the GDTF beam's offset
+/// from the fixture origin is not added, unlike in an MVR).
+pub struct GdtfTypes;
+
+impl TypeLoader for GdtfTypes {
+    fn load(&self, path: &Path) -> Result<(FixtureType, Vec<PatchError>), PatchError> {
+        let g = Gdtf::open(path)?;
+        fixture_type(&g)
+    }
+}
+
 /// Loads a patch: an `.mvr` through [`load_mvr`] (warnings logged to
 /// stderr by the caller's choice: they are returned by [`check_patch`]),
-/// anything else through [`Patch::load`].
+/// anything else as a TOML patch whose types may be GDTF files ([`GdtfTypes`]).
 pub fn load_patch(path: &Path) -> Result<Patch, PatchError> {
-    if is_mvr(path) {
-        return load_mvr(path).map(|i| i.patch).map_err(|mut e| e.swap_remove(0));
-    }
-    Patch::load(path)
+    check_patch(path).map(|(p, _)| p).map_err(|mut e| {
+        if e.is_empty() { PatchError::new(path, 0, "invalid patch") } else { e.swap_remove(0) }
+    })
 }
 
 /// Every problem of a patch or MVR file (what `footlight check` prints):
@@ -476,7 +491,7 @@ pub fn check_patch(path: &Path) -> Result<(Patch, Vec<PatchError>), Vec<PatchErr
     if is_mvr(path) {
         return load_mvr(path).map(|i| (i.patch, i.warnings));
     }
-    footlight_fixture::check(path).map(|p| (p, Vec::new()))
+    footlight_fixture::patch::check_with(path, &GdtfTypes)
 }
 
 /// True for a path ending in `.mvr` (any case).

@@ -345,6 +345,26 @@ pub fn check_text(path: &Path, text: &str) -> Result<Patch, Vec<PatchError>> {
     build::build(path, text)
 }
 
+/// A reader for fixture-type files the fixture crate cannot parse itself:
+/// GDTF (`type = "types/x.gdtf"` in a patch, relative to the patch file).
+/// The fixture crate does not depend on the GDTF reader (that would be a
+/// cycle: `footlight-mvr` builds on this crate's types), so the reader is
+/// handed in as a trait object; `footlight_mvr::GdtfTypes` implements it.
+pub trait TypeLoader {
+    /// Reads the type file at `path` (already resolved, existing): the type
+    /// with every mode, and warnings that do not stop it (e.g. attributes
+    /// not modelled), or the error naming the file.
+    fn load(&self, path: &Path) -> Result<(FixtureType, Vec<PatchError>), PatchError>;
+}
+
+/// [`check`] with a reader for foreign type files (GDTF): the patch and the
+/// reader's warnings, or every problem.
+pub fn check_with(path: &Path, loader: &dyn TypeLoader) -> Result<(Patch, Vec<PatchError>), Vec<PatchError>> {
+    let text =
+        std::fs::read_to_string(path).map_err(|e| vec![PatchError::new(path, 0, format!("cannot read: {e}"))])?;
+    build::build_with(path, &text, Some(loader))
+}
+
 fn first(mut errors: Vec<PatchError>) -> PatchError {
     if errors.is_empty() { PatchError::new(Path::new("?"), 0, "invalid patch") } else { errors.swap_remove(0) }
 }

@@ -87,3 +87,35 @@ fn overlapping_addresses_are_errors() {
     let e = check_patch(&mvr("bad-dotdot")).unwrap_err();
     assert!(e[0].message.contains("refused"));
 }
+
+#[test]
+fn toml_patch_takes_gdtf_types_by_path() {
+    let path = super::root().join("tests/data/gdtf-patch.toml");
+    let (p, warnings) = check_patch(&path).unwrap();
+    assert_eq!(p.fixtures.len(), 3);
+    let typed = |id: u32| match &p.fixtures.iter().find(|f| f.id == id).unwrap().model {
+        FixtureModel::Typed(t) => t.clone(),
+        _ => panic!("fixture {id} is not typed"),
+    };
+    // The same type as the GDTF reader gives on its own, parsed once for both spots.
+    let (direct, _) = fixture_type(&Gdtf::open(&gdtf("Spot")).unwrap()).unwrap();
+    let (a, c) = (typed(1), typed(3));
+    assert!(std::sync::Arc::ptr_eq(&a.fixture_type, &c.fixture_type));
+    assert_eq!(a.fixture_type.modes.len(), direct.modes.len());
+    assert_eq!(a.fixture_type.modes[a.mode].name, "Standard");
+    assert_eq!(a.fixture_type.modes[a.mode].footprint, 27);
+    assert_eq!(c.fixture_type.modes[c.mode].name, "Basic");
+    assert_eq!(typed(2).fixture_type.modes[typed(2).mode].footprint, 7);
+    // The [look] reaches the GDTF channels by attribute name: the 16-bit dimmer at full.
+    let spot = p.fixtures.iter().find(|f| f.id == 1).unwrap();
+    assert_eq!(spot.look.v, 1.0);
+    assert_eq!(p.look_universes.get(1).unwrap()[4..6], [255, 255]);
+    // The moving head hangs (no aim): at pan/tilt 0 its beam points straight down.
+    assert!((spot.light.axis() - Vec3::NEG_Y).length() < 1e-4, "{}", spot.light.axis());
+    // One warning per GDTF type for attributes not modelled, not one per fixture.
+    let spot_warnings = warnings.iter().filter(|w| w.path.to_string_lossy().contains("Footlight@Spot")).count();
+    assert!(spot_warnings <= 1, "{warnings:?}");
+    // The plain TOML loader has no GDTF reader and says so with the line.
+    let e = footlight_fixture::Patch::load(&path).unwrap_err();
+    assert!(e.line == 12 && e.message.contains("GDTF"), "{e}");
+}
