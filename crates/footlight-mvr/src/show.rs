@@ -29,11 +29,11 @@ use footlight_fixture::beam::SpotBeam;
 use footlight_fixture::fixture_type::{
     Action, Attribute, Channel, CorrectionTable, Function, Mode, Movement, Optics, SpotOptics, WheelSlot, wheel_factor,
 };
-use gdtf::wheel::WheelSlotOptic;
 use footlight_fixture::patch::{BuiltinSpot, TypeLoader, TypedFixture};
 use footlight_fixture::state::{MAX_MIX, SLOTS, Universes};
 use footlight_fixture::{Beam, Fixture, FixtureModel, FixtureState, FixtureType, Light, Manual, Patch, PatchError};
 use footlight_photometry::{Chroma, DimmerCurve, Emitter, Gel, Lamp};
+use gdtf::wheel::WheelSlotOptic;
 use glam::{DQuat, Quat, Vec2, Vec3};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -636,9 +636,9 @@ impl TypeLoader for GdtfTypes {
 /// stderr by the caller's choice: they are returned by [`check_patch`]),
 /// anything else as a TOML patch whose types may be GDTF files ([`GdtfTypes`]).
 pub fn load_patch(path: &Path) -> Result<Patch, PatchError> {
-    check_patch(path).map(|(p, _)| p).map_err(|mut e| {
-        if e.is_empty() { PatchError::new(path, 0, "invalid patch") } else { e.swap_remove(0) }
-    })
+    check_patch(path)
+        .map(|(p, _)| p)
+        .map_err(|mut e| if e.is_empty() { PatchError::new(path, 0, "invalid patch") } else { e.swap_remove(0) })
 }
 
 /// Every problem of a patch or MVR file (what `footlight check` prints):

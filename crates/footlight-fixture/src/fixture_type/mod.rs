@@ -535,3 +535,37 @@ impl FixtureType {
         }
     }
 }
+
+#[cfg(test)]
+mod correction_tests {
+    use super::*;
+
+    #[test]
+    fn wheel_factor_of_the_srgb_primaries_and_white() {
+        let near = |a: Vec3, b: Vec3| (a - b).abs().max_element() < 2e-3;
+        assert!(near(wheel_factor(0.3127, 0.3290, 100.0), Vec3::ONE));
+        assert!(near(wheel_factor(0.64, 0.33, 21.26), Vec3::X));
+        assert!(near(wheel_factor(0.30, 0.60, 71.52), Vec3::Y));
+        assert!(near(wheel_factor(0.15, 0.06, 7.22), Vec3::Z));
+        // Half the light of white at the white point: a neutral density.
+        assert!(near(wheel_factor(0.3127, 0.3290, 50.0), Vec3::splat(0.5)));
+        // Out of the sRGB gamut: no negative transmission; nonsense: open.
+        assert!(wheel_factor(0.08, 0.83, 50.0).min_element() >= 0.0);
+        assert_eq!(wheel_factor(f32::NAN, 0.3, 10.0), Vec3::ONE);
+    }
+
+    #[test]
+    fn correction_table_matches_the_direct_integral() {
+        let t = CorrectionTable::new(5600.0, [5600.0, 2700.0]);
+        assert!((t.at(5600.0) - 1.0).abs() < 1e-6);
+        for k in [2700.0, 3000.0, 3200.0, 4100.0, 5000.0] {
+            let (a, b) = (t.at(k), correction_transmittance(5600.0, k));
+            assert!((a - b).abs() < 2e-3, "{k}: table {a} direct {b}");
+            assert!(b > 0.0 && b < 1.0);
+        }
+        // Stronger correction costs more light; CTB from tungsten too.
+        assert!(correction_transmittance(5600.0, 2700.0) < correction_transmittance(5600.0, 4000.0));
+        assert!(correction_transmittance(3200.0, 5600.0) < 1.0);
+        assert_eq!(correction_transmittance(3200.0, f32::NAN), 1.0);
+    }
+}

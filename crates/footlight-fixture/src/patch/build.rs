@@ -4,7 +4,9 @@
 //! its file, line and what to do.
 
 use super::file::{FixtureFile, InputFile, PatchFile};
-use super::{BuiltinSpot, CameraSpec, Fixture, FixtureModel, InputProtocol, InputRoute, Patch, TypeLoader, TypedFixture};
+use super::{
+    BuiltinSpot, CameraSpec, Fixture, FixtureModel, InputProtocol, InputRoute, Patch, TypeLoader, TypedFixture,
+};
 use crate::beam::{Beam, SpotBeam};
 use crate::error::{PatchError, line_of, toml_error};
 use crate::fixture_type::{Attribute, FixtureType, Manual, Optics, load_type};
@@ -214,7 +216,10 @@ impl<'a> Builder<'a> {
                 None
             }
             Some(_) if !file.is_file() => {
-                self.err(name.span(), format!("fixture type {raw:?}: no file {} (paths are relative to the patch)", file.display()));
+                self.err(
+                    name.span(),
+                    format!("fixture type {raw:?}: no file {} (paths are relative to the patch)", file.display()),
+                );
                 None
             }
             Some(l) => match l.load(&file) {
@@ -224,7 +229,10 @@ impl<'a> Builder<'a> {
                 }
                 Err(e) => {
                     self.errors.push(e);
-                    self.err(name.span(), format!("fixture type {raw:?} has errors (reported above); fix its file first"));
+                    self.err(
+                        name.span(),
+                        format!("fixture type {raw:?} has errors (reported above); fix its file first"),
+                    );
                     None
                 }
             },
