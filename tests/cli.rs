@@ -142,6 +142,13 @@ fn quick_bench_writes_a_consistent_report() {
     let sum = |i: usize| mse[i][1].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).sum::<f64>();
     assert!(sum(1) < sum(0), "adaptive AA is closer to 9× than one sample");
     assert!(json["ratios"].as_array().unwrap().iter().all(|r| r["ours"].as_f64().unwrap().is_finite()));
+    // Issue 14: the 150-fixture MVR imported (148 lights: two hazers), and 50 strobing
+    // fixtures flip some lights each frame (never none, never more than all).
+    assert_eq!(json["mvr"]["fixtures"].as_u64(), Some(148));
+    assert!(json["mvr"]["import_ms"].as_f64().unwrap().is_finite());
+    let flips = json["mvr"]["strobe_changed_per_frame"].as_f64().unwrap();
+    assert!(flips > 0.0 && flips <= 50.0, "{flips}");
+    assert!(md.contains("MVR import, show150.mvr"));
 }
 
 /// `footlight run` as a user starts it: the binary's own wiring, real UDP on

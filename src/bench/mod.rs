@@ -8,6 +8,7 @@
 
 pub mod haze;
 pub mod live;
+pub mod mvr;
 #[cfg(feature = "plots")]
 pub mod plots;
 pub mod scale;
@@ -123,6 +124,8 @@ pub struct Report {
     pub scale: Option<scale::ScaleReport>,
     /// Haze: beam time vs error, density re-weighting, multiple scattering, rig cost.
     pub haze: Option<haze::HazeReport>,
+    /// MVR import time and strobe composite cost (issue 14).
+    pub mvr: mvr::MvrReport,
 }
 
 /// One point of a run-time-versus-error curve.
@@ -181,6 +184,7 @@ impl Report {
         if let Some(h) = &self.haze {
             s += &h.lines();
         }
+        s += &self.mvr.lines();
         s
     }
 
@@ -336,6 +340,7 @@ impl Report {
         if let Some(h) = &self.haze {
             s += &format!("\n## Haze (issue 15)\n\n```text\n{}```\n", h.lines());
         }
+        s += &format!("\n## MVR and GDTF (issue 14)\n\n```text\n{}```\n", self.mvr.lines());
         s += "\n## Raw timings (ms)\n\n| stage | ms |\n|---|---:|\n";
         for (n, t) in &self.timings_ms {
             s += &format!("| {n} | {t:.3} |\n");
@@ -770,6 +775,9 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         if cfg.quick { 20_000 } else { 200_000 },
         rig_lights.as_deref(),
     );
+    progress.set_message("MVR import and strobe");
+    let show150 = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr/show150.mvr");
+    let mvr = mvr::run(scene, camera, (w, h), &show150, cfg.repeats, 50);
     progress.finish_and_clear();
 
     let report = Report {
@@ -792,6 +800,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         live,
         scale,
         haze,
+        mvr,
     };
     #[cfg(feature = "plots")]
     plots::write(&report, out)?;
