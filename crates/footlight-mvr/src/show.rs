@@ -17,9 +17,15 @@
 //!   otherwise the lamp type (tungsten/halogen dims redder, discharge and
 //!   LED white keep their CCT).
 //!
-//! Every other attribute (shutter/strobe, wheels, gobos, prism, blades,
-//! CTO…) still occupies its slots as an `other` channel, with **one warning
-//! per fixture type** naming them. Not yet mapped: multi-beam fixtures
+//! * `Shutter1`/`Shutter1Strobe…` → shutter open/closed/strobe Hz by DMX
+//!   range (`channel_functions`); `Color1` with a wheel → the slot from
+//!   the channel sets, its c_F from the slot's filter spectrum or xyY
+//!   (`colour_wheel`); `CTO`/`CTB`/`CTC` on a Planckian lamp → target CCT
+//!   with the ideal correction filter's transmittance.
+//!
+//! Every other attribute (gobos, prism, blades, frost…) still occupies its
+//! slots as an `other` channel, with **one warning per fixture type**
+//! naming them. Not yet mapped: multi-beam fixtures
 //! (pixel cells, multi-lamp blinders) are one light at the first beam; DMX
 //! breaks after the first are reported, not decoded.
 
@@ -653,4 +659,49 @@ pub fn check_patch(path: &Path) -> Result<(Patch, Vec<PatchError>), Vec<PatchErr
 /// True for a path ending in `.mvr` (any case).
 pub fn is_mvr(path: &Path) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case("mvr"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gdtf::physical_descriptions::{Filter, Interpolation, Measurement, MeasurementPoint};
+    use gdtf::values::{ColorCie, Name};
+
+    /// A long-pass filter: 0 % below 550 nm, 100 % from 560 nm (percent, as GDTF files often write it).
+    fn long_pass() -> Filter {
+        let points = (380..=780)
+            .step_by(10)
+            .map(|nm| MeasurementPoint { wave_length: f64::from(nm), energy: if nm < 560 { 0.0 } else { 100.0 } })
+            .collect();
+        Filter {
+            name: Some(Name::new_lossy("LongPass")),
+            color: ColorCie { x: 0.6, y: 0.38, z: 30.0 },
+            measurements: vec![Measurement {
+                physical: 100.0,
+                luminous_intensity: None,
+                transmission: Some(30.0),
+                interpolation_to: Interpolation::Linear,
+                points,
+            }],
+        }
+    }
+
+    #[test]
+    fn filter_spectrum_becomes_a_gel_applied_spectrally() {
+        let gel = filter_gel(&long_pass(), "slot").unwrap();
+        assert_eq!(gel.transmission(500.0), 0.0);
+        assert_eq!(gel.transmission(600.0), 1.0);
+        assert!((gel.transmission(555.0) - 0.5).abs() < 1e-6, "linear between 550 and 560 nm");
+        // Through the gel tables vs direct integration of lamp × transmission.
+        let lamp = Lamp::Discharge { cct: 6000.0 };
+        let mix = footlight_photometry::GelMix::single(Some(&gel));
+        let fast = footlight_photometry::colour_mix(&lamp, 1.0, &mix);
+        let exact = footlight_photometry::colour_exact(&lamp, 1.0, Some(gel.sampled()));
+        assert!((fast - exact).abs().max_element() < 1e-3, "{fast} {exact}");
+        assert!(fast.x > 5.0 * fast.z, "a long-pass filter passes red, not blue: {fast}");
+        // Fewer than two points: no gel (the slot's xyY is used instead).
+        let mut one = long_pass();
+        one.measurements[0].points.truncate(1);
+        assert!(filter_gel(&one, "slot").is_none());
+    }
 }
