@@ -142,6 +142,13 @@ fn quick_bench_writes_a_consistent_report() {
     let sum = |i: usize| mse[i][1].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).sum::<f64>();
     assert!(sum(1) < sum(0), "adaptive AA is closer to 9× than one sample");
     assert!(json["ratios"].as_array().unwrap().iter().all(|r| r["ours"].as_f64().unwrap().is_finite()));
+    // Issue 14: the 150-fixture MVR imported (148 lights: two hazers), and 50 strobing
+    // fixtures flip some lights each frame (never none, never more than all).
+    assert_eq!(json["mvr"]["fixtures"].as_u64(), Some(148));
+    assert!(json["mvr"]["import_ms"].as_f64().unwrap().is_finite());
+    let flips = json["mvr"]["strobe_changed_per_frame"].as_f64().unwrap();
+    assert!(flips > 0.0 && flips <= 50.0, "{flips}");
+    assert!(md.contains("MVR import, show150.mvr"));
 }
 
 /// `footlight run` as a user starts it: the binary's own wiring, real UDP on
@@ -425,4 +432,22 @@ fn render_of_a_recording_without_patched_dmx_names_its_universes() {
     assert!(!o.status.success(), "{err}");
     assert!(err.contains("sACN universe 1"), "names what the recording holds: {err}");
     assert!(!dir.join("x.png").exists());
+}
+
+#[test]
+fn check_and_render_a_toml_patch_with_gdtf_types() {
+    let o = footlight().args(["check", "tests/data/gdtf-patch.toml"]).output().unwrap();
+    let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{err}");
+    assert!(out.contains("ok, 3 fixtures on universes 1, 2"), "{out}");
+    let dir = temp_dir("gdtf-patch");
+    let png = dir.join("gdtf.png");
+    let o = footlight()
+        .args(["render", "--width", "64", "--height", "40", "--patch", "tests/data/gdtf-patch.toml", "--out"])
+        .arg(&png)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let img = image::open(&png).unwrap().to_rgb8();
+    assert!(img.pixels().any(|p| p.0.iter().any(|&c| c > 40)), "the GDTF fixtures light the stage");
 }

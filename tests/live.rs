@@ -296,3 +296,41 @@ fn a_moving_light_never_starts_its_later_stages_and_settles_to_the_same_buffer()
     assert_eq!(*tracer.published(0).buffer, expected);
     tracer.shutdown(Duration::from_secs(30));
 }
+
+/// One light at full, strobing at 10 Hz (shutter_at: open 0-50 ms of each 100 ms).
+struct StrobeDecoder;
+
+impl Decode for StrobeDecoder {
+    fn len(&self) -> usize {
+        1
+    }
+    fn decode(&self, _u: &dyn DmxSlots) -> Vec<LightInput> {
+        let light = footlight::Light::aimed(
+            Vec3::new(0.0, 2.0, 0.0),
+            Vec3::ZERO,
+            footlight::Beam::Spot(footlight::fixture::SpotBeam::from_beam_field(30.0, 40.0)),
+        );
+        let state = FixtureState { v: 1.0, strobe: 10.0, ..FixtureState::default() };
+        vec![LightInput { light, k: Vec3::splat(1000.0), k_full: Vec3::splat(1000.0), state }]
+    }
+}
+
+#[test]
+fn strobe_is_a_composite_on_the_frame_clock_not_a_rebuild() {
+    let (scene, cam) = small_stage();
+    let tracer = tracer(&scene, cam, 40, 40);
+    let mut clock =
+        FrameClock::new(Arc::new(StrobeDecoder), tracer.clone(), Compositor::new(40, 40, Display::neutral(1000.0)));
+    clock.tick_at(&Universes::new(), 0.0);
+    wait_for(&tracer, |s| s == Stage::Ready);
+    let generation = tracer.published(0).generation;
+    let lit = clock.tick_at(&Universes::new(), 0.01);
+    assert!(centre_brightness(&lit, 20) > 100 && lit.intensity[0] > 0.0);
+    let dark = clock.tick_at(&Universes::new(), 0.07);
+    assert_eq!((centre_brightness(&dark, 20), dark.intensity[0]), (0, 0.0));
+    assert_eq!(dark.update.changed_lights, 1);
+    let again = clock.tick_at(&Universes::new(), 0.12);
+    assert_eq!(again.rgb, lit.rgb);
+    // The state never changed, so the tracer was never asked for a rebuild.
+    assert_eq!(tracer.published(0).generation, generation);
+}

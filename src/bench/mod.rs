@@ -10,6 +10,7 @@ pub mod chase;
 pub mod clients;
 pub mod haze;
 pub mod live;
+pub mod mvr;
 #[cfg(feature = "plots")]
 pub mod plots;
 pub mod scale;
@@ -129,6 +130,8 @@ pub struct Report {
     pub chase: Option<chase::ChaseReport>,
     /// Issues 12/17: the frame clock under N preview clients.
     pub clients: Vec<clients::ClientsRow>,
+    /// MVR import time and strobe composite cost (issue 14).
+    pub mvr: mvr::MvrReport,
 }
 
 /// One point of a run-time-versus-error curve.
@@ -190,6 +193,7 @@ impl Report {
         if let Some(c) = &self.chase {
             s += &c.lines();
         }
+        s += &self.mvr.lines();
         s
     }
 
@@ -351,6 +355,7 @@ impl Report {
         if let Some(c) = &self.chase {
             s += &c.markdown();
         }
+        s += &format!("\n## MVR and GDTF (issue 14)\n\n```text\n{}```\n", self.mvr.lines());
         s += "\n## Raw timings (ms)\n\n| stage | ms |\n|---|---:|\n";
         for (n, t) in &self.timings_ms {
             s += &format!("| {n} | {t:.3} |\n");
@@ -799,6 +804,9 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         clients::run(&scene_arc, patch, camera, (800, 500), &[0, 20, 200], 10.0)
     };
     let clients = clients.map_err(|e| tracing::error!("preview clients: {e}")).unwrap_or_default();
+    progress.set_message("MVR import and strobe");
+    let show150 = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr/show150.mvr");
+    let mvr = mvr::run(scene, camera, (w, h), &show150, cfg.repeats, 50);
     progress.finish_and_clear();
 
     let report = Report {
@@ -823,6 +831,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         haze,
         chase,
         clients,
+        mvr,
     };
     #[cfg(feature = "plots")]
     plots::write(&report, out)?;

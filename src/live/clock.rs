@@ -89,6 +89,9 @@ pub struct FrameClock {
     /// The last published picture, shared again while nothing changes
     /// (copying a 1080p frame 60 times a second is 370 MB/s for nothing).
     last_rgb: Option<Arc<Vec<u8>>>,
+    /// t = 0 of the frame time (strobe phase origin); tokio's clock, so
+    /// daemon tests with paused time are deterministic.
+    epoch: tokio::time::Instant,
 }
 
 /// Relative luminance of linear sRGB (Rec. 709 weights).
@@ -100,7 +103,8 @@ impl FrameClock {
     /// A clock over `tracer`'s lights compositing into `compositor`.
     pub fn new(decoder: Arc<dyn Decode>, tracer: Arc<Tracer>, compositor: Compositor) -> Self {
         let n = decoder.len();
-        Self { decoder, tracer, compositor, gpu: None, last: vec![None; n], number: 0, last_rgb: None }
+        let epoch = tokio::time::Instant::now();
+        Self { decoder, tracer, compositor, gpu: None, last: vec![None; n], number: 0, last_rgb: None, epoch }
     }
 
     /// Composites on the GPU from now on (falls back to the CPU on a GPU error).
@@ -126,10 +130,21 @@ impl FrameClock {
         rgb
     }
 
-    /// One frame: decode, request rebuilds for changed geometry, composite, publish.
+    /// One frame at the current frame time (seconds since the clock was made).
     pub fn tick(&mut self, universes: &dyn DmxSlots) -> Frame {
+        let t = self.epoch.elapsed().as_secs_f64();
+        self.tick_at(universes, t)
+    }
+
+    /// One frame at frame time `t_seconds`: decode, request rebuilds for
+    /// changed geometry, composite with each k_i times its shutter factor at
+    /// `t_seconds` (strobe: a composite per frame, never a rebuild), publish.
+    pub fn tick_at(&mut self, universes: &dyn DmxSlots, t_seconds: f64) -> Frame {
         let t0 = Instant::now();
-        let inputs = self.decoder.decode(universes);
+        let mut inputs = self.decoder.decode(universes);
+        for input in &mut inputs {
+            input.k *= input.state.shutter_at(t_seconds);
+        }
         let mut published: Vec<Published> = Vec::with_capacity(inputs.len());
         for (i, input) in inputs.iter().enumerate().take(self.tracer.len()) {
             let priority = luminance(input.k_full).max(0.0)

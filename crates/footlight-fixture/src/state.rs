@@ -7,9 +7,15 @@
 //! ```
 //!
 //! [`classify`] compares two states of one fixture: nothing changed → no
-//! event; dimmer, colour mix or colour frame → the composite only (k_i);
-//! pan, tilt, zoom, focus or iris → geometry, which marks the light dirty
-//! for a rebuild (and, since zoom changes Î, also needs a new k_i).
+//! event; dimmer, colour mix, colour frame, colour-wheel slot, CTO/CTB,
+//! shutter or strobe rate → the composite only (k_i); pan, tilt, zoom,
+//! focus or iris → geometry, which marks the light dirty for a rebuild
+//! (and, since zoom changes Î, also needs a new k_i).
+//!
+//! A strobing fixture's state does not change from frame to frame: the
+//! strobe is a time factor on k_i ([`FixtureState::shutter_at`]), evaluated
+//! on the frame clock, so it costs a composite per frame and never a
+//! rebuild.
 
 use std::collections::BTreeMap;
 
@@ -41,12 +47,59 @@ pub struct FixtureState {
     pub focus: f32,
     /// Iris as a fraction of the open gate diameter (1 = open).
     pub iris: f32,
+    /// Colour-wheel slot, 0-based (0 is the wheel's first slot, usually open).
+    pub wheel: f32,
+    /// Colour-correction target in kelvin (CTO below the lamp's CCT, CTB
+    /// above); 0 = no correction filter.
+    pub cto: f32,
+    /// Shutter: 1 open, 0 closed (a closed shutter makes k_i black).
+    pub shutter: f32,
+    /// Strobe rate in Hz while the shutter strobes; 0 = steady.
+    pub strobe: f32,
+}
+
+/// Fraction of each strobe period the shutter is open (estimated: a
+/// mechanical or LED strobe at a 50 % duty cycle; discharge flash tubes are
+/// shorter, GDTF gives no duty cycle).
+pub const STROBE_DUTY: f64 = 0.5;
+
+impl FixtureState {
+    /// The shutter's transmission at frame time `t_seconds`: 0 closed, 1
+    /// open, and while strobing 1 for the first [`STROBE_DUTY`] of each
+    /// period `1/strobe` and 0 after it. The phase origin is t = 0 of the
+    /// frame clock, so fixtures at the same rate flash together (as a desk's
+    /// "strobe sync"). Pure: stills evaluate it at t = 0 (open).
+    pub fn shutter_at(&self, t_seconds: f64) -> f32 {
+        if !(self.shutter >= 0.5) {
+            return 0.0;
+        }
+        let hz = f64::from(self.strobe);
+        if !(hz > 0.0 && hz.is_finite() && t_seconds.is_finite()) {
+            return 1.0;
+        }
+        let phase = (t_seconds * hz).rem_euclid(1.0);
+        if phase < STROBE_DUTY { 1.0 } else { 0.0 }
+    }
 }
 
 impl Default for FixtureState {
-    /// Dark, open, centred: v 0, frame 0, no mix, pan/tilt 0, zoom 0, focus 0, iris open.
+    /// Dark, open, centred: v 0, frame 0, no mix, pan/tilt 0, zoom 0, focus 0,
+    /// iris open, first wheel slot, no CTO, shutter open, no strobe.
     fn default() -> Self {
-        Self { v: 0.0, frame: 0.0, mix: [0.0; MAX_MIX], pan: 0.0, tilt: 0.0, zoom: 0.0, focus: 0.0, iris: 1.0 }
+        Self {
+            v: 0.0,
+            frame: 0.0,
+            mix: [0.0; MAX_MIX],
+            pan: 0.0,
+            tilt: 0.0,
+            zoom: 0.0,
+            focus: 0.0,
+            iris: 1.0,
+            wheel: 0.0,
+            cto: 0.0,
+            shutter: 1.0,
+            strobe: 0.0,
+        }
     }
 }
 
@@ -55,7 +108,8 @@ impl Default for FixtureState {
 pub enum Change {
     /// Nothing the renderer sees changed: no event.
     Unchanged,
-    /// Only k_i changed (dimmer, colour mix, colour frame, and with them CCT): recomposite.
+    /// Only k_i changed (dimmer, colour mix, colour frame, colour wheel,
+    /// CTO/CTB, shutter, strobe rate, and with them CCT): recomposite.
     Composite,
     /// The beam moved or changed shape (pan, tilt, zoom, focus, iris): mark
     /// the light dirty and rebuild it; k_i is recomputed too.
@@ -73,7 +127,14 @@ pub fn classify(old: &FixtureState, new: &FixtureState) -> Change {
     if geometry {
         return Change::Geometry;
     }
-    if old.v != new.v || old.frame != new.frame || old.mix != new.mix {
+    if old.v != new.v
+        || old.frame != new.frame
+        || old.mix != new.mix
+        || old.wheel != new.wheel
+        || old.cto != new.cto
+        || old.shutter != new.shutter
+        || old.strobe != new.strobe
+    {
         return Change::Composite;
     }
     Change::Unchanged
@@ -149,6 +210,10 @@ mod tests {
             FixtureState { v: 0.6, ..a },
             FixtureState { frame: 1.5, ..a },
             FixtureState { mix: [0.1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], ..a },
+            FixtureState { wheel: 2.0, ..a },
+            FixtureState { cto: 3200.0, ..a },
+            FixtureState { shutter: 0.0, ..a },
+            FixtureState { strobe: 10.0, ..a },
         ] {
             assert_eq!(classify(&a, &change), Change::Composite, "{change:?}");
         }
@@ -163,6 +228,26 @@ mod tests {
             assert_eq!(classify(&a, &change), Change::Geometry, "{change:?}");
         }
         assert!(Change::Geometry > Change::Composite && Change::Composite > Change::Unchanged);
+    }
+
+    #[test]
+    fn shutter_is_a_square_wave_on_the_frame_clock() {
+        let open = FixtureState::default();
+        assert_eq!(open.shutter_at(0.0), 1.0);
+        assert_eq!(open.shutter_at(12.345), 1.0);
+        assert_eq!(FixtureState { shutter: 0.0, ..open }.shutter_at(0.0), 0.0);
+        let s = FixtureState { strobe: 10.0, ..open };
+        // 10 Hz, 50 % duty: open 0..50 ms, closed 50..100 ms, then again.
+        assert_eq!(s.shutter_at(0.0), 1.0);
+        assert_eq!(s.shutter_at(0.049), 1.0);
+        assert_eq!(s.shutter_at(0.051), 0.0);
+        assert_eq!(s.shutter_at(0.101), 1.0);
+        // The mean over many periods is the duty cycle (midpoint sampling, not aligned to the period).
+        let n = 100_000;
+        let mean: f64 = (0..n).map(|i| f64::from(s.shutter_at((i as f64 + 0.5) * 1e-5 * 7.3))).sum::<f64>() / n as f64;
+        assert!((mean - STROBE_DUTY).abs() < 2e-3, "{mean}");
+        assert_eq!(FixtureState { strobe: f32::NAN, ..open }.shutter_at(0.07), 1.0);
+        assert_eq!(FixtureState { shutter: f32::NAN, ..open }.shutter_at(0.0), 0.0);
     }
 
     #[test]

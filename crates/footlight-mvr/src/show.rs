@@ -17,20 +17,29 @@
 //!   otherwise the lamp type (tungsten/halogen dims redder, discharge and
 //!   LED white keep their CCT).
 //!
-//! Every other attribute (shutter/strobe, wheels, gobos, prism, blades,
-//! CTO…) still occupies its slots as an `other` channel, with **one warning
-//! per fixture type** naming them. Not yet mapped: multi-beam fixtures
+//! * `Shutter1`/`Shutter1Strobe…` → shutter open/closed/strobe Hz by DMX
+//!   range (`channel_functions`); `Color1` with a wheel → the slot from
+//!   the channel sets, its c_F from the slot's filter spectrum or xyY
+//!   (`colour_wheel`); `CTO`/`CTB`/`CTC` on a Planckian lamp → target CCT
+//!   with the ideal correction filter's transmittance.
+//!
+//! Every other attribute (gobos, prism, blades, frost…) still occupies its
+//! slots as an `other` channel, with **one warning per fixture type**
+//! naming them. Not yet mapped: multi-beam fixtures
 //! (pixel cells, multi-lamp blinders) are one light at the first beam; DMX
 //! breaks after the first are reported, not decoded.
 
 use crate::gdtf::{BeamInfo, ChannelInfo, Gdtf, GeometryKind, GeometryNode, LampType, Layout};
 use crate::mvr::{Mvr, Scene, stage_pose};
 use footlight_fixture::beam::SpotBeam;
-use footlight_fixture::fixture_type::{Attribute, Channel, Mode, Movement, Optics, SpotOptics};
-use footlight_fixture::patch::{BuiltinSpot, TypedFixture};
+use footlight_fixture::fixture_type::{
+    Action, Attribute, Channel, CorrectionTable, Function, Mode, Movement, Optics, SpotOptics, WheelSlot, wheel_factor,
+};
+use footlight_fixture::patch::{BuiltinSpot, TypeLoader, TypedFixture};
 use footlight_fixture::state::{MAX_MIX, SLOTS, Universes};
 use footlight_fixture::{Beam, Fixture, FixtureModel, FixtureState, FixtureType, Light, Manual, Patch, PatchError};
-use footlight_photometry::{Chroma, DimmerCurve, Emitter, Lamp};
+use footlight_photometry::{Chroma, DimmerCurve, Emitter, Gel, Lamp};
+use gdtf::wheel::WheelSlotOptic;
 use glam::{DQuat, Quat, Vec2, Vec3};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -147,6 +156,8 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
             }
         }
     };
+    let planckian = !matches!(lamp, Lamp::Led { .. });
+    let lamp_cct = lamp.temperature(1.0);
     let mut unsupported: Vec<String> = Vec::new();
     let mut modes = Vec::new();
     for l in &layouts {
@@ -162,7 +173,8 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
                 continue;
             }
             footprint = footprint.max(*c.offsets.iter().max().unwrap_or(&0));
-            let (attribute, range) = map_attribute(c, &mix_names, movement.is_some());
+            let (attribute, range) = map_attribute(c, &mix_names, movement.is_some(), planckian);
+            let functions = channel_functions(c, attribute);
             if attribute == Attribute::Other && !unsupported.contains(&c.attribute) {
                 unsupported.push(c.attribute.clone());
             }
@@ -186,6 +198,7 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
                 curve,
                 range,
                 scroller: None,
+                functions,
                 line: 0,
             });
         }
@@ -213,21 +226,28 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
         name: g.name(),
         maker: g.ft.manufacturer.clone(),
         path: g.label.clone(),
-        lamp,
+        lamp: lamp.clone(),
         mix_names: mix_names.iter().map(|n| n.to_ascii_lowercase()).collect(),
         optics,
         movement,
+        colour_wheel: colour_wheel(g, &layouts, &mut warnings),
+        cto: cto_table(&layouts, &lamp_cct, planckian),
         modes,
     };
     Ok((ty, warnings))
 }
 
 /// Footlight attribute and real-unit range of a GDTF channel.
-fn map_attribute(c: &ChannelInfo, mix: &[String], moving: bool) -> (Attribute, [f32; 2]) {
+fn map_attribute(c: &ChannelInfo, mix: &[String], moving: bool, planckian: bool) -> (Attribute, [f32; 2]) {
     let phys = c.functions.first().map(|f| [f.physical_from as f32, f.physical_to as f32]).unwrap_or([0.0, 1.0]);
     let unit = [0.0, 1.0];
     match c.attribute.as_str() {
         "Dimmer" => (Attribute::Dimmer, unit),
+        a if is_shutter(a) => (Attribute::Shutter, unit),
+        "Color1" if c.functions.iter().any(|f| f.wheel.is_some()) => (Attribute::ColourWheel, unit),
+        "CTO" | "CTB" | "CTC" if planckian && phys.iter().all(|k| (1000.0..=20000.0).contains(k)) => {
+            (Attribute::Cto, phys)
+        }
         "Pan" if moving => (Attribute::Pan, phys),
         "Tilt" if moving => (Attribute::Tilt, phys),
         "Zoom" => (Attribute::Zoom, phys),
@@ -238,6 +258,148 @@ fn map_attribute(c: &ChannelInfo, mix: &[String], moving: bool) -> (Attribute, [
             None => (Attribute::Other, unit),
         },
     }
+}
+
+/// GDTF shutter attributes of the first shutter (`Shutter1`, `Shutter1Strobe…`, `StrobeFrequency`).
+fn is_shutter(a: &str) -> bool {
+    a == "Shutter1" || a.starts_with("Shutter1Strobe") || a == "StrobeFrequency"
+}
+
+/// A raw DMX value at `bytes` of resolution as Footlight reads the channel
+/// (8-bit, or 16-bit from coarse and fine: a 24-bit value loses its last byte).
+fn raw16(v: u64, bytes: u8) -> u16 {
+    let v = if bytes > 2 { v >> (8 * u32::from(bytes - 2).min(6)) } else { v };
+    v.min(u64::from(u16::MAX)) as u16
+}
+
+/// The DMX ranges of a shutter or colour-wheel channel: shutter functions
+/// (open and closed by their channel-set names, else by the physical value
+/// ≥ 0.5; strobe functions with their physical range in Hz), wheel slots
+/// from the channel sets' `WheelSlotIndex` (1-based in the file, 0-based
+/// here). Other attributes: none.
+fn channel_functions(c: &ChannelInfo, attribute: Attribute) -> Vec<Function> {
+    let bytes = c.bytes().max(1);
+    let mut out = Vec::new();
+    for f in &c.functions {
+        let (from, to) = (raw16(f.dmx_from, bytes), raw16(f.dmx_to, bytes));
+        let range = [f.physical_from as f32, f.physical_to as f32];
+        match attribute {
+            Attribute::Shutter => {
+                let named = |w: &str| f.sets.iter().any(|s| s.name.to_ascii_lowercase().contains(w));
+                let action = if f.attribute == "Shutter1" {
+                    if named("open") {
+                        Action::Open
+                    } else if named("close") {
+                        Action::Closed
+                    } else if (range[0] + range[1]) / 2.0 >= 0.5 {
+                        Action::Open
+                    } else {
+                        Action::Closed
+                    }
+                } else if is_shutter(&f.attribute) {
+                    Action::Strobe
+                } else {
+                    Action::Hold
+                };
+                out.push(Function { from, to, action, range });
+            }
+            Attribute::ColourWheel => {
+                let slots: Vec<_> = if f.wheel.is_some() {
+                    f.sets.iter().filter_map(|s| s.wheel_slot.filter(|i| *i >= 1).map(|i| (s, i))).collect()
+                } else {
+                    Vec::new()
+                };
+                if slots.is_empty() {
+                    out.push(Function { from, to, action: Action::Hold, range });
+                }
+                for (s, i) in slots {
+                    let (sf, st) = (raw16(s.dmx_from, bytes), raw16(s.dmx_to, bytes));
+                    out.push(Function { from: sf, to: st, action: Action::Slot((i - 1) as u16), range });
+                }
+            }
+            _ => return Vec::new(),
+        }
+    }
+    out.sort_by_key(|f| f.from);
+    out
+}
+
+/// The colour wheel the first `Color1` channel links: a c_F per slot, from
+/// the slot's linked filter's measured spectrum when it has one, else from
+/// its CIE xyY ([`wheel_factor`]).
+fn colour_wheel(g: &Gdtf, layouts: &[Layout], warnings: &mut Vec<PatchError>) -> Vec<WheelSlot> {
+    let Some(name) = layouts
+        .iter()
+        .flat_map(|l| l.channels.iter())
+        .filter(|c| c.attribute == "Color1")
+        .flat_map(|c| c.functions.iter())
+        .find_map(|f| f.wheel.clone())
+    else {
+        return Vec::new();
+    };
+    let Some(wheel) = g.ft.wheels.iter().find(|w| w.name.as_deref() == Some(name.as_str())) else {
+        warnings.push(PatchError::new(
+            &g.label.join("description.xml"),
+            0,
+            format!("Color1 links wheel {name:?}, which the file does not define; the colour wheel stays open"),
+        ));
+        return Vec::new();
+    };
+    wheel
+        .slots
+        .iter()
+        .map(|slot| {
+            if let Some(gel) = slot.filter(&g.ft).and_then(|f| filter_gel(f, slot.name.as_deref().unwrap_or("slot"))) {
+                return WheelSlot::Filter(Arc::new(gel));
+            }
+            match &slot.optic {
+                WheelSlotOptic::Color(c) => WheelSlot::Factor(wheel_factor(c.x as f32, c.y as f32, c.z as f32)),
+                WheelSlotOptic::Filter(_) => WheelSlot::Factor(Vec3::ONE),
+            }
+        })
+        .collect()
+}
+
+/// A GDTF filter's first measurement as a gel: transmission at 5 nm from
+/// 380 to 780 nm, interpolated linearly between the measured points
+/// (values over 1 are read as percent). `None` without at least two points.
+fn filter_gel(f: &gdtf::physical_descriptions::Filter, name: &str) -> Option<Gel> {
+    let m = f.measurements.first()?;
+    let mut pts: Vec<(f64, f64)> = m.points.iter().map(|p| (p.wave_length, p.energy)).collect();
+    pts.retain(|p| p.0.is_finite() && p.1.is_finite());
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    if pts.len() < 2 {
+        return None;
+    }
+    let scale = if pts.iter().any(|p| p.1 > 1.0) { 0.01 } else { 1.0 };
+    let at = |nm: f64| -> f32 {
+        let i = pts.partition_point(|p| p.0 < nm);
+        let v = match i {
+            0 => pts[0].1,
+            i if i >= pts.len() => pts[pts.len() - 1].1,
+            i => {
+                let ((x0, y0), (x1, y1)) = (pts[i - 1], pts[i]);
+                if x1 > x0 { y0 + (y1 - y0) * (nm - x0) / (x1 - x0) } else { y1 }
+            }
+        };
+        (v * scale) as f32
+    };
+    let samples: Vec<f32> = (0..=80).map(|k| at(380.0 + 5.0 * f64::from(k))).collect();
+    let label = f.name.as_deref().unwrap_or(name).to_string();
+    Some(Gel::from_samples(label.clone(), label, 380.0, 5.0, samples))
+}
+
+/// The CTO/CTB table for a Planckian lamp with a colour-correction channel.
+fn cto_table(layouts: &[Layout], cct: &Option<f32>, planckian: bool) -> Option<CorrectionTable> {
+    let from = (*cct)?;
+    let f = layouts
+        .iter()
+        .flat_map(|l| l.channels.iter())
+        .find(|c| matches!(c.attribute.as_str(), "CTO" | "CTB" | "CTC"))?
+        .functions
+        .first()?;
+    let range = [f.physical_from as f32, f.physical_to as f32];
+    (planckian && range.iter().all(|k| (1000.0..=20000.0).contains(k))).then(|| CorrectionTable::new(from, range))
 }
 
 /// The dimmer curve of a GDTF DMX profile: a single cubic segment
@@ -461,14 +623,29 @@ fn quat(q: DQuat) -> Quat {
     Quat::from_xyzw(q.x as f32, q.y as f32, q.z as f32, q.w as f32).normalize()
 }
 
+/// The GDTF reader for TOML patches: `type = "types/x.gdtf"` (relative to
+/// the patch) with `mode = "…"` becomes a [`FixtureType`] through
+/// [`fixture_type`], every mode included. Handed to
+/// [`footlight_fixture::patch::check_with`] as a trait object because the
+/// fixture crate cannot depend on this one (this crate builds on its types).
+/// The patch's `position` is where the light is (the GDTF beam's offset
+/// from the fixture origin is not added, unlike in an MVR).
+pub struct GdtfTypes;
+
+impl TypeLoader for GdtfTypes {
+    fn load(&self, path: &Path) -> Result<(FixtureType, Vec<PatchError>), PatchError> {
+        let g = Gdtf::open(path)?;
+        fixture_type(&g)
+    }
+}
+
 /// Loads a patch: an `.mvr` through [`load_mvr`] (warnings logged to
 /// stderr by the caller's choice: they are returned by [`check_patch`]),
-/// anything else through [`Patch::load`].
+/// anything else as a TOML patch whose types may be GDTF files ([`GdtfTypes`]).
 pub fn load_patch(path: &Path) -> Result<Patch, PatchError> {
-    if is_mvr(path) {
-        return load_mvr(path).map(|i| i.patch).map_err(|mut e| e.swap_remove(0));
-    }
-    Patch::load(path)
+    check_patch(path)
+        .map(|(p, _)| p)
+        .map_err(|mut e| if e.is_empty() { PatchError::new(path, 0, "invalid patch") } else { e.swap_remove(0) })
 }
 
 /// Every problem of a patch or MVR file (what `footlight check` prints):
@@ -477,10 +654,55 @@ pub fn check_patch(path: &Path) -> Result<(Patch, Vec<PatchError>), Vec<PatchErr
     if is_mvr(path) {
         return load_mvr(path).map(|i| (i.patch, i.warnings));
     }
-    footlight_fixture::check(path).map(|p| (p, Vec::new()))
+    footlight_fixture::patch::check_with(path, &GdtfTypes)
 }
 
 /// True for a path ending in `.mvr` (any case).
 pub fn is_mvr(path: &Path) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case("mvr"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gdtf::physical_descriptions::{Filter, Interpolation, Measurement, MeasurementPoint};
+    use gdtf::values::{ColorCie, Name};
+
+    /// A long-pass filter: 0 % below 550 nm, 100 % from 560 nm (percent, as GDTF files often write it).
+    fn long_pass() -> Filter {
+        let points = (380..=780)
+            .step_by(10)
+            .map(|nm| MeasurementPoint { wave_length: f64::from(nm), energy: if nm < 560 { 0.0 } else { 100.0 } })
+            .collect();
+        Filter {
+            name: Some(Name::new_lossy("LongPass")),
+            color: ColorCie { x: 0.6, y: 0.38, z: 30.0 },
+            measurements: vec![Measurement {
+                physical: 100.0,
+                luminous_intensity: None,
+                transmission: Some(30.0),
+                interpolation_to: Interpolation::Linear,
+                points,
+            }],
+        }
+    }
+
+    #[test]
+    fn filter_spectrum_becomes_a_gel_applied_spectrally() {
+        let gel = filter_gel(&long_pass(), "slot").unwrap();
+        assert_eq!(gel.transmission(500.0), 0.0);
+        assert_eq!(gel.transmission(600.0), 1.0);
+        assert!((gel.transmission(555.0) - 0.5).abs() < 1e-6, "linear between 550 and 560 nm");
+        // Through the gel tables vs direct integration of lamp × transmission.
+        let lamp = Lamp::Discharge { cct: 6000.0 };
+        let mix = footlight_photometry::GelMix::single(Some(&gel));
+        let fast = footlight_photometry::colour_mix(&lamp, 1.0, &mix);
+        let exact = footlight_photometry::colour_exact(&lamp, 1.0, Some(gel.sampled()));
+        assert!((fast - exact).abs().max_element() < 1e-3, "{fast} {exact}");
+        assert!(fast.x > 5.0 * fast.z, "a long-pass filter passes red, not blue: {fast}");
+        // Fewer than two points: no gel (the slot's xyY is used instead).
+        let mut one = long_pass();
+        one.measurements[0].points.truncate(1);
+        assert!(filter_gel(&one, "slot").is_none());
+    }
 }

@@ -161,6 +161,8 @@ pub fn parse_type(path: &Path, text: &str, gels: Option<&GelLibrary>) -> Result<
         optics,
         movement,
         modes: Vec::new(),
+        colour_wheel: Vec::new(),
+        cto: None,
     };
     if file.mode.is_empty() {
         return Err(PatchError::new(path, 1, "needs at least one [[mode]] with its channels"));
@@ -463,6 +465,7 @@ fn mode(
             curve: f.curve.as_ref().map(|c| *c.get_ref()).unwrap_or_default(),
             range,
             scroller,
+            functions: Vec::new(),
             line,
         });
     }
@@ -547,7 +550,12 @@ fn range(at: &At, ty: &FixtureType, attribute: Attribute, f: &ChannelFile, name:
             _ => ([1.0, 1.0], 1.0, 1.0),
         },
         Attribute::Focus | Attribute::Mix(_) => ([0.0, 1.0], 0.0, 1.0),
-        Attribute::Dimmer | Attribute::Scroller | Attribute::Other => {
+        Attribute::Dimmer
+        | Attribute::Scroller
+        | Attribute::Other
+        | Attribute::Shutter
+        | Attribute::ColourWheel
+        | Attribute::Cto => {
             if let Some(r) = &f.range {
                 return Err(at(r.span(), format!("{name} takes no range")));
             }

@@ -34,7 +34,8 @@ pub use load::load_type;
 
 use crate::beam::{Beam, HermiteBeam, HermitePattern, MeasuredBeam, PhotometricTable, SpotBeam};
 use crate::state::{FixtureState, MAX_MIX};
-use footlight_photometry::{DimmerCurve, Lamp, Scroller};
+use footlight_photometry::{DimmerCurve, Gel, Lamp, Scroller, srgb};
+use glam::{Vec2, Vec3};
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -57,6 +58,108 @@ pub struct FixtureType {
     pub movement: Option<Movement>,
     /// DMX modes, in file order.
     pub modes: Vec<Mode>,
+    /// Colour-wheel slots in wheel order (empty: no colour wheel).
+    pub colour_wheel: Vec<WheelSlot>,
+    /// The colour-correction (CTO/CTB) channel's transmittance table, if the type has one.
+    pub cto: Option<CorrectionTable>,
+}
+
+/// A Planckian CCT after a correction filter to `target` (0: none).
+fn corrected(cct: f32, target: f32) -> f32 {
+    if target > 0.0 && target.is_finite() { target } else { cct }
+}
+
+/// One colour-wheel slot: what it does to the beam's colour.
+#[derive(Clone, Debug, PartialEq)]
+pub enum WheelSlot {
+    /// A per-channel factor c_F in linear sRGB (open = 1, 1, 1), from the
+    /// slot's CIE xyY (GDTF `Slot Color`: the filtered light's chromaticity
+    /// and its luminous transmittance in percent). See [`wheel_factor`].
+    Factor(Vec3),
+    /// A measured transmission spectrum (GDTF `Filter` with measurements):
+    /// applied to the lamp's spectrum like a gel.
+    Filter(Arc<Gel>),
+}
+
+/// c_F of a filter given by CIE xyY (Y in percent, as GDTF writes slot
+/// colours): the linear-sRGB colour of (x, y, Y/100), so D65 white at 100 %
+/// is (1, 1, 1) and the sRGB red primary at its luminance 21.26 % is
+/// (1, 0, 0). Components below 0 (outside the sRGB gamut) are 0: a filter
+/// transmits nothing negative. An approximation (documented in
+/// docs/mvr-gdtf.md): the factor multiplies c_I per channel, as if the lamp
+/// were white; a measured spectrum ([`WheelSlot::Filter`]) is exact.
+pub fn wheel_factor(x: f32, y: f32, y_percent: f32) -> Vec3 {
+    if !(x > 0.0 && y > 0.0 && x + y < 1.0 && y_percent >= 0.0 && y_percent.is_finite()) {
+        return Vec3::ONE;
+    }
+    let xyz = srgb::xy_to_xyz(Vec2::new(x, y), y_percent / 100.0);
+    srgb::xyz_to_linear_srgb(xyz).max(Vec3::ZERO)
+}
+
+/// Luminous transmittance of an ideal colour-correction filter turning a
+/// Planckian source at `from_k` into one at `to_k` (CTO when `to_k` is
+/// lower, CTB when higher): its transmission is the ratio of the two
+/// Planck spectra scaled to peak 1 over 380-780 nm (the ratio is monotonic,
+/// so the peak is at an end), and the transmittance is
+/// ∫ τ B_from ȳ dλ / ∫ B_from ȳ dλ. 1 when either temperature is not
+/// positive and finite. A real gel's spectrum differs (estimated model).
+pub fn correction_transmittance(from_k: f32, to_k: f32) -> f32 {
+    if !(from_k > 0.0 && to_k > 0.0 && from_k.is_finite() && to_k.is_finite()) || from_k == to_k {
+        return 1.0;
+    }
+    let (b_from, b_to) = (footlight_photometry::blackbody(from_k), footlight_photometry::blackbody(to_k));
+    let ratio = |nm: f32| b_to(nm) / b_from(nm);
+    let peak = ratio(380.0).max(ratio(780.0));
+    let y_from = footlight_photometry::spectrum_to_xyz(b_from).y;
+    let y_to = footlight_photometry::spectrum_to_xyz(b_to).y;
+    if !(peak > 0.0 && y_from > 0.0) {
+        return 1.0;
+    }
+    (y_to / (peak * y_from)).clamp(0.0, 1.0)
+}
+
+/// [`correction_transmittance`] from a lamp's CCT over a target range,
+/// tabulated at load (33 points, linear in mired) so the frame loop reads a
+/// table instead of integrating two spectra per fixture per frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CorrectionTable {
+    /// The lamp's CCT, K.
+    pub from_k: f32,
+    /// (mired, transmittance), mired ascending.
+    points: Vec<(f32, f32)>,
+}
+
+impl CorrectionTable {
+    /// The table from `from_k` to every target in `range` (K, either order).
+    pub fn new(from_k: f32, range: [f32; 2]) -> Self {
+        let m = |k: f32| 1e6 / k.clamp(500.0, 100_000.0);
+        let (a, b) = (m(range[0]).min(m(range[1])), m(range[0]).max(m(range[1])));
+        let n = 32;
+        let points = (0..=n)
+            .map(|i| {
+                let mired = a + (b - a) * i as f32 / n as f32;
+                (mired, correction_transmittance(from_k, 1e6 / mired))
+            })
+            .collect();
+        Self { from_k, points }
+    }
+
+    /// Transmittance for target `to_k`, interpolated linearly in mired (1 for no target).
+    pub fn at(&self, to_k: f32) -> f32 {
+        if !(to_k > 0.0 && to_k.is_finite()) {
+            return 1.0;
+        }
+        let m = 1e6 / to_k;
+        let p = &self.points;
+        match p.iter().position(|&(x, _)| x >= m) {
+            None => p.last().map_or(1.0, |l| l.1),
+            Some(0) => p[0].1,
+            Some(i) => {
+                let ((x0, y0), (x1, y1)) = (p[i - 1], p[i]);
+                if x1 > x0 { y0 + (y1 - y0) * (m - x0) / (x1 - x0) } else { y1 }
+            }
+        }
+    }
 }
 
 /// A fixture's optical system.
@@ -164,6 +267,13 @@ pub enum Attribute {
     Scroller,
     /// Colour mix: LED emitter or CMY flag, by index into [`FixtureState::mix`].
     Mix(u8),
+    /// Shutter and strobe: open, closed or strobing at a rate, by the
+    /// channel's DMX ranges ([`Channel::functions`]).
+    Shutter,
+    /// Colour-wheel slot, by the channel's DMX ranges ([`Channel::functions`]).
+    ColourWheel,
+    /// Colour correction (CTO/CTB): target CCT in kelvin over the channel's range.
+    Cto,
     /// Something Footlight does not model (strobe, gobo, control…): decoded and ignored.
     Other,
 }
@@ -187,8 +297,40 @@ pub struct Channel {
     pub range: [f32; 2],
     /// Frames on the scroller string (scroller channels).
     pub scroller: Option<Scroller>,
+    /// DMX ranges with their own meaning (GDTF channel functions and sets):
+    /// shutter open/closed/strobe, wheel slots. Empty: the whole range is `range`.
+    pub functions: Vec<Function>,
     /// Line of the channel in its type file.
     pub line: usize,
+}
+
+/// One DMX range of a channel with several meanings (a GDTF channel
+/// function, or a channel set with a wheel slot).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Function {
+    /// First raw value of the range (in the channel's full scale).
+    pub from: u16,
+    /// Last raw value of the range.
+    pub to: u16,
+    /// What the range does.
+    pub action: Action,
+    /// Real values at `from` and `to` (strobe: Hz).
+    pub range: [f32; 2],
+}
+
+/// What a [`Function`] range does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Action {
+    /// Shutter open.
+    Open,
+    /// Shutter closed.
+    Closed,
+    /// Strobe at the range's rate (Hz, interpolated over the range).
+    Strobe,
+    /// Colour-wheel slot (0-based).
+    Slot(u16),
+    /// Nothing Footlight models (the state keeps its value).
+    Hold,
 }
 
 impl Channel {
@@ -282,6 +424,7 @@ impl FixtureType {
             zoom: manual.zoom.unwrap_or(zoom),
             focus: manual.focus.unwrap_or(0.0),
             iris: manual.iris.unwrap_or(1.0),
+            ..FixtureState::default()
         }
     }
 
@@ -292,6 +435,23 @@ impl FixtureType {
         let mut s = self.rest_state(manual);
         for c in &mode.channels {
             let (raw, full) = c.raw(slot);
+            if !c.functions.is_empty() {
+                if let Some(f) = c.functions.iter().rev().find(|f| f.from <= raw) {
+                    let span = f32::from(f.to.saturating_sub(f.from)).max(1.0);
+                    let x = (f32::from(raw.min(f.to) - f.from) / span).clamp(0.0, 1.0);
+                    match f.action {
+                        Action::Open => (s.shutter, s.strobe) = (1.0, 0.0),
+                        Action::Closed => (s.shutter, s.strobe) = (0.0, 0.0),
+                        Action::Strobe => {
+                            let hz = f.range[0] * (1.0 - x) + f.range[1] * x;
+                            (s.shutter, s.strobe) = (1.0, if hz > 0.0 { hz } else { 0.0 });
+                        }
+                        Action::Slot(i) => s.wheel = f32::from(i),
+                        Action::Hold => {}
+                    }
+                }
+                continue;
+            }
             let x = f32::from(raw) / f32::from(full);
             let real = c.range[0] * (1.0 - x) + c.range[1] * x; // exact at both ends
             match c.attribute {
@@ -310,7 +470,8 @@ impl FixtureType {
                     }
                 }
                 Attribute::Mix(i) => s.mix[usize::from(i)] = real.clamp(0.0, 1.0),
-                Attribute::Other => {}
+                Attribute::Cto => s.cto = real,
+                Attribute::Shutter | Attribute::ColourWheel | Attribute::Other => {}
             }
         }
         s
@@ -350,8 +511,61 @@ impl FixtureType {
                 }
                 Lamp::Led { emitters }
             }
-            Lamp::Cmy { cct, .. } => Lamp::Cmy { cct: *cct, cyan: mix(0), magenta: mix(1), yellow: mix(2) },
-            other => other.clone(),
+            Lamp::Cmy { cct, .. } => {
+                Lamp::Cmy { cct: corrected(*cct, state.cto), cyan: mix(0), magenta: mix(1), yellow: mix(2) }
+            }
+            Lamp::Tungsten { cct_full } => Lamp::Tungsten { cct_full: corrected(*cct_full, state.cto) },
+            Lamp::Discharge { cct } => Lamp::Discharge { cct: corrected(*cct, state.cto) },
         }
+    }
+
+    /// The colour-wheel slot in the beam for a state (`None`: no wheel).
+    pub fn wheel_slot(&self, state: &FixtureState) -> Option<&WheelSlot> {
+        let i = if state.wheel.is_finite() && state.wheel > 0.0 { state.wheel.round() as usize } else { 0 };
+        self.colour_wheel.get(i.min(self.colour_wheel.len().saturating_sub(1)))
+    }
+
+    /// The luminous transmittance of the colour-correction filter for a
+    /// state (1 without one): CTO/CTB change the Planckian lamp's CCT in
+    /// [`FixtureType::lamp_for`] and cost this much light.
+    pub fn correction(&self, state: &FixtureState) -> f32 {
+        match (&self.cto, state.cto > 0.0) {
+            (Some(t), true) => t.at(state.cto),
+            _ => 1.0,
+        }
+    }
+}
+
+#[cfg(test)]
+mod correction_tests {
+    use super::*;
+
+    #[test]
+    fn wheel_factor_of_the_srgb_primaries_and_white() {
+        let near = |a: Vec3, b: Vec3| (a - b).abs().max_element() < 2e-3;
+        assert!(near(wheel_factor(0.3127, 0.3290, 100.0), Vec3::ONE));
+        assert!(near(wheel_factor(0.64, 0.33, 21.26), Vec3::X));
+        assert!(near(wheel_factor(0.30, 0.60, 71.52), Vec3::Y));
+        assert!(near(wheel_factor(0.15, 0.06, 7.22), Vec3::Z));
+        // Half the light of white at the white point: a neutral density.
+        assert!(near(wheel_factor(0.3127, 0.3290, 50.0), Vec3::splat(0.5)));
+        // Out of the sRGB gamut: no negative transmission; nonsense: open.
+        assert!(wheel_factor(0.08, 0.83, 50.0).min_element() >= 0.0);
+        assert_eq!(wheel_factor(f32::NAN, 0.3, 10.0), Vec3::ONE);
+    }
+
+    #[test]
+    fn correction_table_matches_the_direct_integral() {
+        let t = CorrectionTable::new(5600.0, [5600.0, 2700.0]);
+        assert!((t.at(5600.0) - 1.0).abs() < 1e-6);
+        for k in [2700.0, 3000.0, 3200.0, 4100.0, 5000.0] {
+            let (a, b) = (t.at(k), correction_transmittance(5600.0, k));
+            assert!((a - b).abs() < 2e-3, "{k}: table {a} direct {b}");
+            assert!(b > 0.0 && b < 1.0);
+        }
+        // Stronger correction costs more light; CTB from tungsten too.
+        assert!(correction_transmittance(5600.0, 2700.0) < correction_transmittance(5600.0, 4000.0));
+        assert!(correction_transmittance(3200.0, 5600.0) < 1.0);
+        assert_eq!(correction_transmittance(3200.0, f32::NAN), 1.0);
     }
 }

@@ -4,7 +4,9 @@
 //! its file, line and what to do.
 
 use super::file::{FixtureFile, InputFile, PatchFile};
-use super::{BuiltinSpot, CameraSpec, Fixture, FixtureModel, InputProtocol, InputRoute, Patch, TypedFixture};
+use super::{
+    BuiltinSpot, CameraSpec, Fixture, FixtureModel, InputProtocol, InputRoute, Patch, TypeLoader, TypedFixture,
+};
 use crate::beam::{Beam, SpotBeam};
 use crate::error::{PatchError, line_of, toml_error};
 use crate::fixture_type::{Attribute, FixtureType, Manual, Optics, load_type};
@@ -18,13 +20,29 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use toml::Spanned;
 
+/// True for a type name that is a foreign type file (`….gdtf`, any case).
+fn is_foreign(raw: &str) -> bool {
+    Path::new(raw).extension().is_some_and(|e| e.eq_ignore_ascii_case("gdtf"))
+}
+
 /// Highest patch universe (the sACN range).
 const MAX_UNIVERSE: i64 = 63999;
 
 /// Builds a patch from its text, or every problem found.
 pub(super) fn build(path: &Path, text: &str) -> Result<Patch, Vec<PatchError>> {
+    build_with(path, text, None).map(|(p, _)| p)
+}
+
+/// [`build`] with a reader for foreign fixture-type files (GDTF): the patch
+/// and the reader's warnings, or every problem found.
+pub(super) fn build_with(
+    path: &Path,
+    text: &str,
+    loader: Option<&dyn TypeLoader>,
+) -> Result<(Patch, Vec<PatchError>), Vec<PatchError>> {
     let file: PatchFile = toml::from_str(text).map_err(|e| vec![toml_error(path, text, &e)])?;
     let mut b = Builder::new(path, text, &file);
+    b.loader = loader;
     let camera = b.camera(&file);
     let mut built: Vec<Built> = Vec::new();
     for f in &file.fixture {
@@ -56,7 +74,7 @@ pub(super) fn build(path: &Path, text: &str) -> Result<Patch, Vec<PatchError>> {
     for w in &warnings {
         tracing::warn!("{w}");
     }
-    Ok(Patch {
+    let patch = Patch {
         path: path.to_path_buf(),
         camera,
         fixtures: built.into_iter().map(|x| x.fixture).collect(),
@@ -65,7 +83,8 @@ pub(super) fn build(path: &Path, text: &str) -> Result<Patch, Vec<PatchError>> {
         gels,
         haze,
         warnings,
-    })
+    };
+    Ok((patch, b.warnings))
 }
 
 /// A fixture being built, with what the cross-checks need.
@@ -91,6 +110,10 @@ struct Builder<'a> {
     /// Every fixture id seen, with its line (also those that failed to build).
     ids: Vec<(u32, usize)>,
     errors: Vec<PatchError>,
+    /// Problems that do not stop the patch (from foreign type readers).
+    warnings: Vec<PatchError>,
+    /// Reader for `type = "x.gdtf"` (and other foreign type files).
+    loader: Option<&'a dyn TypeLoader>,
 }
 
 impl<'a> Builder<'a> {
@@ -108,6 +131,8 @@ impl<'a> Builder<'a> {
             types: HashMap::new(),
             ids: Vec::new(),
             errors: Vec::new(),
+            warnings: Vec::new(),
+            loader: None,
         }
     }
 
@@ -143,9 +168,13 @@ impl<'a> Builder<'a> {
         self.gels.clone().flatten()
     }
 
-    /// A fixture type by file stem, loaded once.
+    /// A fixture type by file stem, loaded once; a path the foreign-type
+    /// reader takes (`"types/x.gdtf"`) is read relative to the patch.
     fn fixture_type(&mut self, name: &Spanned<String>) -> Option<Arc<FixtureType>> {
         let raw = name.get_ref().trim();
+        if is_foreign(raw) {
+            return self.foreign_type(name);
+        }
         let stem = raw.strip_suffix(".toml").unwrap_or(raw).to_string();
         if let Some(t) = self.types.get(&stem).cloned() {
             if t.is_none() {
@@ -175,6 +204,53 @@ impl<'a> Builder<'a> {
             }
         };
         self.types.insert(stem, loaded.clone());
+        loaded
+    }
+
+    /// A fixture type from a foreign file (GDTF) through the loader, once per path.
+    fn foreign_type(&mut self, name: &Spanned<String>) -> Option<Arc<FixtureType>> {
+        let raw = name.get_ref().trim().to_string();
+        if let Some(t) = self.types.get(&raw).cloned() {
+            if t.is_none() {
+                self.err(name.span(), format!("fixture type {raw:?} has errors (reported above); fix its file first"));
+            }
+            return t;
+        }
+        let file = self.path.parent().unwrap_or(Path::new("")).join(&raw);
+        let loaded = match self.loader {
+            None => {
+                self.err(
+                    name.span(),
+                    format!(
+                        "fixture type {raw:?} is a GDTF file; this reader has no GDTF support \
+                         (the footlight binary reads it: footlight check <patch>)"
+                    ),
+                );
+                None
+            }
+            Some(_) if !file.is_file() => {
+                self.err(
+                    name.span(),
+                    format!("fixture type {raw:?}: no file {} (paths are relative to the patch)", file.display()),
+                );
+                None
+            }
+            Some(l) => match l.load(&file) {
+                Ok((t, w)) => {
+                    self.warnings.extend(w);
+                    Some(Arc::new(t))
+                }
+                Err(e) => {
+                    self.errors.push(e);
+                    self.err(
+                        name.span(),
+                        format!("fixture type {raw:?} has errors (reported above); fix its file first"),
+                    );
+                    None
+                }
+            },
+        };
+        self.types.insert(raw, loaded.clone());
         loaded
     }
 

@@ -33,7 +33,7 @@ pub use haze::HazeSpec;
 
 use crate::beam::{Beam, SpotBeam};
 use crate::error::PatchError;
-use crate::fixture_type::{Attribute, FixtureType, Manual};
+use crate::fixture_type::{Attribute, FixtureType, Manual, WheelSlot};
 use crate::light::{Light, head_rotation};
 use crate::state::{DmxSlots, FixtureState, SLOTS, Universes};
 use footlight_photometry::{GelId, GelLibrary, GelMix, Scroller};
@@ -189,11 +189,27 @@ impl Fixture {
             FixtureModel::Typed(t) => {
                 let ty = &t.fixture_type;
                 let lamp = ty.lamp_for(state);
-                let intensity = ty.intensity(state);
-                let mix = t.gel_mix(state.frame);
-                footlight_photometry::k(&lamp, state.v, &mix, intensity) // Vierjahn 2010, eq. (4)
+                let intensity = ty.intensity(state) * ty.correction(state) * shutter(state);
+                // Vierjahn 2010, eq. (4): c_F (gel, wheel, CTO) ⊙ c_I · v · Î.
+                match ty.wheel_slot(state) {
+                    Some(WheelSlot::Filter(gel)) => {
+                        footlight_photometry::k(&lamp, state.v, &GelMix::single(Some(gel)), intensity)
+                    }
+                    Some(WheelSlot::Factor(c)) => {
+                        footlight_photometry::k(&lamp, state.v, &t.gel_mix(state.frame), intensity) * *c
+                    }
+                    None => footlight_photometry::k(&lamp, state.v, &t.gel_mix(state.frame), intensity),
+                }
             }
         }
+    }
+
+    /// k_i at frame time `t_seconds`: [`Fixture::k_of`] times the strobe's
+    /// open/closed factor ([`FixtureState::shutter_at`]). What the frame
+    /// clock composites each frame; a strobe therefore costs a composite,
+    /// never a rebuild. Stills use t = 0 (open).
+    pub fn k_at(&self, state: &FixtureState, t_seconds: f64) -> Vec3 {
+        self.k_of(state) * state.shutter_at(t_seconds)
     }
 
     /// Î in candela for a state (zoom and focus included; the built-in spot's fixed intensity).
@@ -204,9 +220,10 @@ impl Fixture {
         }
     }
 
-    /// [`Fixture::k_of`] with the dimmer at full.
+    /// [`Fixture::k_of`] with the dimmer at full and the shutter open (so
+    /// neither dimming nor the shutter changes a light's sample set).
     pub fn k_full_of(&self, state: &FixtureState) -> Vec3 {
-        self.k_of(&FixtureState { v: 1.0, ..*state })
+        self.k_of(&FixtureState { v: 1.0, shutter: 1.0, ..*state })
     }
 }
 
@@ -351,6 +368,31 @@ pub fn check(path: &Path) -> Result<Patch, Vec<PatchError>> {
 /// [`check`] on patch text already read.
 pub fn check_text(path: &Path, text: &str) -> Result<Patch, Vec<PatchError>> {
     build::build(path, text)
+}
+
+/// A reader for fixture-type files the fixture crate cannot parse itself:
+/// GDTF (`type = "types/x.gdtf"` in a patch, relative to the patch file).
+/// The fixture crate does not depend on the GDTF reader (that would be a
+/// cycle: `footlight-mvr` builds on this crate's types), so the reader is
+/// handed in as a trait object; `footlight_mvr::GdtfTypes` implements it.
+pub trait TypeLoader {
+    /// Reads the type file at `path` (already resolved, existing): the type
+    /// with every mode, and warnings that do not stop it (e.g. attributes
+    /// not modelled), or the error naming the file.
+    fn load(&self, path: &Path) -> Result<(FixtureType, Vec<PatchError>), PatchError>;
+}
+
+/// [`check`] with a reader for foreign type files (GDTF): the patch and the
+/// reader's warnings, or every problem.
+pub fn check_with(path: &Path, loader: &dyn TypeLoader) -> Result<(Patch, Vec<PatchError>), Vec<PatchError>> {
+    let text =
+        std::fs::read_to_string(path).map_err(|e| vec![PatchError::new(path, 0, format!("cannot read: {e}"))])?;
+    build::build_with(path, &text, Some(loader))
+}
+
+/// A closed shutter's factor on k_i (1 open, 0 closed; strobe is applied by [`Fixture::k_at`]).
+fn shutter(state: &FixtureState) -> f32 {
+    if state.shutter >= 0.5 { 1.0 } else { 0.0 }
 }
 
 fn first(mut errors: Vec<PatchError>) -> PatchError {

@@ -23,9 +23,11 @@ fn spot_gdtf_maps_onto_a_fixture_type() {
     let lm = ty.intensity(&state) * ty.beam(&state).solid_angle();
     assert!((lm - 20_000.0).abs() < 1.0, "{lm}");
     assert_eq!(ty.mix_names, ["colorsub_c", "colorsub_m", "colorsub_y"]);
-    assert_eq!(m.channels.iter().filter(|c| c.attribute == Attribute::Other).count(), 15);
+    // Shutter, colour wheel and CTO are modelled; gobo, prism, blades… still only hold their slots.
+    assert_eq!(m.channels.iter().filter(|c| c.attribute == Attribute::Other).count(), 12);
     assert_eq!(warnings.len(), 1, "one warning per type: {warnings:?}");
-    assert!(warnings[0].message.contains("Shutter1") && warnings[0].message.contains("Gobo1"));
+    assert!(!warnings[0].message.contains("Shutter1") && warnings[0].message.contains("Gobo1"));
+    assert!(!warnings[0].message.contains("Color1,") && !warnings[0].message.contains("CTO"));
     // The 24-bit dimmer of Basic reads coarse and fine and still holds three slots.
     let b = &ty.modes[ty.mode("Basic").unwrap()];
     assert_eq!((b.footprint, b.channel(Attribute::Dimmer).unwrap().fine), (8, Some(3)));
@@ -61,8 +63,13 @@ fn features_mvr_becomes_a_patch_with_warnings() {
     let mut u = Universes::new();
     u.set_slot(1, 5, 255);
     u.set_slot(1, 6, 255);
+    // Shutter slot 7 at 0 is "Closed" (DMX 0-31): black until it opens.
     let s = spot.decode_universes(&u);
-    assert_eq!(s.v, 1.0);
+    assert_eq!((s.v, s.shutter), (1.0, 0.0));
+    assert_eq!(spot.k_of(&s), Vec3::ZERO);
+    u.set_slot(1, 7, 40);
+    let s = spot.decode_universes(&u);
+    assert_eq!((s.v, s.shutter, s.strobe), (1.0, 1.0, 0.0));
     assert!(spot.k_of(&s).min_element() > 0.0);
     let (_, warnings) = check_patch(&mvr("features")).unwrap();
     assert_eq!(warnings.len(), import.warnings.len());
@@ -86,4 +93,120 @@ fn show150_imports_every_fixture() {
 fn overlapping_addresses_are_errors() {
     let e = check_patch(&mvr("bad-dotdot")).unwrap_err();
     assert!(e[0].message.contains("refused"));
+}
+
+#[test]
+fn toml_patch_takes_gdtf_types_by_path() {
+    let path = super::root().join("tests/data/gdtf-patch.toml");
+    let (p, warnings) = check_patch(&path).unwrap();
+    assert_eq!(p.fixtures.len(), 3);
+    let typed = |id: u32| match &p.fixtures.iter().find(|f| f.id == id).unwrap().model {
+        FixtureModel::Typed(t) => t.clone(),
+        _ => panic!("fixture {id} is not typed"),
+    };
+    // The same type as the GDTF reader gives on its own, parsed once for both spots.
+    let (direct, _) = fixture_type(&Gdtf::open(&gdtf("Spot")).unwrap()).unwrap();
+    let (a, c) = (typed(1), typed(3));
+    assert!(std::sync::Arc::ptr_eq(&a.fixture_type, &c.fixture_type));
+    assert_eq!(a.fixture_type.modes.len(), direct.modes.len());
+    assert_eq!(a.fixture_type.modes[a.mode].name, "Standard");
+    assert_eq!(a.fixture_type.modes[a.mode].footprint, 27);
+    assert_eq!(c.fixture_type.modes[c.mode].name, "Basic");
+    assert_eq!(typed(2).fixture_type.modes[typed(2).mode].footprint, 7);
+    // The [look] reaches the GDTF channels by attribute name: the 16-bit dimmer at full.
+    let spot = p.fixtures.iter().find(|f| f.id == 1).unwrap();
+    assert_eq!(spot.look.v, 1.0);
+    assert_eq!(p.look_universes.get(1).unwrap()[4..6], [255, 255]);
+    // The moving head hangs (no aim): at pan/tilt 0 its beam points straight down.
+    assert!((spot.light.axis() - Vec3::NEG_Y).length() < 1e-4, "{}", spot.light.axis());
+    // One warning per GDTF type for attributes not modelled, not one per fixture.
+    let spot_warnings = warnings.iter().filter(|w| w.path.to_string_lossy().contains("Footlight@Spot")).count();
+    assert!(spot_warnings <= 1, "{warnings:?}");
+    // The plain TOML loader has no GDTF reader and says so with the line.
+    let e = footlight_fixture::Patch::load(&path).unwrap_err();
+    assert!(e.line == 12 && e.message.contains("GDTF"), "{e}");
+}
+
+/// The Spot's Standard mode at address 1 with the dimmer full and the given extra slots.
+fn spot_state(extra: &[(u16, u8)]) -> (footlight_fixture::Fixture, footlight_fixture::FixtureState) {
+    let import = load_mvr(&mvr("features")).unwrap();
+    let spot = import.patch.fixtures.into_iter().find(|f| f.id == 101).unwrap();
+    let mut u = Universes::new();
+    for (a, v) in [(5, 255), (6, 255), (7, 40)].iter().chain(extra) {
+        u.set_slot(1, *a, *v);
+    }
+    let s = spot.decode_universes(&u);
+    (spot, s)
+}
+
+#[test]
+fn colour_wheel_slots_filter_k_by_their_xyy() {
+    let (spot, open) = spot_state(&[]);
+    assert_eq!(open.wheel, 0.0);
+    // Slot 8 at DMX 10 is the channel set "Red" (WheelSlotIndex 2): CIE (0.64, 0.33) at
+    // Y 21.26 % is the sRGB red primary at its own luminance, so c_F = (1, 0, 0).
+    let (_, red) = spot_state(&[(8, 12)]);
+    assert_eq!(red.wheel, 1.0);
+    let (k0, k1) = (spot.k_of(&open), spot.k_of(&red));
+    assert!((k1.x / k0.x - 1.0).abs() < 2e-3 && k1.y.abs() < 2e-3 * k0.y && k1.z.abs() < 2e-3 * k0.z, "{k0} {k1}");
+    // Green (0.30, 0.60, 71.52 %) and blue (0.15, 0.06, 7.22 %) are the other primaries.
+    let (_, green) = spot_state(&[(8, 20)]);
+    let k2 = spot.k_of(&green);
+    assert!((k2.y / k0.y - 1.0).abs() < 2e-3 && k2.x.abs() < 2e-3 * k0.x, "{k2}");
+    let (_, blue) = spot_state(&[(8, 39)]);
+    let k3 = spot.k_of(&blue);
+    assert!((k3.z / k0.z - 1.0).abs() < 2e-3 && k3.y.abs() < 2e-3 * k0.y, "{k3}");
+    // A wheel change is composite-only.
+    assert_eq!(footlight_fixture::classify(&open, &red), footlight_fixture::Change::Composite);
+}
+
+#[test]
+fn shutter_and_strobe_follow_the_channel_functions() {
+    // DMX 0-31 closed, 32-63 open, 64-255 strobe 1..25 Hz (tools/gen_gdtf_mvr.py, spot()).
+    let (spot, closed) = spot_state(&[(7, 10)]);
+    assert_eq!((closed.shutter, spot.k_of(&closed)), (0.0, Vec3::ZERO));
+    let (_, open) = spot_state(&[]);
+    let (_, strobe) = spot_state(&[(7, 160)]);
+    let hz = 1.0 + 24.0 * (160.0 - 64.0) / (255.0 - 64.0);
+    assert!((strobe.strobe - hz).abs() < 1e-4, "{}", strobe.strobe);
+    let (_, fastest) = spot_state(&[(7, 255)]);
+    assert_eq!(fastest.strobe, 25.0);
+    // The strobe is a time factor on k_i: open at t = 0 (stills), closed in the second half period.
+    let k = spot.k_of(&open);
+    assert_eq!(spot.k_of(&strobe), k);
+    assert_eq!(spot.k_at(&strobe, 0.0), k);
+    assert_eq!(spot.k_at(&strobe, 0.25 / f64::from(hz)), k);
+    assert_eq!(spot.k_at(&strobe, 0.75 / f64::from(hz)), Vec3::ZERO);
+    // Neither the shutter nor the strobe moves the beam; k_full ignores the shutter.
+    assert_eq!(footlight_fixture::classify(&open, &strobe), footlight_fixture::Change::Composite);
+    assert_eq!(spot.k_full_of(&closed), spot.k_full_of(&open));
+}
+
+#[test]
+fn cto_turns_the_lamp_warmer_and_costs_its_transmittance() {
+    let (spot, open) = spot_state(&[]);
+    assert_eq!(open.cto, 7000.0, "CTO at DMX 0 is the lamp's own 7000 K");
+    let (_, full) = spot_state(&[(18, 255)]);
+    assert_eq!(full.cto, 3200.0);
+    // Reference: τ(λ) = B(λ, 3200)/B(λ, 7000) scaled to peak 1 over 380-780 nm, luminous
+    // transmittance ∫τ B₇₀₀₀ ȳ / ∫B₇₀₀₀ ȳ, integrated here at 1 nm with Planck's law.
+    let planck = |nm: f64, t: f64| {
+        let l = nm * 1e-9;
+        1.0 / (l.powi(5) * ((1.438_776_877e-2 / (l * t)).exp() - 1.0))
+    };
+    let nms: Vec<f64> = (380..=780).map(f64::from).collect();
+    let peak = nms.iter().map(|&nm| planck(nm, 3200.0) / planck(nm, 7000.0)).fold(0.0, f64::max);
+    let ybar = |nm: f64| f64::from(footlight_photometry::cie::cmf(nm as f32).y);
+    let num: f64 = nms.iter().map(|&nm| planck(nm, 3200.0) / peak * ybar(nm)).sum();
+    let den: f64 = nms.iter().map(|&nm| planck(nm, 7000.0) * ybar(nm)).sum();
+    let tau = num / den;
+    assert!(tau > 0.3 && tau < 0.9, "{tau}");
+    let (k0, k1) = (spot.k_of(&open), spot.k_of(&full));
+    let lum = |k: Vec3| f64::from(k.dot(Vec3::new(0.2126, 0.7152, 0.0722)));
+    assert!((lum(k1) / lum(k0) - tau).abs() < 5e-3, "{} vs {tau}", lum(k1) / lum(k0));
+    // Warmer: red over blue rises, and matches a 3200 K lamp's colour.
+    assert!(k1.x / k1.z > 1.5 * k0.x / k0.z);
+    let c3200 = footlight_photometry::colour(&footlight_photometry::Lamp::Discharge { cct: 3200.0 }, 1.0, None);
+    let (a, b) = (k1 / k1.x, c3200 / c3200.x);
+    assert!((a - b).abs().max_element() < 1e-3, "{a} {b}");
 }
