@@ -134,6 +134,9 @@ fn quick_bench_writes_a_consistent_report() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
     assert!(md.contains("illumination: adaptive AA / 1 sample"));
+    // The error-vs-time curves are drawn by default, as SVG (no fonts needed).
+    let svg = std::fs::read_to_string(dir.join("curve-1.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("<polyline") && svg.contains(r#"fill="red""#));
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap();
     let lin = json["linearity_max_rel_error"].as_f64().unwrap();

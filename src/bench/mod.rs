@@ -8,7 +8,6 @@
 
 pub mod haze;
 pub mod live;
-#[cfg(feature = "plots")]
 pub mod plots;
 pub mod scale;
 pub mod stress;
@@ -793,7 +792,6 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         scale,
         haze,
     };
-    #[cfg(feature = "plots")]
     plots::write(&report, out)?;
     std::fs::write(out.join("report.md"), report.markdown())?;
     std::fs::write(out.join("report.json"), serde_json::to_string_pretty(&report).map_err(std::io::Error::other)?)?;
