@@ -7,6 +7,7 @@
 //! Writes `report.md` and `report.json` into the output folder.
 
 pub mod haze;
+pub mod indirect;
 pub mod live;
 pub mod plots;
 pub mod scale;
