@@ -3,13 +3,16 @@
 //! variance and bias and by region.
 //!
 //! Per shading vertex of a 1-sample view, E_a and E_b are the photon-map
-//! irradiance (what the photons stage shows) from two photon seeds, E_ref a
-//! pure SPPM run of many passes from a third seed (its bias and variance
-//! vanish as passes grow). Over a region, with S = Σ E_ref²:
+//! irradiance (what the photons stage shows) from two photon seeds, E_ref
+//! the mean of two independent path-traced estimates
+//! ([`crate::render::photon::pathtrace`], unbiased; an SPPM reference is
+//! itself biased low at edges while its radius is large). The reference's
+//! own noise, Σ (R₁ − R₂)²/4, is measured and taken out. Over a region,
+//! with S = Σ E_ref²:
 //!
-//! * relative MSE = Σ (E_a − E_ref)² / S,
+//! * relative MSE = (Σ (E_a − E_ref)² − ref. noise) / S,
 //! * variance     = Σ (E_a − E_b)² / 2 / S (two independent seeds),
-//! * bias²        = Σ ((E_a + E_b)/2 − E_ref)² / S − variance / 2
+//! * bias²        = (Σ ((E_a + E_b)/2 − E_ref)² − ref. noise) / S − variance / 2
 //!   (the mean of two seeds keeps half the variance).
 //!
 //! Regions: "boundary" vertices have another surface's photons (normal more
@@ -18,10 +21,12 @@
 //! Channels are summed (R+G+B).
 
 use crate::Light;
-use crate::render::photon::{BoundaryMode, PhotonSettings, Progressive, trace_photons};
+use crate::render::photon::pathtrace::indirect_irradiance;
+use crate::render::photon::{BoundaryMode, PhotonSettings, trace_photons};
 use crate::render::{RecursionLimits, Sampling, View};
 use crate::scene::{Camera, Material, Scene, SceneBuilder};
 use glam::Vec3;
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Error of one region.
@@ -50,8 +55,10 @@ pub struct IndirectRow {
     pub estimator: String,
     /// Errors: all, boundary, open.
     pub regions: Vec<RegionError>,
-    /// SPPM passes behind the reference.
-    pub reference_passes: u32,
+    /// Path-traced samples per vertex behind each of the two references.
+    pub reference_samples: usize,
+    /// The reference's own noise (relative, over all vertices).
+    pub reference_noise: f64,
 }
 
 /// The small Lambert box of the tests: a closed 4 m box of albedo 0.6 with
@@ -80,7 +87,8 @@ pub fn lambert_box() -> (Scene, Light, Camera) {
 }
 
 /// Measures the indirect error of `light` in `scene` from `camera` at
-/// `w`×`h` (one vertex per pixel), before and after the boundary correction.
+/// `w`×`h` (one vertex per pixel), before and after the boundary correction,
+/// against path tracing with `reference_samples` paths per vertex (twice).
 #[allow(clippy::too_many_arguments)]
 pub fn measure(
     name: &str,
@@ -89,16 +97,31 @@ pub fn measure(
     camera: Camera,
     (w, h): (u32, u32),
     photons: PhotonSettings,
-    reference_passes: u32,
+    reference_samples: usize,
 ) -> Vec<IndirectRow> {
     let view = View::build(scene, camera, w, h, Sampling::One, RecursionLimits { max_depth: 0, min_weight: 0.0 });
     let vertices = view.shading.vertices();
     let reference_maps = trace_photons(scene, light, &PhotonSettings { seed: photons.seed ^ 0xBEEF_0001, ..photons });
-    let mut sppm = Progressive::new(scene, &view, &reference_maps);
-    for _ in 0..reference_passes {
-        sppm.pass(scene, &view, light);
-    }
-    let reference: Vec<f64> = sppm.irradiance().iter().map(|e| f64::from(e.element_sum())).collect();
+    let traced = |salt: u64| -> Vec<f64> {
+        vertices
+            .par_iter()
+            .enumerate()
+            .map(|(i, v)| {
+                let e = indirect_irradiance(
+                    scene,
+                    light,
+                    v.position,
+                    v.normal,
+                    reference_samples,
+                    salt ^ (i as u64 * 7919),
+                );
+                f64::from(e.element_sum())
+            })
+            .collect()
+    };
+    let (r1, r2) = (traced(0x1234_5678), traced(0x8765_4321));
+    let reference: Vec<f64> = r1.iter().zip(&r2).map(|(a, b)| (a + b) / 2.0).collect();
+    let noise: Vec<f64> = r1.iter().zip(&r2).map(|(a, b)| (a - b).powi(2) / 4.0).collect();
     let boundary: Vec<bool> = vertices
         .iter()
         .map(|v| reference_maps.global.other_surface_near(v.position, v.normal, photons.estimate))
@@ -120,9 +143,11 @@ pub fn measure(
             let lit = (0..vertices.len()).filter(|&i| diffuse[i] && reference[i] > 0.0).count().max(1);
             let s: f64 = idx.iter().map(|&i| reference[i] * reference[i]).sum::<f64>().max(f64::MIN_POSITIVE);
             let sum_ref: f64 = idx.iter().map(|&i| reference[i]).sum::<f64>().max(f64::MIN_POSITIVE);
-            let mse: f64 = idx.iter().map(|&i| (a[i] - reference[i]).powi(2)).sum::<f64>() / s;
+            let ref_noise: f64 = idx.iter().map(|&i| noise[i]).sum::<f64>();
+            let mse: f64 = (idx.iter().map(|&i| (a[i] - reference[i]).powi(2)).sum::<f64>() - ref_noise) / s;
             let variance: f64 = idx.iter().map(|&i| (a[i] - b[i]).powi(2) / 2.0).sum::<f64>() / s;
-            let mean_err: f64 = idx.iter().map(|&i| ((a[i] + b[i]) / 2.0 - reference[i]).powi(2)).sum::<f64>() / s;
+            let mean_err: f64 =
+                (idx.iter().map(|&i| ((a[i] + b[i]) / 2.0 - reference[i]).powi(2)).sum::<f64>() - ref_noise) / s;
             let signed: f64 = idx.iter().map(|&i| (a[i] + b[i]) / 2.0 - reference[i]).sum::<f64>() / sum_ref;
             RegionError {
                 region: label.into(),
@@ -138,7 +163,14 @@ pub fn measure(
             region("boundary (walls, corners)", &|i| boundary[i]),
             region("open", &|i| !boundary[i]),
         ];
-        rows.push(IndirectRow { scene: name.into(), estimator: estimator.into(), regions, reference_passes });
+        let total: f64 = reference.iter().map(|r| r * r).sum::<f64>().max(f64::MIN_POSITIVE);
+        rows.push(IndirectRow {
+            scene: name.into(),
+            estimator: estimator.into(),
+            regions,
+            reference_samples,
+            reference_noise: noise.iter().sum::<f64>() / total,
+        });
     }
     rows
 }
