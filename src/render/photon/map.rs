@@ -101,14 +101,17 @@ pub struct PhotonMap {
 /// ([`same_surface`]), so dividing by the full disk's area reads low there.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum BoundaryMode {
-    /// Divide by the whole disk (Jensen 2001): biased low at edges and corners.
+    /// Divide by the whole disk (Jensen 2001): biased low at edges and
+    /// corners. The default until `Clip` is validated on curved,
+    /// tessellated surfaces (columns, curtains: neighbouring facets 45° off
+    /// read as cuts there, and the bundled stage's golden image changes).
+    #[default]
     None,
     /// Divide by the part of the disk on this surface: each other surface
     /// whose photons are in the ball (normal 45-135° off) cuts the disk
     /// along the line where its plane meets the tangent plane; the cone
     /// filter's weight beyond that line ([`cone_weight_beyond`]) is taken out
     /// of the normalisation (two cuts: the product of both kept shares).
-    #[default]
     Clip,
 }
 
@@ -617,8 +620,8 @@ mod tests {
             dir: Vec3::X,
             normal: Vec3::NEG_X,
         }));
-        let clipped = PhotonMap::new(v.clone());
-        let plain = PhotonMap::new(v).with_boundary(BoundaryMode::None);
+        let clipped = PhotonMap::new(v.clone()).with_boundary(BoundaryMode::Clip);
+        let plain = PhotonMap::new(v);
         let mean = |m: &PhotonMap, x: f32| {
             (0..40)
                 .map(|j| m.estimate(Vec3::new(x, 0.3 + 0.01 * j as f32, 0.0), Vec3::Z, 150, 1.0).irradiance.x)

@@ -47,7 +47,8 @@ pub struct PhotonSettings {
     pub irradiance_stride: usize,
     /// Seed of the light's photon RNG (combined with the light index).
     pub seed: u64,
-    /// Gather disks at edges and corners (issue 13: clipped by default).
+    /// Gather disks at edges and corners (`Clip` measured in `footlight
+    /// bench`; `None` by default, see [`BoundaryMode`]).
     pub boundary: BoundaryMode,
 }
 
@@ -61,7 +62,7 @@ impl Default for PhotonSettings {
             max_bounces: 16,
             irradiance_stride: 4,
             seed: 0x00F0_07B1_6B75,
-            boundary: BoundaryMode::Clip,
+            boundary: BoundaryMode::None,
         }
     }
 }
