@@ -93,6 +93,15 @@ mod flags {
     pub fn depth(v: &str) -> Result<u32, String> {
         number(v, 0.0, 64.0, " bounces").map(|x| x as u32)
     }
+
+    /// `--refine`: 0-1000 progressive passes.
+    pub fn refine(v: &str) -> Result<u32, String> {
+        let x = number(v, 0.0, 1000.0, " passes")?;
+        if x.fract() != 0.0 {
+            return Err(format!("expected a whole number of passes, got {v}"));
+        }
+        Ok(x as u32)
+    }
 }
 
 #[derive(Parser)]
@@ -282,6 +291,10 @@ struct RenderArgs {
     /// Photons in each radiance estimate (paper: 150).
     #[arg(long, default_value_t = PhotonSettings::default().estimate, value_parser = flags::estimate)]
     estimate: usize,
+    /// Progressive (SPPM) passes after the photon-map estimate, each blended with it
+    /// by photon counts so no pass is worse than the one before (0 = none).
+    #[arg(long, default_value_t = 0, value_parser = flags::refine)]
+    refine: u32,
     /// Roll highlights over display white off smoothly (beams in haze) instead
     /// of clipping them in a PNG; linear outputs are never rolled off (docs/rendering.md).
     #[arg(long)]
@@ -643,7 +656,11 @@ fn render(args: RenderArgs) -> Result<()> {
             estimate: args.estimate,
             ..PhotonSettings::default()
         }),
+        refine_passes: args.refine,
     };
+    if args.refine > 0 && args.photons == 0 {
+        bail!("--refine {}: refinement needs photons (--photons is 0)", args.refine);
+    }
     let universes = still_universes(&args, &show)?;
     let jobs = jobs_for(&show, &universes);
     // Haze from the patch's [haze] at the hazer channel's density (issue 15).

@@ -134,6 +134,9 @@ fn quick_bench_writes_a_consistent_report() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
     assert!(md.contains("illumination: adaptive AA / 1 sample"));
+    // The error-vs-time curves are drawn by default, as SVG (no fonts needed).
+    let svg = std::fs::read_to_string(dir.join("curve-1.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("<polyline") && svg.contains(r#"fill="red""#));
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap();
     let lin = json["linearity_max_rel_error"].as_f64().unwrap();
@@ -450,4 +453,38 @@ fn check_and_render_a_toml_patch_with_gdtf_types() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let img = image::open(&png).unwrap().to_rgb8();
     assert!(img.pixels().any(|p| p.0.iter().any(|&c| c > 40)), "the GDTF fixtures light the stage");
+}
+
+#[test]
+fn render_refine_blends_progressive_passes_into_the_still() {
+    // Issue 13.4 through the binary: `--refine N` runs N progressive passes
+    // after the photon-map estimate. Both estimate the same light, so the
+    // refined still differs from the unrefined one only in the indirect
+    // term's noise: same total to a few percent, not the same pixels.
+    let dir = temp_dir("refine");
+    let run = |out: &std::path::Path, refine: &str| {
+        footlight()
+            .args(["render", "--width", "40", "--height", "25", "--photons", "4000", "--white-balance", "none"])
+            .args(["--refine", refine, "--out"])
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    for (name, n) in [("r0.pfm", "0"), ("r3.pfm", "3")] {
+        let o = run(&dir.join(name), n);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let (_, _, plain) = read_pfm(&dir.join("r0.pfm"));
+    let (_, _, refined) = read_pfm(&dir.join("r3.pfm"));
+    assert!(refined.iter().flatten().all(|v| v.is_finite()));
+    assert_ne!(plain, refined, "--refine 3 changed nothing");
+    let total = |img: &[[f32; 3]]| img.iter().map(|p| f64::from(p[0] + p[1] + p[2])).sum::<f64>();
+    let (a, b) = (total(&plain), total(&refined));
+    assert!((a - b).abs() < 0.03 * a, "total {a} unrefined vs {b} refined");
+    // Refinement without photons, or a fraction of a pass, is a clear error.
+    let o = footlight().args(["render", "--photons", "0", "--refine", "2", "--out"]).arg(dir.join("x.pfm")).output();
+    let o = o.unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--refine"));
+    let o = run(&dir.join("y.pfm"), "1.5");
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--refine"));
 }

@@ -253,3 +253,72 @@ fn box_corner_has_no_black_holes() {
     assert!(before > 0, "the scene should leave the cache without a fitting point somewhere");
     assert_eq!(after, 0, "pixels with zero indirect light inside lit regions");
 }
+
+/// Mean squared error of the red channel of `a` against `b`.
+fn mse_red(a: &[Vec3], b: &[f32]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| f64::from(x.x - y).powi(2)).sum::<f64>() / b.len() as f64
+}
+
+#[test]
+fn refinement_never_shows_a_worse_picture() {
+    // Issue 13.4: every picture a refinement pass publishes must be at least
+    // as close to the path-traced indirect term as the one it replaces,
+    // starting with the photon-map picture. A lone first SPPM pass (the old
+    // refinement) is worse than that picture here, so the check can fail.
+    use footlight::render::build::{BuildSettings, Cancel, LightBuild};
+    let rho = 0.6;
+    let scene = box_scene(rho);
+    let light = Light::aimed(
+        Vec3::new(0.0, 1.5, 0.0),
+        Vec3::new(0.5, -2.0, 0.0),
+        Beam::Spot(SpotBeam::from_beam_field(50.0, 70.0)),
+    );
+    let cam = Camera::look_at(Vec3::new(0.0, 0.0, 1.9), Vec3::new(0.0, -0.5, -2.0), 80f32.to_radians());
+    let v = view(&scene, cam, 20, 12, Sampling::One, 0);
+    // One diffuse vertex per pixel (weight 1): the reference picture is ρ/π · E.
+    let reference: Vec<f32> = (0..20 * 12)
+        .map(|i| {
+            v.shading
+                .pixel(i)
+                .iter()
+                .map(|vx| {
+                    let e = indirect_irradiance(&scene, &light, vx.position, vx.normal, 4000, 7000 + i as u64).x;
+                    vx.weight.x * rho * std::f32::consts::FRAC_1_PI * e
+                })
+                .sum()
+        })
+        .collect();
+    let photons = settings(3_000, 21);
+    let build_settings = BuildSettings { photons: Some(photons), refine_passes: 12, ..BuildSettings::default() };
+    let mut build = LightBuild::new(light.clone(), 0, build_settings, Cancel::never());
+    let direct = build.whitted(&scene, &v).unwrap().to_dense();
+    let indirect = |b: &footlight::render::LightBuffer| -> Vec<Vec3> {
+        b.to_dense().iter().zip(&direct).map(|(t, d)| *t - *d).collect()
+    };
+    let first = indirect(&build.photons(&scene, &v).unwrap());
+    let mut errors = vec![mse_red(&first, &reference)];
+
+    // The old refinement: SPPM passes alone, from the same maps.
+    let mut alone = Progressive::new(&scene, &v, build.maps().unwrap());
+    alone.pass(&scene, &v, &light);
+    let alone_first = mse_red(&v.render_progressive(&scene, &alone), &reference);
+
+    let mut refine = build.into_refinement(&scene, &v).expect("refinement");
+    while !refine.finished() {
+        let shown = indirect(&refine.pass(&scene, &v).unwrap());
+        assert_finite(&shown, "refinement pass");
+        errors.push(mse_red(&shown, &reference));
+    }
+    eprintln!("photon map {:.3e}; SPPM pass 1 alone {alone_first:.3e}; published {errors:?}", errors[0]);
+    assert!(alone_first > errors[0], "this scene must make a lone first SPPM pass worse than the photon map");
+    for (i, pair) in errors.windows(2).enumerate() {
+        assert!(
+            pair[1] <= pair[0],
+            "pass {} has MSE {:.3e} > {:.3e} of the picture it replaced",
+            i + 1,
+            pair[1],
+            pair[0]
+        );
+    }
+    assert!(errors[errors.len() - 1] < 0.85 * errors[0], "refinement did not improve: {errors:?}");
+}

@@ -9,9 +9,9 @@
 pub mod chase;
 pub mod clients;
 pub mod haze;
+pub mod indirect;
 pub mod live;
 pub mod mvr;
-#[cfg(feature = "plots")]
 pub mod plots;
 pub mod scale;
 pub mod stress;
@@ -107,6 +107,11 @@ pub struct Report {
     /// Issue 13.5: the anti-aliasing decision before (displayed value) and
     /// after (light-relative gradient): cost, error, re-shaded share.
     pub aa_rules: Vec<sweeps::AaRule>,
+    /// Where adaptive AA's cost goes: steps as % of 1-sample illumination.
+    pub aa_breakdown: sweeps::AaBreakdown,
+    /// Indirect term at the paper's settings vs path tracing: relative MSE,
+    /// variance and bias by region, before/after the edge clipping.
+    pub indirect: Vec<indirect::IndirectRow>,
     /// Composite linearity check: max relative difference between the
     /// composite of per-light buffers and their eq. 1 single-pass render.
     pub linearity_max_rel_error: f64,
@@ -241,6 +246,23 @@ impl Report {
             );
         }
         s += "| paper (adaptive) | 119 | 0.006 | 0.004 | 0.0004 | |\n";
+        let b = &self.aa_breakdown;
+        s += &format!(
+            "\nWhere the adaptive cost goes (fresh view, % of 1-sample expansion + shading = {:.1} ms): binned \
+             expansion {:.0} %, shading the bins {:.0} %, gradient decision {:.0} %, 9-sample re-shading {:.0} %. \
+             Vertices: {} (1 sample) vs {} (bins); {:.1} % of pixels hold more than one bin, {:.1} % re-shaded.\n",
+            b.one_sample_ms,
+            b.expand_percent,
+            b.shade_percent,
+            b.decide_percent,
+            b.reshade_percent,
+            b.one_sample_vertices,
+            b.base_vertices,
+            b.multi_bin_share * 100.0,
+            b.reshaded_share * 100.0
+        );
+        s += "\n## Indirect term at the paper's settings vs path tracing (issue 13)\n\n";
+        s += &indirect::markdown(&self.indirect);
         let p = &self.photons;
         s += &format!(
             "\n## Photon maps (one light, {} stored, {} in the estimate)\n\nTrace + build {:.1} ms, indirect buffer {:.1} ms. \
@@ -506,6 +528,28 @@ fn photon_section(
             mse: mse_display(&shown(&img), &reference_img, display),
         });
     }
+    // Issue 13.4: the same passes blended with the first estimate (what is shown now).
+    let mut blended_curve = Vec::new();
+    let t0 = Instant::now();
+    let start = trace_photons(scene, light, &other_seed);
+    let at_vertices = view.vertex_irradiance(scene, &start);
+    blended_curve.push(CurvePoint {
+        setting: 0.0,
+        ms: t0.elapsed().as_secs_f64() * 1e3,
+        mse: mse_display(&shown(&view.render_vertex_irradiance(scene, &at_vertices)), &reference_img, display),
+    });
+    let mut sppm = Progressive::new(scene, view, &start).starting_from(at_vertices, paper.estimate as f32);
+    for target in [1u32, 2, 4, 8, 16] {
+        while sppm.passes() < target {
+            sppm.pass(scene, view, light);
+        }
+        let img = view.render_progressive(scene, &sppm);
+        blended_curve.push(CurvePoint {
+            setting: target as f64,
+            ms: t0.elapsed().as_secs_f64() * 1e3,
+            mse: mse_display(&shown(&img), &reference_img, display),
+        });
+    }
     let report = PhotonReport {
         stored: paper.stored,
         estimate: paper.estimate,
@@ -516,7 +560,8 @@ fn photon_section(
     };
     let curves = vec![
         sweeps::Curve::new("photons stored (first estimate)", "photons", paper.stored as f64, photon_count_curve),
-        sweeps::Curve::new("SPPM passes after the first estimate", "passes", 0.0, sppm_curve),
+        sweeps::Curve::new("before: SPPM passes alone after the first estimate", "passes", 0.0, sppm_curve),
+        sweeps::Curve::new("after: SPPM passes blended with the first estimate (0 = it)", "passes", 0.0, blended_curve),
     ];
     (report, curves)
 }
@@ -726,6 +771,20 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         .fold(0.0, f64::max);
 
     let aa_rules = sweeps::aa_rules(scene, &gbuffer, light, k_full, &display, cfg.limits, cfg.aa_threshold, n);
+    let aa_breakdown = sweeps::aa_breakdown(scene, &gbuffer, light, cfg.limits, cfg.aa_threshold, n);
+    progress.set_message("indirect error vs path tracing");
+    let indirect = {
+        let paper = crate::render::photon::PhotonSettings::default();
+        let (bs, bl, bc) = indirect::lambert_box();
+        if cfg.quick {
+            let few = crate::render::photon::PhotonSettings { stored: 5_000, ..paper };
+            indirect::measure("Lambert box (5,000 photons)", &bs, &bl, bc, (32, 20), few, 32)
+        } else {
+            let mut rows = indirect::measure("Lambert box", &bs, &bl, bc, (80, 50), paper, 256);
+            rows.extend(indirect::measure("bundled stage", scene, light, camera, (80, 50), paper, 256));
+            rows
+        }
+    };
 
     progress.set_message("photon maps and SPPM");
     progress.inc(1);
@@ -820,6 +879,8 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         mse_vs_nine,
         adaptive_reshaded_share,
         aa_rules,
+        aa_breakdown,
+        indirect,
         linearity_max_rel_error,
         photons,
         curves,
@@ -833,7 +894,6 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         clients,
         mvr,
     };
-    #[cfg(feature = "plots")]
     plots::write(&report, out)?;
     std::fs::write(out.join("report.md"), report.markdown())?;
     std::fs::write(out.join("report.json"), serde_json::to_string_pretty(&report).map_err(std::io::Error::other)?)?;

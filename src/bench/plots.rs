@@ -1,77 +1,149 @@
-//! PNG plots of the run-time-versus-error curves (feature `plots`).
+//! SVG plots of the run-time-versus-error curves, written by every
+//! `footlight bench` run (`curve-<n>.svg` beside `report.md`).
 //!
-//! One chart per curve: wall time on x, total display-space MSE on a log
-//! y axis, each point labelled with its setting, the paper's operating point
-//! in red. Text needs a TrueType font: DejaVu Sans from Debian's
-//! `fonts-dejavu-core` (or the file named by `FOOTLIGHT_FONT`).
+//! One chart per curve: wall time on x, total display-space MSE (R+G+B) on a
+//! log y axis, each point labelled with its setting, the paper's operating
+//! point in red. Written by hand rather than with plotters: a chart is one
+//! polyline, a few circles and text elements, and SVG text is drawn by the
+//! viewer, so no font file is needed at run time (plotters' bitmap backend
+//! needed a TrueType font on the machine).
 
-use super::Report;
-use plotters::prelude::*;
+use super::{CurvePoint, Report};
+use std::fmt::Write as _;
 use std::path::Path;
 
-const FONT_PATHS: [&str; 2] =
-    ["/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf", "/usr/share/fonts/TTF/DejaVuSans.ttf"];
+const WIDTH: f64 = 800.0;
+const HEIGHT: f64 = 500.0;
+/// Plot area margins: left, right, top, bottom.
+const MARGIN: (f64, f64, f64, f64) = (90.0, 30.0, 50.0, 60.0);
 
-fn register_font() -> std::io::Result<()> {
-    static DONE: std::sync::OnceLock<Result<(), String>> = std::sync::OnceLock::new();
-    DONE.get_or_init(|| {
-        let path = std::env::var("FOOTLIGHT_FONT")
-            .ok()
-            .or_else(|| FONT_PATHS.iter().find(|p| Path::new(p).exists()).map(|p| p.to_string()))
-            .ok_or("no TrueType font found: install fonts-dejavu-core or set FOOTLIGHT_FONT")?;
-        let bytes = std::fs::read(&path).map_err(|e| format!("{path}: {e}"))?;
-        // The font must outlive every chart: leak it once per process.
-        let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-        plotters::style::register_font("sans-serif", FontStyle::Normal, bytes)
-            .map_err(|_| format!("{path}: not a usable font"))
-    })
-    .clone()
-    .map_err(std::io::Error::other)
+/// Total MSE of a point, floored so the log axis stays finite.
+fn total(p: &CurvePoint) -> f64 {
+    p.mse.iter().sum::<f64>().max(1e-12)
 }
 
-/// Writes `curve-<n>.png` for every curve of the report into `out`.
+/// Escapes text for an SVG text node.
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+}
+
+/// One curve as a standalone SVG document.
+pub fn curve_svg(c: &super::sweeps::Curve) -> String {
+    let (l, r, t, b) = MARGIN;
+    let (pw, ph) = (WIDTH - l - r, HEIGHT - t - b);
+    let xmax = c.points.iter().map(|p| p.ms).filter(|v| v.is_finite()).fold(0.0, f64::max) * 1.1 + 1e-3;
+    let lo = c.points.iter().map(total).filter(|v| v.is_finite()).fold(f64::INFINITY, f64::min);
+    let hi = c.points.iter().map(total).filter(|v| v.is_finite()).fold(0.0, f64::max);
+    let (lo, hi) = if lo.is_finite() && hi > 0.0 { (lo, hi) } else { (1e-6, 1.0) };
+    // Whole decades around the data.
+    let (d0, d1) = ((lo * 0.8).log10().floor(), (hi * 1.25).log10().ceil().max((lo * 0.8).log10().floor() + 1.0));
+    let x = |ms: f64| l + pw * (ms / xmax).clamp(0.0, 1.0);
+    let y = |mse: f64| t + ph * (1.0 - ((mse.log10() - d0) / (d1 - d0)).clamp(0.0, 1.0));
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{HEIGHT}" viewBox="0 0 {WIDTH} {HEIGHT}" font-family="sans-serif">"#
+    );
+    let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="28" font-size="18" text-anchor="middle">error vs time: {}</text>"#,
+        WIDTH / 2.0,
+        escape(&c.name)
+    );
+    // Axes, decade grid lines and labels.
+    let _ = writeln!(s, r#"<rect x="{l}" y="{t}" width="{pw}" height="{ph}" fill="none" stroke="black"/>"#);
+    for d in (d0 as i32)..=(d1 as i32) {
+        let yy = y(10f64.powi(d));
+        let _ = writeln!(
+            s,
+            r##"<line x1="{l}" y1="{yy:.1}" x2="{}" y2="{yy:.1}" stroke="#ddd"/><text x="{}" y="{:.1}" font-size="12" text-anchor="end">1e{d}</text>"##,
+            l + pw,
+            l - 6.0,
+            yy + 4.0
+        );
+    }
+    for i in 0..=5 {
+        let ms = xmax * i as f64 / 5.0;
+        let xx = x(ms);
+        let _ = writeln!(
+            s,
+            r##"<line x1="{xx:.1}" y1="{t}" x2="{xx:.1}" y2="{}" stroke="#ddd"/><text x="{xx:.1}" y="{}" font-size="12" text-anchor="middle">{ms:.0}</text>"##,
+            t + ph,
+            t + ph + 18.0
+        );
+    }
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="{}" font-size="14" text-anchor="middle">wall time (ms)</text>"#,
+        l + pw / 2.0,
+        HEIGHT - 15.0
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="20" y="{0}" font-size="14" text-anchor="middle" transform="rotate(-90 20 {0})">MSE (R+G+B, display)</text>"#,
+        t + ph / 2.0
+    );
+    let line: Vec<String> = c
+        .points
+        .iter()
+        .filter(|p| p.ms.is_finite() && total(p).is_finite())
+        .map(|p| format!("{:.1},{:.1}", x(p.ms), y(total(p))))
+        .collect();
+    let _ = writeln!(s, r#"<polyline points="{}" fill="none" stroke="blue" stroke-width="2"/>"#, line.join(" "));
+    for p in c.points.iter().filter(|p| p.ms.is_finite() && total(p).is_finite()) {
+        let colour = if p.setting == c.paper_setting { "red" } else { "blue" };
+        let (px, py) = (x(p.ms), y(total(p)));
+        let _ = writeln!(
+            s,
+            r#"<circle cx="{px:.1}" cy="{py:.1}" r="4" fill="{colour}"/><text x="{:.1}" y="{:.1}" font-size="12">{}</text>"#,
+            px + 6.0,
+            py - 6.0,
+            p.setting
+        );
+    }
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="{}" font-size="12" fill="red" text-anchor="end">red: the paper's operating point ({} = {})</text>"#,
+        l + pw - 6.0,
+        t + 16.0,
+        escape(&c.setting),
+        c.paper_setting
+    );
+    s += "</svg>\n";
+    s
+}
+
+/// Writes `curve-<n>.svg` for every curve of the report into `out`.
 pub fn write(report: &Report, out: &Path) -> std::io::Result<()> {
-    register_font()?;
     for (i, c) in report.curves.iter().enumerate() {
-        let file = out.join(format!("curve-{}.png", i + 1));
-        let err = |e: String| std::io::Error::other(format!("{}: {e}", file.display()));
-        let root = BitMapBackend::new(&file, (800, 500)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
-        let total = |p: &super::CurvePoint| p.mse.iter().sum::<f64>().max(1e-12);
-        let xmax = c.points.iter().map(|p| p.ms).fold(0.0, f64::max) * 1.1 + 1e-3;
-        let ymin = c.points.iter().map(total).fold(f64::INFINITY, f64::min) * 0.5;
-        let ymax = c.points.iter().map(total).fold(0.0, f64::max) * 2.0;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(format!("error vs time: {}", c.name), ("sans-serif", 20))
-            .margin(15)
-            .x_label_area_size(40)
-            .y_label_area_size(70)
-            .build_cartesian_2d(0.0..xmax, (ymin..ymax).log_scale())
-            .map_err(|e| err(e.to_string()))?;
-        chart
-            .configure_mesh()
-            .x_desc("wall time (ms)")
-            .y_desc("MSE (R+G+B, display)")
-            .y_label_formatter(&|v| format!("{v:.1e}"))
-            .draw()
-            .map_err(|e| err(e.to_string()))?;
-        chart
-            .draw_series(LineSeries::new(c.points.iter().map(|p| (p.ms, total(p))), &BLUE))
-            .map_err(|e| err(e.to_string()))?;
-        for p in &c.points {
-            let colour = if p.setting == c.paper_setting { RED } else { BLUE };
-            chart
-                .draw_series(std::iter::once(Circle::new((p.ms, total(p)), 4, colour.filled())))
-                .map_err(|e| err(e.to_string()))?;
-            chart
-                .draw_series(std::iter::once(Text::new(
-                    format!("{}", p.setting),
-                    (p.ms, total(p)),
-                    ("sans-serif", 13).into_font().color(&BLACK),
-                )))
-                .map_err(|e| err(e.to_string()))?;
-        }
-        root.present().map_err(|e| err(e.to_string()))?;
+        let file = out.join(format!("curve-{}.svg", i + 1));
+        std::fs::write(&file, curve_svg(c)).map_err(|e| std::io::Error::other(format!("{}: {e}", file.display())))?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bench::sweeps::Curve;
+
+    #[test]
+    fn svg_has_one_point_per_setting_and_marks_the_paper() {
+        let points = [(1.0, 10.0, 1e-2), (2.0, 20.0, 1e-3), (4.0, 40.0, 2e-4)]
+            .map(|(setting, ms, m)| CurvePoint { setting, ms, mse: [m, 0.0, 0.0] })
+            .to_vec();
+        let svg = curve_svg(&Curve::new("a <test>", "passes", 2.0, points));
+        assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+        assert_eq!(svg.matches("<circle").count(), 3);
+        assert_eq!(svg.matches(r#"fill="red""#).count(), 1 + 1, "one red point and the red legend");
+        assert!(svg.contains("a &lt;test&gt;"));
+        // Larger error is higher on the page (SVG's y grows downward).
+        let ys: Vec<f64> = svg
+            .lines()
+            .filter(|l| l.starts_with("<circle"))
+            .map(|l| l.split("cy=\"").nth(1).unwrap().split('"').next().unwrap().parse().unwrap())
+            .collect();
+        assert!(ys[0] < ys[1] && ys[1] < ys[2], "{ys:?}");
+    }
 }

@@ -319,3 +319,82 @@ pub fn aa_rules(
     measure("geometry bins only (no re-shading)".into(), &|_, _| vec![false; w * h]);
     out
 }
+
+/// Where adaptive anti-aliasing's cost goes (issue 13.5), for one light on
+/// a fresh view: each step's time as a share of 1-sample expansion +
+/// shading, and the counts behind it.
+#[derive(Clone, Debug, Serialize)]
+pub struct AaBreakdown {
+    /// 1-sample expansion + shading, ms (the 100 %).
+    pub one_sample_ms: f64,
+    /// Camera-path expansion of the base (binned) set, % of one sample.
+    pub expand_percent: f64,
+    /// Shading the base set, %.
+    pub shade_percent: f64,
+    /// The gradient decision (reference level, sRGB, neighbours), %.
+    pub decide_percent: f64,
+    /// Re-shading the flagged pixels with 9 samples (expansion + shading), %.
+    pub reshade_percent: f64,
+    /// Shading vertices of the 1-sample set.
+    pub one_sample_vertices: usize,
+    /// Shading vertices of the base set.
+    pub base_vertices: usize,
+    /// Share of pixels whose base set holds more than one bin.
+    pub multi_bin_share: f64,
+    /// Share of pixels re-shaded.
+    pub reshaded_share: f64,
+}
+
+/// Times each step of adaptive anti-aliasing for `light` over `gbuffer`.
+pub fn aa_breakdown(
+    scene: &Scene,
+    gbuffer: &GBuffer,
+    light: &Light,
+    limits: RecursionLimits,
+    threshold: f32,
+    repeats: usize,
+) -> AaBreakdown {
+    use std::time::Instant;
+    let (w, h) = (gbuffer.width as usize, gbuffer.height as usize);
+    let (t_one, one) = super::time_ms_with(
+        repeats,
+        || gbuffer.clone(),
+        |g| {
+            let v = View::from_gbuffer(scene, g, Sampling::One, limits);
+            v.render_direct(scene, light, None);
+            v.shading.vertex_count()
+        },
+    );
+    let mut runs = Vec::new();
+    for _ in 0..repeats.max(1) {
+        let g = gbuffer.clone();
+        let t0 = Instant::now();
+        let v = View::from_gbuffer(scene, g, Sampling::Adaptive, limits);
+        let t1 = Instant::now();
+        let (mut dense, _) = v.render_direct(scene, light, None);
+        let t2 = Instant::now();
+        let flags = v.gradient_flags(scene, &dense, AaParams::new(threshold));
+        let t3 = Instant::now();
+        let n = v.reshade(scene, light, &mut dense, &flags);
+        let t4 = Instant::now();
+        let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
+        let multi = (0..w * h)
+            .filter(|&i| crate::render::gbuffer::bin_samples(&v.gbuffer.samples[i]).as_slice().len() > 1)
+            .count();
+        runs.push(([ms(t0, t1), ms(t1, t2), ms(t2, t3), ms(t3, t4)], v.shading.vertex_count(), multi, n));
+    }
+    runs.sort_by(|a, b| a.0.iter().sum::<f64>().total_cmp(&b.0.iter().sum::<f64>()));
+    let (t, base, multi, n) = runs[runs.len() / 2];
+    let pc = |x: f64| x / t_one * 100.0;
+    AaBreakdown {
+        one_sample_ms: t_one,
+        expand_percent: pc(t[0]),
+        shade_percent: pc(t[1]),
+        decide_percent: pc(t[2]),
+        reshade_percent: pc(t[3]),
+        one_sample_vertices: one,
+        base_vertices: base,
+        multi_bin_share: multi as f64 / (w * h) as f64,
+        reshaded_share: n as f64 / (w * h) as f64,
+    }
+}

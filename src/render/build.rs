@@ -131,12 +131,14 @@ pub struct LightBuild {
     reshaded: usize,
     /// The light's photon maps, once traced.
     maps: Option<PhotonMaps>,
+    /// The photon-map irradiance at every shading vertex (refinement starts from it).
+    start: Option<Vec<Vec3>>,
 }
 
 impl LightBuild {
     /// A build of light number `index` (its photon seed).
     pub fn new(light: Light, index: usize, settings: BuildSettings, cancel: Cancel) -> Self {
-        Self { light, index, settings, cancel, direct: None, reshaded: 0, maps: None }
+        Self { light, index, settings, cancel, direct: None, reshaded: 0, maps: None, start: None }
     }
 
     /// The build's cancellation token.
@@ -217,10 +219,13 @@ impl LightBuild {
         let settings = PhotonSettings { seed: light_seed(photons.seed, self.index), ..photons };
         let maps = trace_photons(scene, &self.light, &settings);
         self.cancel.check()?;
-        let indirect = view.render_indirect(scene, &maps);
+        // Per vertex first: refinement starts from these values (issue 13.4).
+        let at_vertices = view.vertex_irradiance(scene, &maps);
+        let indirect = view.render_vertex_irradiance(scene, &at_vertices);
         self.cancel.check()?;
         let sum: Vec<Vec3> = direct.iter().zip(&indirect).map(|(d, a)| *d + *a).collect();
         self.maps = Some(maps);
+        self.start = Some(at_vertices);
         Self::finish(view, &sum)
     }
 
@@ -257,7 +262,12 @@ impl LightBuild {
             return None;
         }
         let (maps, direct) = (self.maps?, self.direct?);
-        let sppm = Progressive::new(scene, view, &maps);
+        // Never worse than the picture on screen: the passes are blended with
+        // the photon-map estimate just shown, weighted by photon counts.
+        let mut sppm = Progressive::new(scene, view, &maps);
+        if let Some(start) = self.start {
+            sppm = sppm.starting_from(start, maps.settings.estimate as f32);
+        }
         Some(Refinement { light: self.light, direct, sppm, passes: self.settings.refine_passes, cancel: self.cancel })
     }
 }
@@ -293,7 +303,8 @@ impl Refinement {
         self.cancel.fired()
     }
 
-    /// One SPPM pass; returns D + A_sppm.
+    /// One SPPM pass; returns D + A, A the SPPM estimate blended with the
+    /// photon-map estimate ([`Progressive::starting_from`]).
     pub fn pass(&mut self, scene: &Scene, view: &View) -> Result<LightBuffer, BuildError> {
         self.cancel.check()?;
         self.sppm.pass(scene, view, &self.light);

@@ -57,6 +57,9 @@ pub struct RenderSettings {
     /// Photon mapping for the indirect term; `None` renders direct light
     /// (and Whitted recursion) only.
     pub photons: Option<photon::PhotonSettings>,
+    /// Progressive (SPPM) passes after the photon-map estimate, blended
+    /// with it ([`photon::Progressive::starting_from`]); 0 = none.
+    pub refine_passes: u32,
 }
 
 impl Default for RenderSettings {
@@ -69,6 +72,7 @@ impl Default for RenderSettings {
             aa_threshold: 20.0,
             display: Display::default(),
             photons: Some(photon::PhotonSettings::default()),
+            refine_passes: 0,
         }
     }
 }

@@ -112,11 +112,14 @@ pub fn render_still_hazy(
     let mut buffers = Vec::with_capacity(jobs.len());
     let mut reshaded = 0;
     let mut photon_time = Duration::ZERO;
-    let build_settings =
-        BuildSettings { aa_threshold: settings.aa_threshold, photons: settings.photons, refine_passes: 0 };
+    let build_settings = BuildSettings {
+        aa_threshold: settings.aa_threshold,
+        photons: settings.photons,
+        refine_passes: settings.refine_passes,
+    };
     for (i, job) in jobs.iter().enumerate() {
         let mut build = LightBuild::new(job.light.clone(), i, build_settings, Cancel::never());
-        let buffer = build.whitted(scene, &view).and_then(|b| {
+        let mut buffer = build.whitted(scene, &view).and_then(|b| {
             if build.has_photons() {
                 let tp = Instant::now();
                 let b = build.photons(scene, &view);
@@ -126,6 +129,19 @@ pub fn render_still_hazy(
                 Ok(b)
             }
         });
+        reshaded += build.reshaded();
+        // `--refine N`: N progressive passes, each blended with the photon map.
+        if buffer.is_ok() && build.will_refine() {
+            let tp = Instant::now();
+            let light = build.light().clone();
+            if let Some(mut refine) = build.into_refinement(scene, &view) {
+                while !refine.finished() && buffer.is_ok() {
+                    buffer = refine.pass(scene, &view);
+                }
+            }
+            build = LightBuild::new(light, i, build_settings, Cancel::never());
+            photon_time += tp.elapsed();
+        }
         let buffer = buffer.and_then(|b| match &haze {
             Some(h) => {
                 let th = Instant::now();
@@ -136,7 +152,6 @@ pub fn render_still_hazy(
             None => Ok(b),
         });
         let buffer = buffer.map_err(|source| RenderError { light: i, source })?;
-        reshaded += build.reshaded();
         buffers.push(buffer);
     }
     let t2 = Instant::now();

@@ -311,10 +311,33 @@ impl View {
         self.dense_from_vertices(scene, |_, v| maps.irradiance(v.position, v.normal))
     }
 
+    /// The photon maps' indirect irradiance E(x) at every vertex of the base
+    /// sample set (zero at vertices without a diffuse part): what
+    /// [`View::render_indirect`] shades with, kept to start refinement from
+    /// ([`Progressive::starting_from`]).
+    pub fn vertex_irradiance(&self, scene: &Scene, maps: &PhotonMaps) -> Vec<Vec3> {
+        self.shading
+            .vertices()
+            .par_iter()
+            .map(|v| {
+                if scene.materials[v.material as usize].diffuse.max_element() <= 0.0 {
+                    Vec3::ZERO
+                } else {
+                    maps.irradiance(v.position, v.normal)
+                }
+            })
+            .collect()
+    }
+
+    /// The indirect buffer from per-vertex irradiance `e` (one value per
+    /// vertex of `shading.vertices()`): Σ w_v ⊙ ρ_d/π ⊙ e_v per pixel.
+    pub fn render_vertex_irradiance(&self, scene: &Scene, e: &[Vec3]) -> Vec<Vec3> {
+        self.dense_from_vertices(scene, |i, _| e.get(i).copied().unwrap_or(Vec3::ZERO))
+    }
+
     /// The indirect buffer from progressive photon mapping state.
     pub fn render_progressive(&self, scene: &Scene, sppm: &Progressive) -> Vec<Vec3> {
-        let e = sppm.irradiance();
-        self.dense_from_vertices(scene, |i, _| e[i])
+        self.render_vertex_irradiance(scene, &sppm.irradiance())
     }
 
     /// Per pixel Σ_v w_v ⊙ ρ_d/π ⊙ irradiance(v) over the base sample set.

@@ -40,6 +40,32 @@ fn same_surface(p: &Photon, x: Vec3, n: Vec3, r: f32) -> bool {
     p.dir.dot(n) < 0.0 && p.normal.dot(n) >= SAME_SURFACE_COS && (p.position - x).dot(n).abs() <= 0.25 * r
 }
 
+/// Records the edge that photon `p` of another surface marks for a gather
+/// at `x` (normal `n`): the line where `p`'s plane meets the tangent plane,
+/// at in-plane distance |(x − p)·n_p| / sin θ. Only surfaces 45-135° off
+/// cut the disk (a parallel one is a thin wall's back, not an edge); the
+/// nearest cut per surface orientation is kept, for at most two.
+fn note_cut(cuts: &mut [Option<(Vec3, f32)>; 2], p: &Photon, x: Vec3, n: Vec3) {
+    let c = p.normal.dot(n);
+    if c.abs() > SAME_SURFACE_COS {
+        return;
+    }
+    let d = (x - p.position).dot(p.normal).abs() / (1.0 - c * c).sqrt();
+    for slot in cuts.iter_mut() {
+        match slot {
+            Some((m, best)) if m.dot(p.normal) >= 0.9 => {
+                *best = best.min(d);
+                return;
+            }
+            Some(_) => {}
+            None => {
+                *slot = Some((p.normal, d));
+                return;
+            }
+        }
+    }
+}
+
 /// A k-d tree over `positions`, or none when there are none (kiddo needs
 /// at least one point).
 fn kd_tree(positions: impl Iterator<Item = Vec3>) -> Option<ImmutableKdTree<f32, 3>> {
@@ -65,6 +91,69 @@ pub struct PhotonMap {
     /// The photons.
     pub photons: Vec<Photon>,
     tree: Option<ImmutableKdTree<f32, 3>>,
+    /// How estimates treat a gather disk that crosses the surface's edge.
+    boundary: BoundaryMode,
+}
+
+/// How a kNN estimate normalises a gather disk that reaches past the edge
+/// of the gathering surface (a floor meeting a wall, a box corner, the top
+/// edge of a riser). The photons of the other surface are not counted
+/// ([`same_surface`]), so dividing by the full disk's area reads low there.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BoundaryMode {
+    /// Divide by the whole disk (Jensen 2001): biased low at edges and
+    /// corners. The default until `Clip` is validated on curved,
+    /// tessellated surfaces (columns, curtains: neighbouring facets 45° off
+    /// read as cuts there, and the bundled stage's golden image changes).
+    #[default]
+    None,
+    /// Divide by the part of the disk on this surface: each other surface
+    /// whose photons are in the ball (normal 45-135° off) cuts the disk
+    /// along the line where its plane meets the tangent plane; the cone
+    /// filter's weight beyond that line ([`cone_weight_beyond`]) is taken out
+    /// of the normalisation (two cuts: the product of both kept shares).
+    Clip,
+}
+
+/// Share of the cone filter's weight (1 − s/r over the unit disk) lying
+/// beyond a straight cut at distance `delta` (in radii) from the centre:
+/// 1/2 at δ = 0, 0 at δ ≥ 1. Integrated numerically once (Simpson in x of
+/// the closed-form inner integral) and interpolated from a 129-entry table.
+pub fn cone_weight_beyond(delta: f32) -> f32 {
+    const N: usize = 128;
+    static TABLE: std::sync::OnceLock<[f32; N + 1]> = std::sync::OnceLock::new();
+    let table = TABLE.get_or_init(|| {
+        // ∫_{-h}^{h} (1 − √(x² + y²)) dy with h = √(1 − x²), in closed form.
+        let strip = |x: f64| {
+            let h = (1.0 - x * x).max(0.0).sqrt();
+            if h == 0.0 {
+                return 0.0;
+            }
+            // ∫_{-h}^{h} √(x²+y²) dy = h·1 + x² ln((h + 1)/|x|) (with √(x²+h²) = 1).
+            let root = if x.abs() < 1e-12 { h * h } else { h + x * x * ((h + 1.0) / x.abs()).ln() };
+            2.0 * h - root
+        };
+        let total = std::f64::consts::PI / 3.0;
+        let mut t = [0f32; N + 1];
+        for (i, out) in t.iter_mut().enumerate() {
+            let d = i as f64 / N as f64;
+            let m = 2000;
+            let step = (1.0 - d) / m as f64;
+            let mut sum = strip(d) + strip(1.0);
+            for j in 1..m {
+                sum += strip(d + j as f64 * step) * if j % 2 == 1 { 4.0 } else { 2.0 };
+            }
+            *out = (sum * step / 3.0 / total) as f32;
+        }
+        t
+    });
+    if delta.is_nan() || delta >= 1.0 {
+        return 0.0;
+    }
+    let x = delta.max(0.0) * N as f32;
+    let i = (x as usize).min(N - 1);
+    let f = x - i as f32;
+    table[i] * (1.0 - f) + table[i + 1] * f
 }
 
 /// An irradiance estimate and the radius it used.
@@ -82,7 +171,22 @@ impl PhotonMap {
     /// Builds the map's k-d tree (none for an empty map).
     pub fn new(photons: Vec<Photon>) -> Self {
         let tree = kd_tree(photons.iter().map(|p| p.position));
-        Self { photons, tree }
+        Self { photons, tree, boundary: BoundaryMode::default() }
+    }
+
+    /// The same map with estimates treating edges as `mode` says.
+    pub fn with_boundary(mut self, mode: BoundaryMode) -> Self {
+        self.boundary = mode;
+        self
+    }
+
+    /// True when another surface's photons (normal more than 45° off `n`)
+    /// are among the `k` nearest to `x`: `x` is near an edge or a corner.
+    pub fn other_surface_near(&self, x: Vec3, n: Vec3, k: usize) -> bool {
+        let (Some(tree), Some(k)) = (&self.tree, NonZero::new(k)) else { return false };
+        tree.nearest_n::<SquaredEuclidean>(&x.to_array(), k)
+            .iter()
+            .any(|nb| self.photons[nb.item as usize].normal.dot(n) < SAME_SURFACE_COS)
     }
 
     /// Number of photons.
@@ -140,16 +244,24 @@ impl PhotonMap {
         }
         let mut sum = Vec3::ZERO;
         let mut count = 0;
+        // Up to two other surfaces cutting the disk: (their normal, cut distance).
+        let mut cuts: [Option<(Vec3, f32)>; 2] = [None; 2];
         for nb in used {
             let p = &self.photons[nb.item as usize];
             if !same_surface(p, x, n, r) {
+                if self.boundary == BoundaryMode::Clip {
+                    note_cut(&mut cuts, p, x, n);
+                }
                 continue;
             }
             let w = 1.0 - nb.distance.sqrt() / r;
             sum += p.power * w;
             count += 1;
         }
-        Estimate { irradiance: sum / (CONE_NORM * std::f32::consts::PI * r2), radius: r, count }
+        // The share of the cone's weight on this surface (1 without cuts).
+        let kept: f32 = cuts.iter().flatten().map(|(_, d)| 1.0 - cone_weight_beyond(d / r)).product();
+        let area = CONE_NORM * std::f32::consts::PI * r2 * kept.max(0.25);
+        Estimate { irradiance: sum / area, radius: r, count }
     }
 
     /// The photons that are *not* every `stride`-th one (index % stride ≠ 0),
@@ -167,7 +279,7 @@ impl PhotonMap {
             .filter(|(i, _)| i % stride != 0)
             .map(|(_, p)| Photon { power: p.power * scale, ..*p })
             .collect();
-        (!rest.is_empty()).then(|| PhotonMap::new(rest))
+        (!rest.is_empty()).then(|| PhotonMap::new(rest).with_boundary(self.boundary))
     }
 
     /// Distance to the nearest photon (infinite for an empty map): a cheap
@@ -454,5 +566,77 @@ mod tests {
         assert!(c.lookup(Vec3::ONE, Vec3::Z).is_none_or(|e| e.is_finite()));
         let (sum, n) = same.gather(Vec3::ONE, Vec3::Z, 0.01);
         assert_eq!((sum, n), (Vec3::splat(500.0), 500));
+    }
+
+    #[test]
+    fn cone_weight_beyond_a_cut_matches_quadrature() {
+        // Midpoint quadrature of (1 − s) over the unit disk on a 2000² grid.
+        let m = 2000;
+        let mut beyond = [0f64; 5];
+        let mut total = 0f64;
+        let cuts = [0.0, 0.25, 0.5, 0.75, 0.95];
+        for i in 0..m {
+            for j in 0..m {
+                let (x, y) = (-1.0 + (i as f64 + 0.5) * 2.0 / m as f64, -1.0 + (j as f64 + 0.5) * 2.0 / m as f64);
+                let s = (x * x + y * y).sqrt();
+                if s < 1.0 {
+                    total += 1.0 - s;
+                    for (b, c) in beyond.iter_mut().zip(cuts) {
+                        if x > c {
+                            *b += 1.0 - s;
+                        }
+                    }
+                }
+            }
+        }
+        for (b, c) in beyond.iter().zip(cuts) {
+            let got = cone_weight_beyond(c as f32);
+            assert!((got as f64 - b / total).abs() < 1e-3, "cut {c}: {got} vs {}", b / total);
+        }
+        assert_eq!(cone_weight_beyond(1.0), 0.0);
+        assert_eq!(cone_weight_beyond(f32::NAN), 0.0);
+    }
+
+    #[test]
+    fn estimate_next_to_a_wall_is_not_biased_low() {
+        // A uniform photon field on the floor z = 0, x in [0, 1], meeting a
+        // wall x = 1 (photons there have normal −X): within a gather radius
+        // of the wall, the full-disk estimate divides by area that is not
+        // floor; the clipped one does not.
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
+        let n = 200_000;
+        let mut v: Vec<Photon> = (0..n)
+            .map(|_| Photon {
+                position: Vec3::new(rng.random(), rng.random(), 0.0),
+                power: Vec3::splat(1.0 / n as f32),
+                dir: Vec3::NEG_Z,
+                normal: Vec3::Z,
+            })
+            .collect();
+        v.extend((0..n).map(|_| Photon {
+            position: Vec3::new(1.0, rng.random(), rng.random()),
+            power: Vec3::splat(1.0 / n as f32),
+            dir: Vec3::X,
+            normal: Vec3::NEG_X,
+        }));
+        let clipped = PhotonMap::new(v.clone()).with_boundary(BoundaryMode::Clip);
+        let plain = PhotonMap::new(v);
+        let mean = |m: &PhotonMap, x: f32| {
+            (0..40)
+                .map(|j| m.estimate(Vec3::new(x, 0.3 + 0.01 * j as f32, 0.0), Vec3::Z, 150, 1.0).irradiance.x)
+                .sum::<f32>()
+                / 40.0
+        };
+        // Exact floor irradiance: 1 (unit power on unit area).
+        // The gather radius here is about 0.015.
+        for (x, low) in [(0.999, 0.7), (0.997, 0.75), (0.995, 0.85)] {
+            let (c, p) = (mean(&clipped, x), mean(&plain, x));
+            eprintln!("x {x}: clipped {c}, full disk {p}");
+            assert!((c - 1.0).abs() < 0.05, "clipped estimate {c} at x = {x}");
+            assert!(p < low, "the full-disk estimate should read low at the wall: {p} at x = {x}");
+        }
+        // Away from the wall both agree.
+        assert!((mean(&clipped, 0.5) - mean(&plain, 0.5)).abs() < 1e-6);
     }
 }

@@ -24,7 +24,7 @@ pub mod pathtrace;
 pub mod sppm;
 pub mod trace;
 
-pub use map::{IrradianceCache, Photon, PhotonMap};
+pub use map::{BoundaryMode, IrradianceCache, Photon, PhotonMap};
 pub use sppm::Progressive;
 pub use trace::{PhotonMaps, trace_photons};
 
@@ -47,6 +47,9 @@ pub struct PhotonSettings {
     pub irradiance_stride: usize,
     /// Seed of the light's photon RNG (combined with the light index).
     pub seed: u64,
+    /// Gather disks at edges and corners (`Clip` measured in `footlight
+    /// bench`; `None` by default, see [`BoundaryMode`]).
+    pub boundary: BoundaryMode,
 }
 
 impl Default for PhotonSettings {
@@ -59,6 +62,7 @@ impl Default for PhotonSettings {
             max_bounces: 16,
             irradiance_stride: 4,
             seed: 0x00F0_07B1_6B75,
+            boundary: BoundaryMode::None,
         }
     }
 }

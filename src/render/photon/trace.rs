@@ -163,8 +163,8 @@ pub fn trace_photons(scene: &Scene, light: &Light, settings: &PhotonSettings) ->
     for p in global.iter_mut().chain(caustic.iter_mut()) {
         p.power *= norm;
     }
-    let global = PhotonMap::new(global);
-    let caustic = PhotonMap::new(caustic);
+    let global = PhotonMap::new(global).with_boundary(settings.boundary);
+    let caustic = PhotonMap::new(caustic).with_boundary(settings.boundary);
     let irradiance = IrradianceCache::build_with_caustics(
         &global,
         &caustic,
