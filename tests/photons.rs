@@ -322,3 +322,28 @@ fn refinement_never_shows_a_worse_picture() {
     }
     assert!(errors[errors.len() - 1] < 0.85 * errors[0], "refinement did not improve: {errors:?}");
 }
+
+/// A cancelled photon stage stops at its next chunk: `stop` is consulted
+/// chunk by chunk and the trace gives up as soon as it says so (issue 12:
+/// shutdown within a second under any load; issue 18: no work on a stale
+/// position).
+#[test]
+fn photon_trace_stops_at_the_next_chunk_when_cancelled() {
+    use footlight::render::photon::trace_photons_until;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let (scene, light) = (box_scene(0.5), omni(Vec3::new(0.3, -0.2, 0.1)));
+    // Enough photons for many rounds of chunks.
+    let big = settings(2_000_000, 5);
+    let calls = AtomicUsize::new(0);
+    let stop = || calls.fetch_add(1, Ordering::SeqCst) >= 3;
+    assert!(trace_photons_until(&scene, &light, &big, &stop).is_none(), "a fired stop gives no maps");
+    // 2,000,000 photons are ~1000 chunks; cancelled, at most one round (8
+    // chunks) plus the checks between rounds ran.
+    assert!(calls.load(Ordering::SeqCst) <= 3 + 8 + 2, "checks: {}", calls.load(Ordering::SeqCst));
+    // Never stopping gives the same maps as the plain trace.
+    let small = settings(3_000, 5);
+    let a = trace_photons_until(&scene, &light, &small, &|| false).unwrap();
+    let b = footlight::render::photon::trace_photons(&scene, &light, &small);
+    assert_eq!(a.emitted, b.emitted);
+    assert_eq!(a.global.len(), b.global.len());
+}

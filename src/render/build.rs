@@ -17,7 +17,7 @@
 
 use super::buffer::{BadValue, LightBuffer};
 use super::footprint::{DirectQuality, FootprintStats, primary_direct};
-use super::photon::{PhotonMaps, PhotonSettings, Progressive, trace_photons};
+use super::photon::{PhotonMaps, PhotonSettings, Progressive, trace_photons_until};
 use super::view::{AaParams, View};
 use crate::fixture::Light;
 use crate::scene::Scene;
@@ -198,8 +198,9 @@ impl LightBuild {
         // Decided on the light's own relative gradient: independent of
         // exposure, dimmer and colour (issue 13).
         let aa = AaParams::new(self.settings.aa_threshold);
-        let (dense, reshaded) = view.render_direct(scene, &self.light, Some(aa));
-        self.cancel.check()?;
+        let cancel = &self.cancel;
+        let (dense, reshaded) =
+            view.render_direct_until(scene, &self.light, Some(aa), &|| cancel.fired()).ok_or(Cancelled)?;
         self.reshaded = reshaded;
         let buffer = Self::finish(view, &dense)?;
         self.direct = Some(dense);
@@ -217,10 +218,11 @@ impl LightBuild {
         let Some(photons) = self.settings.photons else { return Self::finish(view, direct) };
         self.cancel.check()?;
         let settings = PhotonSettings { seed: light_seed(photons.seed, self.index), ..photons };
-        let maps = trace_photons(scene, &self.light, &settings);
-        self.cancel.check()?;
+        let cancel = &self.cancel;
+        let stop = || cancel.fired();
+        let maps = trace_photons_until(scene, &self.light, &settings, &stop).ok_or(Cancelled)?;
         // Per vertex first: refinement starts from these values (issue 13.4).
-        let at_vertices = view.vertex_irradiance(scene, &maps);
+        let at_vertices = view.vertex_irradiance_until(scene, &maps, &stop).ok_or(Cancelled)?;
         let indirect = view.render_vertex_irradiance(scene, &at_vertices);
         self.cancel.check()?;
         let sum: Vec<Vec3> = direct.iter().zip(&indirect).map(|(d, a)| *d + *a).collect();
@@ -307,7 +309,10 @@ impl Refinement {
     /// photon-map estimate ([`Progressive::starting_from`]).
     pub fn pass(&mut self, scene: &Scene, view: &View) -> Result<LightBuffer, BuildError> {
         self.cancel.check()?;
-        self.sppm.pass(scene, view, &self.light);
+        let cancel = &self.cancel;
+        if !self.sppm.pass_until(scene, view, &self.light, &|| cancel.fired()) {
+            return Err(Cancelled.into());
+        }
         self.cancel.check()?;
         let indirect = view.render_progressive(scene, &self.sppm);
         let sum: Vec<Vec3> = self.direct.iter().zip(&indirect).map(|(d, a)| *d + *a).collect();

@@ -251,19 +251,40 @@ impl View {
 
     /// As [`View::render_light`], returning the dense row-major direct buffer.
     pub fn render_direct(&self, scene: &Scene, light: &Light, aa: Option<AaParams>) -> (Vec<Vec3>, usize) {
+        self.render_direct_until(scene, light, aa, &|| false).unwrap_or_default()
+    }
+
+    /// As [`View::render_direct`], abandoned (`None`) once `stop` returns
+    /// true: checked on every row, so a cancelled build stops within a row.
+    pub fn render_direct_until(
+        &self,
+        scene: &Scene,
+        light: &Light,
+        aa: Option<AaParams>,
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Option<(Vec<Vec3>, usize)> {
         let (w, h) = (self.width() as usize, self.height() as usize);
         let mut dense = vec![Vec3::ZERO; w * h];
         dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            if stop() {
+                return;
+            }
             for (x, out) in row.iter_mut().enumerate() {
                 *out = shade(scene, light, self.shading.pixel(y * w + x));
             }
         });
+        if stop() {
+            return None;
+        }
         let mut reshaded = 0;
         if let (Sampling::Adaptive, Some(aa)) = (self.sampling, aa) {
             let flags = self.gradient_flags(scene, &dense, aa);
             reshaded = self.reshade(scene, light, &mut dense, &flags);
         }
-        (dense, reshaded)
+        if stop() {
+            return None;
+        }
+        Some((dense, reshaded))
     }
 }
 
@@ -316,17 +337,30 @@ impl View {
     /// [`View::render_indirect`] shades with, kept to start refinement from
     /// ([`Progressive::starting_from`]).
     pub fn vertex_irradiance(&self, scene: &Scene, maps: &PhotonMaps) -> Vec<Vec3> {
-        self.shading
+        self.vertex_irradiance_until(scene, maps, &|| false).unwrap_or_default()
+    }
+
+    /// As [`View::vertex_irradiance`], abandoned (`None`) once `stop`
+    /// returns true (checked at every vertex: a cancelled build stops at once).
+    pub fn vertex_irradiance_until(
+        &self,
+        scene: &Scene,
+        maps: &PhotonMaps,
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Option<Vec<Vec3>> {
+        let e = self
+            .shading
             .vertices()
             .par_iter()
             .map(|v| {
-                if scene.materials[v.material as usize].diffuse.max_element() <= 0.0 {
+                if stop() || scene.materials[v.material as usize].diffuse.max_element() <= 0.0 {
                     Vec3::ZERO
                 } else {
                     maps.irradiance(v.position, v.normal)
                 }
             })
-            .collect()
+            .collect();
+        (!stop()).then_some(e)
     }
 
     /// The indirect buffer from per-vertex irradiance `e` (one value per

@@ -19,11 +19,15 @@ pub struct GpuContext {
 }
 
 impl GpuContext {
-    /// Opens the preferred adapter on the compiled-in native backends
-    /// (Vulkan, Metal, DX12). The usual wgpu environment variables apply:
-    /// `WGPU_BACKEND` (e.g. `vulkan`), `WGPU_ADAPTER_NAME`, `WGPU_POWER_PREF`.
+    /// Opens the preferred adapter on the primary native backends (Vulkan,
+    /// Metal, DX12). OpenGL is left out unless asked for: probing EGL on a
+    /// headless Linux machine makes libwayland print "error:
+    /// XDG_RUNTIME_DIR is invalid" on a healthy start, and a GL compute
+    /// compositor would not beat the CPU one. The usual wgpu environment
+    /// variables apply: `WGPU_BACKEND` (e.g. `vulkan`, or `gl` to try
+    /// OpenGL), `WGPU_ADAPTER_NAME`, `WGPU_POWER_PREF`.
     pub fn new() -> Result<Self, GpuError> {
-        let backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all());
+        let backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::PRIMARY);
         Self::with_backends(backends)
     }
 

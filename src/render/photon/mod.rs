@@ -26,7 +26,7 @@ pub mod trace;
 
 pub use map::{BoundaryMode, IrradianceCache, Photon, PhotonMap};
 pub use sppm::Progressive;
-pub use trace::{PhotonMaps, trace_photons};
+pub use trace::{PhotonMaps, trace_photons, trace_photons_until};
 
 /// Photon-mapping settings (paper, section 4: 50,000 photons stored per
 /// map, 150 in the estimate).

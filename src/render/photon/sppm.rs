@@ -101,13 +101,33 @@ impl Progressive {
     /// Traces one pass of photons (seeded by the pass number) and updates
     /// every vertex.
     pub fn pass(&mut self, scene: &Scene, view: &View, light: &Light) {
+        self.pass_until(scene, view, light, &|| false);
+    }
+
+    /// As [`Progressive::pass`], abandoned once `stop` returns true: checked
+    /// per photon chunk and before the vertices are updated, so the state
+    /// stays consistent (a cancelled pass changes nothing). Returns whether
+    /// the pass ran.
+    pub fn pass_until(&mut self, scene: &Scene, view: &View, light: &Light, stop: &(dyn Fn() -> bool + Sync)) -> bool {
         let sampler = BeamSampler::new(&light.beam);
         let chunks = self.settings.stored.div_ceil(2048).max(1) as u64;
         let mut pass_settings = self.settings;
         pass_settings.seed =
             self.settings.seed ^ (0xA5A5_0000_0000 + u64::from(self.passes + 1)).wrapping_mul(0x2545_F491_4F6C_DD1D);
         let batches: Vec<(Vec<Photon>, Vec<Photon>)> =
-            (0..chunks).into_par_iter().map(|c| trace_chunk(scene, light, &sampler, &pass_settings, c)).collect();
+            (0..chunks)
+                .into_par_iter()
+                .map(|c| {
+                    if stop() {
+                        (Vec::new(), Vec::new())
+                    } else {
+                        trace_chunk(scene, light, &sampler, &pass_settings, c)
+                    }
+                })
+                .collect();
+        if stop() {
+            return false;
+        }
         let emitted = chunks as f32 * 2048.0;
         let photons: Vec<Photon> = batches
             .into_iter()
@@ -136,6 +156,7 @@ impl Progressive {
             },
         );
         self.passes += 1;
+        true
     }
 
     /// Indirect irradiance at every shading vertex after the passes so far

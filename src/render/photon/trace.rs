@@ -136,10 +136,23 @@ fn beam_misses_scene(scene: &Scene, light: &Light) -> bool {
 /// Traces `light`'s photons until `settings.stored` indirect photons are
 /// stored (or the emission cap is reached) and builds its maps.
 pub fn trace_photons(scene: &Scene, light: &Light, settings: &PhotonSettings) -> PhotonMaps {
+    trace_photons_until(scene, light, settings, &|| false)
+        .unwrap_or_else(|| PhotonMaps::empty(*settings, max_gather_radius(scene)))
+}
+
+/// As [`trace_photons`], abandoned (`None`) as soon as `stop` returns true:
+/// it is checked before every 2048-photon chunk and before the irradiance
+/// cache is built, so a cancelled build stops within a few milliseconds.
+pub fn trace_photons_until(
+    scene: &Scene,
+    light: &Light,
+    settings: &PhotonSettings,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Option<PhotonMaps> {
     let max_radius = max_gather_radius(scene);
     let sampler = BeamSampler::new(&light.beam);
     if settings.stored == 0 || sampler.flux() <= 0.0 || beam_misses_scene(scene, light) {
-        return PhotonMaps::empty(*settings, max_radius);
+        return Some(PhotonMaps::empty(*settings, max_radius));
     }
     let cap = (settings.stored.saturating_mul(settings.max_emitted_factor.max(1))).max(CHUNK);
     let mut global = Vec::new();
@@ -149,8 +162,11 @@ pub fn trace_photons(scene: &Scene, light: &Light, settings: &PhotonSettings) ->
     while global.len() + caustic.len() < settings.stored && emitted < cap {
         let results: Vec<(Vec<Photon>, Vec<Photon>)> = (chunk..chunk + CHUNKS_PER_ROUND as u64)
             .into_par_iter()
-            .map(|c| trace_chunk(scene, light, &sampler, settings, c))
+            .map(|c| if stop() { (Vec::new(), Vec::new()) } else { trace_chunk(scene, light, &sampler, settings, c) })
             .collect();
+        if stop() {
+            return None;
+        }
         for (g, c) in results {
             global.extend(g);
             caustic.extend(c);
@@ -163,6 +179,9 @@ pub fn trace_photons(scene: &Scene, light: &Light, settings: &PhotonSettings) ->
     for p in global.iter_mut().chain(caustic.iter_mut()) {
         p.power *= norm;
     }
+    if stop() {
+        return None;
+    }
     let global = PhotonMap::new(global).with_boundary(settings.boundary);
     let caustic = PhotonMap::new(caustic).with_boundary(settings.boundary);
     let irradiance = IrradianceCache::build_with_caustics(
@@ -171,7 +190,7 @@ pub fn trace_photons(scene: &Scene, light: &Light, settings: &PhotonSettings) ->
         (settings.estimate, settings.irradiance_stride, max_radius),
         (settings.caustic_estimate, 2, max_radius * CAUSTIC_RADIUS_SHARE),
     );
-    PhotonMaps {
+    Some(PhotonMaps {
         global,
         caustic,
         irradiance,
@@ -179,7 +198,7 @@ pub fn trace_photons(scene: &Scene, light: &Light, settings: &PhotonSettings) ->
         flux: sampler.flux(),
         max_radius,
         settings: *settings,
-    }
+    })
 }
 
 /// Traces one chunk of photons with its own RNG; returns (global, caustic).

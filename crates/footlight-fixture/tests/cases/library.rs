@@ -95,10 +95,16 @@ fn the_paper_rig_loads_with_its_look() {
 }
 
 #[test]
-fn the_legacy_default_patch_still_loads_unchanged() {
+fn the_built_in_spot_patch_takes_its_colours_from_the_gel_library() {
     let patch = Patch::load(&root().join("patch/default.toml")).unwrap();
     assert_eq!(patch.fixtures.len(), 6);
-    assert_eq!(patch.fixtures[0].k(), Vec3::splat(60000.0));
-    assert_eq!(patch.fixtures[2].k(), Vec3::new(0.92, 0.72, 0.86) * (0.5 * 120000.0));
-    assert_eq!(patch.fixtures[2].k_full(), Vec3::new(0.92, 0.72, 0.86) * 120000.0);
+    assert_eq!(patch.fixtures[0].k(), Vec3::splat(60000.0), "open white");
+    // LEE 136 (pale lavender) on tungsten: red and blue pass more than green,
+    // and the light loses some of its flux; at level 0.5, k is half of k_full.
+    let k = patch.fixtures[2].k_full() / 120000.0;
+    assert!(k.x > k.y && k.z > k.y && k.max_element() <= 1.0 && k.min_element() > 0.2, "{k}");
+    assert!((patch.fixtures[2].k() - patch.fixtures[2].k_full() * 0.5).abs().max_element() < 1e-3);
+    // LEE 201 (full CT blue) on tungsten: blue passes most, red least.
+    let b = patch.fixtures[1].k_full();
+    assert!(b.z > b.y && b.y > b.x, "{b}");
 }
