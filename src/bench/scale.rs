@@ -50,7 +50,7 @@ pub fn rig_patch(root: &str) -> String {
     let mut universe = 1u16;
     let mut address = 1u16;
     let mut next = |i: u32, footprint: u16| {
-        if i > 0 && i % 38 == 0 {
+        if i > 0 && i.is_multiple_of(38) {
             universe += 1;
             address = 1;
         }
