@@ -62,9 +62,9 @@ impl GpuFrames {
         &self.context.adapter_info().name
     }
 
-    /// Uploads rebuilt lights, composites with the current k_i and returns
-    /// the frame as 8-bit sRGB RGB.
-    pub fn frame(&mut self, lights: &[CompositeInput]) -> Result<Vec<u8>, GpuError> {
+    /// Uploads the lights rebuilt since the last call (their generation
+    /// changed) and returns the k_i vector for the shader.
+    fn upload(&mut self, lights: &[CompositeInput]) -> Result<Vec<[f32; 3]>, GpuError> {
         if self.generations.len() != lights.len() {
             self.generations = vec![None; lights.len()];
         }
@@ -75,7 +75,25 @@ impl GpuFrames {
                 self.generations[i] = Some(l.generation);
             }
         }
-        let k: Vec<[f32; 3]> = lights.iter().map(|l| l.k.to_array()).collect();
+        Ok(lights.iter().map(|l| l.k.to_array()).collect())
+    }
+
+    /// Uploads rebuilt lights, composites with the current k_i and returns
+    /// the frame as 8-bit sRGB RGB, waiting for the GPU (tests, bench).
+    pub fn frame(&mut self, lights: &[CompositeInput]) -> Result<Vec<u8>, GpuError> {
+        let k = self.upload(lights)?;
         Ok(self.compositor.composite(&k, &self.display)?.rgb8())
+    }
+
+    /// The live path: submits this frame's composite and returns the newest
+    /// frame whose readback has finished, without waiting (the readback
+    /// ring, `footlight_gpu::readback`). `None`: nothing new is ready yet
+    /// (the caller shows the previous picture). A change therefore reaches
+    /// the picture one or two frames later than on the CPU path, and the
+    /// frame clock never blocks on the GPU.
+    pub fn submit_frame(&mut self, lights: &[CompositeInput]) -> Result<Option<Vec<u8>>, GpuError> {
+        let k = self.upload(lights)?;
+        self.compositor.submit(&k, &self.display)?;
+        Ok(self.compositor.try_frame()?.map(|f| f.rgb8()))
     }
 }

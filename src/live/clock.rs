@@ -126,6 +126,7 @@ impl FrameClock {
             (None, Some(last)) if update.tiles == 0 => last.clone(),
             (None, _) => Arc::new(self.compositor.srgb8().to_vec()),
         };
+        // (A GPU frame still in flight: `update` is empty, so the last picture stays.)
         self.last_rgb = Some(rgb.clone());
         rgb
     }
@@ -166,17 +167,22 @@ impl FrameClock {
             .zip(&inputs)
             .map(|(p, input)| CompositeInput { buffer: &p.buffer, generation: p.generation, k: input.k })
             .collect();
+        // The GPU path never waits: it submits this frame and takes the
+        // newest finished readback (None: keep showing the last picture).
         let mut gpu_rgb = None;
+        let mut gpu_pending = false;
         if let Some(gpu) = &mut self.gpu {
-            match gpu.frame(&lights) {
-                Ok(rgb) => gpu_rgb = Some(rgb),
+            match gpu.submit_frame(&lights) {
+                Ok(Some(rgb)) => gpu_rgb = Some(rgb),
+                Ok(None) => gpu_pending = self.last_rgb.is_some(),
                 Err(e) => {
                     tracing::error!("GPU composite failed ({e}); compositing on the CPU from now on");
                     self.gpu = None;
                 }
             }
         }
-        let update = if gpu_rgb.is_none() { self.compositor.update(&lights) } else { UpdateStats::default() };
+        let update =
+            if gpu_rgb.is_none() && !gpu_pending { self.compositor.update(&lights) } else { UpdateStats::default() };
         let intensity = inputs.iter().map(|input| luminance(input.k)).collect();
         let frame = Frame {
             number: self.number,
