@@ -62,6 +62,10 @@ pub struct ImportReport {
     pub degenerate: usize,
     /// Vertex normals that were NaN/Inf in the file (the face normal is used instead).
     pub non_finite_normals: usize,
+    /// Exact copies of an earlier triangle (same three vertices), dropped:
+    /// hundreds of coincident triangles would make the BVH deeper than its
+    /// traversal stack (obvhs), and a copy adds nothing to the picture.
+    pub duplicate: usize,
 }
 
 /// Triangle mesh scene with materials, an optional camera and its BVH.
@@ -211,8 +215,34 @@ impl SceneBuilder {
         self.add_triangle([a, c, d], None, material);
     }
 
+    /// Drops every triangle whose three vertices (in any order) equal an
+    /// earlier triangle's, bit for bit; keeps the first one's material.
+    fn drop_duplicates(&mut self) {
+        let key = |t: &[Vec3; 3]| {
+            let mut k = t.map(|v| v.to_array().map(f32::to_bits));
+            k.sort_unstable();
+            k
+        };
+        let mut seen = std::collections::HashSet::with_capacity(self.positions.len());
+        let keep: Vec<bool> = self.positions.iter().map(|t| seen.insert(key(t))).collect();
+        let dropped = keep.iter().filter(|k| !**k).count();
+        if dropped == 0 {
+            return;
+        }
+        self.report.duplicate += dropped;
+        fn retain_marked<T>(v: &mut Vec<T>, keep: &[bool]) {
+            let mut marks = keep.iter();
+            v.retain(|_| marks.next().copied().unwrap_or(true));
+        }
+        retain_marked(&mut self.positions, &keep);
+        retain_marked(&mut self.normals, &keep);
+        retain_marked(&mut self.face_normals, &keep);
+        retain_marked(&mut self.material_of, &keep);
+    }
+
     /// Builds the BVH and returns the finished scene.
-    pub fn build(self) -> Scene {
+    pub fn build(mut self) -> Scene {
+        self.drop_duplicates();
         let accel = Accel::build(&self.positions);
         Scene {
             positions: self.positions,
@@ -232,6 +262,29 @@ mod tests {
     use super::*;
 
     #[test]
+    fn drops_exact_duplicates_so_coincident_stacks_cannot_overflow_the_bvh() {
+        let mut b = SceneBuilder::new();
+        let m = b.add_material(Material::lambert("grey", Vec3::splat(0.5)));
+        let t = [Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 0.0, -1.0), Vec3::new(0.0, 0.0, 1.0)];
+        for i in 0..600 {
+            // The same triangle, its vertices listed in rotating order.
+            let r = i % 3;
+            b.add_triangle([t[r], t[(r + 1) % 3], t[(r + 2) % 3]], None, m);
+        }
+        b.add_triangle([Vec3::new(-5.0, -1.0, -5.0), Vec3::new(5.0, -1.0, -5.0), Vec3::new(0.0, -1.0, 5.0)], None, m);
+        let s = b.build();
+        assert_eq!(s.triangle_count(), 2);
+        assert_eq!(s.report.duplicate, 599);
+        // Rays still find both surfaces (in a debug build obvhs asserts on
+        // a traversal stack overflow, which 600 coincident triangles caused).
+        let down = Vec3::NEG_Y;
+        let hit = s.accel.intersect(Vec3::new(0.0, 1.0, 0.0), down, f32::INFINITY).expect("the triangle");
+        assert!((hit.t - 1.0).abs() < 1e-5);
+        let hit = s.accel.intersect(Vec3::new(1.5, 1.0, 0.0), down, f32::INFINITY).expect("the floor");
+        assert!((hit.t - 2.0).abs() < 1e-5);
+    }
+
+    #[test]
     fn drops_nan_and_zero_area_triangles() {
         let mut b = SceneBuilder::new();
         assert!(!b.add_triangle([Vec3::ZERO, Vec3::X, Vec3::new(f32::NAN, 0.0, 0.0)], None, 0));
@@ -239,7 +292,7 @@ mod tests {
         assert!(!b.add_triangle([Vec3::ONE; 3], None, 0));
         assert!(b.add_triangle([Vec3::ZERO, Vec3::X, Vec3::Y], Some([Vec3::NAN, Vec3::Z, Vec3::ZERO]), 99));
         let s = b.build();
-        assert_eq!(s.report, ImportReport { non_finite: 1, degenerate: 2, non_finite_normals: 0 });
+        assert_eq!(s.report, ImportReport { non_finite: 1, degenerate: 2, non_finite_normals: 0, duplicate: 0 });
         assert_eq!(s.triangle_count(), 1);
         assert_eq!(s.material_of[0], 0);
         assert!(s.normals[0].iter().all(|n| (n.length() - 1.0).abs() < 1e-5));
