@@ -241,6 +241,9 @@ fn the_binarys_run_routes_artnet_and_stops_cleanly_on_sigterm() {
     );
     assert_eq!(seen["input"]["kind"], "network");
     assert!(seen["frame"].as_u64().unwrap() > 0);
+    // A tablet that dropped off Wi-Fi mid-request must not hold shutdown.
+    let mut half_sent = std::net::TcpStream::connect(http).unwrap();
+    std::io::Write::write_all(&mut half_sent, b"GET / HTTP/1.1\r\n").unwrap();
     let stopped = std::process::Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap();
     assert!(stopped.success());
     let t = std::time::Instant::now();
