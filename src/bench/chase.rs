@@ -67,6 +67,9 @@ pub struct AngleCost {
     pub moving_ms: f64,
     /// Share of the frame's directly seen vertices evaluated.
     pub vertex_share: f64,
+    /// Error of the moving-quality stage against the full one: relative
+    /// RMS over the beam's pixels (√(Σ|m−f|²/Σ|f|²)).
+    pub moving_rel_rms: f64,
 }
 
 /// One head's 16-bit pan and tilt at `t` seconds (the formula the recording
@@ -220,19 +223,37 @@ fn angle_costs(scene: &Scene, camera: Camera, width: u32, height: u32) -> Vec<An
             let light = crate::Light::aimed(glam::Vec3::new(0.5, 6.5, -1.0), glam::Vec3::new(0.5, 0.0, 0.5), beam);
             let time = |quality| {
                 let mut ms = Vec::new();
-                let mut vertices = 0;
+                let mut last = None;
                 for _ in 0..15 {
                     let t = Instant::now();
-                    let (_, stats) = primary_direct(scene, &view, bounds, &light, quality);
+                    let built = primary_direct(scene, &view, bounds, &light, quality);
                     ms.push(t.elapsed().as_secs_f64() * 1e3);
-                    vertices = stats.vertices;
+                    last = Some(built);
                 }
                 ms.sort_by(f64::total_cmp);
-                (ms[ms.len() / 2], vertices)
+                (ms[ms.len() / 2], last)
             };
-            let (full_ms, vertices) = time(DirectQuality::Full);
-            let (moving_ms, _) = time(DirectQuality::Moving);
-            AngleCost { beam_deg: deg, ms: full_ms, moving_ms, vertex_share: vertices as f64 / frame_vertices as f64 }
+            let (full_ms, full) = time(DirectQuality::Full);
+            let (moving_ms, moving) = time(DirectQuality::Moving);
+            let (Some((full, stats)), Some((moving, _))) = (full, moving) else {
+                return AngleCost {
+                    beam_deg: deg,
+                    ms: full_ms,
+                    moving_ms,
+                    vertex_share: 0.0,
+                    moving_rel_rms: f64::NAN,
+                };
+            };
+            let (f, m) = (full.to_dense(), moving.to_dense());
+            let err: f64 = f.iter().zip(&m).map(|(a, b)| f64::from((*a - *b).length_squared())).sum();
+            let norm: f64 = f.iter().map(|a| f64::from(a.length_squared())).sum();
+            AngleCost {
+                beam_deg: deg,
+                ms: full_ms,
+                moving_ms,
+                vertex_share: stats.vertices as f64 / frame_vertices as f64,
+                moving_rel_rms: if norm > 0.0 { (err / norm).sqrt() } else { 0.0 },
+            }
         })
         .collect()
 }
@@ -251,7 +272,7 @@ impl ChaseReport {
              | composite time | {:.2} ms | |\n\
              | chase stop → every head at its final position | {:.0} ms | < 500 ms |\n\
              | chase stop → every head converged | {} | |\n\n\
-             | beam (field angle) | direct stage, full | moving quality | vertices evaluated |\n|---:|---:|---:|---:|\n",
+             | beam (field angle) | direct stage, full | moving quality | vertices evaluated | moving-quality error (rel. RMS vs full) |\n|---:|---:|---:|---:|---:|\n",
             self.seconds,
             self.width,
             self.height,
