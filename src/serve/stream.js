@@ -25,6 +25,8 @@ const probe = {
   frame: -1,
   composited: -1,
   composites: 0,
+  busy: 0,
+  dirty: false,
   webgl: null,
   error: null,
   pixels: () => null,
@@ -233,7 +235,13 @@ export function start(canvas, img) {
     }
   };
   ws.onopen = () => { opened = true; };
-  ws.onmessage = e => { chain = chain.then(() => handle(e.data)).catch(err => { probe.error = String(err); }); };
+  ws.onmessage = e => {
+    probe.busy++;
+    chain = chain.then(() => handle(e.data)).catch(err => { probe.error = String(err); }).then(() => {
+      probe.busy--;
+      probe.dirty = dirty;
+    });
+  };
   ws.onclose = () => {
     if (!opened) { show(false); poll(img); return; }
     probe.mode = 'closed';
@@ -242,6 +250,7 @@ export function start(canvas, img) {
   const frame = () => {
     if (dirty && gl && k && display) {
       dirty = false;
+      probe.dirty = false;
       gl.draw(k, display);
       probe.composited = probe.frame;
       probe.composites++;

@@ -212,7 +212,7 @@ pub async fn handler(ws: WebSocketUpgrade, Query(q): Query<StreamQuery>, State(s
     let stall = q.stall_ms.map_or(STALL_LIMIT, |ms| Duration::from_millis(ms.clamp(50, 10_000)));
     ws.max_message_size(MAX_CLIENT_MESSAGE).max_frame_size(MAX_CLIENT_MESSAGE).on_upgrade(move |socket| async move {
         let _guard = guard;
-        Client { socket, s, mode, stall, sent: Vec::new(), last_k: None, last_picture: None }.run().await;
+        Client { socket, s, mode, stall, sent: Vec::new(), last_k: None, last_picture: None, shown: 0 }.run().await;
     })
 }
 
@@ -247,19 +247,25 @@ struct Client {
     last_k: Option<(Arc<Vec<Vec3>>, Display, tokio::time::Instant)>,
     /// Pictures mode: the pixels last pushed.
     last_picture: Option<Arc<Vec<u8>>>,
+    /// The number of the last frame handled.
+    shown: u64,
 }
 
 impl Client {
     async fn run(mut self) {
         let mut frames = self.s.frames.clone();
         let frame = frames.borrow_and_update().clone();
+        self.shown = frame.number;
         let end = match self.start(&frame).await {
             Err(end) => end,
-            Ok(()) => match self.serve(&mut frames, frame.number).await {
+            Ok(()) => match self.serve(&mut frames).await {
                 Err(end) => end,
                 Ok(never) => match never {},
             },
         };
+        // Frames published while the last send was stuck were skipped too.
+        let latest = frames.borrow().number;
+        self.s.stats.frames_skipped.fetch_add(latest.saturating_sub(self.shown), Ordering::Relaxed);
         match end {
             End::Closed => {}
             End::Stalled => {
@@ -281,7 +287,6 @@ impl Client {
     async fn serve(
         &mut self,
         frames: &mut watch::Receiver<Arc<Frame>>,
-        mut last: u64,
     ) -> Result<std::convert::Infallible, End> {
         let mut keepalive = tokio::time::interval(KEEPALIVE);
         keepalive.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
@@ -293,9 +298,9 @@ impl Client {
                         return Err(End::Closed);
                     }
                     let frame = frames.borrow_and_update().clone();
-                    let skipped = frame.number.saturating_sub(last + 1);
+                    let skipped = frame.number.saturating_sub(self.shown + 1);
                     self.s.stats.frames_skipped.fetch_add(skipped, Ordering::Relaxed);
-                    last = frame.number;
+                    self.shown = frame.number;
                     self.update(&frame).await?;
                 }
                 msg = self.socket.recv() => {
