@@ -471,3 +471,21 @@ fn pictures_mode_pushes_the_server_png_when_the_picture_changes() {
     let s = server.stream();
     assert_eq!((s["picture_messages"].as_u64(), s["buffer_messages"].as_u64()), (Some(2), Some(0)), "{s}");
 }
+
+/// The bench section on its own (a measurement, not a check: run it with
+/// `cargo test --release --test main stream::measure -- --ignored --nocapture`).
+#[test]
+#[ignore = "a measurement (footlight bench runs it too)"]
+fn measure_stream_against_pictures_and_polling() {
+    use footlight::bench::stream::{Viewer, markdown, run};
+    let scene = Arc::new(stage());
+    let camera = scene.camera.unwrap();
+    let patch = footlight::Patch::load(&root().join("patch/paper-rig.toml")).unwrap();
+    let size = (800, 500);
+    let levels =
+        [(Viewer::None, 0), (Viewer::Buffers, 20), (Viewer::Pictures, 20), (Viewer::Polling, 20), (Viewer::Buffers, 60)];
+    let rows = run(&scene, &patch, camera, size, &levels, 8.0).unwrap();
+    println!("{}", markdown(&rows, size));
+    assert_eq!(rows.len(), levels.len());
+    assert!(rows.iter().all(|r| r.clients_served == r.clients), "every viewer was served");
+}

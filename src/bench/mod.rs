@@ -8,6 +8,7 @@
 
 pub mod chase;
 pub mod clients;
+pub mod stream;
 pub mod haze;
 pub mod live;
 #[cfg(feature = "plots")]
@@ -129,6 +130,8 @@ pub struct Report {
     pub chase: Option<chase::ChaseReport>,
     /// Issues 12/17: the frame clock under N preview clients.
     pub clients: Vec<clients::ClientsRow>,
+    /// Issue 17: the browser stream against PNG pictures and polling, and its picture size.
+    pub stream: (Vec<stream::StreamRow>, (u32, u32)),
 }
 
 /// One point of a run-time-versus-error curve.
@@ -347,6 +350,9 @@ impl Report {
         }
         if !self.clients.is_empty() {
             s += &clients::markdown(&self.clients);
+        }
+        if !self.stream.0.is_empty() {
+            s += &stream::markdown(&self.stream.0, self.stream.1);
         }
         if let Some(c) = &self.chase {
             s += &c.markdown();
@@ -799,6 +805,12 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         clients::run(&scene_arc, patch, camera, (800, 500), &[0, 20, 200], 10.0)
     };
     let clients = clients.map_err(|e| tracing::error!("preview clients: {e}")).unwrap_or_default();
+    progress.set_message("browser stream");
+    use stream::Viewer::{Buffers, None as NoViewers, Pictures, Polling};
+    let (stream_size, stream_seconds) = if cfg.quick { ((200, 125), 2.0) } else { ((800, 500), 12.0) };
+    let levels = [(NoViewers, 0), (Buffers, 20), (Pictures, 20), (Polling, 20), (Buffers, 60)];
+    let stream_rows = stream::run(&scene_arc, patch, camera, stream_size, &levels, stream_seconds);
+    let stream = (stream_rows.map_err(|e| tracing::error!("browser stream: {e}")).unwrap_or_default(), stream_size);
     progress.finish_and_clear();
 
     let report = Report {
@@ -823,6 +835,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         haze,
         chase,
         clients,
+        stream,
     };
     #[cfg(feature = "plots")]
     plots::write(&report, out)?;
