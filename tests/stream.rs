@@ -447,9 +447,18 @@ fn malformed_and_oversized_client_messages_close_that_connection_only() {
     let k = binary(&mut good);
     assert_eq!(k[0], MSG_FRAME);
     assert_eq!(f32::from_le_bytes([k[32], k[33], k[34], k[35]]), 1.0);
+    // A page of another site may not open the stream (cross-site WebSocket).
+    let mut req = tungstenite::client::IntoClientRequest::into_client_request(format!("ws://{}/api/stream", server.addr))
+        .unwrap();
+    req.headers_mut().insert("origin", "http://evil.example".parse().unwrap());
+    assert!(tungstenite::connect(req).is_err(), "a foreign Origin is refused");
+    let mut req = tungstenite::client::IntoClientRequest::into_client_request(format!("ws://{}/api/stream", server.addr))
+        .unwrap();
+    req.headers_mut().insert("origin", format!("http://{}", server.addr).parse().unwrap());
+    assert!(tungstenite::connect(req).is_ok(), "the server's own pages may");
     let s = server.stream();
     assert_eq!(s["closed_bad_message"], 2, "{s}");
-    assert_eq!(s["buffer_messages"], 3, "{s}");
+    assert!(s["buffer_messages"].as_u64().unwrap() >= 3, "{s}");
 }
 
 #[test]

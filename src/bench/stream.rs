@@ -206,6 +206,7 @@ pub fn run(
             Viewer::Pictures => Some("pictures"),
             Viewer::None | Viewer::Polling => None,
         };
+        let frame_spawn = (handle.status)().frame;
         let poll = (viewer_kind == Viewer::Polling && clients > 0)
             .then(|| load.spawn(crate::serve::load::poll_frames(addr, clients, duration)));
         if let Some(mode) = mode {
@@ -213,7 +214,16 @@ pub fn run(
                 tasks.push(load.spawn(viewer(addr, mode, rx.clone(), stop.clone(), epoch, c == 0)));
             }
         }
-        std::thread::sleep(Duration::from_millis(300)); // connected, initial buffers sent
+        // Connected, initial buffers received (the measured window is the steady state).
+        let lights = (handle.status)().lights.len() as u64;
+        let t = Instant::now();
+        while mode == Some("buffers")
+            && rx.buffers.load(Ordering::Relaxed) < lights * clients as u64
+            && t.elapsed() < Duration::from_secs(30)
+        {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        std::thread::sleep(Duration::from_millis(300));
         let (frame0, cpu0, bytes0) =
             ((handle.status)().frame, thread_cpu_s(SERVER_THREADS), rx.bytes.load(Ordering::Relaxed));
         // The fader: a ramp at 44 Hz for most of the level, then single steps
@@ -248,13 +258,15 @@ pub fn run(
         }
         let elapsed = start.elapsed().as_secs_f64();
         let status = (handle.status)();
-        let frames = status.frame.saturating_sub(frame0).max(1) as f64;
+        let mut frames = status.frame.saturating_sub(frame0).max(1) as f64;
         let cpu = (thread_cpu_s(SERVER_THREADS) - cpu0) / elapsed;
         stop.store(true, Ordering::Relaxed);
         let mut bytes = rx.bytes.load(Ordering::Relaxed) - bytes0;
         let mut served = rx.served.load(Ordering::Relaxed) as usize;
         if let Some(p) = poll {
             let report = load.block_on(p).map_err(|e| e.to_string())?;
+            // The pollers ran from their start, not from the window's.
+            frames = (handle.status)().frame.saturating_sub(frame_spawn).max(1) as f64;
             bytes = report.bytes;
             served = report.clients_served;
         }

@@ -38,7 +38,7 @@ use crate::render::display::Display;
 use axum::body::Bytes;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
 use axum::extract::{Query, State};
-use axum::http::StatusCode;
+use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use glam::Vec3;
 use std::collections::HashMap;
@@ -199,7 +199,15 @@ impl StreamState {
 }
 
 /// `GET /api/stream`: upgrades to the stream (see the module docs).
-pub async fn handler(ws: WebSocketUpgrade, Query(q): Query<StreamQuery>, State(s): State<StreamState>) -> Response {
+pub async fn handler(
+    ws: WebSocketUpgrade,
+    headers: HeaderMap,
+    Query(q): Query<StreamQuery>,
+    State(s): State<StreamState>,
+) -> Response {
+    if !same_origin(&headers) {
+        return (StatusCode::FORBIDDEN, "the stream is served to pages of this server only").into_response();
+    }
     let open = s.stats.open.fetch_add(1, Ordering::Relaxed);
     if open as usize >= MAX_CLIENTS {
         s.stats.open.fetch_sub(1, Ordering::Relaxed);
@@ -214,6 +222,17 @@ pub async fn handler(ws: WebSocketUpgrade, Query(q): Query<StreamQuery>, State(s
         let _guard = guard;
         Client { socket, s, mode, stall, sent: Vec::new(), last_k: None, last_picture: None, shown: 0 }.run().await;
     })
+}
+
+/// A browser names the page that opens a WebSocket in `Origin`; any page may
+/// open one to 127.0.0.1 (the Host check cannot see it), so a page of
+/// another site is refused. Clients that are not browsers send no Origin.
+fn same_origin(headers: &HeaderMap) -> bool {
+    let Some(origin) = headers.get(header::ORIGIN) else { return true };
+    let host = headers.get(header::HOST).and_then(|h| h.to_str().ok()).unwrap_or("");
+    let origin = origin.to_str().unwrap_or("");
+    let authority = origin.strip_prefix("http://").or_else(|| origin.strip_prefix("https://"));
+    authority.is_some_and(|a| !host.is_empty() && a.eq_ignore_ascii_case(host))
 }
 
 /// Decrements the open count when a stream ends (or its upgrade fails).
