@@ -8,12 +8,12 @@
 
 pub mod chase;
 pub mod clients;
-pub mod stream;
 pub mod haze;
 pub mod live;
 #[cfg(feature = "plots")]
 pub mod plots;
 pub mod scale;
+pub mod stream;
 pub mod stress;
 pub mod sweeps;
 

@@ -179,7 +179,8 @@ pub fn run(
     // Every light built before measuring.
     send(255, 0)?;
     let t = Instant::now();
-    let ready = |l: &crate::live::daemon::LightStatus| l.build.as_ref().is_some_and(|b| b.stage == crate::live::Stage::Ready);
+    let ready =
+        |l: &crate::live::daemon::LightStatus| l.build.as_ref().is_some_and(|b| b.stage == crate::live::Stage::Ready);
     while !(handle.status)().lights.iter().all(ready) {
         if t.elapsed() > Duration::from_secs(600) {
             return Err("lights never finished building".into());

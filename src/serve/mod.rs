@@ -84,8 +84,14 @@ async fn stream_js() -> Response {
     static JS: std::sync::OnceLock<String> = std::sync::OnceLock::new();
     let js = JS.get_or_init(|| {
         include_str!("stream.js")
-            .replace("/*VERTEX*/", &serde_json::to_string(include_str!("../../shaders/composite.vert")).unwrap_or_default())
-            .replace("/*FRAGMENT*/", &serde_json::to_string(include_str!("../../shaders/composite.frag")).unwrap_or_default())
+            .replace(
+                "/*VERTEX*/",
+                &serde_json::to_string(include_str!("../../shaders/composite.vert")).unwrap_or_default(),
+            )
+            .replace(
+                "/*FRAGMENT*/",
+                &serde_json::to_string(include_str!("../../shaders/composite.frag")).unwrap_or_default(),
+            )
     });
     ([(header::CONTENT_TYPE, "text/javascript; charset=utf-8")], js.as_str()).into_response()
 }

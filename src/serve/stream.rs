@@ -303,10 +303,7 @@ impl Client {
         self.update(frame).await
     }
 
-    async fn serve(
-        &mut self,
-        frames: &mut watch::Receiver<Arc<Frame>>,
-    ) -> Result<std::convert::Infallible, End> {
+    async fn serve(&mut self, frames: &mut watch::Receiver<Arc<Frame>>) -> Result<std::convert::Infallible, End> {
         let mut keepalive = tokio::time::interval(KEEPALIVE);
         keepalive.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         loop {
@@ -345,7 +342,15 @@ impl Client {
             None => Err(End::Closed),
             Some(Err(e)) => {
                 tracing::debug!("stream: client error: {e}");
-                Err(End::Bad(1009, "message too large or malformed"))
+                use tokio_tungstenite::tungstenite::Error;
+                use tokio_tungstenite::tungstenite::error::ProtocolError;
+                match e.into_inner().downcast::<Error>().map(|e| *e) {
+                    Ok(Error::Capacity(_)) => Err(End::Bad(1009, "message too large")),
+                    Ok(Error::Protocol(ProtocolError::ResetWithoutClosingHandshake)) => Err(End::Closed),
+                    Ok(Error::Protocol(_) | Error::Utf8(_)) => Err(End::Bad(1002, "malformed message")),
+                    // The connection went away (reset, closed without a handshake).
+                    _ => Err(End::Closed),
+                }
             }
             Some(Ok(Message::Close(_))) => Err(End::Closed),
             Some(Ok(Message::Ping(_) | Message::Pong(_))) => Ok(()),
@@ -381,9 +386,10 @@ impl Client {
                     self.sent[i] = Some(*generation);
                     any = true;
                 }
-                let same = self.last_k.as_ref().is_some_and(|(k, d, _)| {
-                    (Arc::ptr_eq(k, &frame.k) || **k == *frame.k) && *d == frame.display
-                });
+                let same = self
+                    .last_k
+                    .as_ref()
+                    .is_some_and(|(k, d, _)| (Arc::ptr_eq(k, &frame.k) || **k == *frame.k) && *d == frame.display);
                 if any || !same {
                     self.send_k(frame).await?;
                 }
@@ -644,8 +650,8 @@ mod tests {
         }
         assert_eq!(u32_at(&msg, 16).unwrap(), 2);
         assert_eq!((u32_at(&raw, 0).unwrap(), u32_at(&raw, 4).unwrap()), (1, 5));
-        // Tile 5's pixel (15, 3): R at f16 offset 3 · (3·16 + 15) after the first tile.
-        let at = 8 + TILE * TILE * 6 + 6 * (3 * 16 + 15);
+        // Tile 5's pixel (7, 3) (picture pixel (39, 19)): R at f16 offset 3 · (3·16 + 7) after the first tile.
+        let at = 8 + TILE * TILE * 6 + 6 * (3 * 16 + 7);
         let scale = f32::from_bits(u32_at(&msg, 20).unwrap());
         assert_eq!(half::f16::from_bits(u16::from_le_bytes([raw[at], raw[at + 1]])).to_f32() * scale, 1.0);
     }
@@ -683,7 +689,7 @@ mod tests {
         assert_eq!((m[0], u32_at(&m, 4).unwrap(), u64_at(&m, 8).unwrap()), (MSG_FRAME, 2, 7));
         assert_eq!(f32::from_bits(u32_at(&m, 16).unwrap()), display.exposure);
         assert_eq!(f32::from_bits(u32_at(&m, 28).unwrap()), display.white_balance.z);
-        let f = |i| f32::from_bits(u32_at(&m, 32 + 4 * i).unwrap());
+        let f = |i: usize| f32::from_bits(u32_at(&m, 32 + 4 * i).unwrap());
         assert_eq!([f(0), f(1), f(2), f(3), f(4)], [1.0, 2.0, 3.0, 1.0, 0.5]);
         let h = encode_hello(&frame, Mode::Pictures);
         assert_eq!((h.len(), h[0], h[1], h[2], u32_at(&h, 4).unwrap()), (36, MSG_HELLO, VERSION, 1, 4));
