@@ -36,3 +36,5 @@ mod scene_import;
 mod fuzz_import;
 // The preview server under hostile clients: timeouts, limits, Host check, shared encodes.
 mod serve;
+// The browser stream: Chromium composites like the server; slow, malformed and picture clients.
+mod stream;

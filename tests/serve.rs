@@ -27,6 +27,9 @@ fn frame(number: u64) -> Arc<Frame> {
         intensity: Arc::new(Vec::new()),
         composite_time: Duration::ZERO,
         update: UpdateStats::default(),
+        k: Arc::new(Vec::new()),
+        buffers: Arc::new(Vec::new()),
+        display: footlight::render::display::Display::default(),
     })
 }
 

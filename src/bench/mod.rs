@@ -14,6 +14,7 @@ pub mod live;
 pub mod mvr;
 pub mod plots;
 pub mod scale;
+pub mod stream;
 pub mod stress;
 pub mod sweeps;
 
@@ -137,6 +138,8 @@ pub struct Report {
     pub clients: Vec<clients::ClientsRow>,
     /// MVR import time and strobe composite cost (issue 14).
     pub mvr: mvr::MvrReport,
+    /// Issue 17: the browser stream against PNG pictures and polling, and its picture size.
+    pub stream: (Vec<stream::StreamRow>, (u32, u32)),
 }
 
 /// One point of a run-time-versus-error curve.
@@ -373,6 +376,9 @@ impl Report {
         }
         if !self.clients.is_empty() {
             s += &clients::markdown(&self.clients);
+        }
+        if !self.stream.0.is_empty() {
+            s += &stream::markdown(&self.stream.0, self.stream.1);
         }
         if let Some(c) = &self.chase {
             s += &c.markdown();
@@ -866,6 +872,12 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     progress.set_message("MVR import and strobe");
     let show150 = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr/show150.mvr");
     let mvr = mvr::run(scene, camera, (w, h), &show150, cfg.repeats, 50);
+    progress.set_message("browser stream");
+    use stream::Viewer::{Buffers, None as NoViewers, Pictures, Polling};
+    let (stream_size, stream_seconds) = if cfg.quick { ((200, 125), 2.0) } else { ((800, 500), 12.0) };
+    let levels = [(NoViewers, 0), (Buffers, 20), (Pictures, 20), (Polling, 20), (Buffers, 60)];
+    let stream_rows = stream::run(&scene_arc, patch, camera, stream_size, &levels, stream_seconds);
+    let stream = (stream_rows.map_err(|e| tracing::error!("browser stream: {e}")).unwrap_or_default(), stream_size);
     progress.finish_and_clear();
 
     let report = Report {
@@ -893,6 +905,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         chase,
         clients,
         mvr,
+        stream,
     };
     plots::write(&report, out)?;
     std::fs::write(out.join("report.md"), report.markdown())?;

@@ -10,7 +10,9 @@
 use super::tracer::{Published, Tracer};
 use crate::Light;
 use crate::fixture::{Change, DmxSlots, FixtureState, classify};
+use crate::render::buffer::LightBuffer;
 use crate::render::composite::{CompositeInput, Compositor, UpdateStats};
+use crate::render::display::Display;
 use glam::Vec3;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -75,6 +77,15 @@ pub struct Frame {
     pub composite_time: Duration,
     /// What the incremental composite did.
     pub update: UpdateStats,
+    /// Each light's k_i in this frame (eq. 4), in light order: what the
+    /// browser stream sends every frame (issue 17).
+    pub k: Arc<Vec<Vec3>>,
+    /// Each light's published buffer and its generation, in light order
+    /// (shared, never copied: the stream sends a buffer when its generation
+    /// changes).
+    pub buffers: Arc<Vec<(u64, Arc<LightBuffer>)>>,
+    /// The display settings the frame's sRGB pixels were encoded with.
+    pub display: Display,
 }
 
 /// Frame state carried from tick to tick.
@@ -184,6 +195,8 @@ impl FrameClock {
         let update =
             if gpu_rgb.is_none() && !gpu_pending { self.compositor.update(&lights) } else { UpdateStats::default() };
         let intensity = inputs.iter().map(|input| luminance(input.k)).collect();
+        let k = Arc::new(lights.iter().map(|l| l.k).collect());
+        let buffers = Arc::new(published.iter().map(|p| (p.generation, p.buffer.clone())).collect());
         let frame = Frame {
             number: self.number,
             width: self.compositor.width(),
@@ -192,6 +205,9 @@ impl FrameClock {
             intensity: Arc::new(intensity),
             composite_time: t0.elapsed(),
             update,
+            k,
+            buffers,
+            display: self.compositor.display(),
         };
         self.number += 1;
         frame

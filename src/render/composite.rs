@@ -106,6 +106,11 @@ impl Compositor {
         Self { width, height, display, linear: vec![Vec3::ZERO; n], srgb: vec![0; n * 3], seen: Vec::new() }
     }
 
+    /// The display settings the sRGB pixels are encoded with.
+    pub fn display(&self) -> Display {
+        self.display
+    }
+
     /// Frame width.
     pub fn width(&self) -> u32 {
         self.width

@@ -6,6 +6,9 @@
 //!   state and last build time.
 //! * `/api/status`: the same as JSON, plus frame rate and input counters.
 //! * `/api/frame.png`: the latest frame as PNG.
+//! * `/api/stream`: the browser stream (WebSocket, [`stream`], issue 17):
+//!   per-light buffers once, then k_i per frame; the page composites eq. 5
+//!   with WebGL2 (`/stream.js`, shaders in `shaders/`).
 //!
 //! Frames come from the frame clock's `watch` channel ([`ServeState::frames`]);
 //! each published picture is PNG-encoded at most once, on one blocking
@@ -23,6 +26,7 @@
 pub mod load;
 pub mod png;
 pub mod server;
+pub mod stream;
 
 pub use server::{HostPolicy, LISTEN_BACKLOG, ServeConfig, ServeError, ServeStats, Server, StatsSnapshot, bind, serve};
 
@@ -52,6 +56,7 @@ pub struct ServeState {
 struct App {
     state: ServeState,
     png: Arc<png::PngCache>,
+    stream: stream::StreamState,
 }
 
 /// The preview's routes, with their own counters (no Host check, no
@@ -62,12 +67,33 @@ pub fn router(state: ServeState) -> Router {
 
 /// The routes counting into `stats`.
 fn routes(state: ServeState, stats: Arc<ServeStats>) -> Router {
-    let app = App { state, png: Arc::new(png::PngCache::new(stats)) };
+    let png = Arc::new(png::PngCache::new(stats));
+    let stream = stream::StreamState::new(state.frames.clone(), png.clone());
+    let app = App { state, png, stream: stream.clone() };
     Router::new()
         .route("/", get(index))
+        .route("/stream.js", get(stream_js))
         .route("/api/status", get(status))
         .route("/api/frame.png", get(frame_png))
         .with_state(app)
+        .merge(Router::new().route("/api/stream", get(stream::handler)).with_state(stream))
+}
+
+/// The page's compositor module, with the GLSL of `shaders/` spliced in.
+async fn stream_js() -> Response {
+    static JS: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    let js = JS.get_or_init(|| {
+        include_str!("stream.js")
+            .replace(
+                "/*VERTEX*/",
+                &serde_json::to_string(include_str!("../../shaders/composite.vert")).unwrap_or_default(),
+            )
+            .replace(
+                "/*FRAGMENT*/",
+                &serde_json::to_string(include_str!("../../shaders/composite.frag")).unwrap_or_default(),
+            )
+    });
+    ([(header::CONTENT_TYPE, "text/javascript; charset=utf-8")], js.as_str()).into_response()
 }
 
 async fn index() -> Html<&'static str> {
@@ -82,6 +108,7 @@ async fn status(State(app): State<App>) -> Response {
         obj.insert("width".into(), frame.width.into());
         obj.insert("height".into(), frame.height.into());
         obj.insert("composite_ms".into(), (frame.composite_time.as_secs_f64() * 1e3).into());
+        obj.insert("stream".into(), app.stream.stats.json());
     }
     axum::Json(v).into_response()
 }

@@ -1,0 +1,37 @@
+#version 300 es
+// Footlight browser composite (issue 17): eq. 5, I = sum_i k_i * buffer_i,
+// then the CPU reference's display step (src/render/display.rs,
+// Display::to_srgb8): white balance and exposure, clip to [0, 1], quantise
+// to the reference's 65536-entry table index, sRGB curve, 8-bit rounding.
+precision highp float;
+precision highp int;
+precision highp sampler2D;
+precision highp sampler2DArray;
+
+// One layer per light: the light's unit buffer (f16 RGB, value / scale).
+uniform sampler2DArray u_buffers;
+// Texel i: (k_i * scale_i, time factor) of light i (RGBA32F, one row).
+uniform sampler2D u_k;
+uniform int u_lights;
+// white balance * exposure * 65535, as the reference computes it in f32.
+uniform vec3 u_scale;
+// Picture height (rows are sent top to bottom; gl_FragCoord counts up).
+uniform int u_height;
+
+out vec4 color;
+
+void main() {
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    p.y = u_height - 1 - p.y;
+    vec3 sum = vec3(0.0);
+    for (int i = 0; i < u_lights; ++i) {
+        vec4 k = texelFetch(u_k, ivec2(i, 0), 0);
+        sum += (k.rgb * k.a) * texelFetch(u_buffers, ivec3(p, i), 0).rgb;
+    }
+    vec3 index = floor(clamp(sum * u_scale, 0.0, 65535.0) + 0.5);
+    vec3 x = index / 65535.0;
+    vec3 lo = 12.92 * x;
+    vec3 hi = 1.055 * pow(max(x, vec3(0.0031308)), vec3(1.0 / 2.4)) - 0.055;
+    vec3 s = mix(lo, hi, step(vec3(0.0031308), x));
+    color = vec4(floor(s * 255.0 + 0.5) / 255.0, 1.0);
+}

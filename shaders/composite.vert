@@ -1,0 +1,6 @@
+#version 300 es
+// Footlight browser composite (issue 17): one triangle covering the canvas.
+void main() {
+    vec2 p = vec2(float((gl_VertexID & 1) << 2), float((gl_VertexID & 2) << 1)) - 1.0;
+    gl_Position = vec4(p, 0.0, 1.0);
+}

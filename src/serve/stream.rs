@@ -1,0 +1,697 @@
+//! The browser stream (issue 17): per-light buffers to every viewer once,
+//! then a few bytes of k_i per frame, over one WebSocket (`/api/stream`).
+//!
+//! The picture is I = Σ k_i · buffer_i (eq. 5). Buffers change only when a
+//! light moves; a dimmer or colour change is a new k_i. So a viewer gets, on
+//! connect, a hello (size, light count, display settings) and every light's
+//! buffer (sparse 16×16 tiles, f16 RGB, raw DEFLATE); afterwards only the
+//! buffers whose generation changed, and a k message whenever the k vector
+//! or the display settings changed. The page (`/stream.js`) composites eq. 5
+//! on the viewer's GPU with WebGL2 and applies [`Display::to_srgb8`]'s white
+//! balance, exposure, clipping and sRGB curve. The byte layout is in
+//! `docs/stream.md`; [`encode_buffer`]/[`decode_buffer`] are its reference.
+//!
+//! Clients without WebGL2 ask for `?mode=pictures`: they get the frame as a
+//! PNG (the shared once-per-picture [`PngCache`]) pushed only when the
+//! picture changed.
+//!
+//! Data comes from the frame clock's `watch` channel ([`Frame::k`],
+//! [`Frame::buffers`], [`Frame::display`]: `Arc`s, nothing copied per
+//! frame). Each client is one task that reads the latest frame when it can
+//! send: a client that reads slowly skips frames (the watch keeps only the
+//! latest k; buffers are compared by generation, so a light rebuilt three
+//! times while the client was stuck is sent once), and at most one message
+//! per client is held by the server ([`StreamStats::pending_bytes`]). A send
+//! that does not complete within the stall limit drops the client. Encoded
+//! buffers are cached per (light, generation) and shared by all clients.
+//!
+//! Upgraded connections leave the HTTP accept loop, so this module bounds
+//! them itself: at most [`MAX_CLIENTS`] streams, client messages of at most
+//! [`MAX_CLIENT_MESSAGE`] bytes (anything larger, or not in the protocol,
+//! closes that connection only), and every stream ends when the frame clock
+//! stops (the daemon's shutdown drops the frame channel's sender).
+
+use super::png::PngCache;
+use crate::live::clock::Frame;
+use crate::render::buffer::{LightBuffer, TILE};
+use crate::render::display::Display;
+use axum::body::Bytes;
+use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
+use axum::extract::{Query, State};
+use axum::http::{HeaderMap, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use glam::Vec3;
+use std::collections::HashMap;
+use std::io::{Read, Write};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Duration;
+use tokio::sync::watch;
+
+/// Protocol version carried in the hello message.
+pub const VERSION: u8 = 1;
+/// Message type: hello (first message of every stream).
+pub const MSG_HELLO: u8 = 1;
+/// Message type: one light's buffer.
+pub const MSG_BUFFER: u8 = 2;
+/// Message type: the k vector and display settings of a frame.
+pub const MSG_FRAME: u8 = 3;
+/// Message type: a light's buffer is empty (it reaches nothing in view).
+pub const MSG_CLEARED: u8 = 4;
+/// Message type: a server-encoded picture (PNG), pictures mode.
+pub const MSG_PICTURE: u8 = 5;
+/// Client message type: switch mode (`[0x10, mode]`).
+pub const MSG_SET_MODE: u8 = 0x10;
+/// Streams open at most; more are refused with 503.
+pub const MAX_CLIENTS: usize = 64;
+/// Largest client message accepted (bytes); a larger one closes the stream.
+pub const MAX_CLIENT_MESSAGE: usize = 64;
+/// Default stall limit: a send that takes longer drops the client.
+pub const STALL_LIMIT: Duration = Duration::from_secs(10);
+/// A k message is sent at least this often even when nothing changed, so a
+/// viewer can tell a still picture from a dead link.
+pub const KEEPALIVE: Duration = Duration::from_secs(1);
+/// Flag bit of a buffer message: the payload is raw DEFLATE.
+const FLAG_DEFLATE: u8 = 1;
+
+/// What a stream sends.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    /// Buffers once, then k vectors: the browser composites.
+    Buffers,
+    /// Server-encoded pictures (PNG), pushed when the picture changed.
+    Pictures,
+}
+
+impl Mode {
+    fn code(self) -> u8 {
+        match self {
+            Mode::Buffers => 0,
+            Mode::Pictures => 1,
+        }
+    }
+}
+
+/// Query of `/api/stream`.
+#[derive(Debug, serde::Deserialize)]
+pub struct StreamQuery {
+    /// `buffers` (default) or `pictures`.
+    pub mode: Option<Mode>,
+    /// Stall limit in ms for this client (50-10000; default 10000): a client
+    /// may ask to be dropped sooner (tests, viewers that prefer to reconnect).
+    pub stall_ms: Option<u64>,
+}
+
+/// Counters of the stream, shown under `stream` in `/api/status`.
+#[derive(Debug, Default)]
+pub struct StreamStats {
+    /// Streams open now.
+    pub open: AtomicU64,
+    /// Streams accepted since start.
+    pub accepted: AtomicU64,
+    /// Streams refused over [`MAX_CLIENTS`].
+    pub refused: AtomicU64,
+    /// Buffer (and cleared) messages sent.
+    pub buffer_messages: AtomicU64,
+    /// k messages sent.
+    pub frame_messages: AtomicU64,
+    /// Picture messages sent.
+    pub picture_messages: AtomicU64,
+    /// Bytes sent over all streams.
+    pub bytes_sent: AtomicU64,
+    /// Frames a client skipped because it was still sending an older one.
+    pub frames_skipped: AtomicU64,
+    /// Clients dropped for a send that exceeded the stall limit.
+    pub dropped_stalled: AtomicU64,
+    /// Streams closed for a malformed or oversized client message.
+    pub closed_bad_message: AtomicU64,
+    /// Buffers encoded (f16 + DEFLATE), over all clients.
+    pub buffer_encodes: AtomicU64,
+    /// Message bytes held by the server for all clients now (at most one
+    /// message each).
+    pub pending_bytes: AtomicU64,
+    /// The largest message one client had pending at a time (the per-client
+    /// queue bound: never more than one message).
+    pub max_pending_per_client: AtomicU64,
+}
+
+impl StreamStats {
+    /// The counters as JSON.
+    pub fn json(&self) -> serde_json::Value {
+        let r = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        serde_json::json!({
+            "open": r(&self.open),
+            "accepted": r(&self.accepted),
+            "refused": r(&self.refused),
+            "buffer_messages": r(&self.buffer_messages),
+            "frame_messages": r(&self.frame_messages),
+            "picture_messages": r(&self.picture_messages),
+            "bytes_sent": r(&self.bytes_sent),
+            "frames_skipped": r(&self.frames_skipped),
+            "dropped_stalled": r(&self.dropped_stalled),
+            "closed_bad_message": r(&self.closed_bad_message),
+            "buffer_encodes": r(&self.buffer_encodes),
+            "pending_bytes": r(&self.pending_bytes),
+            "max_pending_per_client": r(&self.max_pending_per_client),
+        })
+    }
+}
+
+/// Shared state of the stream route.
+#[derive(Clone)]
+pub struct StreamState {
+    /// Latest published frame.
+    pub frames: watch::Receiver<Arc<Frame>>,
+    /// The shared PNG encoder (pictures mode).
+    pub png: Arc<PngCache>,
+    /// Counters.
+    pub stats: Arc<StreamStats>,
+    /// Encoded buffers by light: (generation, message).
+    cache: Arc<tokio::sync::Mutex<HashMap<usize, (u64, Bytes)>>>,
+}
+
+impl StreamState {
+    /// Stream state over `frames`, encoding pictures with `png`.
+    pub fn new(frames: watch::Receiver<Arc<Frame>>, png: Arc<PngCache>) -> Self {
+        Self { frames, png, stats: Arc::new(StreamStats::default()), cache: Default::default() }
+    }
+
+    /// The buffer message of `light` at `generation`, encoded once for all clients.
+    async fn buffer_message(&self, light: usize, generation: u64, buffer: &Arc<LightBuffer>) -> Bytes {
+        let mut cache = self.cache.lock().await;
+        if let Some((g, bytes)) = cache.get(&light)
+            && *g == generation
+        {
+            return bytes.clone();
+        }
+        let buffer = buffer.clone();
+        let encoded = tokio::task::spawn_blocking(move || encode_buffer(light as u32, generation, &buffer))
+            .await
+            .unwrap_or_else(|e| {
+                tracing::error!("stream: encoding light {light}'s buffer failed: {e}");
+                encode_cleared(light as u32, generation)
+            });
+        self.stats.buffer_encodes.fetch_add(1, Ordering::Relaxed);
+        cache.insert(light, (generation, encoded.clone()));
+        encoded
+    }
+}
+
+/// `GET /api/stream`: upgrades to the stream (see the module docs).
+pub async fn handler(
+    ws: WebSocketUpgrade,
+    headers: HeaderMap,
+    Query(q): Query<StreamQuery>,
+    State(s): State<StreamState>,
+) -> Response {
+    if !same_origin(&headers) {
+        return (StatusCode::FORBIDDEN, "the stream is served to pages of this server only").into_response();
+    }
+    let open = s.stats.open.fetch_add(1, Ordering::Relaxed);
+    if open as usize >= MAX_CLIENTS {
+        s.stats.open.fetch_sub(1, Ordering::Relaxed);
+        s.stats.refused.fetch_add(1, Ordering::Relaxed);
+        return (StatusCode::SERVICE_UNAVAILABLE, "too many stream clients").into_response();
+    }
+    s.stats.accepted.fetch_add(1, Ordering::Relaxed);
+    let guard = OpenGuard(s.stats.clone());
+    let mode = q.mode.unwrap_or(Mode::Buffers);
+    let stall = q.stall_ms.map_or(STALL_LIMIT, |ms| Duration::from_millis(ms.clamp(50, 10_000)));
+    ws.max_message_size(MAX_CLIENT_MESSAGE).max_frame_size(MAX_CLIENT_MESSAGE).on_upgrade(move |socket| async move {
+        let _guard = guard;
+        Client { socket, s, mode, stall, sent: Vec::new(), last_k: None, last_picture: None, shown: 0 }.run().await;
+    })
+}
+
+/// A browser names the page that opens a WebSocket in `Origin`; any page may
+/// open one to 127.0.0.1 (the Host check cannot see it), so a page of
+/// another site is refused. Clients that are not browsers send no Origin.
+fn same_origin(headers: &HeaderMap) -> bool {
+    let Some(origin) = headers.get(header::ORIGIN) else { return true };
+    let host = headers.get(header::HOST).and_then(|h| h.to_str().ok()).unwrap_or("");
+    let origin = origin.to_str().unwrap_or("");
+    let authority = origin.strip_prefix("http://").or_else(|| origin.strip_prefix("https://"));
+    authority.is_some_and(|a| !host.is_empty() && a.eq_ignore_ascii_case(host))
+}
+
+/// Decrements the open count when a stream ends (or its upgrade fails).
+struct OpenGuard(Arc<StreamStats>);
+
+impl Drop for OpenGuard {
+    fn drop(&mut self) {
+        self.0.open.fetch_sub(1, Ordering::Relaxed);
+    }
+}
+
+/// Why a client's stream ended.
+enum End {
+    /// The client closed, or the frame clock stopped.
+    Closed,
+    /// A send exceeded the stall limit or failed.
+    Stalled,
+    /// A message outside the protocol (code, reason).
+    Bad(u16, &'static str),
+}
+
+/// One client's stream.
+struct Client {
+    socket: WebSocket,
+    s: StreamState,
+    mode: Mode,
+    stall: Duration,
+    /// Buffers mode: the generation of each light's buffer the client holds.
+    sent: Vec<Option<u64>>,
+    /// The last k message's content (k, display) and when it went out.
+    last_k: Option<(Arc<Vec<Vec3>>, Display, tokio::time::Instant)>,
+    /// Pictures mode: the pixels last pushed.
+    last_picture: Option<Arc<Vec<u8>>>,
+    /// The number of the last frame handled.
+    shown: u64,
+}
+
+impl Client {
+    async fn run(mut self) {
+        let mut frames = self.s.frames.clone();
+        let frame = frames.borrow_and_update().clone();
+        self.shown = frame.number;
+        let end = match self.start(&frame).await {
+            Err(end) => end,
+            Ok(()) => match self.serve(&mut frames).await {
+                Err(end) => end,
+                Ok(never) => match never {},
+            },
+        };
+        // Frames published while the last send was stuck were skipped too.
+        let latest = frames.borrow().number;
+        self.s.stats.frames_skipped.fetch_add(latest.saturating_sub(self.shown), Ordering::Relaxed);
+        match end {
+            End::Closed => {}
+            End::Stalled => {
+                self.s.stats.dropped_stalled.fetch_add(1, Ordering::Relaxed);
+            }
+            End::Bad(code, reason) => {
+                self.s.stats.closed_bad_message.fetch_add(1, Ordering::Relaxed);
+                let close = Message::Close(Some(CloseFrame { code, reason: reason.into() }));
+                let _ = tokio::time::timeout(self.stall, self.socket.send(close)).await;
+            }
+        }
+    }
+
+    async fn start(&mut self, frame: &Arc<Frame>) -> Result<(), End> {
+        self.send(encode_hello(frame, self.mode)).await?;
+        self.update(frame).await
+    }
+
+    async fn serve(&mut self, frames: &mut watch::Receiver<Arc<Frame>>) -> Result<std::convert::Infallible, End> {
+        let mut keepalive = tokio::time::interval(KEEPALIVE);
+        keepalive.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        loop {
+            tokio::select! {
+                changed = frames.changed() => {
+                    if changed.is_err() {
+                        let _ = tokio::time::timeout(self.stall, self.socket.send(Message::Close(None))).await;
+                        return Err(End::Closed);
+                    }
+                    let frame = frames.borrow_and_update().clone();
+                    let skipped = frame.number.saturating_sub(self.shown + 1);
+                    self.s.stats.frames_skipped.fetch_add(skipped, Ordering::Relaxed);
+                    self.shown = frame.number;
+                    self.update(&frame).await?;
+                }
+                msg = self.socket.recv() => {
+                    let frame = frames.borrow().clone();
+                    self.receive(msg, &frame).await?;
+                }
+                _ = keepalive.tick() => {
+                    let frame = frames.borrow().clone();
+                    if self.mode == Mode::Buffers
+                        && self.last_k.as_ref().is_some_and(|(_, _, at)| at.elapsed() >= KEEPALIVE)
+                    {
+                        self.send_k(&frame).await?;
+                    }
+                }
+            }
+        }
+    }
+
+    /// A client message: `[MSG_SET_MODE, mode]` switches mode; control frames
+    /// are answered by the WebSocket layer; anything else closes the stream.
+    async fn receive(&mut self, msg: Option<Result<Message, axum::Error>>, frame: &Arc<Frame>) -> Result<(), End> {
+        match msg {
+            None => Err(End::Closed),
+            Some(Err(e)) => {
+                tracing::debug!("stream: client error: {e}");
+                use tokio_tungstenite::tungstenite::Error;
+                use tokio_tungstenite::tungstenite::error::ProtocolError;
+                match e.into_inner().downcast::<Error>().map(|e| *e) {
+                    Ok(Error::Capacity(_)) => Err(End::Bad(1009, "message too large")),
+                    Ok(Error::Protocol(ProtocolError::ResetWithoutClosingHandshake)) => Err(End::Closed),
+                    Ok(Error::Protocol(_) | Error::Utf8(_)) => Err(End::Bad(1002, "malformed message")),
+                    // The connection went away (reset, closed without a handshake).
+                    _ => Err(End::Closed),
+                }
+            }
+            Some(Ok(Message::Close(_))) => Err(End::Closed),
+            Some(Ok(Message::Ping(_) | Message::Pong(_))) => Ok(()),
+            Some(Ok(Message::Binary(b))) if b.len() == 2 && b[0] == MSG_SET_MODE && b[1] <= 1 => {
+                self.mode = if b[1] == 0 { Mode::Buffers } else { Mode::Pictures };
+                self.sent.clear();
+                self.last_k = None;
+                self.last_picture = None;
+                self.start(frame).await
+            }
+            Some(Ok(_)) => Err(End::Bad(1003, "not a footlight stream message")),
+        }
+    }
+
+    /// Sends what `frame` changed for this client.
+    async fn update(&mut self, frame: &Arc<Frame>) -> Result<(), End> {
+        match self.mode {
+            Mode::Buffers => {
+                let n = frame.buffers.len();
+                self.sent.resize(n, None);
+                let mut any = false;
+                for (i, (generation, buffer)) in frame.buffers.iter().enumerate() {
+                    if self.sent[i] == Some(*generation) {
+                        continue;
+                    }
+                    let msg = if buffer.occupied_tiles() == 0 {
+                        encode_cleared(i as u32, *generation)
+                    } else {
+                        self.s.buffer_message(i, *generation, buffer).await
+                    };
+                    self.send(msg).await?;
+                    self.s.stats.buffer_messages.fetch_add(1, Ordering::Relaxed);
+                    self.sent[i] = Some(*generation);
+                    any = true;
+                }
+                let same = self
+                    .last_k
+                    .as_ref()
+                    .is_some_and(|(k, d, _)| (Arc::ptr_eq(k, &frame.k) || **k == *frame.k) && *d == frame.display);
+                if any || !same {
+                    self.send_k(frame).await?;
+                }
+                Ok(())
+            }
+            Mode::Pictures => {
+                if self.last_picture.as_ref().is_some_and(|p| Arc::ptr_eq(p, &frame.rgb)) {
+                    return Ok(());
+                }
+                match self.s.png.get(frame.clone()).await {
+                    Ok(png) => {
+                        self.send(encode_picture(png.number, &png.bytes)).await?;
+                        self.s.stats.picture_messages.fetch_add(1, Ordering::Relaxed);
+                        self.last_picture = Some(frame.rgb.clone());
+                    }
+                    Err(e) => tracing::warn!("stream: encoding the picture failed: {e}"),
+                }
+                Ok(())
+            }
+        }
+    }
+
+    async fn send_k(&mut self, frame: &Arc<Frame>) -> Result<(), End> {
+        self.send(encode_frame(frame)).await?;
+        self.s.stats.frame_messages.fetch_add(1, Ordering::Relaxed);
+        self.last_k = Some((frame.k.clone(), frame.display, tokio::time::Instant::now()));
+        Ok(())
+    }
+
+    /// Sends one message, holding it (and counting it pending) until the
+    /// socket took it, for at most the stall limit.
+    async fn send(&mut self, bytes: Bytes) -> Result<(), End> {
+        let n = bytes.len() as u64;
+        let stats = &self.s.stats;
+        stats.pending_bytes.fetch_add(n, Ordering::Relaxed);
+        stats.max_pending_per_client.fetch_max(n, Ordering::Relaxed);
+        let sent = tokio::time::timeout(self.stall, self.socket.send(Message::Binary(bytes))).await;
+        stats.pending_bytes.fetch_sub(n, Ordering::Relaxed);
+        match sent {
+            Ok(Ok(())) => {
+                stats.bytes_sent.fetch_add(n, Ordering::Relaxed);
+                Ok(())
+            }
+            Ok(Err(_)) => Err(End::Closed),
+            Err(_) => Err(End::Stalled),
+        }
+    }
+}
+
+/// Hello: `[1, VERSION, mode, 0, width u32, height u32, lights u32, tile u32,
+/// exposure f32, wb r g b f32]`, little-endian (36 bytes).
+pub fn encode_hello(frame: &Frame, mode: Mode) -> Bytes {
+    let mut b = Vec::with_capacity(36);
+    b.extend_from_slice(&[MSG_HELLO, VERSION, mode.code(), 0]);
+    for v in [frame.width, frame.height, frame.buffers.len() as u32, TILE as u32] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    push_display(&mut b, &frame.display);
+    Bytes::from(b)
+}
+
+fn push_display(b: &mut Vec<u8>, d: &Display) {
+    for v in [d.exposure, d.white_balance.x, d.white_balance.y, d.white_balance.z] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+}
+
+/// The power-of-two scale a buffer is stored with, so its largest value is
+/// at most 2^14 in f16 (f16 overflows at 65504): value = f16 · scale.
+pub fn buffer_scale(buffer: &LightBuffer) -> f32 {
+    let max = buffer.raw().0.iter().map(|v| v.max_element()).fold(0.0f32, f32::max);
+    if !(max.is_finite() && max > 0.0) {
+        return 1.0;
+    }
+    2f32.powi((max.log2().ceil() as i32 - 14).clamp(-100, 100))
+}
+
+/// Buffer: header `[2, flags, 0, 0, light u32, generation u64, tiles u32,
+/// scale f32, payload length u32]` (28 bytes), then the payload (raw
+/// DEFLATE when flags bit 0 is set): the occupied tiles' indices (u32,
+/// row-major over the tile grid, ascending), then per tile 16×16 pixels
+/// row-major of f16 R, G, B (value / scale).
+pub fn encode_buffer(light: u32, generation: u64, buffer: &LightBuffer) -> Bytes {
+    let scale = buffer_scale(buffer);
+    let occupied = buffer.occupied();
+    let tiles_x = (buffer.width as usize).div_ceil(TILE);
+    let mut raw = Vec::with_capacity(occupied.len() * (4 + TILE * TILE * 6));
+    for &(tx, ty) in &occupied {
+        raw.extend_from_slice(&((ty * tiles_x + tx) as u32).to_le_bytes());
+    }
+    for &(tx, ty) in &occupied {
+        for p in buffer.tile(tx, ty).unwrap_or(&[]) {
+            for c in p.to_array() {
+                raw.extend_from_slice(&half::f16::from_f32(c / scale).to_bits().to_le_bytes());
+            }
+        }
+    }
+    let mut z = flate2::write::DeflateEncoder::new(Vec::with_capacity(raw.len() / 2), flate2::Compression::fast());
+    let payload = z.write_all(&raw).and_then(|()| z.finish());
+    let (flags, payload) = match payload {
+        Ok(p) if p.len() < raw.len() => (FLAG_DEFLATE, p),
+        _ => (0, raw),
+    };
+    let mut b = Vec::with_capacity(28 + payload.len());
+    b.extend_from_slice(&[MSG_BUFFER, flags, 0, 0]);
+    b.extend_from_slice(&light.to_le_bytes());
+    b.extend_from_slice(&generation.to_le_bytes());
+    b.extend_from_slice(&(occupied.len() as u32).to_le_bytes());
+    b.extend_from_slice(&scale.to_le_bytes());
+    b.extend_from_slice(&(payload.len() as u32).to_le_bytes());
+    b.extend_from_slice(&payload);
+    Bytes::from(b)
+}
+
+/// Cleared: `[4, 0, 0, 0, light u32, generation u64]` (16 bytes): the
+/// light's buffer is empty.
+pub fn encode_cleared(light: u32, generation: u64) -> Bytes {
+    let mut b = vec![MSG_CLEARED, 0, 0, 0];
+    b.extend_from_slice(&light.to_le_bytes());
+    b.extend_from_slice(&generation.to_le_bytes());
+    Bytes::from(b)
+}
+
+/// Frame: `[3, 0, 0, 0, lights u32, frame u64, exposure f32, wb r g b f32]`
+/// (32 bytes), then per light k_i R, G, B and a time factor (strobe phase
+/// placeholder, always 1), f32 each (16 bytes per light).
+pub fn encode_frame(frame: &Frame) -> Bytes {
+    let mut b = Vec::with_capacity(32 + 16 * frame.k.len());
+    b.extend_from_slice(&[MSG_FRAME, 0, 0, 0]);
+    b.extend_from_slice(&(frame.k.len() as u32).to_le_bytes());
+    b.extend_from_slice(&frame.number.to_le_bytes());
+    push_display(&mut b, &frame.display);
+    for k in frame.k.iter() {
+        for v in [k.x, k.y, k.z, 1.0] {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    Bytes::from(b)
+}
+
+/// Picture: `[5, 0, 0, 0, frame u64]` then the PNG file.
+pub fn encode_picture(number: u64, png: &[u8]) -> Bytes {
+    let mut b = Vec::with_capacity(12 + png.len());
+    b.extend_from_slice(&[MSG_PICTURE, 0, 0, 0]);
+    b.extend_from_slice(&number.to_le_bytes());
+    b.extend_from_slice(png);
+    Bytes::from(b)
+}
+
+/// A message that does not follow `docs/stream.md`.
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error("stream message: {0}")]
+pub struct DecodeError(String);
+
+fn u32_at(b: &[u8], at: usize) -> Result<u32, DecodeError> {
+    b.get(at..at + 4)
+        .map(|s| u32::from_le_bytes([s[0], s[1], s[2], s[3]]))
+        .ok_or_else(|| DecodeError(format!("truncated at byte {at}")))
+}
+
+fn u64_at(b: &[u8], at: usize) -> Result<u64, DecodeError> {
+    Ok(u64::from(u32_at(b, at)?) | (u64::from(u32_at(b, at + 4)?) << 32))
+}
+
+/// Decodes a buffer message for a `width`×`height` picture into (light,
+/// generation, buffer): the reference decoder of the layout (tests, bench).
+pub fn decode_buffer(b: &[u8], width: u32, height: u32) -> Result<(u32, u64, LightBuffer), DecodeError> {
+    if b.first() != Some(&MSG_BUFFER) {
+        return Err(DecodeError("not a buffer message".into()));
+    }
+    let light = u32_at(b, 4)?;
+    let generation = u64_at(b, 8)?;
+    let tiles = u32_at(b, 16)? as usize;
+    let scale = f32::from_bits(u32_at(b, 20)?);
+    let len = u32_at(b, 24)? as usize;
+    let payload = b.get(28..28 + len).ok_or_else(|| DecodeError("payload shorter than its length".into()))?;
+    let want = tiles.checked_mul(4 + TILE * TILE * 6).ok_or_else(|| DecodeError("tile count overflows".into()))?;
+    let raw = if b[1] & FLAG_DEFLATE != 0 {
+        let mut out = Vec::with_capacity(want.min(1 << 28));
+        flate2::read::DeflateDecoder::new(payload)
+            .take(want as u64 + 1)
+            .read_to_end(&mut out)
+            .map_err(|e| DecodeError(format!("DEFLATE: {e}")))?;
+        out
+    } else {
+        payload.to_vec()
+    };
+    if raw.len() != want {
+        return Err(DecodeError(format!("{} payload bytes for {tiles} tiles (want {want})", raw.len())));
+    }
+    let pixels = &raw[tiles * 4..];
+    let list = (0..tiles)
+        .map(|t| {
+            let index = u32_at(&raw, t * 4)? as usize;
+            let px = &pixels[t * TILE * TILE * 6..(t + 1) * TILE * TILE * 6];
+            let f = |i: usize| half::f16::from_bits(u16::from_le_bytes([px[2 * i], px[2 * i + 1]])).to_f32() * scale;
+            Ok((index, (0..TILE * TILE).map(|p| Vec3::new(f(3 * p), f(3 * p + 1), f(3 * p + 2))).collect()))
+        })
+        .collect::<Result<Vec<_>, DecodeError>>()?;
+    Ok((light, generation, LightBuffer::from_tile_list(width, height, list)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn buffer(w: u32, h: u32, peak: f32) -> LightBuffer {
+        let mut dense = vec![Vec3::ZERO; (w * h) as usize];
+        // A spot in the lower right (edge tiles) and a lone pixel at the top left.
+        for y in 0..h {
+            for x in 0..w {
+                let d = ((x as f32 - 30.0).powi(2) + (y as f32 - 18.0).powi(2)).sqrt();
+                if d < 12.0 {
+                    dense[(y * w + x) as usize] = Vec3::new(1.0, 0.5, 0.25) * peak * (1.0 - d / 12.0) + 1e-4;
+                }
+            }
+        }
+        dense[0] = Vec3::new(3e-3, 0.0, 7.0);
+        LightBuffer::from_dense(w, h, &dense)
+    }
+
+    #[test]
+    fn buffer_round_trips_within_f16_precision_and_keeps_the_tile_layout() {
+        let (w, h) = (37, 29);
+        for peak in [1.0f32, 2.0e5, 1.0e-3] {
+            let b = buffer(w, h, peak);
+            let msg = encode_buffer(3, 42, &b);
+            assert_eq!(msg[0], MSG_BUFFER);
+            let (light, generation, back) = decode_buffer(&msg, w, h).unwrap();
+            assert_eq!((light, generation), (3, 42));
+            assert_eq!(back.occupied(), b.occupied(), "same tiles, same order");
+            let scale = buffer_scale(&b);
+            for (a, z) in b.to_dense().iter().zip(back.to_dense()) {
+                for c in 0..3 {
+                    // f16: 11 significant bits (relative 2^-11), subnormals below 2^-14 · scale.
+                    let tol = a[c].abs() * 2f32.powi(-11) + scale * 2f32.powi(-24);
+                    assert!((a[c] - z[c]).abs() <= tol, "peak {peak}: {} vs {}", a[c], z[c]);
+                    assert!(z[c].is_finite());
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn tile_indices_are_row_major_over_the_grid() {
+        let (w, h) = (40, 20); // 3×2 tiles
+        let mut dense = vec![Vec3::ZERO; (w * h) as usize];
+        dense[(19 * w + 39) as usize] = Vec3::ONE; // tile (2, 1) = index 5
+        dense[(2 * w + 17) as usize] = Vec3::ONE; // tile (1, 0) = index 1
+        let msg = encode_buffer(0, 1, &LightBuffer::from_dense(w, h, &dense));
+        let flags = msg[1];
+        let payload = &msg[28..];
+        let mut raw = Vec::new();
+        if flags & 1 != 0 {
+            flate2::read::DeflateDecoder::new(payload).read_to_end(&mut raw).unwrap();
+        } else {
+            raw = payload.to_vec();
+        }
+        assert_eq!(u32_at(&msg, 16).unwrap(), 2);
+        assert_eq!((u32_at(&raw, 0).unwrap(), u32_at(&raw, 4).unwrap()), (1, 5));
+        // Tile 5's pixel (7, 3) (picture pixel (39, 19)): R at f16 offset 3 · (3·16 + 7) after the first tile.
+        let at = 8 + TILE * TILE * 6 + 6 * (3 * 16 + 7);
+        let scale = f32::from_bits(u32_at(&msg, 20).unwrap());
+        assert_eq!(half::f16::from_bits(u16::from_le_bytes([raw[at], raw[at + 1]])).to_f32() * scale, 1.0);
+    }
+
+    #[test]
+    fn malformed_buffer_messages_are_errors() {
+        let msg = encode_buffer(1, 2, &buffer(37, 29, 1.0));
+        assert!(decode_buffer(&msg[..20], 37, 29).is_err());
+        assert!(decode_buffer(&msg[..msg.len() - 1], 37, 29).is_err());
+        let mut lie = msg.to_vec();
+        lie[16] = lie[16].wrapping_add(1); // one more tile than the payload holds
+        assert!(decode_buffer(&lie, 37, 29).is_err());
+        lie[16..20].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert!(decode_buffer(&lie, 37, 29).is_err());
+        assert!(decode_buffer(&encode_cleared(1, 2), 37, 29).is_err());
+    }
+
+    #[test]
+    fn frame_message_layout() {
+        let display = Display::default();
+        let frame = Frame {
+            number: 7,
+            width: 4,
+            height: 2,
+            rgb: Arc::new(vec![0; 24]),
+            intensity: Arc::new(vec![]),
+            composite_time: Duration::ZERO,
+            update: Default::default(),
+            k: Arc::new(vec![Vec3::new(1.0, 2.0, 3.0), Vec3::splat(0.5)]),
+            buffers: Arc::new(vec![]),
+            display,
+        };
+        let m = encode_frame(&frame);
+        assert_eq!(m.len(), 32 + 2 * 16);
+        assert_eq!((m[0], u32_at(&m, 4).unwrap(), u64_at(&m, 8).unwrap()), (MSG_FRAME, 2, 7));
+        assert_eq!(f32::from_bits(u32_at(&m, 16).unwrap()), display.exposure);
+        assert_eq!(f32::from_bits(u32_at(&m, 28).unwrap()), display.white_balance.z);
+        let f = |i: usize| f32::from_bits(u32_at(&m, 32 + 4 * i).unwrap());
+        assert_eq!([f(0), f(1), f(2), f(3), f(4)], [1.0, 2.0, 3.0, 1.0, 0.5]);
+        let h = encode_hello(&frame, Mode::Pictures);
+        assert_eq!((h.len(), h[0], h[1], h[2], u32_at(&h, 4).unwrap()), (36, MSG_HELLO, VERSION, 1, 4));
+    }
+}

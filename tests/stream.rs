@@ -1,0 +1,533 @@
+//! The browser stream (issue 17): headless Chromium composites the paper
+//! rig from the buffer stream and its canvas equals the server's frame
+//! within 1 code value at several DMX states, with dimmer changes reaching
+//! the canvas without any buffer message; a client that stops reading is
+//! skipped, then dropped, with at most one message held for it; malformed
+//! and oversized client messages close only that connection; pictures mode
+//! pushes the server's PNG. Real sockets need real time: every wait is a
+//! generous upper bound (the assertions are about what happens, never how
+//! fast).
+
+use crate::common::*;
+use footlight::live::{DaemonConfig, DmxSource, Frame, Show};
+use footlight::render::buffer::LightBuffer;
+use footlight::render::composite::UpdateStats;
+use footlight::render::display::Display;
+use footlight::serve::stream::{self, MSG_BUFFER, MSG_FRAME, MSG_HELLO, MSG_PICTURE};
+use footlight::serve::{ServeConfig, ServeState, Server};
+use glam::Vec3;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tokio_tungstenite::tungstenite::{self, Message};
+
+const W: u32 = 160;
+const H: u32 = 100;
+
+/// The daemon over the bundled stage with the paper rig, Art-Net on loopback.
+struct Daemon {
+    http: SocketAddr,
+    artnet: SocketAddr,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Daemon {
+    fn start() -> Self {
+        let (tx, rx) = std::sync::mpsc::channel();
+        let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+        let thread = std::thread::spawn(move || {
+            let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+            rt.block_on(async move {
+                let scene = Arc::new(stage());
+                let camera = scene.camera.unwrap();
+                let patch = footlight::Patch::load(&root().join("patch/paper-rig.toml")).expect("paper rig");
+                let listener = footlight::live::bind_http("127.0.0.1:0".parse().unwrap()).await.unwrap();
+                let http = listener.local_addr().unwrap();
+                let dmx = DmxSource::Network {
+                    artnet: Some(footlight_dmx::artnet::ArtNetConfig {
+                        bind: "127.0.0.1:0".parse().unwrap(),
+                        ..Default::default()
+                    }),
+                    sacn: None,
+                    usbpro: None,
+                };
+                let mut config = DaemonConfig {
+                    width: W,
+                    height: H,
+                    fps: 60.0,
+                    compositor: footlight::gpu::CompositorChoice::Cpu,
+                    ..DaemonConfig::default()
+                };
+                config.tracer.build.photons = None;
+                config.tracer.build.refine_passes = 0;
+                let (running_tx, running_rx) = std::sync::mpsc::channel();
+                let daemon = footlight::live::Daemon::new(scene, Arc::new(Show::new(patch)), camera, config)
+                    .input(dmx)
+                    .serve(listener)
+                    .on_running(running_tx);
+                let announce = std::thread::spawn(move || {
+                    let handle = running_rx.recv().unwrap();
+                    tx.send((http, handle.dmx.and_then(|d| d.artnet).unwrap())).unwrap();
+                });
+                daemon
+                    .run(async {
+                        let _ = stop_rx.await;
+                    })
+                    .await
+                    .unwrap();
+                announce.join().unwrap();
+            });
+        });
+        let (http, artnet) = rx.recv_timeout(Duration::from_secs(120)).unwrap();
+        Self { http, artnet, stop: Some(stop_tx), thread: Some(thread) }
+    }
+
+    fn status(&self) -> serde_json::Value {
+        serde_json::from_slice(&http_get(self.http, "/api/status").1).unwrap()
+    }
+
+    /// Sends the six dimmers and waits until every light is built.
+    fn set(&self, sock: &std::net::UdpSocket, levels: [u8; 6]) -> serde_json::Value {
+        let mut slots = [0u8; 512];
+        slots[..6].copy_from_slice(&levels);
+        sock.send_to(&art_dmx(0, 0, &slots), self.artnet).unwrap();
+        let t = Instant::now();
+        loop {
+            let s = self.status();
+            let dmx_in = s["lights"]
+                .as_array()
+                .is_some_and(|l| l.iter().zip(levels).all(|(l, v)| l["dmx"][0] == v && l["stage"] == "ready"));
+            if dmx_in {
+                std::thread::sleep(Duration::from_millis(100));
+                return self.status();
+            }
+            assert!(t.elapsed() < Duration::from_secs(120), "never ready: {s}");
+            std::thread::sleep(Duration::from_millis(30));
+        }
+    }
+}
+
+impl Drop for Daemon {
+    fn drop(&mut self) {
+        if let Some(stop) = self.stop.take() {
+            let _ = stop.send(());
+        }
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// Headless Chromium driven over the DevTools protocol (loopback only).
+struct Browser {
+    child: std::process::Child,
+    ws: tungstenite::WebSocket<tungstenite::stream::MaybeTlsStream<std::net::TcpStream>>,
+    id: u64,
+}
+
+impl Browser {
+    fn open(chromium: &str, url: &str) -> Self {
+        static N: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+        let n = N.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let dir = std::env::temp_dir().join(format!("footlight-stream-{}-{n}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let child = std::process::Command::new(chromium)
+            .args(["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run"])
+            .args(["--disable-background-networking", "--disable-component-update", "--disable-sync"])
+            .args(["--remote-debugging-address=127.0.0.1", "--remote-debugging-port=0", "--window-size=900,700"])
+            .arg(format!("--user-data-dir={}", dir.display()))
+            .arg(url)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        let t = Instant::now();
+        let port: u16 = loop {
+            if let Some(p) = std::fs::read_to_string(dir.join("DevToolsActivePort"))
+                .ok()
+                .and_then(|s| s.lines().next().and_then(|l| l.trim().parse().ok()))
+            {
+                break p;
+            }
+            assert!(t.elapsed() < Duration::from_secs(60), "Chromium did not open its DevTools port");
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        let devtools = SocketAddr::from(([127, 0, 0, 1], port));
+        let page = loop {
+            let list = devtools_list(devtools);
+            if let Some(p) = list.as_array().unwrap().iter().find(|p| p["type"] == "page" && p["url"] == url) {
+                break p["webSocketDebuggerUrl"].as_str().unwrap().to_string();
+            }
+            assert!(t.elapsed() < Duration::from_secs(60), "no page in {list}");
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        let (ws, _) = tungstenite::connect(page).unwrap();
+        Self { child, ws, id: 0 }
+    }
+
+    /// Evaluates `expr` (a promise is awaited) and returns its JSON value;
+    /// tries again while the page is still loading (its context replaced).
+    fn eval(&mut self, expr: &str) -> serde_json::Value {
+        for _ in 0..100 {
+            match self.try_eval(expr) {
+                Ok(v) => return v,
+                Err(e) => eprintln!("DevTools: {e}; trying again"),
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        panic!("{expr}: the page never answered");
+    }
+
+    fn try_eval(&mut self, expr: &str) -> Result<serde_json::Value, serde_json::Value> {
+        self.id += 1;
+        let msg = serde_json::json!({"id": self.id, "method": "Runtime.evaluate",
+            "params": {"expression": expr, "awaitPromise": true, "returnByValue": true}});
+        self.ws.send(Message::text(msg.to_string())).unwrap();
+        loop {
+            let Message::Text(t) = self.ws.read().unwrap() else { continue };
+            let v: serde_json::Value = serde_json::from_str(&t).unwrap();
+            if v["id"] == self.id {
+                if !v["error"].is_null() {
+                    return Err(v);
+                }
+                assert!(v["result"]["exceptionDetails"].is_null(), "{expr}: {v}");
+                return Ok(v["result"]["result"]["value"].clone());
+            }
+        }
+    }
+
+    /// Waits (in the page, up to 60 s) until the canvas shows frame `number`
+    /// or later with nothing left to composite; returns the probe and pixels.
+    fn settled(&mut self, number: u64) -> serde_json::Value {
+        self.eval(&format!(
+            "new Promise((ok, fail) => {{ const t0 = performance.now(); const t = () => {{
+               const f = window.__footlight;
+               if (f && f.frame >= {number} && f.composites > 0 && f.busy === 0 && !f.dirty) {{
+                 requestAnimationFrame(() => ok({{ counts: f.counts, mode: f.mode, frame: f.frame, webgl: f.webgl,
+                   error: f.error, pixels: f.pixels() }}));
+               }} else if (performance.now() - t0 > 60000) {{ fail(new Error(JSON.stringify(f))); }}
+               else setTimeout(t, 20); }}; t(); }})"
+        ))
+    }
+}
+
+/// `GET /json/list` of the DevTools HTTP endpoint (it keeps the connection
+/// open, so the body is read by its Content-Length).
+fn devtools_list(addr: SocketAddr) -> serde_json::Value {
+    use std::io::{BufRead, BufReader, Read, Write};
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    write!(s, "GET /json/list HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
+    let mut r = BufReader::new(s);
+    let mut len = 0;
+    loop {
+        let mut line = String::new();
+        r.read_line(&mut line).unwrap();
+        if let Some(v) = line.to_ascii_lowercase().strip_prefix("content-length:") {
+            len = v.trim().parse().unwrap();
+        }
+        if line.trim().is_empty() {
+            break;
+        }
+    }
+    let mut body = vec![0; len];
+    r.read_exact(&mut body).unwrap();
+    serde_json::from_slice(&body).unwrap()
+}
+
+impl Drop for Browser {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn chromium() -> Option<&'static str> {
+    let found = ["chromium", "chromium-browser"]
+        .into_iter()
+        .find(|c| std::process::Command::new(c).arg("--version").output().map(|o| o.status.success()).unwrap_or(false));
+    if found.is_none() {
+        assert!(std::env::var_os("FOOTLIGHT_REQUIRE_BROWSER").is_none(), "chromium required but not installed");
+        eprintln!("skipping: chromium not installed");
+    }
+    found
+}
+
+fn canvas(v: &serde_json::Value) -> Vec<u8> {
+    let p = &v["pixels"];
+    assert_eq!((p["width"].as_u64(), p["height"].as_u64()), (Some(W as u64), Some(H as u64)), "{v}");
+    base64::decode(p["rgb"].as_str().unwrap()).unwrap()
+}
+
+#[test]
+fn chromium_composites_the_paper_rig_from_the_buffer_stream_like_the_server() {
+    let Some(chromium) = chromium() else { return };
+    let daemon = Daemon::start();
+    let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let states = [[255, 128, 200, 0, 60, 255], [40, 255, 0, 255, 255, 10], [0, 0, 0, 0, 0, 0], [255; 6]];
+    let status = daemon.set(&sock, states[0]);
+    let mut browser = Browser::open(chromium, &format!("http://{}/", daemon.http));
+    let mut buffers_after_connect = None;
+    let mut pictures: Vec<Vec<u8>> = Vec::new();
+    let mut number = status["frame"].as_u64().unwrap();
+    for (i, levels) in states.iter().enumerate() {
+        if i > 0 {
+            number = daemon.set(&sock, *levels)["frame"].as_u64().unwrap();
+        }
+        let page = browser.settled(number);
+        assert_eq!(page["mode"], "buffers", "the page composites on its GPU: {page}");
+        let got = canvas(&page);
+        let want = image::load_from_memory(&http_get(daemon.http, "/api/frame.png").1).unwrap().to_rgb8();
+        let worst = got.iter().zip(want.as_raw()).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
+        let off = got.iter().zip(want.as_raw()).filter(|(a, b)| a.abs_diff(**b) > 1).count();
+        assert!(worst <= 1, "state {levels:?}: {off} channel values differ by more than 1 (worst {worst})");
+        // Every light's buffer came once; the dimmer changes after it sent none.
+        let buffers = page["counts"]["buffer"].as_u64().unwrap() + page["counts"]["cleared"].as_u64().unwrap();
+        assert_eq!(*buffers_after_connect.get_or_insert(buffers), buffers, "state {levels:?}: a buffer was re-sent");
+        assert_eq!(buffers, 6, "one buffer per light of the paper rig");
+        pictures.push(got);
+    }
+    // The states differ on screen (the comparison above could fail).
+    assert!(pictures.windows(2).all(|p| p[0] != p[1]));
+    assert!(pictures[2].iter().all(|&c| c == 0), "all dimmers at 0 is black");
+    let s = daemon.status();
+    assert_eq!(s["stream"]["buffer_messages"], 6, "server side: {}", s["stream"]);
+    assert!(s["stream"]["frame_messages"].as_u64().unwrap() >= states.len() as u64);
+    drop(browser);
+    // The fallback: the page asks for pushed pictures and shows the server's PNG.
+    let mut browser = Browser::open(chromium, &format!("http://{}/?pictures", daemon.http));
+    let shown = browser.eval(
+        "new Promise((ok, fail) => { const t0 = performance.now(); const t = () => {
+           const f = window.__footlight, img = document.getElementById('stage');
+           if (f && f.counts.picture > 0 && img.complete && img.naturalWidth > 0 && img.src.startsWith('blob:')) {
+             const c = document.createElement('canvas'); c.width = img.naturalWidth; c.height = img.naturalHeight;
+             const g = c.getContext('2d'); g.drawImage(img, 0, 0);
+             const d = g.getImageData(0, 0, c.width, c.height).data; let sum = 0;
+             for (let i = 0; i < d.length; i += 4) sum += d[i] + d[i + 1] + d[i + 2];
+             ok({ mode: f.mode, buffers: f.counts.buffer, width: c.width, sum });
+           } else if (performance.now() - t0 > 60000) fail(new Error(JSON.stringify(f)));
+           else setTimeout(t, 20); }; t(); })",
+    );
+    let want: u64 = image::load_from_memory(&http_get(daemon.http, "/api/frame.png").1)
+        .unwrap()
+        .to_rgb8()
+        .as_raw()
+        .iter()
+        .map(|&c| u64::from(c))
+        .sum();
+    assert_eq!((shown["mode"].as_str(), shown["buffers"].as_u64()), (Some("pictures"), Some(0)), "{shown}");
+    assert_eq!((shown["width"].as_u64(), shown["sum"].as_u64()), (Some(W as u64), Some(want)), "{shown}");
+}
+
+/// A tile-dense buffer of noise (DEFLATE cannot shrink it), `seed` varies it.
+fn noise(w: u32, h: u32, seed: u32) -> Arc<LightBuffer> {
+    let mut x = seed.wrapping_mul(2_654_435_761).wrapping_add(1);
+    let dense: Vec<Vec3> = (0..w * h)
+        .map(|_| {
+            let mut r = || {
+                x ^= x << 13;
+                x ^= x >> 17;
+                x ^= x << 5;
+                (x >> 8) as f32 / (1 << 24) as f32 + 0.01
+            };
+            Vec3::new(r(), r(), r())
+        })
+        .collect();
+    Arc::new(LightBuffer::from_dense(w, h, &dense))
+}
+
+fn frame(number: u64, w: u32, h: u32, buffer: Arc<LightBuffer>, generation: u64) -> Arc<Frame> {
+    Arc::new(Frame {
+        number,
+        width: w,
+        height: h,
+        rgb: Arc::new(vec![(number % 251) as u8; (w * h * 3) as usize]),
+        intensity: Arc::new(vec![0.0]),
+        composite_time: Duration::ZERO,
+        update: UpdateStats::default(),
+        k: Arc::new(vec![Vec3::splat(number as f32)]),
+        buffers: Arc::new(vec![(generation, buffer)]),
+        display: Display::default(),
+    })
+}
+
+/// A server over a frame channel the test drives.
+struct Running {
+    _rt: tokio::runtime::Runtime,
+    addr: SocketAddr,
+    frames: tokio::sync::watch::Sender<Arc<Frame>>,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+}
+
+fn serve(first: Arc<Frame>) -> Running {
+    let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+    let (frames, rx) = tokio::sync::watch::channel(first);
+    let listener = rt.block_on(tokio::net::TcpListener::bind("127.0.0.1:0")).unwrap();
+    let addr = listener.local_addr().unwrap();
+    let state = ServeState { frames: rx, status: Arc::new(|| serde_json::json!({})) };
+    let (stop, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    rt.spawn(Server::new(state, ServeConfig::default()).run(listener, async {
+        let _ = stop_rx.await;
+    }));
+    Running { _rt: rt, addr, frames, stop: Some(stop) }
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        if let Some(s) = self.stop.take() {
+            let _ = s.send(());
+        }
+    }
+}
+
+impl Running {
+    fn stream(&self) -> serde_json::Value {
+        serde_json::from_slice::<serde_json::Value>(&http_get(self.addr, "/api/status").1).unwrap()["stream"].clone()
+    }
+
+    fn connect(&self, query: &str) -> tungstenite::WebSocket<tungstenite::stream::MaybeTlsStream<std::net::TcpStream>> {
+        let (ws, _) = tungstenite::connect(format!("ws://{}/api/stream{query}", self.addr)).unwrap();
+        if let tungstenite::stream::MaybeTlsStream::Plain(s) = ws.get_ref() {
+            s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+        }
+        ws
+    }
+}
+
+fn binary(ws: &mut tungstenite::WebSocket<tungstenite::stream::MaybeTlsStream<std::net::TcpStream>>) -> Vec<u8> {
+    loop {
+        match ws.read().unwrap() {
+            Message::Binary(b) => return b.to_vec(),
+            Message::Ping(_) | Message::Pong(_) => continue,
+            other => panic!("expected a binary message, got {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn a_client_that_stops_reading_is_skipped_then_dropped_holding_one_message_at_most() {
+    let (w, h) = (256, 256);
+    let server = serve(frame(0, w, h, noise(w, h, 0), 0));
+    let mut ws = server.connect("?stall_ms=500");
+    assert_eq!(binary(&mut ws)[0], MSG_HELLO);
+    let first = binary(&mut ws);
+    assert_eq!(first[0], MSG_BUFFER);
+    let message = first.len() as u64;
+    assert!(message > (w * h * 6) as u64, "noise does not compress: {message} bytes");
+    // Stop reading. Every frame rebuilds the light: ~400 kB per frame, 100 MB in all.
+    let buffers: Vec<_> = (1..4).map(|s| noise(w, h, s)).collect();
+    let t = Instant::now();
+    let mut n = 0u64;
+    while server.stream()["dropped_stalled"] == 0 {
+        n += 1;
+        server.frames.send_replace(frame(n, w, h, buffers[n as usize % 3].clone(), n));
+        let s = server.stream();
+        // The server never holds more than one message for the client.
+        assert!(s["pending_bytes"].as_u64().unwrap() <= message + 64, "{s}");
+        assert!(t.elapsed() < Duration::from_secs(60), "never dropped: {s}");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let s = server.stream();
+    assert!(s["max_pending_per_client"].as_u64().unwrap() <= message + 64, "{s}");
+    assert!(s["frames_skipped"].as_u64().unwrap() > 0, "{s}");
+    assert!(s["bytes_sent"].as_u64().unwrap() < n * message, "sent less than published: {s} after {n} frames");
+    assert_eq!(s["open"], 0, "{s}");
+    assert_eq!(s["pending_bytes"], 0, "{s}");
+    drop(ws);
+}
+
+#[test]
+fn malformed_and_oversized_client_messages_close_that_connection_only() {
+    let (w, h) = (32, 16);
+    let buffer = noise(w, h, 9);
+    let server = serve(frame(0, w, h, buffer.clone(), 0));
+    let mut good = server.connect("");
+    let mut text = server.connect("");
+    let mut big = server.connect("");
+    for ws in [&mut good, &mut text, &mut big] {
+        assert_eq!(binary(ws)[0], MSG_HELLO);
+        let b = binary(ws);
+        // The buffer decodes to the frame's buffer within f16 precision.
+        let (_, generation, back) = stream::decode_buffer(&b, w, h).unwrap();
+        assert_eq!(generation, 0);
+        for (a, z) in buffer.to_dense().iter().zip(back.to_dense()) {
+            assert!((*a - z).abs().max_element() <= a.max_element() * 2f32.powi(-11), "{a} vs {z}");
+        }
+        assert_eq!(binary(ws)[0], MSG_FRAME);
+    }
+    text.send(Message::text("hello")).unwrap();
+    let _ = big.send(Message::binary(vec![0u8; 1 << 20])); // the server may close before reading it all
+    let closed = |ws: &mut tungstenite::WebSocket<_>| loop {
+        match ws.read() {
+            Ok(Message::Close(c)) => return c.map(|c| u16::from(c.code)),
+            Ok(_) => continue,
+            Err(_) => return None,
+        }
+    };
+    assert_eq!(closed(&mut text), Some(1003), "a text message is outside the protocol");
+    let _ = closed(&mut big);
+    // The well-behaved client still streams: a dimmer change is a k message only.
+    server.frames.send_replace(frame(1, w, h, buffer, 0));
+    let k = binary(&mut good);
+    assert_eq!(k[0], MSG_FRAME);
+    assert_eq!(f32::from_le_bytes([k[32], k[33], k[34], k[35]]), 1.0);
+    // A page of another site may not open the stream (cross-site WebSocket).
+    let mut req =
+        tungstenite::client::IntoClientRequest::into_client_request(format!("ws://{}/api/stream", server.addr))
+            .unwrap();
+    req.headers_mut().insert("origin", "http://evil.example".parse().unwrap());
+    assert!(tungstenite::connect(req).is_err(), "a foreign Origin is refused");
+    let mut req =
+        tungstenite::client::IntoClientRequest::into_client_request(format!("ws://{}/api/stream", server.addr))
+            .unwrap();
+    req.headers_mut().insert("origin", format!("http://{}", server.addr).parse().unwrap());
+    assert!(tungstenite::connect(req).is_ok(), "the server's own pages may");
+    let s = server.stream();
+    assert_eq!(s["closed_bad_message"], 2, "{s}");
+    assert!(s["buffer_messages"].as_u64().unwrap() >= 3, "{s}");
+}
+
+#[test]
+fn pictures_mode_pushes_the_server_png_when_the_picture_changes() {
+    let (w, h) = (32, 16);
+    let buffer = noise(w, h, 3);
+    let server = serve(frame(5, w, h, buffer.clone(), 0));
+    let mut ws = server.connect("?mode=pictures");
+    let hello = binary(&mut ws);
+    assert_eq!((hello[0], hello[2]), (MSG_HELLO, 1));
+    let pic = binary(&mut ws);
+    assert_eq!(pic[0], MSG_PICTURE);
+    assert_eq!(u64::from_le_bytes(pic[4..12].try_into().unwrap()), 5);
+    let img = image::load_from_memory(&pic[12..]).unwrap().to_rgb8();
+    assert!(img.as_raw().iter().all(|&c| c == 5));
+    server.frames.send_replace(frame(6, w, h, buffer, 0));
+    let pic = binary(&mut ws);
+    assert_eq!(image::load_from_memory(&pic[12..]).unwrap().to_rgb8().as_raw()[0], 6);
+    let s = server.stream();
+    assert_eq!((s["picture_messages"].as_u64(), s["buffer_messages"].as_u64()), (Some(2), Some(0)), "{s}");
+}
+
+/// The bench section on its own (a measurement, not a check: run it with
+/// `cargo test --release --test main stream::measure -- --ignored --nocapture`).
+#[test]
+#[ignore = "a measurement (footlight bench runs it too)"]
+fn measure_stream_against_pictures_and_polling() {
+    use footlight::bench::stream::{Viewer, markdown, run};
+    let scene = Arc::new(stage());
+    let camera = scene.camera.unwrap();
+    let patch = footlight::Patch::load(&root().join("patch/paper-rig.toml")).unwrap();
+    let size = (800, 500);
+    let levels = [
+        (Viewer::None, 0),
+        (Viewer::Buffers, 20),
+        (Viewer::Pictures, 20),
+        (Viewer::Polling, 20),
+        (Viewer::Buffers, 60),
+    ];
+    let rows = run(&scene, &patch, camera, size, &levels, 8.0).unwrap();
+    println!("{}", markdown(&rows, size));
+    assert_eq!(rows.len(), levels.len());
+    assert!(rows.iter().all(|r| r.clients_served == r.clients), "every viewer was served");
+}
