@@ -507,6 +507,20 @@ fn pictures_mode_pushes_the_server_png_when_the_picture_changes() {
     assert_eq!(image::load_from_memory(&pic[12..]).unwrap().to_rgb8().as_raw()[0], 6);
     let s = server.stream();
     assert_eq!((s["picture_messages"].as_u64(), s["buffer_messages"].as_u64()), (Some(2), Some(0)), "{s}");
+    // The daemon's shutdown drops the frame channel's sender: the stream ends
+    // by itself (upgraded connections are outside the accept loop's shutdown).
+    let mut server = server;
+    server.frames = tokio::sync::watch::channel(frame(7, w, h, noise(w, h, 1), 0)).0;
+    while let Ok(m) = ws.read() {
+        if m.is_close() {
+            break;
+        }
+    }
+    let t = Instant::now();
+    while server.stream()["open"] != 0 {
+        assert!(t.elapsed() < Duration::from_secs(30), "the stream stayed open");
+        std::thread::sleep(Duration::from_millis(10));
+    }
 }
 
 /// The bench section on its own (a measurement, not a check: run it with
