@@ -246,7 +246,7 @@ pub fn run(
             let before = rx.k_changed_ns.load(Ordering::Relaxed);
             step = step.wrapping_add(1);
             let sent = epoch.elapsed();
-            send(if step % 2 == 0 { 60 } else { 180 }, 0)?;
+            send(if step.is_multiple_of(2) { 60 } else { 180 }, 0)?;
             let t = Instant::now();
             while t.elapsed() < Duration::from_millis(60) {
                 let now = rx.k_changed_ns.load(Ordering::Relaxed);
