@@ -148,6 +148,9 @@ fn idle_and_slow_connections_are_closed() {
     let mut s = connect(srv.addr);
     write!(s, "GET /api/status HTTP/1.1\r\nHost: {}\r\n\r\n", srv.addr).unwrap();
     assert!(closed_by_server(&mut s), "idle connection closed");
+    // The socket closes a moment before the connection task updates its
+    // counters: wait for them (bounded), then check both.
+    srv.wait_open(0);
     let st = srv.stats.snapshot();
     assert_eq!((st.idle_closed, st.open), (1, 0), "{st:?}");
     srv.shutdown().unwrap();
