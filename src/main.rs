@@ -475,6 +475,7 @@ fn run_daemon(
             _ = &mut stop => return Ok(()),
         };
         let camera = choose_camera(&scene, &patch);
+        let named = footlight::live::views::named_views(&camera, &scene, Some(&patch));
         let show = Arc::new(Show::new(patch));
         let display = Display::for_white_lux(args.white_lux);
         let photons = (args.photons > 0).then(|| PhotonSettings { stored: args.photons, ..PhotonSettings::default() });
@@ -506,6 +507,7 @@ fn run_daemon(
         let mut daemon = Daemon::new(Arc::new(scene), show.clone(), camera, config)
             .input(source)
             .serve(listener)
+            .named_views(named)
             .on_running(running_tx);
         if let Some(tap) = tap {
             daemon = daemon.frames_tap(tap);
@@ -513,7 +515,13 @@ fn run_daemon(
         let universes = show.universes();
         let announce = tokio::task::spawn_blocking(move || {
             if let Ok(handle) = running_rx.recv() {
-                println!("Footlight preview: http://{http}/");
+                match &handle.http_token {
+                    // The page keeps the token from its address and sends it with camera writes.
+                    Some(token) => println!(
+                        "Footlight preview: http://{http}/  (camera control from other machines: http://{http}/?token={token})"
+                    ),
+                    None => println!("Footlight preview: http://{http}/"),
+                }
                 if let Some(dmx) = handle.dmx {
                     let on = |a: Option<std::net::SocketAddr>| a.map_or("off".to_string(), |a| a.to_string());
                     println!(

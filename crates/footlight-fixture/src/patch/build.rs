@@ -40,6 +40,7 @@ pub(super) fn build(path: &Path, text: &str) -> Result<Patch, Vec<PatchError>> {
     if let Some(h) = &haze {
         h.write_look(&mut look_universes);
     }
+    let views = super::views::build_views(path, text, &file, &mut b.errors);
     if !b.errors.is_empty() {
         return Err(b.errors);
     }
@@ -64,6 +65,7 @@ pub(super) fn build(path: &Path, text: &str) -> Result<Patch, Vec<PatchError>> {
         look_universes,
         gels,
         haze,
+        views,
         warnings,
     })
 }
