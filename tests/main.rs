@@ -36,3 +36,5 @@ mod scene_import;
 mod fuzz_import;
 // The preview server under hostile clients: timeouts, limits, Host check, shared encodes.
 mod serve;
+// Walking the stage: camera moves keep photon maps, cached views, orbit with DMX, write policy.
+mod views;

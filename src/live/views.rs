@@ -157,8 +157,9 @@ struct CacheEntry {
 }
 
 /// LRU cache of views left behind, bounded by bytes (the view's G-buffer
-/// and camera paths plus the light buffers it keeps). The key is the exact
-/// camera, compared with `==`.
+/// and camera paths plus the light buffers it keeps). The key is the camera,
+/// matched by [`same_camera`] (a pose that went through JSON or degrees and
+/// back differs from the original in the last bits only).
 pub struct ViewCache {
     entries: Vec<CacheEntry>,
     budget: usize,
@@ -175,7 +176,7 @@ impl ViewCache {
 
     /// Takes the entry for exactly `camera` out (it becomes the current view).
     pub fn take(&mut self, camera: &Camera) -> Option<(Arc<View>, Vec<Option<Kept>>)> {
-        match self.entries.iter().position(|e| e.camera == *camera) {
+        match self.entries.iter().position(|e| same_camera(&e.camera, camera)) {
             Some(i) => {
                 self.hits += 1;
                 let e = self.entries.swap_remove(i);
@@ -194,7 +195,7 @@ impl ViewCache {
         let buffers: usize =
             kept.iter().flatten().filter(|k| seen.insert(Arc::as_ptr(&k.buffer))).map(|k| k.buffer.bytes()).sum();
         let bytes = view.bytes() + buffers;
-        self.entries.retain(|e| e.camera != camera);
+        self.entries.retain(|e| !same_camera(&e.camera, &camera));
         if bytes > self.budget {
             return;
         }
@@ -493,7 +494,7 @@ impl Views {
             if st.phase != Phase::Moving || !still {
                 return Ok(());
             }
-            if st.target == st.active {
+            if same_camera(&st.target, &st.active) {
                 // Back where it started before settling: nothing to build.
                 st.phase = Phase::Still;
                 drop(st);
@@ -538,6 +539,14 @@ impl Views {
         tracing::info!("view changed: {restored} of {} lights restored from the view cache", self.tracer.len());
         Ok(())
     }
+}
+
+/// True when two cameras see the same picture up to float rounding: eye
+/// within 1e-5 m, basis vectors within 1e-5, field of view within 1e-6 rad.
+pub fn same_camera(a: &Camera, b: &Camera) -> bool {
+    a.position.abs_diff_eq(b.position, 1e-5)
+        && a.basis.abs_diff_eq(b.basis, 1e-5)
+        && (a.yfov - b.yfov).abs() <= 1e-6
 }
 
 /// Orders stages from least to most advanced.
