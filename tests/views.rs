@@ -389,3 +389,98 @@ async fn camera_writes_need_the_token_from_another_machine_but_not_from_loopback
     let _ = stop_tx.send(());
     serving.await.unwrap().unwrap();
 }
+
+#[test]
+fn headless_chromium_drags_on_the_page_and_the_picture_changes() {
+    let chromium = ["chromium", "chromium-browser"]
+        .into_iter()
+        .find(|c| std::process::Command::new(c).arg("--version").output().map(|o| o.status.success()).unwrap_or(false));
+    let Some(chromium) = chromium else {
+        assert!(std::env::var_os("FOOTLIGHT_REQUIRE_BROWSER").is_none(), "chromium required but not installed");
+        eprintln!("skipping: chromium not installed");
+        return;
+    };
+    let (tx, rx) = std::sync::mpsc::channel();
+    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let thread = std::thread::spawn(move || {
+        let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+        rt.block_on(async move {
+            let listener = footlight::live::bind_http("127.0.0.1:0".parse().unwrap()).await.unwrap();
+            let http = listener.local_addr().unwrap();
+            let (_dmx_tx, dmx_rx) = watch::channel(merged(255, 128));
+            let config = DaemonConfig {
+                width: 160,
+                height: 100,
+                fps: 30.0,
+                display: Display::neutral(1000.0),
+                compositor: CompositorChoice::Cpu,
+                tracer: tracer_settings(),
+                ..DaemonConfig::default()
+            };
+            let (run_tx, run_rx) = std::sync::mpsc::channel();
+            let daemon = Daemon::with_decoder(scene(), Arc::new(OneSpot), start_camera(), config)
+                .input(DmxSource::Channel(dmx_rx))
+                .serve(listener)
+                .on_running(run_tx);
+            let announce = tokio::task::spawn_blocking(move || {
+                let handle = run_rx.recv().unwrap();
+                tx.send((http, handle)).unwrap();
+            });
+            daemon
+                .run(async move {
+                    let _ = stop_rx.await;
+                })
+                .await
+                .unwrap();
+            let _ = announce.await;
+        });
+    });
+    let (http, handle) = rx.recv().unwrap();
+    let wait_still = || {
+        let t = Instant::now();
+        loop {
+            let s = (handle.status)();
+            if s.view.phase == Phase::Still
+                && s.lights.iter().all(|l| l.build.as_ref().is_some_and(|b| b.stage == Stage::Ready))
+            {
+                std::thread::sleep(Duration::from_millis(200));
+                return s;
+            }
+            assert!(t.elapsed() < Duration::from_secs(60), "never ready: {:?}", s.view);
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    };
+    let shot = |name: &str, query: &str| -> image::RgbImage {
+        let dir = std::env::temp_dir().join(format!("footlight-views-{}-{name}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("shot.png");
+        let o = std::process::Command::new(chromium)
+            .args(["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run"])
+            .args(["--disable-background-networking", "--disable-component-update", "--disable-sync"])
+            .arg(format!("--user-data-dir={}", dir.join("profile").display()))
+            .arg(format!("--screenshot={}", file.display()))
+            .args(["--window-size=900,400", "--virtual-time-budget=3000"])
+            .arg(format!("http://{http}/{query}"))
+            .output()
+            .unwrap();
+        assert!(file.exists(), "no screenshot: {}", String::from_utf8_lossy(&o.stderr));
+        let img = image::open(&file).unwrap().to_rgb8();
+        let _ = std::fs::remove_dir_all(&dir);
+        img
+    };
+    wait_still();
+    let before = shot("before", "");
+    assert_eq!((handle.status)().view.writes, 0, "loading the page writes nothing");
+    let after = shot("drag", "?selftest=drag");
+    let s = (handle.status)();
+    assert!(s.view.writes >= 5, "the drag wrote camera moves: {:?}", s.view);
+    assert_ne!(s.view.current.position, Pose::of(&start_camera()).position, "the camera moved");
+    // The picture (top left of the page, where the stage image sits) changed.
+    let crop = |img: &image::RgbImage| -> Vec<u8> {
+        (0..100u32).flat_map(|y| (0..160u32).flat_map(move |x| img.get_pixel(x + 12, y + 12).0)).collect()
+    };
+    assert!(crop(&before).iter().any(|&c| c > 30), "the stage shows in the page");
+    assert_ne!(crop(&before), crop(&after), "the drag changed the picture");
+    let _ = stop_tx.send(());
+    thread.join().unwrap();
+}
