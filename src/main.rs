@@ -438,15 +438,15 @@ fn run(args: RunArgs) -> Result<()> {
     let tap = args.window.then_some(tap_tx);
     let (close_tx, close_rx) = tokio::sync::oneshot::channel::<()>();
     let daemon = std::thread::spawn(move || run_daemon(args, tap, close_rx));
-    if let Ok(frames) = tap_rx.recv() {
+    if let Ok((frames, views)) = tap_rx.recv() {
         #[cfg(feature = "window")]
         {
-            let shown = footlight::window::show(frames);
+            let shown = footlight::window::show(frames, Some(views));
             let _ = close_tx.send(());
             shown?;
         }
         #[cfg(not(feature = "window"))]
-        drop((frames, close_tx));
+        drop((frames, views, close_tx));
     }
     daemon.join().map_err(|_| anyhow::anyhow!("the daemon thread panicked (a bug; please report it)"))?
 }
@@ -454,7 +454,7 @@ fn run(args: RunArgs) -> Result<()> {
 /// The daemon on its own tokio runtime; returns when a signal or `close` (the window) stops it.
 fn run_daemon(
     args: RunArgs,
-    tap: Option<std::sync::mpsc::Sender<tokio::sync::watch::Receiver<Arc<footlight::live::Frame>>>>,
+    tap: Option<std::sync::mpsc::Sender<footlight::live::daemon::FramesTap>>,
     close: tokio::sync::oneshot::Receiver<()>,
 ) -> Result<()> {
     runtime()?.block_on(async move {

@@ -254,6 +254,9 @@ pub struct DaemonStatus {
     pub lights: Vec<LightStatus>,
 }
 
+/// What [`Daemon::frames_tap`] hands a window: the frames and the camera control.
+pub type FramesTap = (watch::Receiver<Arc<Frame>>, Arc<Views>);
+
 /// The daemon, built up and then [`run`](Daemon::run).
 pub struct Daemon {
     scene: Arc<Scene>,
@@ -263,7 +266,7 @@ pub struct Daemon {
     config: DaemonConfig,
     source: DmxSource,
     listener: Option<tokio::net::TcpListener>,
-    tap: Option<std::sync::mpsc::Sender<watch::Receiver<Arc<Frame>>>>,
+    tap: Option<std::sync::mpsc::Sender<FramesTap>>,
     bound: Option<std::sync::mpsc::Sender<DaemonHandle>>,
     named: Vec<NamedView>,
 }
@@ -337,8 +340,9 @@ impl Daemon {
         self
     }
 
-    /// Sends the published frames' channel to `tap` once running (a window).
-    pub fn frames_tap(mut self, tap: std::sync::mpsc::Sender<watch::Receiver<Arc<Frame>>>) -> Self {
+    /// Sends the published frames' channel and the camera control to `tap`
+    /// once running (a window).
+    pub fn frames_tap(mut self, tap: std::sync::mpsc::Sender<FramesTap>) -> Self {
         self.tap = Some(tap);
         self
     }
@@ -535,7 +539,7 @@ impl Daemon {
             });
         }
         if let Some(tap) = tap {
-            let _ = tap.send(frames_rx.clone());
+            let _ = tap.send((frames_rx.clone(), views.clone()));
         }
         if let Some(bound) = bound {
             let _ = bound.send(DaemonHandle {

@@ -101,6 +101,51 @@ impl Pose {
     }
 }
 
+impl Pose {
+    /// Turns the eye around the target: `yaw` about world +Y, `pitch` up
+    /// (radians); the distance to the target is kept and the pitch stays
+    /// within ±86° so the view never flips over the pole.
+    pub fn orbit(&self, yaw: f32, pitch: f32) -> Self {
+        let (p, t) = (Vec3::from_array(self.position), Vec3::from_array(self.target));
+        let off = p - t;
+        let r = off.length();
+        if !(r > 0.0) {
+            return *self;
+        }
+        let limit = 1.5f32;
+        let (y0, p0) = (off.x.atan2(off.z), (off.y / r).clamp(-1.0, 1.0).asin());
+        let (y1, p1) = (y0 - yaw, (p0 + pitch).clamp(-limit, limit));
+        let o = Vec3::new(r * p1.cos() * y1.sin(), r * p1.sin(), r * p1.cos() * y1.cos());
+        Self { position: (t + o).to_array(), ..*self }
+    }
+
+    /// Moves eye and target together by `right` and `up` metres in the
+    /// camera's own axes.
+    pub fn pan(&self, right: f32, up: f32) -> Self {
+        let (p, t) = (Vec3::from_array(self.position), Vec3::from_array(self.target));
+        let Ok(camera) = self.camera() else { return *self };
+        let shift = camera.basis.x_axis * right + camera.basis.y_axis * up;
+        Self { position: (p + shift).to_array(), target: (t + shift).to_array(), ..*self }
+    }
+
+    /// Scales the eye's distance to the target by `factor` (kept within 0.2-500 m).
+    pub fn dolly(&self, factor: f32) -> Self {
+        let (p, t) = (Vec3::from_array(self.position), Vec3::from_array(self.target));
+        let off = p - t;
+        let r = (off.length() * factor).clamp(0.2, 500.0);
+        match off.try_normalize() {
+            Some(dir) if r.is_finite() => Self { position: (t + dir * r).to_array(), ..*self },
+            _ => *self,
+        }
+    }
+
+    /// Scales the field of view by `factor` (kept within 5-120°).
+    pub fn zoom(&self, factor: f32) -> Self {
+        let fov = self.fov_y * factor;
+        if fov.is_finite() { Self { fov_y: fov.clamp(5.0, 120.0), ..*self } } else { *self }
+    }
+}
+
 /// Where a named view comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -603,4 +648,57 @@ pub fn preview(
         }
     });
     full
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pose() -> Pose {
+        Pose { position: [0.0, 5.0, 6.0], target: [0.0, 1.0, 0.0], fov_y: 40.0 }
+    }
+
+    fn dist(p: &Pose) -> f32 {
+        Vec3::from_array(p.position).distance(Vec3::from_array(p.target))
+    }
+
+    #[test]
+    fn orbit_keeps_the_distance_and_a_full_turn_comes_back() {
+        let p = pose();
+        let mut q = p;
+        for _ in 0..8 {
+            q = q.orbit(std::f32::consts::FRAC_PI_4, 0.0);
+            assert!((dist(&q) - dist(&p)).abs() < 1e-4);
+        }
+        assert!(Vec3::from_array(q.position).abs_diff_eq(Vec3::from_array(p.position), 1e-4), "{q:?}");
+        // A quarter turn to the left puts the eye on the −X side (yaw about +Y).
+        let side = p.orbit(std::f32::consts::FRAC_PI_2, 0.0);
+        assert!((side.position[0] + 6.0).abs() < 1e-4 && side.position[2].abs() < 1e-4, "{side:?}");
+        // Pitch stops short of the pole: the camera stays well defined.
+        let top = p.orbit(0.0, 10.0);
+        assert!(top.camera().unwrap().basis.is_finite());
+        assert!(top.position[1] < 1.0 + dist(&p));
+    }
+
+    #[test]
+    fn pan_moves_eye_and_target_together_sideways_and_dolly_and_zoom_stay_in_range() {
+        let p = pose();
+        let q = p.pan(1.0, 0.0);
+        let shift = Vec3::from_array(q.position) - Vec3::from_array(p.position);
+        assert!((shift - Vec3::X).length() < 1e-5, "right of a camera looking down −Z is +X: {shift}");
+        assert_eq!(Vec3::from_array(q.target) - Vec3::from_array(p.target), shift);
+        assert!((dist(&p.dolly(0.5)) - 0.5 * dist(&p)).abs() < 1e-4);
+        assert!((dist(&p.dolly(1e-9)) - 0.2).abs() < 1e-5);
+        assert_eq!(p.zoom(100.0).fov_y, 120.0);
+        assert_eq!(p.zoom(f32::NAN), p);
+    }
+
+    #[test]
+    fn poses_round_trip_through_cameras() {
+        let c = pose().camera().unwrap();
+        assert!(same_camera(&Pose::of(&c).camera().unwrap(), &c));
+        assert!(Pose { fov_y: 0.0, ..pose() }.camera().is_err());
+        assert!(Pose { target: [0.0, 5.0, 6.0], ..pose() }.camera().is_err());
+        assert!(Pose { position: [f32::NAN, 0.0, 0.0], ..pose() }.camera().is_err());
+    }
 }
