@@ -309,6 +309,9 @@ struct BenchArgs {
     /// Output folder (default bench/runs/<date>-<host>/).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Only the "walking the stage" section (issue 16), printed as Markdown.
+    #[arg(long)]
+    walk_only: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -341,6 +344,17 @@ fn main() -> std::process::ExitCode {
 fn bench_command(args: BenchArgs) -> Result<()> {
     let (scene, patch) = load_inputs(&args.input)?;
     let camera = choose_camera(&scene, &patch);
+    if args.walk_only {
+        let (size, seconds, photons) = if args.quick {
+            ((200, 125), 1.0, 0)
+        } else {
+            ((800, 500), 5.0, footlight::render::photon::PhotonSettings::default().stored)
+        };
+        let walk = bench::walk::run(&Arc::new(scene), &patch, camera, size, seconds, photons)
+            .map_err(|e| anyhow::anyhow!("walking the stage: {e}"))?;
+        println!("{}", walk.markdown());
+        return Ok(());
+    }
     let out = args.out.unwrap_or_else(bench::default_out_dir);
     let config = bench::BenchConfig::new(args.quick, resolve(&args.input.scene));
     let report = bench::run(&scene, &patch, camera, &config, &out)?;

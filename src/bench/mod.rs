@@ -15,6 +15,7 @@ pub mod plots;
 pub mod scale;
 pub mod stress;
 pub mod sweeps;
+pub mod walk;
 
 use crate::Patch;
 use crate::render::buffer::LightBuffer;
@@ -129,6 +130,8 @@ pub struct Report {
     pub chase: Option<chase::ChaseReport>,
     /// Issues 12/17: the frame clock under N preview clients.
     pub clients: Vec<clients::ClientsRow>,
+    /// Issue 16: moving the camera, settling, returning to a cached view.
+    pub walk: Option<walk::WalkReport>,
 }
 
 /// One point of a run-time-versus-error curve.
@@ -347,6 +350,9 @@ impl Report {
         }
         if !self.clients.is_empty() {
             s += &clients::markdown(&self.clients);
+        }
+        if let Some(w) = &self.walk {
+            s += &w.markdown();
         }
         if let Some(c) = &self.chase {
             s += &c.markdown();
@@ -799,6 +805,13 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         clients::run(&scene_arc, patch, camera, (800, 500), &[0, 20, 200], 10.0)
     };
     let clients = clients.map_err(|e| tracing::error!("preview clients: {e}")).unwrap_or_default();
+    progress.set_message("walking the stage");
+    let walk = if cfg.quick {
+        walk::run(&scene_arc, patch, camera, (200, 125), 1.0, 0)
+    } else {
+        walk::run(&scene_arc, patch, camera, (800, 500), 5.0, crate::render::photon::PhotonSettings::default().stored)
+    };
+    let walk = walk.map_err(|e| tracing::error!("walking the stage: {e}")).ok();
     progress.finish_and_clear();
 
     let report = Report {
@@ -823,6 +836,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         haze,
         chase,
         clients,
+        walk,
     };
     #[cfg(feature = "plots")]
     plots::write(&report, out)?;

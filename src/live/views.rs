@@ -415,12 +415,19 @@ impl Views {
         self.wake.notify_one();
     }
 
-    /// Moves to the named view.
+    /// Moves to the named view. A jump is one write, not a drag: it is
+    /// settled at once (no [`ViewSettings::settle`] wait), so a cached view
+    /// is back on the next frame.
     pub fn go_to(&self, name: &str) -> Result<(), String> {
         let pose = self.lock().named.iter().find(|v| v.name == name).map(|v| v.pose);
         let Some(pose) = pose else { return Err(format!("no view named {name:?}")) };
         self.move_to(pose.camera()?);
-        self.lock().name = Some(name.to_string());
+        let mut st = self.lock();
+        st.name = Some(name.to_string());
+        let now = Instant::now();
+        st.last_write = Some(now.checked_sub(self.settings.settle).unwrap_or(now));
+        drop(st);
+        self.wake.notify_one();
         Ok(())
     }
 
