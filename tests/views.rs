@@ -211,7 +211,8 @@ async fn orbit_through_a_recorded_camera_path_with_dmx_ends_on_the_render_and_re
     let status = || (handle.status)();
     let settled = || {
         let s = status();
-        s.view.phase == Phase::Still && s.lights.iter().all(|l| l.build.as_ref().is_some_and(|b| b.stage == Stage::Ready))
+        s.view.phase == Phase::Still
+            && s.lights.iter().all(|l| l.build.as_ref().is_some_and(|b| b.stage == Stage::Ready))
     };
     let wait_settled = || async {
         let t = Instant::now();
@@ -349,7 +350,8 @@ async fn camera_writes_need_the_token_from_another_machine_but_not_from_loopback
         if let Some(t) = token {
             req = req.header("x-footlight-token", t);
         }
-        let app = footlight::serve::router(state.clone()).layer(axum::Extension(Peer("192.168.1.20:50000".parse().unwrap())));
+        let app =
+            footlight::serve::router(state.clone()).layer(axum::Extension(Peer("192.168.1.20:50000".parse().unwrap())));
         let req = req.body(axum::body::Body::from(pose)).unwrap();
         async move { app.oneshot(req).await.unwrap().status().as_u16() }
     };
@@ -361,7 +363,8 @@ async fn camera_writes_need_the_token_from_another_machine_but_not_from_loopback
     assert_eq!((s.writes, s.phase), (1, Phase::Moving));
     assert_eq!(s.current.position, [1.0, 4.0, 6.0]);
     // Reads stay open to everyone.
-    let app = footlight::serve::router(state.clone()).layer(axum::Extension(Peer("192.168.1.20:50000".parse().unwrap())));
+    let app =
+        footlight::serve::router(state.clone()).layer(axum::Extension(Peer("192.168.1.20:50000".parse().unwrap())));
     let read = app.oneshot(axum::http::Request::get("/api/views").body(axum::body::Body::empty()).unwrap()).await;
     assert_eq!(read.unwrap().status().as_u16(), 200);
 

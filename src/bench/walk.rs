@@ -101,7 +101,8 @@ pub fn run(
         shutdown_grace: Duration::from_secs(30),
         ..DaemonConfig::default()
     };
-    config.tracer.build.photons = (photons > 0).then(|| PhotonSettings { stored: photons, ..PhotonSettings::default() });
+    config.tracer.build.photons =
+        (photons > 0).then(|| PhotonSettings { stored: photons, ..PhotonSettings::default() });
     let frame_ms = 1e3 / config.fps;
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)

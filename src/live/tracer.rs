@@ -379,12 +379,8 @@ impl Tracer {
         let now = Instant::now();
         // Brightest first: the direct stages go by longest wait, so the
         // brightest light gets the oldest `waiting_since`.
-        let mut order: Vec<(usize, f32)> = s
-            .slots
-            .iter()
-            .enumerate()
-            .map(|(i, slot)| (i, slot.state.lock().expect("slot lock").priority))
-            .collect();
+        let mut order: Vec<(usize, f32)> =
+            s.slots.iter().enumerate().map(|(i, slot)| (i, slot.state.lock().expect("slot lock").priority)).collect();
         order.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
         let n = order.len() as u32;
         let mut restored = 0;

@@ -180,11 +180,13 @@ pub fn named_views(start: &Camera, scene: &Scene, patch: Option<&crate::Patch>) 
     }
     if let Some(p) = patch {
         if let Some(c) = &p.camera {
-            let pose = Pose { position: c.position.to_array(), target: c.look_at.to_array(), fov_y: c.fov_y.to_degrees() };
+            let pose =
+                Pose { position: c.position.to_array(), target: c.look_at.to_array(), fov_y: c.fov_y.to_degrees() };
             out.push(NamedView { name: "patch camera".into(), pose, source: ViewSource::Patch });
         }
         for v in &p.views {
-            let pose = Pose { position: v.position.to_array(), target: v.target.to_array(), fov_y: v.fov_y.to_degrees() };
+            let pose =
+                Pose { position: v.position.to_array(), target: v.target.to_array(), fov_y: v.fov_y.to_degrees() };
             out.retain(|o| o.name != v.name);
             out.push(NamedView { name: v.name.clone(), pose, source: ViewSource::Patch });
         }
@@ -464,9 +466,7 @@ impl Views {
         let st = self.lock();
         match st.phase {
             Phase::Moving | Phase::Building => Some(st.target),
-            Phase::Still => {
-                (self.tracer.view_generation() > 0 && self.tracer.any_queued()).then_some(st.active)
-            }
+            Phase::Still => (self.tracer.view_generation() > 0 && self.tracer.any_queued()).then_some(st.active),
         }
     }
 
@@ -596,9 +596,7 @@ impl Views {
 /// True when two cameras see the same picture up to float rounding: eye
 /// within 1e-5 m, basis vectors within 1e-5, field of view within 1e-6 rad.
 pub fn same_camera(a: &Camera, b: &Camera) -> bool {
-    a.position.abs_diff_eq(b.position, 1e-5)
-        && a.basis.abs_diff_eq(b.basis, 1e-5)
-        && (a.yfov - b.yfov).abs() <= 1e-6
+    a.position.abs_diff_eq(b.position, 1e-5) && a.basis.abs_diff_eq(b.basis, 1e-5) && (a.yfov - b.yfov).abs() <= 1e-6
 }
 
 /// Orders stages from least to most advanced.
@@ -642,7 +640,9 @@ pub fn preview(
             *out = vertices
                 .iter()
                 .map(|v| {
-                    lit.iter().map(|(light, k)| *k * v.weight * crate::render::whitted::direct(scene, light, v)).sum::<Vec3>()
+                    lit.iter()
+                        .map(|(light, k)| *k * v.weight * crate::render::whitted::direct(scene, light, v))
+                        .sum::<Vec3>()
                 })
                 .sum();
         }

@@ -107,9 +107,7 @@ async fn authorized_json<T: for<'de> Deserialize<'de>>(app: &App, req: Request) 
 #[serde(untagged)]
 enum CameraWrite {
     Pose(Pose),
-    Named {
-        view: String,
-    },
+    Named { view: String },
 }
 
 /// `POST /api/camera`.
@@ -149,7 +147,9 @@ pub(super) async fn post_view(State(app): State<App>, req: Request) -> Response 
 /// `GET /api/views`.
 pub(super) async fn get_views(State(app): State<App>) -> Response {
     match &app.state.views {
-        Some(views) => axum::Json(serde_json::json!({ "views": views.list(), "camera": views.status() })).into_response(),
+        Some(views) => {
+            axum::Json(serde_json::json!({ "views": views.list(), "camera": views.status() })).into_response()
+        }
         None => error(StatusCode::NOT_FOUND, "this server has no camera control"),
     }
 }

@@ -126,6 +126,11 @@ mod tests {
             assert!(e[0].to_string().contains(needle), "{}", e[0]);
         }
         // Unknown keys are refused by the first stage (a typo is not ignored).
-        assert!(toml::from_str::<PatchFile>("[[view]]\nname = \"a\"\nposition = [0.0, 2.0, 1.0]\ntarget = [0.0, 0.0, 0.0]\nfov = 3.0\n").is_err());
+        assert!(
+            toml::from_str::<PatchFile>(
+                "[[view]]\nname = \"a\"\nposition = [0.0, 2.0, 1.0]\ntarget = [0.0, 0.0, 0.0]\nfov = 3.0\n"
+            )
+            .is_err()
+        );
     }
 }
