@@ -322,6 +322,9 @@ struct BenchArgs {
     /// Output folder (default bench/runs/<date>-<host>/).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Only the "walking the stage" section (issue 16), printed as Markdown.
+    #[arg(long)]
+    walk_only: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -354,6 +357,17 @@ fn main() -> std::process::ExitCode {
 fn bench_command(args: BenchArgs) -> Result<()> {
     let (scene, patch) = load_inputs(&args.input)?;
     let camera = choose_camera(&scene, &patch);
+    if args.walk_only {
+        let (size, seconds, photons) = if args.quick {
+            ((200, 125), 1.0, 0)
+        } else {
+            ((800, 500), 5.0, footlight::render::photon::PhotonSettings::default().stored)
+        };
+        let walk = bench::walk::run(&Arc::new(scene), &patch, camera, size, seconds, photons)
+            .map_err(|e| anyhow::anyhow!("walking the stage: {e}"))?;
+        println!("{}", walk.markdown());
+        return Ok(());
+    }
     let out = args.out.unwrap_or_else(bench::default_out_dir);
     let config = bench::BenchConfig::new(args.quick, resolve(&args.input.scene));
     let report = bench::run(&scene, &patch, camera, &config, &out)?;
@@ -451,15 +465,15 @@ fn run(args: RunArgs) -> Result<()> {
     let tap = args.window.then_some(tap_tx);
     let (close_tx, close_rx) = tokio::sync::oneshot::channel::<()>();
     let daemon = std::thread::spawn(move || run_daemon(args, tap, close_rx));
-    if let Ok(frames) = tap_rx.recv() {
+    if let Ok((frames, views)) = tap_rx.recv() {
         #[cfg(feature = "window")]
         {
-            let shown = footlight::window::show(frames);
+            let shown = footlight::window::show(frames, Some(views));
             let _ = close_tx.send(());
             shown?;
         }
         #[cfg(not(feature = "window"))]
-        drop((frames, close_tx));
+        drop((frames, views, close_tx));
     }
     daemon.join().map_err(|_| anyhow::anyhow!("the daemon thread panicked (a bug; please report it)"))?
 }
@@ -467,7 +481,7 @@ fn run(args: RunArgs) -> Result<()> {
 /// The daemon on its own tokio runtime; returns when a signal or `close` (the window) stops it.
 fn run_daemon(
     args: RunArgs,
-    tap: Option<std::sync::mpsc::Sender<tokio::sync::watch::Receiver<Arc<footlight::live::Frame>>>>,
+    tap: Option<std::sync::mpsc::Sender<footlight::live::daemon::FramesTap>>,
     close: tokio::sync::oneshot::Receiver<()>,
 ) -> Result<()> {
     runtime()?.block_on(async move {
@@ -488,6 +502,7 @@ fn run_daemon(
             _ = &mut stop => return Ok(()),
         };
         let camera = choose_camera(&scene, &patch);
+        let named = footlight::live::views::named_views(&camera, &scene, Some(&patch));
         let show = Arc::new(Show::new(patch));
         let display = Display::for_white_lux(args.white_lux);
         let photons = (args.photons > 0).then(|| PhotonSettings { stored: args.photons, ..PhotonSettings::default() });
@@ -519,6 +534,7 @@ fn run_daemon(
         let mut daemon = Daemon::new(Arc::new(scene), show.clone(), camera, config)
             .input(source)
             .serve(listener)
+            .named_views(named)
             .on_running(running_tx);
         if let Some(tap) = tap {
             daemon = daemon.frames_tap(tap);
@@ -526,7 +542,13 @@ fn run_daemon(
         let universes = show.universes();
         let announce = tokio::task::spawn_blocking(move || {
             if let Ok(handle) = running_rx.recv() {
-                println!("Footlight preview: http://{http}/");
+                match &handle.http_token {
+                    // The page keeps the token from its address and sends it with camera writes.
+                    Some(token) => println!(
+                        "Footlight preview: http://{http}/  (camera control from other machines: http://{http}/?token={token})"
+                    ),
+                    None => println!("Footlight preview: http://{http}/"),
+                }
                 if let Some(dmx) = handle.dmx {
                     let on = |a: Option<std::net::SocketAddr>| a.map_or("off".to_string(), |a| a.to_string());
                     println!(

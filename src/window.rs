@@ -7,16 +7,24 @@
 //! GPU compositor and needs no GPU at all. The winit event loop owns the
 //! main thread; the daemon runs on tokio threads and hands frames over a
 //! `watch` channel, so a slow window never slows the frame clock.
+//!
+//! Camera controls (issue 16), the same moves as the page's:
+//! drag = orbit, shift-drag or right-drag = pan, wheel = dolly,
+//! alt + wheel = field of view; arrow keys orbit, `w`/`s` dolly, `+`/`-`
+//! zoom, `1`-`9` jump to the named views in list order. Each move is a
+//! camera write to [`Views`] (the window is local: no token).
 
 use crate::live::Frame;
+use crate::live::views::{Phase, Pose, Views};
 use std::num::NonZeroU32;
 use std::rc::Rc;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::sync::watch;
 use winit::application::ApplicationHandler;
-use winit::event::WindowEvent;
+use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::keyboard::{Key, NamedKey};
 use winit::window::{Window, WindowId};
 
 /// Why the window could not run.
@@ -33,7 +41,17 @@ struct App {
     surface: Option<softbuffer::Surface<Rc<Window>, Rc<Window>>>,
     shown: u64,
     error: Option<String>,
+    views: Option<Arc<Views>>,
+    /// The pose being edited (taken from the daemon when a move starts).
+    pose: Option<Pose>,
+    cursor: Option<(f64, f64)>,
+    drag: Option<MouseButton>,
+    shift: bool,
+    alt: bool,
 }
+
+/// Radians of orbit per pixel of drag (the page uses the same).
+const ORBIT_PER_PIXEL: f32 = 0.008;
 
 impl App {
     fn present(&mut self) {
@@ -68,6 +86,105 @@ impl App {
     }
 }
 
+impl App {
+    /// The pose to edit: the daemon's current camera unless a move of ours
+    /// is still settling (then our own newest pose).
+    fn pose(&mut self) -> Option<Pose> {
+        let views = self.views.as_ref()?;
+        let status = views.status();
+        if self.pose.is_none() || status.phase == Phase::Still {
+            self.pose = Some(status.current);
+        }
+        self.pose
+    }
+
+    fn write(&mut self, pose: Pose) {
+        let Some(views) = &self.views else { return };
+        match pose.camera() {
+            Ok(camera) => {
+                self.pose = Some(pose);
+                views.move_to(camera);
+            }
+            Err(e) => tracing::debug!("window: camera move ignored: {e}"),
+        }
+    }
+
+    /// One pixel of pan at the target's distance, in metres.
+    fn pan_scale(&self, pose: &Pose) -> f32 {
+        let h = self.window.as_ref().map_or(500, |w| w.inner_size().height.max(1));
+        let d = glam::Vec3::from_array(pose.position).distance(glam::Vec3::from_array(pose.target));
+        2.0 * d * (pose.fov_y.to_radians() / 2.0).tan() / h as f32
+    }
+
+    fn camera_event(&mut self, event: &WindowEvent) {
+        match event {
+            WindowEvent::ModifiersChanged(m) => {
+                self.shift = m.state().shift_key();
+                self.alt = m.state().alt_key();
+            }
+            WindowEvent::MouseInput { state, button, .. } => {
+                self.drag = (*state == ElementState::Pressed).then_some(*button);
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                let now = (position.x, position.y);
+                let last = self.cursor.replace(now);
+                if let (Some(button), Some((lx, ly))) = (self.drag, last)
+                    && let Some(pose) = self.pose()
+                {
+                    let (dx, dy) = ((now.0 - lx) as f32, (now.1 - ly) as f32);
+                    let next = if button == MouseButton::Right || self.shift {
+                        let s = self.pan_scale(&pose);
+                        pose.pan(-dx * s, dy * s)
+                    } else {
+                        pose.orbit(dx * ORBIT_PER_PIXEL, dy * ORBIT_PER_PIXEL)
+                    };
+                    self.write(next);
+                }
+            }
+            WindowEvent::MouseWheel { delta, .. } => {
+                let y = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => *y * 0.1,
+                    MouseScrollDelta::PixelDelta(p) => p.y as f32 * 0.002,
+                };
+                if let Some(pose) = self.pose() {
+                    let f = (-y).clamp(-1.0, 1.0).exp();
+                    self.write(if self.alt { pose.zoom(f) } else { pose.dolly(f) });
+                }
+            }
+            WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
+                let step = 0.05;
+                let Some(pose) = self.pose() else { return };
+                let next = match &event.logical_key {
+                    Key::Named(NamedKey::ArrowLeft) => Some(pose.orbit(-step, 0.0)),
+                    Key::Named(NamedKey::ArrowRight) => Some(pose.orbit(step, 0.0)),
+                    Key::Named(NamedKey::ArrowUp) => Some(pose.orbit(0.0, step)),
+                    Key::Named(NamedKey::ArrowDown) => Some(pose.orbit(0.0, -step)),
+                    Key::Character(c) => match c.as_str() {
+                        "w" => Some(pose.dolly(0.9)),
+                        "s" => Some(pose.dolly(1.1)),
+                        "+" | "=" => Some(pose.zoom(0.9)),
+                        "-" => Some(pose.zoom(1.1)),
+                        d => {
+                            if let (Some(n), Some(views)) = (d.parse::<usize>().ok().filter(|n| *n >= 1), &self.views)
+                                && let Some(v) = views.list().get(n - 1)
+                                && views.go_to(&v.name).is_ok()
+                            {
+                                self.pose = Some(v.pose);
+                            }
+                            None
+                        }
+                    },
+                    _ => None,
+                };
+                if let Some(next) = next {
+                    self.write(next);
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
 impl ApplicationHandler for App {
     fn resumed(&mut self, event_loop: &ActiveEventLoop) {
         if self.window.is_some() {
@@ -98,7 +215,7 @@ impl ApplicationHandler for App {
         match event {
             WindowEvent::CloseRequested => event_loop.exit(),
             WindowEvent::RedrawRequested | WindowEvent::Resized(_) => self.present(),
-            _ => {}
+            other => self.camera_event(&other),
         }
     }
 
@@ -112,10 +229,23 @@ impl ApplicationHandler for App {
     }
 }
 
-/// Shows `frames` in a window until it is closed. Must run on the main thread.
-pub fn show(frames: watch::Receiver<Arc<Frame>>) -> Result<(), WindowError> {
+/// Shows `frames` in a window until it is closed, with camera controls
+/// writing to `views`. Must run on the main thread.
+pub fn show(frames: watch::Receiver<Arc<Frame>>, views: Option<Arc<Views>>) -> Result<(), WindowError> {
     let event_loop = EventLoop::new().map_err(|e| WindowError::EventLoop(e.to_string()))?;
-    let mut app = App { frames, window: None, surface: None, shown: u64::MAX, error: None };
+    let mut app = App {
+        frames,
+        window: None,
+        surface: None,
+        shown: u64::MAX,
+        error: None,
+        views,
+        pose: None,
+        cursor: None,
+        drag: None,
+        shift: false,
+        alt: false,
+    };
     event_loop.run_app(&mut app).map_err(|e| WindowError::EventLoop(e.to_string()))?;
     match app.error {
         Some(e) => Err(WindowError::EventLoop(e)),

@@ -38,3 +38,5 @@ mod fuzz_import;
 mod serve;
 // The browser stream: Chromium composites like the server; slow, malformed and picture clients.
 mod stream;
+// Walking the stage: camera moves keep photon maps, cached views, orbit with DMX, write policy.
+mod views;

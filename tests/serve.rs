@@ -50,7 +50,12 @@ fn start(config: ServeConfig) -> Running {
     let (addr, stats, done) = rt.block_on(async {
         let listener = footlight::serve::bind("127.0.0.1:0".parse().unwrap()).unwrap();
         let addr = listener.local_addr().unwrap();
-        let state = ServeState { frames: rx, status: Arc::new(|| serde_json::json!({"packets": 0})) };
+        let state = ServeState {
+            frames: rx,
+            status: Arc::new(|| serde_json::json!({"packets": 0})),
+            views: None,
+            write_token: None,
+        };
         let server = Server::new(state, config);
         let stats = server.stats();
         let done = tokio::spawn(server.run(listener, async {

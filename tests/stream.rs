@@ -366,7 +366,7 @@ fn serve(first: Arc<Frame>) -> Running {
     let (frames, rx) = tokio::sync::watch::channel(first);
     let listener = rt.block_on(tokio::net::TcpListener::bind("127.0.0.1:0")).unwrap();
     let addr = listener.local_addr().unwrap();
-    let state = ServeState { frames: rx, status: Arc::new(|| serde_json::json!({})) };
+    let state = ServeState { frames: rx, status: Arc::new(|| serde_json::json!({})), views: None, write_token: None };
     let (stop, stop_rx) = tokio::sync::oneshot::channel::<()>();
     rt.spawn(Server::new(state, ServeConfig::default()).run(listener, async {
         let _ = stop_rx.await;

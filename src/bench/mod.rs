@@ -17,6 +17,7 @@ pub mod scale;
 pub mod stream;
 pub mod stress;
 pub mod sweeps;
+pub mod walk;
 
 use crate::Patch;
 use crate::render::buffer::LightBuffer;
@@ -140,6 +141,8 @@ pub struct Report {
     pub mvr: mvr::MvrReport,
     /// Issue 17: the browser stream against PNG pictures and polling, and its picture size.
     pub stream: (Vec<stream::StreamRow>, (u32, u32)),
+    /// Issue 16: moving the camera, settling, returning to a cached view.
+    pub walk: Option<walk::WalkReport>,
 }
 
 /// One point of a run-time-versus-error curve.
@@ -379,6 +382,9 @@ impl Report {
         }
         if !self.stream.0.is_empty() {
             s += &stream::markdown(&self.stream.0, self.stream.1);
+        }
+        if let Some(w) = &self.walk {
+            s += &w.markdown();
         }
         if let Some(c) = &self.chase {
             s += &c.markdown();
@@ -878,6 +884,13 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     let levels = [(NoViewers, 0), (Buffers, 20), (Pictures, 20), (Polling, 20), (Buffers, 60)];
     let stream_rows = stream::run(&scene_arc, patch, camera, stream_size, &levels, stream_seconds);
     let stream = (stream_rows.map_err(|e| tracing::error!("browser stream: {e}")).unwrap_or_default(), stream_size);
+    progress.set_message("walking the stage");
+    let walk = if cfg.quick {
+        walk::run(&scene_arc, patch, camera, (200, 125), 1.0, 0)
+    } else {
+        walk::run(&scene_arc, patch, camera, (800, 500), 5.0, crate::render::photon::PhotonSettings::default().stored)
+    };
+    let walk = walk.map_err(|e| tracing::error!("walking the stage: {e}")).ok();
     progress.finish_and_clear();
 
     let report = Report {
@@ -906,6 +919,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         clients,
         mvr,
         stream,
+        walk,
     };
     plots::write(&report, out)?;
     std::fs::write(out.join("report.md"), report.markdown())?;

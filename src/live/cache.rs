@@ -72,6 +72,12 @@ impl GeometryCache {
         }
     }
 
+    /// Drops every entry (their buffers belong to a view that was replaced).
+    pub fn clear(&mut self) {
+        self.entries.clear();
+        self.bytes = 0;
+    }
+
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         self.bytes

@@ -103,6 +103,8 @@ pub struct FrameClock {
     /// t = 0 of the frame time (strobe phase origin); tokio's clock, so
     /// daemon tests with paused time are deterministic.
     epoch: tokio::time::Instant,
+    /// The camera control: while it moves, frames are its moving preview.
+    views: Option<(Arc<super::views::Views>, crate::render::Display)>,
 }
 
 /// Relative luminance of linear sRGB (Rec. 709 weights).
@@ -115,7 +117,24 @@ impl FrameClock {
     pub fn new(decoder: Arc<dyn Decode>, tracer: Arc<Tracer>, compositor: Compositor) -> Self {
         let n = decoder.len();
         let epoch = tokio::time::Instant::now();
-        Self { decoder, tracer, compositor, gpu: None, last: vec![None; n], number: 0, last_rgb: None, epoch }
+        Self {
+            decoder,
+            tracer,
+            compositor,
+            gpu: None,
+            last: vec![None; n],
+            number: 0,
+            last_rgb: None,
+            epoch,
+            views: None,
+        }
+    }
+
+    /// Shows `views`' moving preview (through `display`) while the camera
+    /// moves and until the new view has a buffer for every light.
+    pub fn with_views(mut self, views: Arc<super::views::Views>, display: crate::render::Display) -> Self {
+        self.views = Some((views, display));
+        self
     }
 
     /// Composites on the GPU from now on (falls back to the CPU on a GPU error).
@@ -172,6 +191,32 @@ impl FrameClock {
             }
             self.last[i] = Some(input.state);
             published.push(self.tracer.published(i));
+        }
+        if let Some((views, display)) = &self.views
+            && let Some(camera) = views.preview_camera()
+        {
+            // The camera moves: one cheap pass with this frame's k_i, so DMX
+            // shows on whatever is on screen (docs/live.md "Walking the stage").
+            let lights: Vec<(&Light, Vec3)> = inputs.iter().map(|i| (&i.light, i.k)).collect();
+            let rgb = Arc::new(views.preview(&camera, &lights, display));
+            // The composite's own picture is stale now; recompose on return.
+            self.last_rgb = None;
+            let frame = Frame {
+                number: self.number,
+                width: self.compositor.width(),
+                height: self.compositor.height(),
+                rgb,
+                intensity: Arc::new(inputs.iter().map(|input| luminance(input.k)).collect()),
+                composite_time: t0.elapsed(),
+                update: UpdateStats::default(),
+                // The buffer stream keeps the last full view while the camera
+                // moves (its clients composite those buffers with this k).
+                k: Arc::new(inputs.iter().map(|i| i.k).collect()),
+                buffers: Arc::new(published.iter().map(|p| (p.generation, p.buffer.clone())).collect()),
+                display: self.compositor.display(),
+            };
+            self.number += 1;
+            return frame;
         }
         let lights: Vec<CompositeInput> = published
             .iter()

@@ -25,6 +25,7 @@
 use super::clock::{Decode, Frame, FrameClock, LightLabel};
 use super::show::{LiveSlots, Show};
 use super::tracer::{LightReport, Tracer, TracerSettings};
+use super::views::{NamedView, ViewSettings, ViewStatus, Views};
 use crate::render::composite::Compositor;
 use crate::render::{Display, RecursionLimits, Sampling, View};
 use crate::scene::{Camera, Scene};
@@ -61,6 +62,11 @@ pub struct DaemonConfig {
     pub compositor: crate::gpu::CompositorChoice,
     /// How long tasks and a light build in progress get on shutdown.
     pub shutdown_grace: Duration,
+    /// Camera moves: settle time, view cache budget, preview scale.
+    pub views: ViewSettings,
+    /// The token non-loopback clients send with camera writes; `None`: one
+    /// is made when the preview binds a non-loopback address (and logged).
+    pub http_token: Option<String>,
 }
 
 impl Default for DaemonConfig {
@@ -74,6 +80,8 @@ impl Default for DaemonConfig {
             tracer: TracerSettings::default(),
             compositor: crate::gpu::CompositorChoice::Auto,
             shutdown_grace: Duration::from_millis(500),
+            views: ViewSettings::default(),
+            http_token: None,
         }
     }
 }
@@ -238,11 +246,16 @@ pub struct DaemonStatus {
     pub input: InputSummary,
     /// Geometry cache.
     pub cache: CacheSummary,
+    /// The camera: current view, its build stage, the view cache.
+    pub view: ViewStatus,
     /// Problems a user should see (stale universes, unpatched DMX).
     pub warnings: Vec<String>,
     /// Every light, in patch order.
     pub lights: Vec<LightStatus>,
 }
+
+/// What [`Daemon::frames_tap`] hands a window: the frames and the camera control.
+pub type FramesTap = (watch::Receiver<Arc<Frame>>, Arc<Views>);
 
 /// The daemon, built up and then [`run`](Daemon::run).
 pub struct Daemon {
@@ -253,8 +266,9 @@ pub struct Daemon {
     config: DaemonConfig,
     source: DmxSource,
     listener: Option<tokio::net::TcpListener>,
-    tap: Option<std::sync::mpsc::Sender<watch::Receiver<Arc<Frame>>>>,
+    tap: Option<std::sync::mpsc::Sender<FramesTap>>,
     bound: Option<std::sync::mpsc::Sender<DaemonHandle>>,
+    named: Vec<NamedView>,
 }
 
 /// What a running daemon tells its embedder (tests, the binary).
@@ -266,6 +280,10 @@ pub struct DaemonHandle {
     pub dmx: Option<footlight_dmx::LocalAddrs>,
     /// The typed status, built on request.
     pub status: Arc<dyn Fn() -> DaemonStatus + Send + Sync>,
+    /// The camera control (what the HTTP routes and the window write to).
+    pub views: Arc<Views>,
+    /// The write token for non-loopback clients, if the preview needs one.
+    pub http_token: Option<String>,
 }
 
 impl Daemon {
@@ -282,6 +300,7 @@ impl Daemon {
             listener: None,
             tap: None,
             bound: None,
+            named: Vec::new(),
         }
     }
 
@@ -298,7 +317,15 @@ impl Daemon {
             listener: None,
             tap: None,
             bound: None,
+            named: Vec::new(),
         }
+    }
+
+    /// The named views offered besides the start view
+    /// ([`super::views::named_views`]: scene camera, patch `[camera]`, `[[view]]`).
+    pub fn named_views(mut self, named: Vec<NamedView>) -> Self {
+        self.named = named;
+        self
     }
 
     /// Where DMX comes from.
@@ -313,8 +340,9 @@ impl Daemon {
         self
     }
 
-    /// Sends the published frames' channel to `tap` once running (a window).
-    pub fn frames_tap(mut self, tap: std::sync::mpsc::Sender<watch::Receiver<Arc<Frame>>>) -> Self {
+    /// Sends the published frames' channel and the camera control to `tap`
+    /// once running (a window).
+    pub fn frames_tap(mut self, tap: std::sync::mpsc::Sender<FramesTap>) -> Self {
         self.tap = Some(tap);
         self
     }
@@ -327,7 +355,7 @@ impl Daemon {
 
     /// Runs until `shutdown` completes (`Ok`) or a task fails (`Err`).
     pub async fn run(self, shutdown: impl Future<Output = ()>) -> Result<(), DaemonError> {
-        let Daemon { scene, decoder, show, camera, config, source, listener, tap, bound } = self;
+        let Daemon { scene, decoder, show, camera, config, source, listener, tap, bound, named } = self;
         let (stop_tx, stop) = stop_signal();
         tokio::pin!(shutdown);
 
@@ -346,13 +374,17 @@ impl Daemon {
             t.elapsed().as_secs_f64() * 1e3,
             view.shading.vertex_count()
         );
-        let tracer = Arc::new(Tracer::new(scene, Arc::new(view), decoder.len(), config.tracer));
+        let tracer = Arc::new(Tracer::new(scene.clone(), Arc::new(view), decoder.len(), config.tracer));
+        let named = if named.is_empty() { super::views::named_views(&camera, &scene, None) } else { named };
+        let views = Arc::new(Views::new(scene, tracer.clone(), camera, named, config.limits, config.views));
         let (choice, display) = (config.compositor, config.display);
         let gpu = tokio::task::spawn_blocking(move || crate::gpu::GpuFrames::open(choice, w, h, display))
             .await
             .map_err(|e| task_error("GPU setup", e))?
             .map_err(|e| DaemonError::Gpu(e.to_string()))?;
-        let mut clock = FrameClock::new(decoder.clone(), tracer.clone(), Compositor::new(w, h, display)).with_gpu(gpu);
+        let mut clock = FrameClock::new(decoder.clone(), tracer.clone(), Compositor::new(w, h, display))
+            .with_gpu(gpu)
+            .with_views(views.clone(), display);
         let compositor = clock.gpu_adapter().map(|a| format!("GPU: {a}")).unwrap_or_else(|| "CPU".into());
 
         // DMX: a network input is bound now (a taken port is an error before
@@ -408,6 +440,7 @@ impl Daemon {
             let (frames, inputs, tracer, decoder) =
                 (frames_rx.clone(), inputs.clone(), tracer.clone(), decoder.clone());
             let clock_status = clock_status.clone();
+            let views = views.clone();
             let map = input_patch.map.clone();
             let labels = decoder.labels();
             let cache_budget = config.tracer.cache_bytes;
@@ -443,6 +476,7 @@ impl Daemon {
                     clock: clock_status.lock().expect("clock status lock").clone(),
                     input,
                     cache: CacheSummary { entries, bytes, budget_bytes: cache_budget },
+                    view: views.status(),
                     warnings,
                     lights,
                 }
@@ -451,6 +485,8 @@ impl Daemon {
 
         let mut tasks: JoinSet<(&'static str, Result<(), String>)> = JoinSet::new();
         tasks.spawn(run_clock(clock, config.fps, inputs.clone(), frames_tx, clock_status, stop.clone()));
+        tasks.spawn(views.clone().run(stop.clone()));
+        let mut http_token = None;
         if let Some(listener) = listener {
             let status: StatusFn = {
                 let status_fn = status_fn.clone();
@@ -458,11 +494,21 @@ impl Daemon {
             };
             // Timeouts, connection limit and Host check; loopback-only Host
             // unless the address is public on purpose (docs/live.md).
-            let serve_config = match listener.local_addr() {
-                Ok(addr) => ServeConfig::for_address(addr),
-                Err(_) => ServeConfig::default(),
+            let local = listener.local_addr().ok();
+            let serve_config = local.map_or_else(ServeConfig::default, ServeConfig::for_address);
+            // Camera writes from other machines need a token (serve/control.rs).
+            if local.is_some_and(|a| !a.ip().is_loopback()) {
+                let token = config.http_token.clone().unwrap_or_else(crate::serve::control::new_token);
+                tracing::info!("camera writes from other machines need the token {token}");
+                http_token = Some(token);
+            }
+            let state = ServeState {
+                frames: frames_rx.clone(),
+                status,
+                views: Some(views.clone()),
+                write_token: http_token.clone(),
             };
-            let server = crate::serve::Server::new(ServeState { frames: frames_rx.clone(), status }, serve_config);
+            let server = crate::serve::Server::new(state, serve_config);
             let http_stop = stop.clone();
             tasks.spawn(async move {
                 let result = server.run(listener, http_stop.fired()).await;
@@ -493,10 +539,16 @@ impl Daemon {
             });
         }
         if let Some(tap) = tap {
-            let _ = tap.send(frames_rx.clone());
+            let _ = tap.send((frames_rx.clone(), views.clone()));
         }
         if let Some(bound) = bound {
-            let _ = bound.send(DaemonHandle { frames: frames_rx.clone(), dmx: local, status: status_fn.clone() });
+            let _ = bound.send(DaemonHandle {
+                frames: frames_rx.clone(),
+                dmx: local,
+                status: status_fn.clone(),
+                views: views.clone(),
+                http_token: http_token.clone(),
+            });
         }
 
         // Run until the shutdown signal or the first failing task.

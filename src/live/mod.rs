@@ -8,6 +8,7 @@
 //! * [`tracer`]: the scheduler that rebuilds dirty lights stage by stage
 //!   (every stage is a [`crate::render::LightBuild`] method).
 //! * [`cache`]: recent geometry states per light (position presets are instant).
+//! * [`views`]: camera writes, named views, the moving preview and the view cache.
 //! * [`daemon`]: [`Daemon`], the owner of every task and the one stop signal.
 //!
 //! Threads: DMX input and HTTP run on tokio; each frame-clock tick runs on
@@ -19,8 +20,10 @@ pub mod clock;
 pub mod daemon;
 pub mod show;
 pub mod tracer;
+pub mod views;
 
 pub use clock::{Decode, Frame, FrameClock, LightInput, LightLabel};
 pub use daemon::{Daemon, DaemonConfig, DaemonError, DaemonHandle, DaemonStatus, DmxSource, bind_http, run_clock};
 pub use show::{LiveSlots, Show};
-pub use tracer::{LightReport, Stage, Tracer, TracerSettings};
+pub use tracer::{Kept, LightReport, Stage, Tracer, TracerSettings};
+pub use views::{NamedView, Pose, ViewSettings, ViewStatus, Views};

@@ -32,11 +32,27 @@
 //! Builds run on the tracer's own rayon pool, so the frame clock's composite
 //! never queues behind them; the frame clock only reads published buffers
 //! (an `Arc` swap under a short lock).
+//!
+//! # View changes (issue 16)
+//! [`Tracer::set_view`] swaps the camera-dependent [`View`]: every build in
+//! progress is cancelled (its request id is superseded), the geometry cache
+//! (view-dependent buffers) is emptied, and every light is rebuilt for the
+//! new view, brightest first, through the same stages and rules as above.
+//! A light's photon maps do not depend on the camera: the tracer keeps the
+//! latest maps of each light with the geometry they were traced for, and a
+//! build of that same geometry starts from them ([`LightBuild::with_maps`]),
+//! so a camera move re-does only the per-vertex estimates
+//! ([`Tracer::photon_traces`] counts real photon traces). Buffers that a
+//! cached view kept ([`super::views`]) are published at once for every light
+//! that has not moved since. While the camera moves the tracer is paused
+//! ([`Tracer::set_paused`]): the frame clock shows the cheap moving preview
+//! and no work is spent on a view about to be replaced.
 
 use super::cache::GeometryCache;
 use crate::Light;
 use crate::render::build::{BuildError, BuildSettings, Cancel, LightBuild, Refinement};
 use crate::render::footprint::DirectQuality;
+use crate::render::photon::PhotonMaps;
 use crate::render::{LightBuffer, View};
 use crate::scene::Scene;
 use serde::Serialize;
@@ -101,6 +117,18 @@ pub struct Published {
     pub stage: Stage,
 }
 
+/// What a light showed in a view: kept by the view cache
+/// ([`super::views::ViewCache`]) and handed back to [`Tracer::set_view`].
+#[derive(Clone, Debug)]
+pub struct Kept {
+    /// The geometry the buffer was built for.
+    pub light: Light,
+    /// The buffer.
+    pub buffer: Arc<LightBuffer>,
+    /// Its stage.
+    pub stage: Stage,
+}
+
 /// A light's build state for the status page (issue 18: the status tells
 /// the truth about moving lights).
 #[derive(Clone, Debug, Serialize)]
@@ -144,6 +172,13 @@ struct SlotState {
     refine: Option<(u64, Refinement, Instant)>,
     /// Brightness priority (luminance of k_i).
     priority: f32,
+    /// The newest requested geometry (what a view change rebuilds).
+    current: Option<Light>,
+    /// The geometry of the published buffer.
+    shown: Option<Light>,
+    /// The light's latest photon maps and the geometry they were traced
+    /// for: view-independent, reused by a build of the same geometry.
+    maps: Option<(Light, Arc<PhotonMaps>)>,
     /// Share of the picture the light changes, in [1, 2].
     weight: f32,
     /// Direct-stage publish times in the last second.
@@ -162,7 +197,15 @@ struct Slot {
 
 struct Shared {
     scene: Arc<Scene>,
-    view: Arc<View>,
+    /// The current view (swapped by [`Tracer::set_view`]); a job takes its
+    /// `Arc` once and keeps it, a superseded job's publish is refused.
+    view: Mutex<Arc<View>>,
+    /// Bumped by every [`Tracer::set_view`].
+    view_generation: AtomicU64,
+    /// While set, the worker runs no job (the camera is moving).
+    paused: AtomicBool,
+    /// Photon traces run (a reused map is not counted).
+    photon_traces: AtomicU64,
     settings: TracerSettings,
     slots: Vec<Slot>,
     wake: (Mutex<u64>, Condvar),
@@ -243,7 +286,10 @@ impl Tracer {
             .expect("build thread pool");
         let shared = Arc::new(Shared {
             scene,
-            view,
+            view: Mutex::new(view),
+            view_generation: AtomicU64::new(0),
+            paused: AtomicBool::new(false),
+            photon_traces: AtomicU64::new(0),
             settings,
             slots,
             wake: (Mutex::new(0), Condvar::new()),
@@ -272,9 +318,119 @@ impl Tracer {
         self.shared.slots.is_empty()
     }
 
-    /// The view the lights are built for.
-    pub fn view(&self) -> &Arc<View> {
-        &self.shared.view
+    /// The view the lights are built for now.
+    pub fn view(&self) -> Arc<View> {
+        self.shared.view()
+    }
+
+    /// Number of [`Tracer::set_view`] calls so far.
+    pub fn view_generation(&self) -> u64 {
+        self.shared.view_generation.load(Ordering::SeqCst)
+    }
+
+    /// Photon traces run since start. A light's maps are traced once per
+    /// geometry: a camera move ([`Tracer::set_view`]) does not add to it.
+    pub fn photon_traces(&self) -> u64 {
+        self.shared.photon_traces.load(Ordering::SeqCst)
+    }
+
+    /// Pauses (true) or resumes the worker. A stage in progress finishes;
+    /// requests keep coalescing while paused and are served on resume.
+    pub fn set_paused(&self, paused: bool) {
+        self.shared.paused.store(paused, Ordering::SeqCst);
+        self.shared.notify();
+    }
+
+    /// True when some light has nothing on screen for the current view yet
+    /// (the frame clock keeps the moving preview up until then).
+    pub fn any_queued(&self) -> bool {
+        self.shared.slots.iter().any(|s| s.published.lock().expect("published lock").stage == Stage::Queued)
+    }
+
+    /// What each light shows now: the geometry of its published buffer, the
+    /// buffer and its stage (`None`: nothing built). A view cache keeps this
+    /// when the camera leaves the view.
+    pub fn snapshot(&self) -> Vec<Option<Kept>> {
+        self.shared
+            .slots
+            .iter()
+            .map(|slot| {
+                let shown = slot.state.lock().expect("slot lock").shown.clone()?;
+                let p = slot.published.lock().expect("published lock");
+                (p.stage != Stage::Queued).then(|| Kept { light: shown, buffer: p.buffer.clone(), stage: p.stage })
+            })
+            .collect()
+    }
+
+    /// Switches to `view` (same size as the old one). Builds in progress are
+    /// cancelled and the geometry cache is emptied (its buffers belong to
+    /// the old view). A light whose `kept` buffer (from a cached view) was
+    /// built for its current geometry is published at once (a view-cache
+    /// hit); every other light is rebuilt for the new view from its direct
+    /// stage, brightest first, reusing its photon maps. Returns what the old
+    /// view showed ([`Tracer::snapshot`]) and how many lights were restored.
+    pub fn set_view(&self, view: Arc<View>, kept: &[Option<Kept>]) -> (Vec<Option<Kept>>, usize) {
+        let s = &self.shared;
+        let old = self.snapshot();
+        *s.view.lock().expect("view lock") = view.clone();
+        s.view_generation.fetch_add(1, Ordering::SeqCst);
+        s.cache.lock().expect("cache lock").clear();
+        let empty = Arc::new(LightBuffer::empty(view.width(), view.height()));
+        let now = Instant::now();
+        // Brightest first: the direct stages go by longest wait, so the
+        // brightest light gets the oldest `waiting_since`.
+        let mut order: Vec<(usize, f32)> =
+            s.slots.iter().enumerate().map(|(i, slot)| (i, slot.state.lock().expect("slot lock").priority)).collect();
+        order.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+        let n = order.len() as u32;
+        let mut restored = 0;
+        for (rank, &(i, _)) in order.iter().enumerate() {
+            let slot = &s.slots[i];
+            let id = s.next_id.fetch_add(1, Ordering::Relaxed);
+            slot.latest.store(id, Ordering::SeqCst);
+            let mut st = slot.state.lock().expect("slot lock");
+            st.build = None;
+            st.refine = None;
+            // The footprint share is a property of the old view.
+            st.weight = 1.0;
+            let current = st.pending.take().map(|r| r.light).or_else(|| st.current.clone());
+            let Some(light) = current else {
+                st.shown = None;
+                drop(st);
+                let mut p = slot.published.lock().expect("published lock");
+                p.buffer = empty.clone();
+                p.generation += 1;
+                p.stage = Stage::Queued;
+                continue;
+            };
+            let hit = kept.get(i).and_then(Option::as_ref).filter(|k| k.light == light);
+            if let Some(k) = hit {
+                st.waiting_since = None;
+                st.shown = Some(light);
+                drop(st);
+                let mut p = slot.published.lock().expect("published lock");
+                p.buffer = k.buffer.clone();
+                p.generation += 1;
+                // A build the old visit left unfinished is not resumed: its
+                // buffer shows, marked ready (rebuilt when the light moves).
+                p.stage = Stage::Ready;
+                restored += 1;
+                continue;
+            }
+            st.pending = Some(Request { id, light: light.clone(), at: now });
+            st.waiting_since = Some(now - Duration::from_micros(u64::from(n - rank as u32)));
+            // Not moving: full-quality direct stage, later stages at once.
+            st.last_move = None;
+            st.previous_move = None;
+            st.shown = None;
+            drop(st);
+            let mut p = slot.published.lock().expect("published lock");
+            p.buffer = empty.clone();
+            p.generation += 1;
+            p.stage = Stage::Queued;
+        }
+        s.notify();
+        (old, restored)
     }
 
     /// Asks for light `index` to be rebuilt with new geometry. Replaces any
@@ -290,10 +446,12 @@ impl Tracer {
         st.build = None;
         st.refine = None;
         st.priority = priority;
+        st.current = Some(light.clone());
         st.previous_move = st.last_move.replace(now);
         if let Some(buffer) = s.cache.lock().expect("cache lock").get(index, &light) {
             st.pending = None;
             st.waiting_since = None;
+            st.shown = Some(light);
             drop(st);
             let mut p = slot.published.lock().expect("published lock");
             p.buffer = buffer;
@@ -397,12 +555,18 @@ impl Shared {
         self.stop.load(Ordering::SeqCst)
     }
 
-    /// Publishes `buffer` for `index` if request `id` still owns the slot.
-    fn publish(&self, index: usize, id: u64, buffer: LightBuffer, stage: Stage) -> bool {
+    fn view(&self) -> Arc<View> {
+        self.view.lock().expect("view lock").clone()
+    }
+
+    /// Publishes `buffer` (of geometry `light`) for `index` if request `id`
+    /// still owns the slot.
+    fn publish(&self, index: usize, id: u64, buffer: LightBuffer, stage: Stage, light: &Light) -> bool {
         let slot = &self.slots[index];
         if slot.latest.load(Ordering::SeqCst) != id {
             return false; // superseded: a newer request owns the slot
         }
+        slot.state.lock().expect("slot lock").shown = Some(light.clone());
         let mut p = slot.published.lock().expect("published lock");
         p.buffer = Arc::new(buffer);
         p.generation += 1;
@@ -457,7 +621,8 @@ fn prune(times: &mut VecDeque<Instant>, now: Instant) {
 fn worker(s: &Shared) {
     while !s.stopped() {
         let now = Instant::now();
-        match schedule(&s.views(now), now) {
+        let job = if s.paused.load(Ordering::SeqCst) { None } else { schedule(&s.views(now), now) };
+        match job {
             Some(Job::Direct(i)) => direct_stage(s, i),
             Some(Job::Later(i)) => later_stage(s, i),
             None => {
@@ -488,13 +653,20 @@ fn direct_stage(s: &Shared, index: usize) {
     };
     let quality = if quality { DirectQuality::Moving } else { DirectQuality::Full };
     let cancel = Cancel::new(slot.latest.clone(), req.id, s.stop.clone());
-    let mut build = LightBuild::new(req.light, index, s.settings.build, cancel);
-    let result = s.pool.install(|| build.direct(&s.scene, &s.view, quality));
+    let mut build = LightBuild::new(req.light.clone(), index, s.settings.build, cancel);
+    let maps = slot.state.lock().expect("slot lock").maps.clone();
+    if let Some((light, maps)) = maps
+        && light == req.light
+    {
+        build = build.with_maps(maps);
+    }
+    let view = s.view();
+    let result = s.pool.install(|| build.direct(&s.scene, &view, quality));
     let (buffer, stats) = match result {
         Ok(r) => r,
         Err(e) => return report_bug(index, &e),
     };
-    if !s.publish(index, req.id, buffer, Stage::Direct) {
+    if !s.publish(index, req.id, buffer, Stage::Direct, &req.light) {
         return;
     }
     let now = Instant::now();
@@ -516,16 +688,18 @@ fn later_stage(s: &Shared, index: usize) {
         let mut st = slot.state.lock().expect("slot lock");
         (st.build.take(), if st.build.is_none() { st.refine.take() } else { None })
     };
+    let view = s.view();
     if let Some((id, mut build, at)) = build {
         if !build.has_whitted() {
-            let result = s.pool.install(|| build.whitted(&s.scene, &s.view));
+            let result = s.pool.install(|| build.whitted(&s.scene, &view));
             let stage = if build.has_photons() { Stage::Whitted } else { Stage::Ready };
             match result {
                 Ok(buffer) => {
                     let cached = (stage == Stage::Ready).then(|| Arc::new(buffer.clone()));
-                    if s.publish(index, id, buffer, stage) {
+                    let light = build.light().clone();
+                    if s.publish(index, id, buffer, stage, &light) {
                         match cached {
-                            Some(b) => finished(s, index, build.light(), b, at),
+                            Some(b) => finished(s, index, id, build.light(), b, at),
                             None => keep_build(s, index, id, build, at),
                         }
                     }
@@ -534,20 +708,28 @@ fn later_stage(s: &Shared, index: usize) {
             }
             return;
         }
-        let result = s.pool.install(|| build.photons(&s.scene, &s.view));
+        let result = s.pool.install(|| build.photons(&s.scene, &view));
+        if build.traced_photons() {
+            s.photon_traces.fetch_add(1, Ordering::SeqCst);
+        }
+        if let (Ok(_), Some(maps)) = (&result, build.shared_maps())
+            && slot.latest.load(Ordering::SeqCst) == id
+        {
+            slot.state.lock().expect("slot lock").maps = Some((build.light().clone(), maps));
+        }
         match result {
             Ok(buffer) => {
                 let refine = build.will_refine();
                 let stage = if refine { Stage::Photons } else { Stage::Ready };
                 let cached = (!refine).then(|| Arc::new(buffer.clone()));
-                if !s.publish(index, id, buffer, stage) {
+                let light = build.light().clone();
+                if !s.publish(index, id, buffer, stage, &light) {
                     return;
                 }
                 if let Some(b) = cached {
-                    return finished(s, index, build.light(), b, at);
+                    return finished(s, index, id, build.light(), b, at);
                 }
-                let light = build.light().clone();
-                match s.pool.install(|| build.into_refinement(&s.scene, &s.view)) {
+                match s.pool.install(|| build.into_refinement(&s.scene, &view)) {
                     Some(r) => start_refining(s, index, id, r, at),
                     None => mark_ready(s, index, id, &light, at),
                 }
@@ -557,19 +739,20 @@ fn later_stage(s: &Shared, index: usize) {
         return;
     }
     let Some((id, mut refine, at)) = refine else { return };
-    let result = s.pool.install(|| refine.pass(&s.scene, &s.view));
+    let result = s.pool.install(|| refine.pass(&s.scene, &view));
     match result {
         Ok(buffer) => {
             let done = refine.finished();
             let stage = if done { Stage::Ready } else { Stage::Refining(refine.done()) };
             let cached = done.then(|| Arc::new(buffer.clone()));
-            if !s.publish(index, id, buffer, stage) {
+            let light = refine.light().clone();
+            if !s.publish(index, id, buffer, stage, &light) {
                 return;
             }
             match cached {
                 Some(b) => {
                     tracing::debug!("light {index}: converged after {} progressive passes", refine.done());
-                    finished(s, index, refine.light(), b, at);
+                    finished(s, index, id, refine.light(), b, at);
                 }
                 None => {
                     let mut st = slot.state.lock().expect("slot lock");
@@ -630,7 +813,10 @@ fn mark_ready(s: &Shared, index: usize, id: u64, _light: &Light, at: Instant) {
 }
 
 /// A light's final buffer: cached for position presets, build time recorded.
-fn finished(s: &Shared, index: usize, light: &Light, buffer: Arc<LightBuffer>, at: Instant) {
+fn finished(s: &Shared, index: usize, id: u64, light: &Light, buffer: Arc<LightBuffer>, at: Instant) {
+    if s.slots[index].latest.load(Ordering::SeqCst) != id {
+        return; // a view change or a newer request superseded it
+    }
     s.cache.lock().expect("cache lock").insert(index, light, buffer);
     let elapsed = at.elapsed();
     s.slots[index].state.lock().expect("slot lock").last_build = Some(elapsed);

@@ -7,6 +7,9 @@
 //! LightBuild::new ─ direct() ─> D⁰ (primary surfaces only: a moving light is seen moving)
 //!                 ─ whitted() ─> D (eq. 1 recursion: mirrors, glass, adaptive AA, §3.4)
 //!                 ─ photons() ─> D + A (eq. 3: the light's own photon maps)
+//! LightBuild::new(..).with_maps(maps) ─ direct() ─ whitted() ─ photons():
+//!                   a new view of an unmoved light: the photon maps are
+//!                   reused, only the per-vertex estimates are redone
 //!                 ─ into_refinement() ─> Refinement::pass() ─> D + A_sppm, pass after pass
 //! ```
 //!
@@ -129,8 +132,12 @@ pub struct LightBuild {
     direct: Option<Vec<Vec3>>,
     /// Pixels re-shaded by anti-aliasing in the Whitted stage.
     reshaded: usize,
-    /// The light's photon maps, once traced.
-    maps: Option<PhotonMaps>,
+    /// The light's photon maps: traced by [`LightBuild::photons`], or
+    /// handed in by [`LightBuild::with_maps`] (they do not depend on the
+    /// camera, so a new view of an unmoved light reuses them).
+    maps: Option<Arc<PhotonMaps>>,
+    /// True once [`LightBuild::photons`] traced photons itself.
+    traced: bool,
     /// The photon-map irradiance at every shading vertex (refinement starts from it).
     start: Option<Vec<Vec3>>,
 }
@@ -138,7 +145,27 @@ pub struct LightBuild {
 impl LightBuild {
     /// A build of light number `index` (its photon seed).
     pub fn new(light: Light, index: usize, settings: BuildSettings, cancel: Cancel) -> Self {
-        Self { light, index, settings, cancel, direct: None, reshaded: 0, maps: None, start: None }
+        Self { light, index, settings, cancel, direct: None, reshaded: 0, maps: None, traced: false, start: None }
+    }
+
+    /// Starts from photon maps traced earlier for this same light geometry
+    /// (another view of it): [`LightBuild::photons`] then re-does only the
+    /// per-vertex estimates ([`View::render_indirect`]), not the photon
+    /// tracing. The caller guarantees the maps belong to this light.
+    pub fn with_maps(mut self, maps: Arc<PhotonMaps>) -> Self {
+        self.maps = Some(maps);
+        self
+    }
+
+    /// True when [`LightBuild::photons`] traced photons itself (false when
+    /// it reused maps from [`LightBuild::with_maps`]).
+    pub fn traced_photons(&self) -> bool {
+        self.traced
+    }
+
+    /// The photon maps, shared (after [`LightBuild::photons`] or [`LightBuild::with_maps`]).
+    pub fn shared_maps(&self) -> Option<Arc<PhotonMaps>> {
+        self.maps.clone()
     }
 
     /// The build's cancellation token.
@@ -217,10 +244,17 @@ impl LightBuild {
         let Some(direct) = self.direct.as_ref() else { return Err(Cancelled.into()) };
         let Some(photons) = self.settings.photons else { return Self::finish(view, direct) };
         self.cancel.check()?;
-        let settings = PhotonSettings { seed: light_seed(photons.seed, self.index), ..photons };
         let cancel = &self.cancel;
         let stop = || cancel.fired();
-        let maps = trace_photons_until(scene, &self.light, &settings, &stop).ok_or(Cancelled)?;
+        let maps = match &self.maps {
+            Some(maps) => maps.clone(),
+            None => {
+                let settings = PhotonSettings { seed: light_seed(photons.seed, self.index), ..photons };
+                let maps = Arc::new(trace_photons_until(scene, &self.light, &settings, &stop).ok_or(Cancelled)?);
+                self.traced = true;
+                maps
+            }
+        };
         // Per vertex first: refinement starts from these values (issue 13.4).
         let at_vertices = view.vertex_irradiance_until(scene, &maps, &stop).ok_or(Cancelled)?;
         let indirect = view.render_vertex_irradiance(scene, &at_vertices);
@@ -248,7 +282,7 @@ impl LightBuild {
 
     /// The light's photon maps, after [`LightBuild::photons`].
     pub fn maps(&self) -> Option<&PhotonMaps> {
-        self.maps.as_ref()
+        self.maps.as_deref()
     }
 
     /// Whether [`LightBuild::into_refinement`] would refine (photons traced,

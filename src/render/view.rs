@@ -182,6 +182,16 @@ impl View {
         self.tile_bounds.get_or_init(|| super::footprint::TileBounds::build(self))
     }
 
+    /// Memory held: G-buffer samples, camera-path vertices and the cached
+    /// 9-sample expansions (what a view cache counts against its budget).
+    pub fn bytes(&self) -> usize {
+        std::mem::size_of_val(&self.gbuffer.samples[..])
+            + std::mem::size_of_val(self.shading.vertices())
+            + (self.gbuffer.samples.len() + 1) * std::mem::size_of::<u32>()
+            + self.nine_cache.len() * std::mem::size_of::<OnceLock<Box<[ShadingVertex]>>>()
+            + self.nine_cache_bytes.load(Ordering::Relaxed).min(NINE_SAMPLE_CACHE_BYTES)
+    }
+
     /// Image width.
     pub fn width(&self) -> u32 {
         self.gbuffer.width

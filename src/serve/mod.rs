@@ -1,4 +1,5 @@
-//! The live preview over HTTP, read-only: nothing here changes the show.
+//! The live preview over HTTP: nothing here changes the show; the camera
+//! writes of [`control`] change only what the preview looks from.
 //!
 //! * `/`: a page with the live picture (the browser fetches the next frame
 //!   as soon as the previous one has loaded, so the rate follows what the
@@ -9,6 +10,8 @@
 //! * `/api/stream`: the browser stream (WebSocket, [`stream`], issue 17):
 //!   per-light buffers once, then k_i per frame; the page composites eq. 5
 //!   with WebGL2 (`/stream.js`, shaders in `shaders/`).
+//! * `/api/camera`, `/api/views`, `/camera.js`: the camera controls
+//!   ([`control`]); the only writes, allowed from loopback or with the token.
 //!
 //! Frames come from the frame clock's `watch` channel ([`ServeState::frames`]);
 //! each published picture is PNG-encoded at most once, on one blocking
@@ -23,6 +26,7 @@
 //! Routes live in [`router`]; a later WebSocket route (the browser stream)
 //! belongs there too: connections are served with upgrades enabled.
 
+pub mod control;
 pub mod load;
 pub mod png;
 pub mod server;
@@ -35,7 +39,7 @@ use axum::Router;
 use axum::extract::State;
 use axum::http::{StatusCode, header};
 use axum::response::{Html, IntoResponse, Response};
-use axum::routing::get;
+use axum::routing::{get, post};
 use std::sync::Arc;
 use tokio::sync::watch;
 
@@ -49,6 +53,10 @@ pub struct ServeState {
     pub frames: watch::Receiver<Arc<Frame>>,
     /// Daemon-wide status fields merged into `/api/status`.
     pub status: StatusFn,
+    /// The camera control (`None`: the camera routes answer 404).
+    pub views: Option<Arc<crate::live::views::Views>>,
+    /// The write token non-loopback clients must send ([`control`]).
+    pub write_token: Option<String>,
 }
 
 /// What the handlers share: the daemon's state, the PNG cache and the counters.
@@ -75,6 +83,9 @@ fn routes(state: ServeState, stats: Arc<ServeStats>) -> Router {
         .route("/stream.js", get(stream_js))
         .route("/api/status", get(status))
         .route("/api/frame.png", get(frame_png))
+        .route("/api/camera", post(control::post_camera))
+        .route("/api/views", get(control::get_views).post(control::post_view))
+        .route("/camera.js", get(control::camera_js))
         .with_state(app)
         .merge(Router::new().route("/api/stream", get(stream::handler)).with_state(stream))
 }

@@ -344,7 +344,9 @@ impl Connection {
     async fn serve(mut self, stream: TcpStream, peer: SocketAddr) {
         let activity = Arc::new(Activity::new());
         let io = TokioIo::new(Tracked { inner: stream, activity: activity.clone() });
-        let conn = self.http.serve_connection(io, TowerToHyperService::new(self.app)).with_upgrades();
+        // The peer address, for the camera routes' write policy (control.rs).
+        let app = self.app.layer(axum::Extension(super::control::Peer(peer)));
+        let conn = self.http.serve_connection(io, TowerToHyperService::new(app)).with_upgrades();
         tokio::pin!(conn);
         let mut closing = false;
         loop {

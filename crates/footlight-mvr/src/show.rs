@@ -607,6 +607,7 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
         look_universes: frames,
         gels: None,
         haze: None,
+        views: Vec::new(),
         warnings: Vec::new(),
     };
     Ok(Import { patch, warnings, scene: m.scene })

@@ -58,6 +58,7 @@ pub(super) fn build_with(
     if let Some(h) = &haze {
         h.write_look(&mut look_universes);
     }
+    let views = super::views::build_views(path, text, &file, &mut b.errors);
     if !b.errors.is_empty() {
         return Err(b.errors);
     }
@@ -82,6 +83,7 @@ pub(super) fn build_with(
         look_universes,
         gels,
         haze,
+        views,
         warnings,
     };
     Ok((patch, b.warnings))

@@ -26,6 +26,9 @@ pub struct PatchFile {
     pub input: Vec<Spanned<InputFile>>,
     /// The haze medium (`[haze]`, see `patch/haze.rs`).
     pub haze: Option<Spanned<super::haze::HazeFile>>,
+    /// Named camera views (`[[view]]`, see `patch/views.rs`).
+    #[serde(default)]
+    pub view: Vec<Spanned<super::views::ViewFile>>,
 }
 
 /// `[camera]`: eye position, target and vertical field of view.

@@ -27,9 +27,11 @@
 mod build;
 pub mod file;
 pub mod haze;
+pub mod views;
 
 pub use file::PatchFile;
 pub use haze::HazeSpec;
+pub use views::ViewSpec;
 
 use crate::beam::{Beam, SpotBeam};
 use crate::error::PatchError;
@@ -295,6 +297,8 @@ pub struct Patch {
     pub gels: Option<Arc<GelLibrary>>,
     /// The haze medium (`[haze]`), if any.
     pub haze: Option<HazeSpec>,
+    /// Named camera views (`[[view]]`) in file order.
+    pub views: Vec<ViewSpec>,
     /// Problems that do not stop the patch from loading (e.g. no fixtures),
     /// each with its file and line; also logged with `tracing::warn!` when
     /// the patch is built, which is how `footlight check` prints them.

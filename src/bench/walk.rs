@@ -1,0 +1,195 @@
+//! "Walk the stage" (issue 16), measured through the real daemon on the
+//! bench's scene and patch (the paper rig):
+//!
+//! * **moving preview**: the camera orbits (a write every 1/30 s, as a
+//!   dragging mouse sends) for a few seconds; frames published per second
+//!   while moving and the preview's time per frame (target ≥ 15 fps at
+//!   800×500 on 2 cores);
+//! * **camera stops**: from the last write to the new view on screen (every
+//!   light has a buffer for it: the moving preview is gone), to every light
+//!   past its Whitted stage (full-quality direct light, mirrors, glass, AA),
+//!   and to every light finished (target for the full-quality view < 3 s;
+//!   before issue 16 it took a restart);
+//! * **return to a cached view**: from the named-view write to its kept
+//!   buffers on screen (target < one frame).
+
+use crate::live::views::Phase;
+use crate::live::{Daemon, DaemonConfig, DmxSource, Show, Stage};
+use crate::render::photon::PhotonSettings;
+use crate::scene::{Camera, Scene};
+use serde::Serialize;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// What the walk measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct WalkReport {
+    /// Picture size.
+    pub width: u32,
+    /// Picture size.
+    pub height: u32,
+    /// Lights in the patch.
+    pub lights: usize,
+    /// Frames per second published while the camera moved.
+    pub moving_fps: f64,
+    /// Median time to render one preview frame, ms.
+    pub preview_ms: f64,
+    /// Last camera write → the new view on screen (no light left without a buffer), ms.
+    pub view_on_screen_ms: f64,
+    /// Last camera write → every light at least at its Whitted stage, ms.
+    pub full_quality_ms: f64,
+    /// Last camera write → every light finished, ms.
+    pub converged_ms: f64,
+    /// Named-view write → its cached buffers on screen, ms.
+    pub cached_return_ms: f64,
+    /// Lights restored from the cache on that return.
+    pub cached_restored: usize,
+    /// Frame period of the clock, ms (the cached-return target).
+    pub frame_ms: f64,
+}
+
+impl WalkReport {
+    /// The report's Markdown section.
+    pub fn markdown(&self) -> String {
+        format!(
+            "\n## Walking the stage (issue 16)\n\n{} lights at {}×{}. Moving camera (a write every 1/30 s): \
+             **{:.1} fps** published, preview {:.1} ms per frame (target ≥ 15 fps). Camera stops → new view on \
+             screen {:.0} ms, **full quality (every light past Whitted) {:.0} ms** (target < 3000 ms), every light \
+             finished {:.0} ms (settle time 200 ms included). Return to a cached view: **{:.1} ms** with {} of {} \
+             lights restored (target < one frame, {:.1} ms).\n",
+            self.lights,
+            self.width,
+            self.height,
+            self.moving_fps,
+            self.preview_ms,
+            self.view_on_screen_ms,
+            self.full_quality_ms,
+            self.converged_ms,
+            self.cached_return_ms,
+            self.cached_restored,
+            self.lights,
+            self.frame_ms
+        )
+    }
+}
+
+fn rank(s: Stage) -> u32 {
+    match s {
+        Stage::Queued => 0,
+        Stage::Direct => 1,
+        Stage::Whitted => 2,
+        Stage::Photons | Stage::Refining(_) => 3,
+        Stage::Ready => 4,
+    }
+}
+
+/// Runs the walk: the daemon over `scene` and `patch` from `camera`.
+pub fn run(
+    scene: &Arc<Scene>,
+    patch: &crate::Patch,
+    camera: Camera,
+    (width, height): (u32, u32),
+    seconds: f64,
+    photons: usize,
+) -> Result<WalkReport, String> {
+    let show = Arc::new(Show::new(patch.clone()));
+    let lights = patch.fixtures.len();
+    let mut config = DaemonConfig {
+        width,
+        height,
+        compositor: crate::gpu::CompositorChoice::Cpu,
+        shutdown_grace: Duration::from_secs(30),
+        ..DaemonConfig::default()
+    };
+    config.tracer.build.photons =
+        (photons > 0).then(|| PhotonSettings { stored: photons, ..PhotonSettings::default() });
+    let frame_ms = 1e3 / config.fps;
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .map_err(|e| e.to_string())?;
+    let (running_tx, running_rx) = std::sync::mpsc::channel();
+    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let daemon = Daemon::new(scene.clone(), show, camera, config).input(DmxSource::None).on_running(running_tx);
+    let runner = std::thread::spawn(move || {
+        rt.block_on(daemon.run(async {
+            let _ = stop_rx.await;
+        }))
+    });
+    let handle = running_rx.recv_timeout(Duration::from_secs(600)).map_err(|e| format!("daemon did not start: {e}"))?;
+    let stages = || (handle.status)().lights.iter().map(|l| l.build.as_ref().map_or(0, |b| rank(b.stage))).min();
+    let wait = |what: &dyn Fn() -> bool, limit: Duration| -> Result<f64, String> {
+        let t = Instant::now();
+        while !what() {
+            if t.elapsed() > limit {
+                return Err("timed out".into());
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        Ok(t.elapsed().as_secs_f64() * 1e3)
+    };
+    let ready = || stages().is_none_or(|s| s >= 4);
+    wait(&ready, Duration::from_secs(600))?;
+
+    // Orbit: a write every 1/30 s around the start camera's target.
+    let start = crate::live::views::Pose::of(&camera);
+    let target = camera.position - camera.basis.z_axis * 8.0;
+    let orbit = crate::live::views::Pose { target: target.to_array(), ..start };
+    let mut frames = handle.frames.clone();
+    let first = frames.borrow_and_update().number;
+    let t0 = Instant::now();
+    let mut step = 0u32;
+    let mut preview = Vec::new();
+    while t0.elapsed().as_secs_f64() < seconds {
+        step += 1;
+        let pose = orbit.orbit(0.01 * step as f32, 0.0);
+        handle.views.move_to(pose.camera()?);
+        if frames.has_changed().unwrap_or(false) {
+            preview.push(frames.borrow_and_update().composite_time.as_secs_f64() * 1e3);
+        }
+        let next = Duration::from_secs_f64(f64::from(step) / 30.0);
+        if let Some(w) = next.checked_sub(t0.elapsed()) {
+            std::thread::sleep(w);
+        }
+    }
+    let moving_s = t0.elapsed().as_secs_f64();
+    let moved_frames = frames.borrow_and_update().number - first;
+    let stopped = Instant::now();
+    let on_screen = || (handle.status)().view.phase == Phase::Still && stages().is_none_or(|s| s >= 1);
+    wait(&on_screen, Duration::from_secs(600))?;
+    let view_on_screen_ms = stopped.elapsed().as_secs_f64() * 1e3;
+    wait(&|| stages().is_none_or(|s| s >= 3), Duration::from_secs(600))?;
+    let full_quality_ms = stopped.elapsed().as_secs_f64() * 1e3;
+    wait(&ready, Duration::from_secs(600))?;
+    let converged_ms = stopped.elapsed().as_secs_f64() * 1e3;
+
+    // Back to the start view by name: from the cache.
+    let hits = (handle.status)().view.cache.hits;
+    let back = Instant::now();
+    handle.views.go_to("start")?;
+    let restored = || {
+        let v = (handle.status)().view;
+        v.phase == Phase::Still && v.cache.hits > hits
+    };
+    wait(&restored, Duration::from_secs(60))?;
+    let cached_return_ms = back.elapsed().as_secs_f64() * 1e3;
+    let cached_restored = (handle.status)().view.last_restored;
+
+    let _ = stop_tx.send(());
+    runner.join().map_err(|_| "daemon thread panicked".to_string())?.map_err(|e| e.to_string())?;
+    preview.sort_by(f64::total_cmp);
+    Ok(WalkReport {
+        width,
+        height,
+        lights,
+        moving_fps: moved_frames as f64 / moving_s,
+        preview_ms: preview.get(preview.len() / 2).copied().unwrap_or(0.0),
+        view_on_screen_ms,
+        full_quality_ms,
+        converged_ms,
+        cached_return_ms,
+        cached_restored,
+        frame_ms,
+    })
+}

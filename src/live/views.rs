@@ -1,0 +1,711 @@
+//! Walking the stage (issue 16): camera moves, named views, the moving
+//! preview and the cache of recent views.
+//!
+//! The paper fixes the camera (the G-buffer and every light buffer depend on
+//! it). Here a camera write ([`Views::move_to`], from the page, the window or
+//! a named view) is progressive:
+//!
+//! 1. **While moving** (a write less than [`ViewSettings::settle`] ago) the
+//!    tracer is paused and the frame clock shows [`preview`]: one primary
+//!    sample per pixel at reduced resolution, direct light of the lit lights
+//!    only, summed with the current k_i in one pass (no per-light buffers).
+//!    It goes through the same `Frame` channel, so a dimmer or colour change
+//!    shows on the next frame whatever is on screen.
+//! 2. **When it stops** the full [`View`] (9-sample G-buffer, Whitted camera
+//!    paths) is built on the blocking pool, or taken from the [`ViewCache`],
+//!    and swapped into the tracer ([`Tracer::set_view`]), which rebuilds
+//!    every light brightest first with its stages published as usual. Photon
+//!    maps survive (they do not depend on the camera); only the per-vertex
+//!    estimates are redone. The preview stays up until every light has a
+//!    buffer for the new view.
+//! 3. **Cached views**: the view left behind keeps its `View` and each
+//!    light's buffer with the geometry it was built for (LRU, bounded by
+//!    bytes). Returning to it publishes those buffers at once for every light
+//!    that has not moved meanwhile; the others are rebuilt.
+//!
+//! Views come from the scene's glTF camera, the patch's `[camera]` and
+//! `[[view]]` tables, and views saved from the page (kept in memory only,
+//! never written to a file). Poses are position + target + vertical field of
+//! view: a glTF camera's roll is not kept (`Camera::look_at` keeps +Y up).
+
+use super::daemon::StopSignal;
+use super::tracer::{Kept, Stage, Tracer};
+use crate::Light;
+use crate::render::whitted::{RecursionLimits, expand};
+use crate::render::{Display, Sampling, View};
+use crate::scene::{Camera, Scene};
+use glam::Vec3;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+use tokio::sync::Notify;
+use tokio::time::Instant;
+
+/// Every default of the view machinery, in one place.
+#[derive(Clone, Copy, Debug)]
+pub struct ViewSettings {
+    /// No camera write for this long: the camera has stopped (200 ms).
+    pub settle: Duration,
+    /// Byte budget of the view cache (views and their light buffers).
+    pub cache_bytes: usize,
+    /// The moving preview is rendered at 1/`preview_scale` of the picture
+    /// size in each direction (2: a quarter of the pixels).
+    pub preview_scale: u32,
+    /// Views that can be saved from the page (bounds memory and the list).
+    pub max_saved: usize,
+}
+
+impl Default for ViewSettings {
+    fn default() -> Self {
+        Self { settle: Duration::from_millis(200), cache_bytes: 1 << 30, preview_scale: 2, max_saved: 64 }
+    }
+}
+
+/// A camera as a user writes it: eye, target, vertical field of view.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Pose {
+    /// Eye position, metres.
+    pub position: [f32; 3],
+    /// Point looked at, metres.
+    pub target: [f32; 3],
+    /// Vertical field of view, degrees.
+    pub fov_y: f32,
+}
+
+impl Pose {
+    /// The camera of this pose, or why it is unusable.
+    pub fn camera(&self) -> Result<Camera, String> {
+        let (p, t) = (Vec3::from_array(self.position), Vec3::from_array(self.target));
+        if !p.is_finite() || !t.is_finite() {
+            return Err("camera position and target must be finite numbers".into());
+        }
+        if p.distance(t) < 1e-4 {
+            return Err("camera target must differ from its position".into());
+        }
+        if !(self.fov_y.is_finite() && self.fov_y > 0.0 && self.fov_y < 179.0) {
+            return Err(format!("camera fov_y {} must be between 0 and 179 degrees", self.fov_y));
+        }
+        Ok(Camera::look_at(p, t, self.fov_y.to_radians()))
+    }
+
+    /// The pose of `camera` (target one metre ahead of the eye).
+    pub fn of(camera: &Camera) -> Self {
+        let forward = -camera.basis.z_axis;
+        Self {
+            position: camera.position.to_array(),
+            target: (camera.position + forward).to_array(),
+            fov_y: camera.yfov.to_degrees(),
+        }
+    }
+}
+
+impl Pose {
+    /// Turns the eye around the target: `yaw` about world +Y, `pitch` up
+    /// (radians); the distance to the target is kept and the pitch stays
+    /// within ±86° so the view never flips over the pole.
+    pub fn orbit(&self, yaw: f32, pitch: f32) -> Self {
+        let (p, t) = (Vec3::from_array(self.position), Vec3::from_array(self.target));
+        let off = p - t;
+        let r = off.length();
+        if r.is_nan() || r <= 0.0 {
+            return *self;
+        }
+        let limit = 1.5f32;
+        let (y0, p0) = (off.x.atan2(off.z), (off.y / r).clamp(-1.0, 1.0).asin());
+        let (y1, p1) = (y0 - yaw, (p0 + pitch).clamp(-limit, limit));
+        let o = Vec3::new(r * p1.cos() * y1.sin(), r * p1.sin(), r * p1.cos() * y1.cos());
+        Self { position: (t + o).to_array(), ..*self }
+    }
+
+    /// Moves eye and target together by `right` and `up` metres in the
+    /// camera's own axes.
+    pub fn pan(&self, right: f32, up: f32) -> Self {
+        let (p, t) = (Vec3::from_array(self.position), Vec3::from_array(self.target));
+        let Ok(camera) = self.camera() else { return *self };
+        let shift = camera.basis.x_axis * right + camera.basis.y_axis * up;
+        Self { position: (p + shift).to_array(), target: (t + shift).to_array(), ..*self }
+    }
+
+    /// Scales the eye's distance to the target by `factor` (kept within 0.2-500 m).
+    pub fn dolly(&self, factor: f32) -> Self {
+        let (p, t) = (Vec3::from_array(self.position), Vec3::from_array(self.target));
+        let off = p - t;
+        let r = (off.length() * factor).clamp(0.2, 500.0);
+        match off.try_normalize() {
+            Some(dir) if r.is_finite() => Self { position: (t + dir * r).to_array(), ..*self },
+            _ => *self,
+        }
+    }
+
+    /// Scales the field of view by `factor` (kept within 5-120°).
+    pub fn zoom(&self, factor: f32) -> Self {
+        let fov = self.fov_y * factor;
+        if fov.is_finite() { Self { fov_y: fov.clamp(5.0, 120.0), ..*self } } else { *self }
+    }
+}
+
+/// Where a named view comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ViewSource {
+    /// The view the daemon started with.
+    Start,
+    /// The scene's glTF camera.
+    Scene,
+    /// The patch's `[camera]` or a `[[view]]` entry.
+    Patch,
+    /// Saved from the page (in memory only).
+    Saved,
+}
+
+/// A named view.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct NamedView {
+    /// The name shown in the list.
+    pub name: String,
+    /// The camera.
+    pub pose: Pose,
+    /// Where it comes from.
+    pub source: ViewSource,
+}
+
+/// The named views of a scene and patch: the start view, the glTF camera,
+/// the patch's `[camera]` and its `[[view]]` entries, in that order.
+pub fn named_views(start: &Camera, scene: &Scene, patch: Option<&crate::Patch>) -> Vec<NamedView> {
+    let mut out = vec![NamedView { name: "start".into(), pose: Pose::of(start), source: ViewSource::Start }];
+    if let Some(c) = &scene.camera {
+        out.push(NamedView { name: "scene camera".into(), pose: Pose::of(c), source: ViewSource::Scene });
+    }
+    if let Some(p) = patch {
+        if let Some(c) = &p.camera {
+            let pose =
+                Pose { position: c.position.to_array(), target: c.look_at.to_array(), fov_y: c.fov_y.to_degrees() };
+            out.push(NamedView { name: "patch camera".into(), pose, source: ViewSource::Patch });
+        }
+        for v in &p.views {
+            let pose =
+                Pose { position: v.position.to_array(), target: v.target.to_array(), fov_y: v.fov_y.to_degrees() };
+            out.retain(|o| o.name != v.name);
+            out.push(NamedView { name: v.name.clone(), pose, source: ViewSource::Patch });
+        }
+    }
+    out
+}
+
+/// One cached view: its `View` and what each light showed in it.
+struct CacheEntry {
+    camera: Camera,
+    view: Arc<View>,
+    kept: Vec<Option<Kept>>,
+    bytes: usize,
+    last_used: u64,
+}
+
+/// LRU cache of views left behind, bounded by bytes (the view's G-buffer
+/// and camera paths plus the light buffers it keeps). The key is the camera,
+/// matched by [`same_camera`] (a pose that went through JSON or degrees and
+/// back differs from the original in the last bits only).
+pub struct ViewCache {
+    entries: Vec<CacheEntry>,
+    budget: usize,
+    clock: u64,
+    hits: u64,
+    misses: u64,
+}
+
+impl ViewCache {
+    /// An empty cache of at most `budget` bytes.
+    pub fn new(budget: usize) -> Self {
+        Self { entries: Vec::new(), budget, clock: 0, hits: 0, misses: 0 }
+    }
+
+    /// Takes the entry for exactly `camera` out (it becomes the current view).
+    pub fn take(&mut self, camera: &Camera) -> Option<(Arc<View>, Vec<Option<Kept>>)> {
+        match self.entries.iter().position(|e| same_camera(&e.camera, camera)) {
+            Some(i) => {
+                self.hits += 1;
+                let e = self.entries.swap_remove(i);
+                Some((e.view, e.kept))
+            }
+            None => {
+                self.misses += 1;
+                None
+            }
+        }
+    }
+
+    /// Keeps a view left behind; the least recently used go past the budget.
+    pub fn insert(&mut self, camera: Camera, view: Arc<View>, kept: Vec<Option<Kept>>) {
+        let mut seen = std::collections::HashSet::new();
+        let buffers: usize =
+            kept.iter().flatten().filter(|k| seen.insert(Arc::as_ptr(&k.buffer))).map(|k| k.buffer.bytes()).sum();
+        let bytes = view.bytes() + buffers;
+        self.entries.retain(|e| !same_camera(&e.camera, &camera));
+        if bytes > self.budget {
+            return;
+        }
+        self.clock += 1;
+        self.entries.push(CacheEntry { camera, view, kept, bytes, last_used: self.clock });
+        while self.bytes() > self.budget {
+            let Some(oldest) = self.entries.iter().enumerate().min_by_key(|(_, e)| e.last_used).map(|(i, _)| i) else {
+                break;
+            };
+            self.entries.swap_remove(oldest);
+        }
+    }
+
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        self.entries.iter().map(|e| e.bytes).sum()
+    }
+
+    /// Views held.
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+
+    /// Returns to a cached view so far.
+    pub fn hits(&self) -> u64 {
+        self.hits
+    }
+
+    /// View changes that had to build their view.
+    pub fn misses(&self) -> u64 {
+        self.misses
+    }
+}
+
+/// What the camera is doing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Phase {
+    /// The tracer's view is the camera's.
+    Still,
+    /// Camera writes arrive: the moving preview is shown.
+    Moving,
+    /// The camera stopped; its full view is being built.
+    Building,
+}
+
+/// `views` in `/api/status` (documented in docs/live.md).
+#[derive(Clone, Debug, Serialize)]
+pub struct ViewStatus {
+    /// The camera now (the latest write).
+    pub current: Pose,
+    /// The named view chosen last, unless the camera moved since.
+    pub name: Option<String>,
+    /// Still, moving or building.
+    pub phase: Phase,
+    /// The least advanced stage of any light for the current view.
+    pub stage: Stage,
+    /// Camera writes accepted since start.
+    pub writes: u64,
+    /// Time from the camera stopping to its full view in the tracer, ms (last change).
+    pub last_switch_ms: Option<f64>,
+    /// Lights whose buffers came back from the cache on the last change.
+    pub last_restored: usize,
+    /// The view cache.
+    pub cache: ViewCacheStatus,
+}
+
+/// The view cache in the status.
+#[derive(Clone, Debug, Serialize)]
+pub struct ViewCacheStatus {
+    /// Views kept.
+    pub entries: usize,
+    /// Bytes they hold.
+    pub bytes: usize,
+    /// The budget.
+    pub budget_bytes: usize,
+    /// Returns to a cached view.
+    pub hits: u64,
+    /// View changes that built their view.
+    pub misses: u64,
+}
+
+struct State {
+    /// The latest written camera.
+    target: Camera,
+    /// The camera of the tracer's view.
+    active: Camera,
+    name: Option<String>,
+    last_write: Option<Instant>,
+    writes: u64,
+    phase: Phase,
+    named: Vec<NamedView>,
+    cache: ViewCache,
+    last_switch_ms: Option<f64>,
+    last_restored: usize,
+}
+
+/// The camera of a running daemon: writes, named views, the settle loop
+/// ([`Views::run`]) and the moving preview ([`Views::preview_camera`]).
+pub struct Views {
+    scene: Arc<Scene>,
+    tracer: Arc<Tracer>,
+    width: u32,
+    height: u32,
+    limits: RecursionLimits,
+    settings: ViewSettings,
+    state: Mutex<State>,
+    wake: Notify,
+}
+
+impl Views {
+    /// The views of `tracer`, whose view was built from `start`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        scene: Arc<Scene>,
+        tracer: Arc<Tracer>,
+        start: Camera,
+        named: Vec<NamedView>,
+        limits: RecursionLimits,
+        settings: ViewSettings,
+    ) -> Self {
+        let view = tracer.view();
+        let (width, height) = (view.width(), view.height());
+        Self {
+            scene,
+            tracer,
+            width,
+            height,
+            limits,
+            settings,
+            state: Mutex::new(State {
+                target: start,
+                active: start,
+                name: Some("start".into()),
+                last_write: None,
+                writes: 0,
+                phase: Phase::Still,
+                named,
+                cache: ViewCache::new(settings.cache_bytes),
+                last_switch_ms: None,
+                last_restored: 0,
+            }),
+            wake: Notify::new(),
+        }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, State> {
+        self.state.lock().expect("views lock")
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &ViewSettings {
+        &self.settings
+    }
+
+    /// A camera write: the preview follows it at once; the full view is
+    /// built once no write came for [`ViewSettings::settle`].
+    pub fn move_to(&self, camera: Camera) {
+        let mut st = self.lock();
+        st.target = camera;
+        st.name = None;
+        st.last_write = Some(Instant::now());
+        st.writes += 1;
+        st.phase = Phase::Moving;
+        drop(st);
+        self.tracer.set_paused(true);
+        self.wake.notify_one();
+    }
+
+    /// Moves to the named view. A jump is one write, not a drag: it is
+    /// settled at once (no [`ViewSettings::settle`] wait), so a cached view
+    /// is back on the next frame.
+    pub fn go_to(&self, name: &str) -> Result<(), String> {
+        let pose = self.lock().named.iter().find(|v| v.name == name).map(|v| v.pose);
+        let Some(pose) = pose else { return Err(format!("no view named {name:?}")) };
+        self.move_to(pose.camera()?);
+        let mut st = self.lock();
+        st.name = Some(name.to_string());
+        let now = Instant::now();
+        st.last_write = Some(now.checked_sub(self.settings.settle).unwrap_or(now));
+        drop(st);
+        self.wake.notify_one();
+        Ok(())
+    }
+
+    /// Saves the current camera as `name` (in memory; a saved view of the
+    /// same name is replaced, a scene or patch view is not).
+    pub fn save(&self, name: &str) -> Result<NamedView, String> {
+        let name = name.trim();
+        if name.is_empty() || name.chars().count() > 64 || name.chars().any(char::is_control) {
+            return Err("a view name is 1-64 printable characters".into());
+        }
+        let mut st = self.lock();
+        if st.named.iter().any(|v| v.name == name && v.source != ViewSource::Saved) {
+            return Err(format!("{name:?} is a scene or patch view; choose another name"));
+        }
+        st.named.retain(|v| v.name != name);
+        if st.named.iter().filter(|v| v.source == ViewSource::Saved).count() >= self.settings.max_saved {
+            return Err(format!("at most {} saved views", self.settings.max_saved));
+        }
+        let view = NamedView { name: name.to_string(), pose: Pose::of(&st.target), source: ViewSource::Saved };
+        st.named.push(view.clone());
+        st.name = Some(name.to_string());
+        Ok(view)
+    }
+
+    /// Every named view.
+    pub fn list(&self) -> Vec<NamedView> {
+        self.lock().named.clone()
+    }
+
+    /// The camera the moving preview shows, or `None` when the tracer's
+    /// buffers are the picture: while moving or building, and after a view
+    /// change until every light has a buffer for the new view.
+    pub fn preview_camera(&self) -> Option<Camera> {
+        let st = self.lock();
+        match st.phase {
+            Phase::Moving | Phase::Building => Some(st.target),
+            Phase::Still => (self.tracer.view_generation() > 0 && self.tracer.any_queued()).then_some(st.active),
+        }
+    }
+
+    /// The moving preview for `camera` with `lights` (geometry and k_i).
+    pub fn preview(&self, camera: &Camera, lights: &[(&Light, Vec3)], display: &Display) -> Vec<u8> {
+        let linear = preview(&self.scene, camera, self.width, self.height, self.settings.preview_scale, lights);
+        if let Err((i, v)) = crate::render::display::check_finite(&linear) {
+            tracing::error!("moving preview: pixel {i} is {v} (a bug)");
+        }
+        display.to_srgb8(&linear)
+    }
+
+    /// `views` in `/api/status`.
+    pub fn status(&self) -> ViewStatus {
+        let st = self.lock();
+        let stage = (0..self.tracer.len())
+            .filter_map(|i| self.tracer.report(i))
+            .map(|r| r.stage)
+            .min_by_key(|s| stage_rank(*s))
+            .unwrap_or(Stage::Ready);
+        ViewStatus {
+            current: Pose::of(&st.target),
+            name: st.name.clone(),
+            phase: st.phase,
+            stage,
+            writes: st.writes,
+            last_switch_ms: st.last_switch_ms,
+            last_restored: st.last_restored,
+            cache: ViewCacheStatus {
+                entries: st.cache.len(),
+                bytes: st.cache.bytes(),
+                budget_bytes: self.settings.cache_bytes,
+                hits: st.cache.hits(),
+                misses: st.cache.misses(),
+            },
+        }
+    }
+
+    /// The settle loop: once no write came for the settle time, the view of
+    /// the latest camera is taken from the cache or built off the async
+    /// workers, and swapped into the tracer. Returns when `stop` fires.
+    pub async fn run(self: Arc<Self>, stop: StopSignal) -> (&'static str, Result<(), String>) {
+        let stopped = stop.fired();
+        tokio::pin!(stopped);
+        loop {
+            let due = {
+                let st = self.lock();
+                match (st.phase, st.last_write) {
+                    (Phase::Moving, Some(t)) => Some(t + self.settings.settle),
+                    _ => None,
+                }
+            };
+            let sleep = async {
+                match due {
+                    Some(t) => tokio::time::sleep_until(t).await,
+                    None => std::future::pending().await,
+                }
+            };
+            tokio::select! {
+                _ = &mut stopped => return ("views", Ok(())),
+                _ = self.wake.notified() => continue,
+                _ = sleep => {}
+            }
+            if let Err(e) = self.settle().await {
+                return ("views", Err(e));
+            }
+        }
+    }
+
+    /// One settle step: builds or restores the view of the latest camera if
+    /// it has been still for the settle time.
+    async fn settle(self: &Arc<Self>) -> Result<(), String> {
+        let stopped_at = Instant::now();
+        let (camera, writes) = {
+            let mut st = self.lock();
+            let still = st.last_write.is_some_and(|t| t + self.settings.settle <= Instant::now());
+            if st.phase != Phase::Moving || !still {
+                return Ok(());
+            }
+            if same_camera(&st.target, &st.active) {
+                // Back where it started before settling: nothing to build.
+                st.phase = Phase::Still;
+                drop(st);
+                self.tracer.set_paused(false);
+                return Ok(());
+            }
+            st.phase = Phase::Building;
+            (st.target, st.writes)
+        };
+        let cached = self.lock().cache.take(&camera);
+        let (view, kept) = match cached {
+            Some(hit) => hit,
+            None => {
+                let (scene, w, h, limits) = (self.scene.clone(), self.width, self.height, self.limits);
+                let view = tokio::task::spawn_blocking(move || {
+                    Arc::new(View::build(&scene, camera, w, h, Sampling::Adaptive, limits))
+                })
+                .await
+                .map_err(|e| format!("building the view failed: {e}"))?;
+                (view, Vec::new())
+            }
+        };
+        let mut st = self.lock();
+        if st.writes != writes {
+            // The camera moved on while building: keep the view for later.
+            st.cache.insert(camera, view, kept);
+            if st.phase == Phase::Building {
+                st.phase = Phase::Moving;
+            }
+            return Ok(());
+        }
+        let old_camera = st.active;
+        let old_view = self.tracer.view();
+        let (old, restored) = self.tracer.set_view(view, &kept);
+        st.cache.insert(old_camera, old_view, old);
+        st.active = camera;
+        st.phase = Phase::Still;
+        st.last_restored = restored;
+        st.last_switch_ms = Some(stopped_at.elapsed().as_secs_f64() * 1e3);
+        drop(st);
+        self.tracer.set_paused(false);
+        tracing::info!("view changed: {restored} of {} lights restored from the view cache", self.tracer.len());
+        Ok(())
+    }
+}
+
+/// True when two cameras see the same picture up to float rounding: eye
+/// within 1e-5 m, basis vectors within 1e-5, field of view within 1e-6 rad.
+pub fn same_camera(a: &Camera, b: &Camera) -> bool {
+    a.position.abs_diff_eq(b.position, 1e-5) && a.basis.abs_diff_eq(b.basis, 1e-5) && (a.yfov - b.yfov).abs() <= 1e-6
+}
+
+/// Orders stages from least to most advanced.
+fn stage_rank(s: Stage) -> u32 {
+    match s {
+        Stage::Queued => 0,
+        Stage::Direct => 1,
+        Stage::Whitted => 2,
+        Stage::Photons => 3,
+        Stage::Refining(n) => 4 + n.min(1 << 20),
+        Stage::Ready => u32::MAX,
+    }
+}
+
+/// The moving preview, linear cd/m² at `width`×`height`: one primary ray
+/// per pixel of a 1/`scale` image (the pixel centre), direct light of each
+/// of `lights` at the surface it hits (the same `direct` term as every
+/// buffer, eq. 1 without recursion), summed with its k_i in one pass, then
+/// replicated to full size. No mirrors, glass, anti-aliasing or indirect
+/// light: it only has to follow the camera.
+pub fn preview(
+    scene: &Scene,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    scale: u32,
+    lights: &[(&Light, Vec3)],
+) -> Vec<Vec3> {
+    let scale = scale.max(1);
+    let (sw, sh) = (width.div_ceil(scale).max(1), height.div_ceil(scale).max(1));
+    let lit: Vec<(&Light, Vec3)> = lights.iter().copied().filter(|(_, k)| k.max_element() > 0.0).collect();
+    let primary = RecursionLimits { max_depth: 0, ..RecursionLimits::default() };
+    let mut small = vec![Vec3::ZERO; (sw * sh) as usize];
+    small.par_chunks_mut(sw as usize).enumerate().for_each(|(y, row)| {
+        let mut vertices = Vec::new();
+        for (x, out) in row.iter_mut().enumerate() {
+            let dir = camera.direction(x as f32 + 0.5, y as f32 + 0.5, sw, sh);
+            let Some(hit) = scene.accel.intersect(camera.position, dir, f32::INFINITY) else { continue };
+            vertices.clear();
+            expand(scene, scene.surface(&hit), dir, Vec3::ONE, primary, &mut vertices);
+            *out = vertices
+                .iter()
+                .map(|v| {
+                    lit.iter()
+                        .map(|(light, k)| *k * v.weight * crate::render::whitted::direct(scene, light, v))
+                        .sum::<Vec3>()
+                })
+                .sum();
+        }
+    });
+    let mut full = vec![Vec3::ZERO; (width * height) as usize];
+    full.par_chunks_mut(width.max(1) as usize).enumerate().for_each(|(y, row)| {
+        let sy = (y as u32 / scale).min(sh - 1);
+        for (x, out) in row.iter_mut().enumerate() {
+            *out = small[(sy * sw + (x as u32 / scale).min(sw - 1)) as usize];
+        }
+    });
+    full
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pose() -> Pose {
+        Pose { position: [0.0, 5.0, 6.0], target: [0.0, 1.0, 0.0], fov_y: 40.0 }
+    }
+
+    fn dist(p: &Pose) -> f32 {
+        Vec3::from_array(p.position).distance(Vec3::from_array(p.target))
+    }
+
+    #[test]
+    fn orbit_keeps_the_distance_and_a_full_turn_comes_back() {
+        let p = pose();
+        let mut q = p;
+        for _ in 0..8 {
+            q = q.orbit(std::f32::consts::FRAC_PI_4, 0.0);
+            assert!((dist(&q) - dist(&p)).abs() < 1e-4);
+        }
+        assert!(Vec3::from_array(q.position).abs_diff_eq(Vec3::from_array(p.position), 1e-4), "{q:?}");
+        // A quarter turn to the left puts the eye on the −X side (yaw about +Y).
+        let side = p.orbit(std::f32::consts::FRAC_PI_2, 0.0);
+        assert!((side.position[0] + 6.0).abs() < 1e-4 && side.position[2].abs() < 1e-4, "{side:?}");
+        // Pitch stops short of the pole: the camera stays well defined.
+        let top = p.orbit(0.0, 10.0);
+        assert!(top.camera().unwrap().basis.is_finite());
+        assert!(top.position[1] < 1.0 + dist(&p));
+    }
+
+    #[test]
+    fn pan_moves_eye_and_target_together_sideways_and_dolly_and_zoom_stay_in_range() {
+        let p = pose();
+        let q = p.pan(1.0, 0.0);
+        let shift = Vec3::from_array(q.position) - Vec3::from_array(p.position);
+        assert!((shift - Vec3::X).length() < 1e-5, "right of a camera looking down −Z is +X: {shift}");
+        assert_eq!(Vec3::from_array(q.target) - Vec3::from_array(p.target), shift);
+        assert!((dist(&p.dolly(0.5)) - 0.5 * dist(&p)).abs() < 1e-4);
+        assert!((dist(&p.dolly(1e-9)) - 0.2).abs() < 1e-5);
+        assert_eq!(p.zoom(100.0).fov_y, 120.0);
+        assert_eq!(p.zoom(f32::NAN), p);
+    }
+
+    #[test]
+    fn poses_round_trip_through_cameras() {
+        let c = pose().camera().unwrap();
+        assert!(same_camera(&Pose::of(&c).camera().unwrap(), &c));
+        assert!(Pose { fov_y: 0.0, ..pose() }.camera().is_err());
+        assert!(Pose { target: [0.0, 5.0, 6.0], ..pose() }.camera().is_err());
+        assert!(Pose { position: [f32::NAN, 0.0, 0.0], ..pose() }.camera().is_err());
+    }
+}

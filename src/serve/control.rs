@@ -1,0 +1,198 @@
+//! Camera writes over HTTP (issue 16): the only routes that change the
+//! daemon's state. Everything else the preview serves is read-only.
+//!
+//! * `GET /api/views`: the named views and the camera's status.
+//! * `POST /api/camera`: `{"position": [x, y, z], "target": [x, y, z], "fov_y": deg}`
+//!   or `{"view": "name"}` moves the camera (204).
+//! * `POST /api/views`: `{"name": "…"}` saves the current camera under that
+//!   name, in memory only (201 with the view).
+//!
+//! **Who may write** ([`write_allowed`]): a client on a loopback address
+//! always may. Any other client must send the token the daemon prints at
+//! start (header [`TOKEN_HEADER`]); without it the answer is 403. The
+//! token exists only when `--http` binds a non-loopback address (on
+//! loopback no other machine can connect). The client's address comes from
+//! the accepted socket ([`Peer`], set by the server), never from a header.
+
+use super::App;
+use crate::live::views::{Pose, Views};
+use axum::body::Body;
+use axum::extract::{Request, State};
+use axum::http::{StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use serde::Deserialize;
+use std::net::{IpAddr, SocketAddr};
+use std::sync::Arc;
+
+/// The header carrying the write token.
+pub const TOKEN_HEADER: &str = "x-footlight-token";
+
+/// Largest accepted write body (a pose or a name is a few hundred bytes).
+const MAX_BODY: usize = 4096;
+
+/// The client's socket address, inserted into every request by the
+/// server's accept loop ([`super::Server`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Peer(pub SocketAddr);
+
+/// True for a loopback client (IPv4, IPv6 or IPv4-mapped IPv6).
+fn is_loopback(ip: IpAddr) -> bool {
+    match ip {
+        IpAddr::V4(v4) => v4.is_loopback(),
+        IpAddr::V6(v6) => v6.is_loopback() || v6.to_ipv4_mapped().is_some_and(|v4| v4.is_loopback()),
+    }
+}
+
+/// The write policy: loopback clients may write; any other client (or one
+/// whose address is unknown) needs `presented` equal to the daemon's
+/// `token`; without a token configured only loopback may write.
+pub fn write_allowed(peer: Option<IpAddr>, token: Option<&str>, presented: Option<&str>) -> bool {
+    if peer.is_some_and(is_loopback) {
+        return true;
+    }
+    match (token, presented) {
+        (Some(t), Some(p)) => constant_time_eq(t.as_bytes(), p.as_bytes()),
+        _ => false,
+    }
+}
+
+/// Compares without an early exit on the first differing byte (the time
+/// does not tell a remote client how much of its guess was right).
+/// Hand-written: four lines, not worth a dependency.
+fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+/// A fresh write token: 128 bits from the standard library's per-process
+/// random hash keys (seeded from the OS; `rand` is built here without its OS
+/// source), as 32 hex digits.
+pub fn new_token() -> String {
+    use std::hash::{BuildHasher, Hasher};
+    let part = |salt: u64| {
+        let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+        h.write_u64(salt);
+        h.write_u128(std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos()));
+        h.finish()
+    };
+    format!("{:016x}{:016x}", part(1), part(2))
+}
+
+fn error(status: StatusCode, message: impl Into<String>) -> Response {
+    (status, [(header::CONTENT_TYPE, "text/plain; charset=utf-8")], message.into()).into_response()
+}
+
+/// Checks the write policy and reads a small JSON body.
+async fn authorized_json<T: for<'de> Deserialize<'de>>(app: &App, req: Request) -> Result<(Arc<Views>, T), Response> {
+    let Some(views) = app.state.views.clone() else {
+        return Err(error(StatusCode::NOT_FOUND, "this server has no camera control"));
+    };
+    let peer = req.extensions().get::<Peer>().map(|p| p.0.ip());
+    let presented = req.headers().get(TOKEN_HEADER).and_then(|v| v.to_str().ok());
+    if !write_allowed(peer, app.state.write_token.as_deref(), presented) {
+        tracing::info!("preview: camera write from {peer:?} refused (no valid token)");
+        return Err(error(
+            StatusCode::FORBIDDEN,
+            "camera writes from another machine need the token footlight printed at start (header x-footlight-token)",
+        ));
+    }
+    let body = axum::body::to_bytes(req.into_body(), MAX_BODY)
+        .await
+        .map_err(|e| error(StatusCode::PAYLOAD_TOO_LARGE, format!("request body: {e}")))?;
+    let value = serde_json::from_slice(&body).map_err(|e| error(StatusCode::BAD_REQUEST, format!("JSON body: {e}")))?;
+    Ok((views, value))
+}
+
+/// A camera write: a pose or a named view.
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum CameraWrite {
+    Pose(Pose),
+    Named { view: String },
+}
+
+/// `POST /api/camera`.
+pub(super) async fn post_camera(State(app): State<App>, req: Request) -> Response {
+    let (views, write) = match authorized_json::<CameraWrite>(&app, req).await {
+        Ok(x) => x,
+        Err(r) => return r,
+    };
+    let result = match write {
+        CameraWrite::Pose(pose) => pose.camera().map(|c| views.move_to(c)),
+        CameraWrite::Named { view } => views.go_to(&view),
+    };
+    match result {
+        Ok(()) => StatusCode::NO_CONTENT.into_response(),
+        Err(e) => error(StatusCode::BAD_REQUEST, e),
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SaveView {
+    name: String,
+}
+
+/// `POST /api/views`.
+pub(super) async fn post_view(State(app): State<App>, req: Request) -> Response {
+    let (views, save) = match authorized_json::<SaveView>(&app, req).await {
+        Ok(x) => x,
+        Err(r) => return r,
+    };
+    match views.save(&save.name) {
+        Ok(v) => (StatusCode::CREATED, axum::Json(v)).into_response(),
+        Err(e) => error(StatusCode::BAD_REQUEST, e),
+    }
+}
+
+/// `GET /api/views`.
+pub(super) async fn get_views(State(app): State<App>) -> Response {
+    match &app.state.views {
+        Some(views) => {
+            axum::Json(serde_json::json!({ "views": views.list(), "camera": views.status() })).into_response()
+        }
+        None => error(StatusCode::NOT_FOUND, "this server has no camera control"),
+    }
+}
+
+/// `GET /camera.js`: the page's camera controls (a separate script module).
+pub(super) async fn camera_js() -> Response {
+    Response::builder()
+        .header(header::CONTENT_TYPE, "text/javascript; charset=utf-8")
+        .header(header::CACHE_CONTROL, "no-cache")
+        .body(Body::from(include_str!("camera.js")))
+        .unwrap_or_else(|_| StatusCode::INTERNAL_SERVER_ERROR.into_response())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn loopback_writes_need_no_token_and_others_need_the_right_one() {
+        let lo4: IpAddr = "127.0.0.1".parse().unwrap();
+        let lo6: IpAddr = "::1".parse().unwrap();
+        let mapped: IpAddr = "::ffff:127.0.0.1".parse().unwrap();
+        let lan: IpAddr = "192.168.1.20".parse().unwrap();
+        for ip in [lo4, lo6, mapped] {
+            assert!(write_allowed(Some(ip), None, None));
+            assert!(write_allowed(Some(ip), Some("t0k3n"), None));
+        }
+        assert!(!write_allowed(Some(lan), None, None));
+        assert!(!write_allowed(Some(lan), None, Some("anything")));
+        assert!(!write_allowed(Some(lan), Some("t0k3n"), None));
+        assert!(!write_allowed(Some(lan), Some("t0k3n"), Some("t0k3m")));
+        assert!(!write_allowed(Some(lan), Some("t0k3n"), Some("t0k3n ")));
+        assert!(write_allowed(Some(lan), Some("t0k3n"), Some("t0k3n")));
+        // Unknown peer: treated as remote.
+        assert!(!write_allowed(None, Some("t0k3n"), None));
+        assert!(write_allowed(None, Some("t0k3n"), Some("t0k3n")));
+    }
+
+    #[test]
+    fn tokens_are_32_hex_digits_and_differ() {
+        let (a, b) = (new_token(), new_token());
+        assert_eq!(a.len(), 32);
+        assert!(a.chars().all(|c| c.is_ascii_hexdigit()));
+        assert_ne!(a, b);
+    }
+}
