@@ -30,6 +30,7 @@ fn frame(number: u64) -> Arc<Frame> {
         k: Arc::new(Vec::new()),
         buffers: Arc::new(Vec::new()),
         display: footlight::render::display::Display::default(),
+        preview: false,
     })
 }
 

@@ -350,6 +350,7 @@ fn frame(number: u64, w: u32, h: u32, buffer: Arc<LightBuffer>, generation: u64)
         k: Arc::new(vec![Vec3::splat(number as f32)]),
         buffers: Arc::new(vec![(generation, buffer)]),
         display: Display::default(),
+        preview: false,
     })
 }
 

@@ -338,6 +338,7 @@ async fn camera_writes_need_the_token_from_another_machine_but_not_from_loopback
         k: Arc::new(vec![glam::Vec3::ZERO]),
         buffers: Arc::new(Vec::new()),
         display: footlight::render::Display::default(),
+        preview: false,
     };
     let (_tx, rx) = watch::channel(Arc::new(frame));
     let state = ServeState {
@@ -475,6 +476,8 @@ fn headless_chromium_drags_on_the_page_and_the_picture_changes() {
         img
     };
     wait_still();
+    // The page's default mode, the buffer stream: while the camera moves it
+    // shows the server's moving preview pictures, then the new view's buffers.
     let before = shot("before", "");
     assert_eq!((handle.status)().view.writes, 0, "loading the page writes nothing");
     let after = shot("drag", "?selftest=drag");

@@ -86,6 +86,9 @@ pub struct Frame {
     pub buffers: Arc<Vec<(u64, Arc<LightBuffer>)>>,
     /// The display settings the frame's sRGB pixels were encoded with.
     pub display: Display,
+    /// A moving-camera preview (not a composite of the per-light buffers):
+    /// the browser stream pushes it as a picture.
+    pub preview: bool,
 }
 
 /// Frame state carried from tick to tick.
@@ -214,6 +217,7 @@ impl FrameClock {
                 k: Arc::new(inputs.iter().map(|i| i.k).collect()),
                 buffers: Arc::new(published.iter().map(|p| (p.generation, p.buffer.clone())).collect()),
                 display: self.compositor.display(),
+                preview: true,
             };
             self.number += 1;
             return frame;
@@ -253,6 +257,7 @@ impl FrameClock {
             k,
             buffers,
             display: self.compositor.display(),
+            preview: false,
         };
         self.number += 1;
         frame

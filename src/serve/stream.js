@@ -220,6 +220,7 @@ export function start(canvas, img) {
       dirty = true;
     } else if (type === MSG_FRAME) {
       probe.counts.frame++;
+      if (gl) show(true); // back from a moving-camera picture to the composite
       const n = v.getUint32(4, true);
       probe.frame = Number(v.getBigUint64(8, true));
       display = [16, 20, 24, 28].map(o => v.getFloat32(o, true));
@@ -228,6 +229,7 @@ export function start(canvas, img) {
       k = next;
     } else if (type === MSG_PICTURE) {
       probe.counts.picture++;
+      if (gl) show(false); // the camera moves: the server's preview, in the <img>
       probe.frame = Number(v.getBigUint64(4, true));
       if (lastUrl) URL.revokeObjectURL(lastUrl);
       lastUrl = URL.createObjectURL(new Blob([new Uint8Array(data, 12)], { type: 'image/png' }));

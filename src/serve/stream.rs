@@ -368,6 +368,13 @@ impl Client {
     /// Sends what `frame` changed for this client.
     async fn update(&mut self, frame: &Arc<Frame>) -> Result<(), End> {
         match self.mode {
+            // The camera moves: the frame is the server's moving preview,
+            // not a sum of the buffers the client holds; push it as a
+            // picture, and send k again once the buffers are back.
+            Mode::Buffers if frame.preview => {
+                self.last_k = None;
+                self.push_picture(frame).await
+            }
             Mode::Buffers => {
                 let n = frame.buffers.len();
                 self.sent.resize(n, None);
@@ -395,21 +402,24 @@ impl Client {
                 }
                 Ok(())
             }
-            Mode::Pictures => {
-                if self.last_picture.as_ref().is_some_and(|p| Arc::ptr_eq(p, &frame.rgb)) {
-                    return Ok(());
-                }
-                match self.s.png.get(frame.clone()).await {
-                    Ok(png) => {
-                        self.send(encode_picture(png.number, &png.bytes)).await?;
-                        self.s.stats.picture_messages.fetch_add(1, Ordering::Relaxed);
-                        self.last_picture = Some(frame.rgb.clone());
-                    }
-                    Err(e) => tracing::warn!("stream: encoding the picture failed: {e}"),
-                }
-                Ok(())
-            }
+            Mode::Pictures => self.push_picture(frame).await,
         }
+    }
+
+    /// Pushes the frame's picture (the shared PNG) when its pixels changed.
+    async fn push_picture(&mut self, frame: &Arc<Frame>) -> Result<(), End> {
+        if self.last_picture.as_ref().is_some_and(|p| Arc::ptr_eq(p, &frame.rgb)) {
+            return Ok(());
+        }
+        match self.s.png.get(frame.clone()).await {
+            Ok(png) => {
+                self.send(encode_picture(png.number, &png.bytes)).await?;
+                self.s.stats.picture_messages.fetch_add(1, Ordering::Relaxed);
+                self.last_picture = Some(frame.rgb.clone());
+            }
+            Err(e) => tracing::warn!("stream: encoding the picture failed: {e}"),
+        }
+        Ok(())
     }
 
     async fn send_k(&mut self, frame: &Arc<Frame>) -> Result<(), End> {
@@ -683,6 +693,7 @@ mod tests {
             k: Arc::new(vec![Vec3::new(1.0, 2.0, 3.0), Vec3::splat(0.5)]),
             buffers: Arc::new(vec![]),
             display,
+            preview: false,
         };
         let m = encode_frame(&frame);
         assert_eq!(m.len(), 32 + 2 * 16);
