@@ -109,7 +109,7 @@ impl Pose {
         let (p, t) = (Vec3::from_array(self.position), Vec3::from_array(self.target));
         let off = p - t;
         let r = off.length();
-        if !(r > 0.0) {
+        if r.is_nan() || r <= 0.0 {
             return *self;
         }
         let limit = 1.5f32;
