@@ -366,6 +366,14 @@ async fn camera_writes_need_the_token_from_another_machine_but_not_from_loopback
     let s = views.status();
     assert_eq!((s.writes, s.phase), (1, Phase::Moving));
     assert_eq!(s.current.position, [1.0, 4.0, 6.0]);
+    // A form-style POST (no CORS preflight in a browser) is refused even from loopback.
+    let app = footlight::serve::router(state.clone()).layer(axum::Extension(Peer("127.0.0.1:50000".parse().unwrap())));
+    let form = axum::http::Request::post("/api/camera")
+        .header("content-type", "text/plain")
+        .body(axum::body::Body::from(pose))
+        .unwrap();
+    assert_eq!(app.oneshot(form).await.unwrap().status().as_u16(), 415);
+    assert_eq!(views.status().writes, 1);
     // Reads stay open to everyone.
     let app =
         footlight::serve::router(state.clone()).layer(axum::Extension(Peer("192.168.1.20:50000".parse().unwrap())));

@@ -366,9 +366,11 @@ impl Tracer {
     /// cancelled and the geometry cache is emptied (its buffers belong to
     /// the old view). A light whose `kept` buffer (from a cached view) was
     /// built for its current geometry is published at once (a view-cache
-    /// hit); every other light is rebuilt for the new view from its direct
-    /// stage, brightest first, reusing its photon maps. Returns what the old
-    /// view showed ([`Tracer::snapshot`]) and how many lights were restored.
+    /// hit; a kept buffer that had not reached [`Stage::Ready`] shows while
+    /// its build runs again); every other light is rebuilt for the new view
+    /// from its direct stage, brightest first, reusing its photon maps.
+    /// Returns what the old view showed ([`Tracer::snapshot`]) and how many
+    /// lights were restored.
     pub fn set_view(&self, view: Arc<View>, kept: &[Option<Kept>]) -> (Vec<Option<Kept>>, usize) {
         let s = &self.shared;
         let old = self.snapshot();
@@ -405,29 +407,41 @@ impl Tracer {
             };
             let hit = kept.get(i).and_then(Option::as_ref).filter(|k| k.light == light);
             if let Some(k) = hit {
-                st.waiting_since = None;
-                st.shown = Some(light);
-                drop(st);
-                let mut p = slot.published.lock().expect("published lock");
-                p.buffer = k.buffer.clone();
-                p.generation += 1;
-                // A build the old visit left unfinished is not resumed: its
-                // buffer shows, marked ready (rebuilt when the light moves).
-                p.stage = Stage::Ready;
+                st.shown = Some(light.clone());
                 restored += 1;
-                continue;
+                if k.stage == Stage::Ready {
+                    st.waiting_since = None;
+                    drop(st);
+                    let mut p = slot.published.lock().expect("published lock");
+                    p.buffer = k.buffer.clone();
+                    p.generation += 1;
+                    p.stage = Stage::Ready;
+                    continue;
+                }
             }
+            // Rebuilt for this view. A kept buffer the old visit left
+            // unfinished stays on screen until the new direct stage lands.
             st.pending = Some(Request { id, light: light.clone(), at: now });
             st.waiting_since = Some(now - Duration::from_micros(u64::from(n - rank as u32)));
             // Not moving: full-quality direct stage, later stages at once.
             st.last_move = None;
             st.previous_move = None;
-            st.shown = None;
+            if hit.is_none() {
+                st.shown = None;
+            }
             drop(st);
             let mut p = slot.published.lock().expect("published lock");
-            p.buffer = empty.clone();
+            match hit {
+                Some(k) => {
+                    p.buffer = k.buffer.clone();
+                    p.stage = k.stage;
+                }
+                None => {
+                    p.buffer = empty.clone();
+                    p.stage = Stage::Queued;
+                }
+            }
             p.generation += 1;
-            p.stage = Stage::Queued;
         }
         s.notify();
         (old, restored)

@@ -13,6 +13,9 @@
 //! token exists only when `--http` binds a non-loopback address (on
 //! loopback no other machine can connect). The client's address comes from
 //! the accepted socket ([`Peer`], set by the server), never from a header.
+//! Bodies must be `application/json` (415 otherwise): a cross-site page in
+//! the operator's browser cannot send that without a CORS preflight, which
+//! this server never grants.
 
 use super::App;
 use crate::live::views::{Pose, Views};
@@ -93,6 +96,20 @@ async fn authorized_json<T: for<'de> Deserialize<'de>>(app: &App, req: Request) 
         return Err(error(
             StatusCode::FORBIDDEN,
             "camera writes from another machine need the token footlight printed at start (header x-footlight-token)",
+        ));
+    }
+    // JSON only: a cross-site page can send a form or text/plain POST
+    // without asking, but a JSON one needs a CORS preflight this server
+    // never grants, so another site cannot move the camera from a browser.
+    let json = req
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.trim_start().to_ascii_lowercase().starts_with("application/json"));
+    if !json {
+        return Err(error(
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "camera writes are JSON (content-type: application/json)",
         ));
     }
     let body = axum::body::to_bytes(req.into_body(), MAX_BODY)
