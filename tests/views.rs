@@ -144,6 +144,19 @@ fn photon_maps_survive_a_camera_move_and_a_cached_view_comes_back_with_its_buffe
     wait_ready(&tracer);
     assert_eq!(tracer.photon_traces(), 2);
     assert_eq!(tracer.published(0).buffer.to_dense(), fresh(&scene, &vb, spot(1.0)));
+
+    // A kept buffer that never finished shows at once and is built again.
+    let partial = Arc::new(footlight::render::LightBuffer::from_dense(W, H, &vec![Vec3::splat(0.5); (W * H) as usize]));
+    let unfinished = footlight::live::Kept { light: spot(1.0), buffer: partial.clone(), stage: Stage::Direct };
+    let g0 = tracer.published(0).generation;
+    let (_, restored) = tracer.set_view(va.clone(), &[Some(unfinished)]);
+    assert_eq!(restored, 1);
+    let p = tracer.published(0);
+    // Either the kept buffer is on screen, or the rebuild already replaced it.
+    assert!(p.generation > g0 + 1 || Arc::ptr_eq(&p.buffer, &partial), "shown until rebuilt");
+    wait_ready(&tracer);
+    assert_eq!(tracer.published(0).buffer.to_dense(), fresh(&scene, &va, spot(1.0)));
+    assert_eq!(tracer.photon_traces(), 2);
     assert!(tracer.shutdown(Duration::from_secs(5)));
 }
 

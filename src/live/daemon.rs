@@ -12,6 +12,8 @@
 //!   (network nodes or replay)              (tick on the blocking pool:      (typed status
 //!                                           decode, k_i, composite)          on request)
 //!                                tracer thread + build pool (LightBuild stages)
+//!   camera writes (HTTP, window) ──> views task (settle, View build, Tracer::set_view);
+//!                                    the clock shows its moving preview meanwhile
 //! ```
 //!
 //! Lifecycle: [`Daemon::run`] starts the tracer, the frame clock, the HTTP
