@@ -287,11 +287,12 @@ impl ChaseReport {
         );
         for a in &self.cost_vs_angle {
             s += &format!(
-                "| {}° | {:.2} ms | {:.2} ms | {:.2} % |\n",
+                "| {}° | {:.2} ms | {:.2} ms | {:.2} % | {:.3} |\n",
                 a.beam_deg,
                 a.ms,
                 a.moving_ms,
-                a.vertex_share * 100.0
+                a.vertex_share * 100.0,
+                a.moving_rel_rms
             );
         }
         s
