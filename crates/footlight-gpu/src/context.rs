@@ -20,10 +20,11 @@ pub struct GpuContext {
 
 impl GpuContext {
     /// Opens the preferred adapter on the primary native backends (Vulkan,
-    /// Metal, DX12). OpenGL is left out unless asked for: probing EGL on a
-    /// headless Linux machine makes libwayland print "error:
-    /// XDG_RUNTIME_DIR is invalid" on a healthy start, and a GL compute
-    /// compositor would not beat the CPU one. The usual wgpu environment
+    /// Metal, DX12). OpenGL is left out unless asked for (a GL compute
+    /// compositor would not beat the CPU one, and probing EGL costs start-up
+    /// time). Known noise: on a headless Linux machine without
+    /// `XDG_RUNTIME_DIR`, the Vulkan adapter probe still makes libwayland
+    /// print "error: XDG_RUNTIME_DIR is invalid" twice. The usual wgpu environment
     /// variables apply: `WGPU_BACKEND` (e.g. `vulkan`, or `gl` to try
     /// OpenGL), `WGPU_ADAPTER_NAME`, `WGPU_POWER_PREF`.
     pub fn new() -> Result<Self, GpuError> {
