@@ -20,6 +20,18 @@ pub enum CompositorChoice {
     Gpu,
 }
 
+/// Whether the machine has a GPU device node (Linux: a DRM render node or
+/// an NVIDIA device); elsewhere assumed yes, and the adapter probe decides.
+fn gpu_device_node_present() -> bool {
+    if !cfg!(target_os = "linux") {
+        return true;
+    }
+    let render = std::fs::read_dir("/dev/dri")
+        .map(|d| d.flatten().any(|e| e.file_name().to_string_lossy().starts_with("renderD")))
+        .unwrap_or(false);
+    render || std::path::Path::new("/dev/nvidia0").exists()
+}
+
 /// GPU compositor plus the generations of the buffers it holds.
 pub struct GpuFrames {
     context: GpuContext,
@@ -33,6 +45,13 @@ impl GpuFrames {
     /// `Ok(None)` means: use the CPU compositor (and the reason was logged).
     pub fn open(choice: CompositorChoice, width: u32, height: u32, display: Display) -> Result<Option<Self>, GpuError> {
         if choice == CompositorChoice::Cpu {
+            return Ok(None);
+        }
+        if choice == CompositorChoice::Auto && !gpu_device_node_present() {
+            // No GPU device at all: probing Vulkan would only find a
+            // software rasteriser (which `auto` declines anyway) and, on a
+            // headless machine, makes libwayland print errors on stderr.
+            tracing::info!("no GPU device (/dev/dri/renderD*, /dev/nvidia*); compositing on the CPU");
             return Ok(None);
         }
         let context = match GpuContext::new() {
