@@ -132,10 +132,8 @@ pub fn run(
     let ready = || stages().is_none_or(|s| s >= 4);
     wait(&ready, Duration::from_secs(600))?;
 
-    // Orbit: a write every 1/30 s around the start camera's target.
-    let start = crate::live::views::Pose::of(&camera);
-    let target = camera.position - camera.basis.z_axis * 8.0;
-    let orbit = crate::live::views::Pose { target: target.to_array(), ..start };
+    // Orbit: a write every 1/30 s around what the start view centres on.
+    let orbit = crate::live::views::Pose::focused(scene, &camera);
     let mut frames = handle.frames.clone();
     let first = frames.borrow_and_update().number;
     let t0 = Instant::now();
@@ -144,7 +142,7 @@ pub fn run(
     while t0.elapsed().as_secs_f64() < seconds {
         step += 1;
         let pose = orbit.orbit(0.01 * step as f32, 0.0);
-        handle.views.move_to(pose.camera()?);
+        handle.views.move_to_pose(pose)?;
         if frames.has_changed().unwrap_or(false) {
             preview.push(frames.borrow_and_update().composite_time.as_secs_f64() * 1e3);
         }
