@@ -100,11 +100,8 @@ impl App {
 
     fn write(&mut self, pose: Pose) {
         let Some(views) = &self.views else { return };
-        match pose.camera() {
-            Ok(camera) => {
-                self.pose = Some(pose);
-                views.move_to(camera);
-            }
+        match views.move_to_pose(pose) {
+            Ok(()) => self.pose = Some(pose),
             Err(e) => tracing::debug!("window: camera move ignored: {e}"),
         }
     }

@@ -250,7 +250,7 @@ async fn orbit_through_a_recorded_camera_path_with_dmx_ends_on_the_render_and_re
     for (i, (t_ms, pose)) in path.iter().enumerate() {
         tokio::time::sleep_until(t0 + Duration::from_millis(*t_ms)).await;
         let camera = pose.camera().unwrap();
-        handle.views.move_to(camera);
+        handle.views.move_to_pose(*pose).unwrap();
         let dimmer = 255 - 10 * i as u8;
         dmx_tx.send(merged(dimmer, 128)).unwrap();
         frames.borrow_and_update();
@@ -372,6 +372,10 @@ async fn camera_writes_need_the_token_from_another_machine_but_not_from_loopback
         let req = req.body(axum::body::Body::from(pose)).unwrap();
         async move { app.oneshot(req).await.unwrap().status().as_u16() }
     };
+    // Orbiting turns around what the picture centres on: the cube's front
+    // face, where the start camera's centre ray (from (0, 5, 6) at the origin) meets it.
+    let focus = views.status().current.target;
+    assert!(Vec3::from_array(focus).abs_diff_eq(Vec3::new(0.0, 0.5, 0.6), 1e-3), "{focus:?}");
     assert_eq!(remote(None).await, 403, "no token");
     assert_eq!(remote(Some("guess")).await, 403, "wrong token");
     assert_eq!(views.status().writes, 0, "a refused write moves nothing");

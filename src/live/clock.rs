@@ -108,7 +108,14 @@ pub struct FrameClock {
     epoch: tokio::time::Instant,
     /// The camera control: while it moves, frames are its moving preview.
     views: Option<(Arc<super::views::Views>, crate::render::Display)>,
+    /// What the last preview showed (camera, each light and k_i) and its
+    /// pixels: while the camera waits for its view nothing is re-rendered,
+    /// leaving the cores to the view build and the first light stages.
+    last_preview: Option<LastPreview>,
 }
+
+/// The last moving preview: its camera, every light with its k_i, its pixels.
+type LastPreview = (crate::scene::Camera, Vec<(Light, Vec3)>, Arc<Vec<u8>>);
 
 /// Relative luminance of linear sRGB (Rec. 709 weights).
 pub fn luminance(c: Vec3) -> f32 {
@@ -130,6 +137,7 @@ impl FrameClock {
             last_rgb: None,
             epoch,
             views: None,
+            last_preview: None,
         }
     }
 
@@ -200,8 +208,16 @@ impl FrameClock {
         {
             // The camera moves: one cheap pass with this frame's k_i, so DMX
             // shows on whatever is on screen (docs/live.md "Walking the stage").
-            let lights: Vec<(&Light, Vec3)> = inputs.iter().map(|i| (&i.light, i.k)).collect();
-            let rgb = Arc::new(views.preview(&camera, &lights, display));
+            let key: Vec<(Light, Vec3)> = inputs.iter().map(|i| (i.light.clone(), i.k)).collect();
+            let rgb = match &self.last_preview {
+                Some((c, k, rgb)) if *c == camera && *k == key => rgb.clone(),
+                _ => {
+                    let lights: Vec<(&Light, Vec3)> = inputs.iter().map(|i| (&i.light, i.k)).collect();
+                    let rgb = Arc::new(views.preview(&camera, &lights, display));
+                    self.last_preview = Some((camera, key, rgb.clone()));
+                    rgb
+                }
+            };
             // The composite's own picture is stale now; recompose on return.
             self.last_rgb = None;
             let frame = Frame {

@@ -90,6 +90,16 @@ impl Pose {
         Ok(Camera::look_at(p, t, self.fov_y.to_radians()))
     }
 
+    /// The pose of `camera` with its target on the surface the picture's
+    /// centre shows (what orbiting turns around), 10 m ahead when the
+    /// centre ray hits nothing.
+    pub fn focused(scene: &Scene, camera: &Camera) -> Self {
+        let forward = -camera.basis.z_axis;
+        let t = scene.accel.intersect(camera.position, forward, f32::INFINITY).map_or(10.0, |h| h.t);
+        let t = if t.is_finite() && t > 0.05 { t } else { 10.0 };
+        Self { target: (camera.position + forward * t).to_array(), ..Self::of(camera) }
+    }
+
     /// The pose of `camera` (target one metre ahead of the eye).
     pub fn of(camera: &Camera) -> Self {
         let forward = -camera.basis.z_axis;
@@ -174,9 +184,10 @@ pub struct NamedView {
 /// The named views of a scene and patch: the start view, the glTF camera,
 /// the patch's `[camera]` and its `[[view]]` entries, in that order.
 pub fn named_views(start: &Camera, scene: &Scene, patch: Option<&crate::Patch>) -> Vec<NamedView> {
-    let mut out = vec![NamedView { name: "start".into(), pose: Pose::of(start), source: ViewSource::Start }];
+    let mut out =
+        vec![NamedView { name: "start".into(), pose: Pose::focused(scene, start), source: ViewSource::Start }];
     if let Some(c) = &scene.camera {
-        out.push(NamedView { name: "scene camera".into(), pose: Pose::of(c), source: ViewSource::Scene });
+        out.push(NamedView { name: "scene camera".into(), pose: Pose::focused(scene, c), source: ViewSource::Scene });
     }
     if let Some(p) = patch {
         if let Some(c) = &p.camera {
@@ -333,6 +344,8 @@ pub struct ViewCacheStatus {
 struct State {
     /// The latest written camera.
     target: Camera,
+    /// Its pose as written (the target orbiting turns around).
+    pose: Pose,
     /// The camera of the tracer's view.
     active: Camera,
     name: Option<String>,
@@ -371,6 +384,7 @@ impl Views {
     ) -> Self {
         let view = tracer.view();
         let (width, height) = (view.width(), view.height());
+        let pose = Pose::focused(&scene, &start);
         Self {
             scene,
             tracer,
@@ -380,6 +394,7 @@ impl Views {
             settings,
             state: Mutex::new(State {
                 target: start,
+                pose,
                 active: start,
                 name: Some("start".into()),
                 last_write: None,
@@ -406,8 +421,20 @@ impl Views {
     /// A camera write: the preview follows it at once; the full view is
     /// built once no write came for [`ViewSettings::settle`].
     pub fn move_to(&self, camera: Camera) {
+        self.write(camera, Pose::focused(&self.scene, &camera));
+    }
+
+    /// A camera write as a pose (the page's and the window's moves keep
+    /// their orbit target this way); refused when the pose is unusable.
+    pub fn move_to_pose(&self, pose: Pose) -> Result<(), String> {
+        self.write(pose.camera()?, pose);
+        Ok(())
+    }
+
+    fn write(&self, camera: Camera, pose: Pose) {
         let mut st = self.lock();
         st.target = camera;
+        st.pose = pose;
         st.name = None;
         st.last_write = Some(Instant::now());
         st.writes += 1;
@@ -423,7 +450,7 @@ impl Views {
     pub fn go_to(&self, name: &str) -> Result<(), String> {
         let pose = self.lock().named.iter().find(|v| v.name == name).map(|v| v.pose);
         let Some(pose) = pose else { return Err(format!("no view named {name:?}")) };
-        self.move_to(pose.camera()?);
+        self.move_to_pose(pose)?;
         let mut st = self.lock();
         st.name = Some(name.to_string());
         let now = Instant::now();
@@ -448,7 +475,7 @@ impl Views {
         if st.named.iter().filter(|v| v.source == ViewSource::Saved).count() >= self.settings.max_saved {
             return Err(format!("at most {} saved views", self.settings.max_saved));
         }
-        let view = NamedView { name: name.to_string(), pose: Pose::of(&st.target), source: ViewSource::Saved };
+        let view = NamedView { name: name.to_string(), pose: st.pose, source: ViewSource::Saved };
         st.named.push(view.clone());
         st.name = Some(name.to_string());
         Ok(view)
@@ -488,7 +515,7 @@ impl Views {
             .min_by_key(|s| stage_rank(*s))
             .unwrap_or(Stage::Ready);
         ViewStatus {
-            current: Pose::of(&st.target),
+            current: st.pose,
             name: st.name.clone(),
             phase: st.phase,
             stage,

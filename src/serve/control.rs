@@ -134,7 +134,7 @@ pub(super) async fn post_camera(State(app): State<App>, req: Request) -> Respons
         Err(r) => return r,
     };
     let result = match write {
-        CameraWrite::Pose(pose) => pose.camera().map(|c| views.move_to(c)),
+        CameraWrite::Pose(pose) => views.move_to_pose(pose),
         CameraWrite::Named { view } => views.go_to(&view),
     };
     match result {

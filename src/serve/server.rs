@@ -298,8 +298,7 @@ impl Server {
                     };
                     conns.spawn(async move {
                         let _permit = permit;
-                        let _open = open;
-                        conn.serve(stream, peer).await;
+                        conn.serve(stream, peer, open).await;
                     });
                 }
             }
@@ -341,13 +340,17 @@ struct Connection {
 }
 
 impl Connection {
-    async fn serve(mut self, stream: TcpStream, peer: SocketAddr) {
+    async fn serve(mut self, stream: TcpStream, peer: SocketAddr, open: OpenGuard) {
         let activity = Arc::new(Activity::new());
         let io = TokioIo::new(Tracked { inner: stream, activity: activity.clone() });
         // The peer address, for the camera routes' write policy (control.rs).
         let app = self.app.layer(axum::Extension(super::control::Peer(peer)));
         let conn = self.http.serve_connection(io, TowerToHyperService::new(app)).with_upgrades();
         tokio::pin!(conn);
+        // Declared after the connection, so dropped before it: the open count
+        // is down before the socket closes (a client that saw the close sees
+        // the count without it).
+        let _open = open;
         let mut closing = false;
         loop {
             let deadline = activity.last() + self.idle;
