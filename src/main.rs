@@ -167,10 +167,11 @@ fn bind_address(flag: &str, v: &str) -> Result<Option<std::net::SocketAddr>> {
 }
 
 impl DmxArgs {
-    /// The network input's nodes (the show adds routes and universes).
-    fn source(&self) -> Result<DmxSource> {
+    /// The full input configuration for `show`: the nodes these flags ask
+    /// for, with the show's routes, universes and LTP masks.
+    fn config(&self, show: &Show) -> Result<footlight_dmx::InputConfig> {
         use footlight_dmx::{artnet::ArtNetConfig, sacn::SacnConfig, usbpro::UsbProConfig};
-        Ok(DmxSource::Network {
+        Ok(footlight_dmx::InputConfig {
             artnet: bind_address("artnet", &self.artnet)?.map(|bind| ArtNetConfig { bind, ..ArtNetConfig::default() }),
             sacn: bind_address("sacn", &self.sacn)?.map(|bind| SacnConfig {
                 bind,
@@ -178,13 +179,14 @@ impl DmxArgs {
                 ..SacnConfig::default()
             }),
             usbpro: self.usbpro.as_ref().map(UsbProConfig::new),
+            patch: show.input_patch().clone(),
         })
     }
 
-    /// The full input configuration for `show` (record).
-    fn config(&self, show: &Show) -> Result<footlight_dmx::InputConfig> {
-        let DmxSource::Network { artnet, sacn, usbpro } = self.source()? else { unreachable!("network source") };
-        Ok(footlight_dmx::InputConfig { artnet, sacn, usbpro, patch: show.input_patch().clone() })
+    /// The daemon's network source (the daemon adds the show's routes).
+    fn source(&self, show: &Show) -> Result<DmxSource> {
+        let c = self.config(show)?;
+        Ok(DmxSource::Network { artnet: c.artnet, sacn: c.sacn, usbpro: c.usbpro })
     }
 }
 
@@ -527,7 +529,7 @@ fn run_daemon(
                 );
                 DmxSource::Replay { recording, speed: args.speed }
             }
-            None => args.dmx.source()?,
+            None => args.dmx.source(&show)?,
         };
         let (running_tx, running_rx) = std::sync::mpsc::channel();
         let http = listener.local_addr()?;
