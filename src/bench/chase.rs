@@ -11,7 +11,7 @@
 //! cost against the beam angle (target: roughly proportional to the
 //! footprint).
 
-use crate::live::{Daemon, DaemonConfig, DmxSource, Show};
+use crate::live::{Daemon, DmxSource, Show};
 use crate::render::footprint::{DirectQuality, primary_direct};
 use crate::render::photon::PhotonSettings;
 use crate::render::{RecursionLimits, Sampling, View};
@@ -113,39 +113,21 @@ pub fn run(
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let patch = crate::Patch::load(&root.join("tests/replays/chase-44.toml")).map_err(|e| e.to_string())?;
     let show = Arc::new(Show::new(patch));
-    let mut config = DaemonConfig {
-        width,
-        height,
-        compositor: crate::gpu::CompositorChoice::Cpu,
-        shutdown_grace: Duration::from_secs(30),
-        ..DaemonConfig::default()
-    };
+    let mut config = super::harness::config(width, height);
     config.tracer.build.photons =
         (photons > 0).then(|| PhotonSettings { stored: photons, ..PhotonSettings::default() });
     let cost_vs_angle = angle_costs(scene, camera, width, height);
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .map_err(|e| e.to_string())?;
-    let (running_tx, running_rx) = std::sync::mpsc::channel();
-    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let daemon = Daemon::new(scene.clone(), show, camera, config)
-        .input(DmxSource::Network {
-            artnet: Some(footlight_dmx::artnet::ArtNetConfig {
-                bind: "127.0.0.1:0".parse().map_err(|e| format!("{e}"))?,
-                ..Default::default()
-            }),
-            sacn: None,
-            usbpro: None,
-        })
-        .on_running(running_tx);
-    let runner = std::thread::spawn(move || {
-        rt.block_on(daemon.run(async {
-            let _ = stop_rx.await;
-        }))
+    let rt = super::harness::runtime()?;
+    let daemon = Daemon::new(scene.clone(), show, camera, config).input(DmxSource::Network {
+        artnet: Some(footlight_dmx::artnet::ArtNetConfig {
+            bind: "127.0.0.1:0".parse().map_err(|e| format!("{e}"))?,
+            ..Default::default()
+        }),
+        sacn: None,
+        usbpro: None,
     });
-    let handle = running_rx.recv_timeout(Duration::from_secs(600)).map_err(|e| format!("daemon did not start: {e}"))?;
+    let running = super::harness::Running::start(rt, daemon)?;
+    let handle = running.handle.clone();
     let target = handle.dmx.and_then(|d| d.artnet).ok_or("no Art-Net socket")?;
     let sock = std::net::UdpSocket::bind("127.0.0.1:0").map_err(|e| e.to_string())?;
     // The chase: 64 universes at 44 Hz, paced by the clock, bounded in time.
@@ -193,8 +175,7 @@ pub fn run(
         }
         std::thread::sleep(Duration::from_millis(20));
     };
-    let _ = stop_tx.send(());
-    runner.join().map_err(|_| "the daemon thread panicked")?.map_err(|e| e.to_string())?;
+    running.stop()?;
     Ok(ChaseReport {
         width,
         height,

@@ -4,7 +4,7 @@
 //! rebuilds; the frame clock's p99 frame interval and rate are read from
 //! the typed status, with and without the clients.
 
-use crate::live::{Daemon, DaemonConfig, DmxSource, Show};
+use crate::live::{Daemon, DmxSource, Show};
 use crate::scene::{Camera, Scene};
 use serde::Serialize;
 use std::sync::Arc;
@@ -38,34 +38,17 @@ pub fn run(
     client_counts: &[usize],
     seconds: f64,
 ) -> Result<Vec<ClientsRow>, String> {
-    let mut config = DaemonConfig {
-        width,
-        height,
-        compositor: crate::gpu::CompositorChoice::Cpu,
-        shutdown_grace: Duration::from_secs(30),
-        ..DaemonConfig::default()
-    };
+    let mut config = super::harness::config(width, height);
     config.tracer.build.refine_passes = 64; // the tracer stays busy the whole run
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .map_err(|e| e.to_string())?;
+    let rt = super::harness::runtime()?;
     let listener = rt.block_on(crate::live::bind_http("127.0.0.1:0".parse().map_err(|e| format!("{e}"))?));
     let listener = listener.map_err(|e| e.to_string())?;
     let addr = listener.local_addr().map_err(|e| e.to_string())?;
-    let (running_tx, running_rx) = std::sync::mpsc::channel();
-    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
     let daemon = Daemon::new(scene.clone(), Arc::new(Show::new(patch.clone())), camera, config)
         .input(DmxSource::None)
-        .serve(listener)
-        .on_running(running_tx);
-    let runner = std::thread::spawn(move || {
-        rt.block_on(daemon.run(async {
-            let _ = stop_rx.await;
-        }))
-    });
-    let handle = running_rx.recv_timeout(Duration::from_secs(600)).map_err(|e| format!("daemon did not start: {e}"))?;
+        .serve(listener);
+    let running = super::harness::Running::start(rt, daemon)?;
+    let handle = running.handle.clone();
     // The clients run on their own runtime, as separate processes would.
     let load = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
@@ -92,8 +75,7 @@ pub fn run(
             errors: report.errors,
         });
     }
-    let _ = stop_tx.send(());
-    runner.join().map_err(|_| "the daemon thread panicked")?.map_err(|e| e.to_string())?;
+    running.stop()?;
     Ok(rows)
 }
 

@@ -10,7 +10,7 @@
 //! server side of "fader to canvas": the viewer's composite adds one
 //! display frame at most).
 
-use crate::live::{Daemon, DaemonConfig, DmxSource, Show};
+use crate::live::{Daemon, DmxSource, Show};
 use crate::scene::{Camera, Scene};
 use crate::serve::stream::{MSG_BUFFER, MSG_CLEARED, MSG_FRAME, MSG_PICTURE};
 use futures_util::StreamExt;
@@ -134,13 +134,7 @@ pub fn run(
     levels: &[(Viewer, usize)],
     seconds: f64,
 ) -> Result<Vec<StreamRow>, String> {
-    let config = DaemonConfig {
-        width,
-        height,
-        compositor: crate::gpu::CompositorChoice::Cpu,
-        shutdown_grace: Duration::from_secs(30),
-        ..DaemonConfig::default()
-    };
+    let config = super::harness::config(width, height);
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .thread_name(SERVER_THREADS)
@@ -150,8 +144,6 @@ pub fn run(
     let listener = rt.block_on(crate::live::bind_http("127.0.0.1:0".parse().map_err(|e| format!("{e}"))?));
     let listener = listener.map_err(|e| e.to_string())?;
     let addr = listener.local_addr().map_err(|e| e.to_string())?;
-    let (running_tx, running_rx) = std::sync::mpsc::channel();
-    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
     let daemon = Daemon::new(scene.clone(), Arc::new(Show::new(patch.clone())), camera, config)
         .input(DmxSource::Network {
             artnet: Some(footlight_dmx::artnet::ArtNetConfig {
@@ -161,14 +153,9 @@ pub fn run(
             sacn: None,
             usbpro: None,
         })
-        .serve(listener)
-        .on_running(running_tx);
-    let runner = std::thread::spawn(move || {
-        rt.block_on(daemon.run(async {
-            let _ = stop_rx.await;
-        }))
-    });
-    let handle = running_rx.recv_timeout(Duration::from_secs(600)).map_err(|e| format!("daemon did not start: {e}"))?;
+        .serve(listener);
+    let running = super::harness::Running::start(rt, daemon)?;
+    let handle = running.handle.clone();
     let target = handle.dmx.as_ref().and_then(|d| d.artnet).ok_or("no Art-Net socket")?;
     let sock = std::net::UdpSocket::bind("127.0.0.1:0").map_err(|e| e.to_string())?;
     let send = |level: u8, seq: u8| {
@@ -288,8 +275,7 @@ pub fn run(
             clients_served: served,
         });
     }
-    let _ = stop_tx.send(());
-    runner.join().map_err(|_| "the daemon thread panicked")?.map_err(|e| e.to_string())?;
+    running.stop()?;
     Ok(rows)
 }
 

@@ -15,7 +15,7 @@
 //!   buffers on screen (target < one frame).
 
 use crate::live::views::Phase;
-use crate::live::{Daemon, DaemonConfig, DmxSource, Show, Stage};
+use crate::live::{Daemon, DmxSource, Show, Stage};
 use crate::render::photon::PhotonSettings;
 use crate::scene::{Camera, Scene};
 use serde::Serialize;
@@ -95,30 +95,14 @@ pub fn run(
 ) -> Result<WalkReport, String> {
     let show = Arc::new(Show::new(patch.clone()));
     let lights = patch.fixtures.len();
-    let mut config = DaemonConfig {
-        width,
-        height,
-        compositor: crate::gpu::CompositorChoice::Cpu,
-        shutdown_grace: Duration::from_secs(30),
-        ..DaemonConfig::default()
-    };
+    let mut config = super::harness::config(width, height);
     config.tracer.build.photons =
         (photons > 0).then(|| PhotonSettings { stored: photons, ..PhotonSettings::default() });
     let frame_ms = 1e3 / config.fps;
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .map_err(|e| e.to_string())?;
-    let (running_tx, running_rx) = std::sync::mpsc::channel();
-    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let daemon = Daemon::new(scene.clone(), show, camera, config).input(DmxSource::None).on_running(running_tx);
-    let runner = std::thread::spawn(move || {
-        rt.block_on(daemon.run(async {
-            let _ = stop_rx.await;
-        }))
-    });
-    let handle = running_rx.recv_timeout(Duration::from_secs(600)).map_err(|e| format!("daemon did not start: {e}"))?;
+    let rt = super::harness::runtime()?;
+    let daemon = Daemon::new(scene.clone(), show, camera, config).input(DmxSource::None);
+    let running = super::harness::Running::start(rt, daemon)?;
+    let handle = running.handle.clone();
     let stages = || (handle.status)().lights.iter().map(|l| l.build.as_ref().map_or(0, |b| rank(b.stage))).min();
     let wait = |what: &dyn Fn() -> bool, limit: Duration| -> Result<f64, String> {
         let t = Instant::now();
@@ -184,8 +168,7 @@ pub fn run(
     let cached_return_ms = back.elapsed().as_secs_f64() * 1e3;
     let cached_restored = (handle.status)().view.last_restored;
 
-    let _ = stop_tx.send(());
-    runner.join().map_err(|_| "daemon thread panicked".to_string())?.map_err(|e| e.to_string())?;
+    running.stop()?;
     preview.sort_by(f64::total_cmp);
     Ok(WalkReport {
         width,
