@@ -518,3 +518,177 @@ fn headless_chromium_drags_on_the_page_and_the_picture_changes() {
     let _ = stop_tx.send(());
     thread.join().unwrap();
 }
+
+/// A one-triangle glTF whose second root node is a perspective camera at
+/// `t` with rotation `q` (x, y, z, w): the scene camera as an exporter writes it.
+fn gltf_with_camera(t: Vec3, q: glam::Quat) -> String {
+    let bytes: Vec<u8> = [[-5.0f32, 0.0, -5.0], [5.0, 0.0, -5.0], [0.0, 0.0, 5.0]]
+        .iter()
+        .flatten()
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0,1]}}],
+        "nodes":[{{"mesh":0}},{{"camera":0,"translation":[{},{},{}],"rotation":[{},{},{},{}]}}],
+        "cameras":[{{"type":"perspective","perspective":{{"yfov":0.6,"znear":0.1}}}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[-5,0,-5],"max":[5,0,5]}}],
+        "bufferViews":[{{"buffer":0,"byteLength":36}}],
+        "buffers":[{{"byteLength":36,"uri":"data:application/octet-stream;base64,{}"}}]}}"#,
+        t.x,
+        t.y,
+        t.z,
+        q.x,
+        q.y,
+        q.z,
+        q.w,
+        base64::encode(&bytes)
+    )
+}
+
+/// Issue 16: a view from a glTF camera keeps its full orientation. The
+/// reference is the node's rotation itself: glTF cameras look down their
+/// local −Z with +Y up, so the camera basis must be the rotation matrix.
+#[test]
+fn a_gltf_camera_keeps_its_roll_through_the_named_view_and_json() {
+    let q = glam::Quat::from_euler(glam::EulerRot::YXZ, 0.4, -0.5, 0.35).normalize();
+    let t = Vec3::new(1.0, 3.0, 6.0);
+    let dir = std::env::temp_dir().join(format!("footlight-views-roll-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("rolled.gltf");
+    std::fs::write(&path, gltf_with_camera(t, q)).unwrap();
+    let scene = footlight::scene::load(&path).unwrap();
+    let expected = glam::Mat3::from_quat(q);
+    let named = footlight::live::views::named_views(&start_camera(), &scene, None);
+    let view = named.iter().find(|v| v.name == "scene camera").expect("the glTF camera is a named view");
+    let up = view.pose.up.expect("a rolled camera writes its up vector");
+    assert!(Vec3::from_array(up).abs_diff_eq(expected.y_axis, 1e-5), "up {up:?} vs {}", expected.y_axis);
+    // Through JSON (what the page reads from /api/views and writes back).
+    let json = serde_json::to_string(&view.pose).unwrap();
+    let back: Pose = serde_json::from_str(&json).unwrap();
+    for pose in [view.pose, back] {
+        let c = pose.camera().unwrap();
+        assert!(c.position.abs_diff_eq(t, 1e-5), "{}", c.position);
+        for (got, want) in
+            [(c.basis.x_axis, expected.x_axis), (c.basis.y_axis, expected.y_axis), (c.basis.z_axis, expected.z_axis)]
+        {
+            assert!(got.abs_diff_eq(want, 1e-4), "basis column {got} vs the node's rotation {want}");
+        }
+        assert!((c.yfov - 0.6).abs() < 1e-5);
+    }
+    // The roll is real: the level camera looking the same way differs.
+    let level = Camera::look_at(t, t - expected.z_axis, 0.6);
+    assert!(!level.basis.y_axis.abs_diff_eq(expected.y_axis, 1e-2));
+    // A level camera writes no up; an orbit levels the horizon (as the page does).
+    assert_eq!(Pose::of(&level).up, None);
+    assert!(!serde_json::to_string(&Pose::of(&level)).unwrap().contains("up"));
+    let orbited = view.pose.orbit(0.1, 0.0).camera().unwrap();
+    assert!(orbited.basis.x_axis.y.abs() < 1e-5, "right axis horizontal after an orbit: {}", orbited.basis.x_axis);
+    // Pan keeps the roll (moves in the camera's own axes).
+    let panned = view.pose.pan(0.5, 0.0).camera().unwrap();
+    assert!(panned.basis.y_axis.abs_diff_eq(expected.y_axis, 1e-4));
+    assert!((panned.position - t).abs_diff_eq(expected.x_axis * 0.5, 1e-4));
+    // An up along the viewing direction is refused, not a NaN basis.
+    let along = Pose { up: Some((-expected.z_axis).to_array()), ..view.pose };
+    assert!(along.camera().is_err());
+    let nan = Pose { up: Some([f32::NAN, 1.0, 0.0]), ..view.pose };
+    assert!(nan.camera().is_err());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The window's controls as the pure [`control`] function: orbit, pan,
+/// dolly and field of view against independent geometry (angles, a
+/// projection of the old target), the limits, and NaN/∞ inputs.
+#[test]
+fn window_controls_map_input_to_poses_within_limits_and_nan_safe() {
+    use footlight::live::views::{Control, ControlKey, control, view_key};
+    let p = Pose { position: [0.0, 2.0, 8.0], target: [0.0, 1.0, 0.0], fov_y: 40.0, up: None };
+    let off = |q: &Pose| Vec3::from_array(q.position) - Vec3::from_array(q.target);
+    let r = off(&p).length();
+
+    // Orbit: a 100-pixel drag to the right turns the eye 0.8 rad about +Y
+    // around the target (azimuth measured here with atan2), distance kept.
+    let q = control(&p, Control::Drag { dx: 100.0, dy: 0.0, pan: false, height: 500.0 });
+    let az = |v: Vec3| v.x.atan2(v.z);
+    assert!(((az(off(&p)) - az(off(&q))) - 0.8).abs() < 1e-4, "{q:?}");
+    assert!((off(&q).length() - r).abs() < 1e-4);
+    assert_eq!(q.target, p.target);
+    // Pitch stops at ±1.5 rad however far the drag goes.
+    let top = control(&p, Control::Drag { dx: 0.0, dy: 1e6, pan: false, height: 500.0 });
+    assert!((off(&top).y / r).asin() <= 1.5 + 1e-4 && (off(&top).y / r).asin() > 1.4);
+    assert!(top.camera().unwrap().basis.is_finite());
+
+    // Pan: the old target follows the mouse: projected into the new camera
+    // it sits dx pixels right and dy pixels down of the centre.
+    let h = 500.0;
+    let moved = control(&p, Control::Drag { dx: 40.0, dy: -25.0, pan: true, height: h });
+    let c = moved.camera().unwrap();
+    let local = c.basis.transpose() * (Vec3::from_array(p.target) - c.position);
+    let half = (c.yfov / 2.0).tan();
+    let px = local.x / -local.z / half * h / 2.0;
+    let py = -local.y / -local.z / half * h / 2.0;
+    assert!((px - 40.0).abs() < 1e-2 && (py + 25.0).abs() < 1e-2, "target at ({px}, {py}) px");
+
+    // Wheel: a notch (100 px towards the user) scales the distance by e^0.1;
+    // one event never scales by more than e; alt changes the fov instead.
+    let w = control(&p, Control::Wheel { pixels: 100.0, fov: false });
+    assert!((off(&w).length() / r - 0.1f32.exp()).abs() < 1e-5);
+    let big = control(&p, Control::Wheel { pixels: 1e9, fov: false });
+    assert!((off(&big).length() / r - 1f32.exp()).abs() < 1e-4);
+    let z = control(&p, Control::Wheel { pixels: -100.0, fov: true });
+    assert!((z.fov_y - 40.0 * (-0.1f32).exp()).abs() < 1e-4 && z.position == p.position);
+    // Limits: distance 0.2-500 m, field of view 5-120°.
+    let (mut near, mut wide) = (p, p);
+    for _ in 0..100 {
+        near = control(&near, Control::Key(ControlKey::DollyIn));
+        wide = control(&wide, Control::Key(ControlKey::ZoomOut));
+    }
+    assert!((off(&near).length() - 0.2).abs() < 1e-5 && wide.fov_y == 120.0);
+    let far = control(&p, Control::Wheel { pixels: 1e9, fov: false });
+    let far = (0..100).fold(far, |q, _| control(&q, Control::Wheel { pixels: 1e9, fov: false }));
+    assert!((off(&far).length() - 500.0).abs() < 1e-2);
+    // Keys: arrows orbit by 0.05 rad, w/s dolly by 0.9/1.1, +/- zoom.
+    assert_eq!(control(&p, Control::Key(ControlKey::Left)), p.orbit(-0.05, 0.0));
+    assert_eq!(control(&p, Control::Key(ControlKey::Down)), p.orbit(0.0, -0.05));
+    assert!((off(&control(&p, Control::Key(ControlKey::DollyOut))).length() / r - 1.1).abs() < 1e-5);
+    assert!((control(&p, Control::Key(ControlKey::ZoomIn)).fov_y - 36.0).abs() < 1e-4);
+    assert_eq!(ControlKey::from_char("="), Some(ControlKey::ZoomIn));
+    assert_eq!(ControlKey::from_char("x"), None);
+    assert_eq!(
+        (view_key("1"), view_key("9"), view_key("0"), view_key("12"), view_key("a")),
+        (Some(0), Some(8), None, None, None)
+    );
+
+    // NaN and infinite inputs, a zero-height picture: the pose stays.
+    for bad in [
+        Control::Drag { dx: f32::NAN, dy: 0.0, pan: false, height: 500.0 },
+        Control::Drag { dx: 0.0, dy: f32::INFINITY, pan: true, height: 500.0 },
+        Control::Drag { dx: 5.0, dy: 5.0, pan: true, height: 0.0 },
+        Control::Drag { dx: 5.0, dy: 5.0, pan: true, height: f32::NAN },
+        Control::Wheel { pixels: f32::NAN, fov: false },
+        Control::Wheel { pixels: f32::NEG_INFINITY, fov: true },
+    ] {
+        assert_eq!(control(&p, bad), p, "{bad:?}");
+    }
+    // A pose already at a limit or degenerate never yields a NaN camera.
+    let degenerate = Pose { position: p.target, ..p };
+    for input in
+        [Control::Drag { dx: 3.0, dy: 3.0, pan: false, height: 500.0 }, Control::Wheel { pixels: 50.0, fov: false }]
+    {
+        let q = control(&degenerate, input);
+        assert!(q.position.iter().chain(&q.target).all(|v| v.is_finite()), "{q:?}");
+    }
+
+    // The page does the same arithmetic: its constants are these.
+    let js = include_str!("../src/serve/camera.js");
+    for needle in [
+        "dx * 0.008",
+        "dy * 0.008",
+        "Math.max(-1.5, Math.min(1.5",
+        "e.deltaY * 0.001",
+        "Math.max(0.2, Math.min(500",
+        "Math.max(5, Math.min(120",
+    ] {
+        assert!(js.contains(needle), "camera.js no longer has {needle:?}: keep it and `control` in step");
+    }
+}
