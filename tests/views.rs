@@ -148,14 +148,17 @@ fn photon_maps_survive_a_camera_move_and_a_cached_view_comes_back_with_its_buffe
     // A kept buffer that never finished shows at once and is built again.
     let partial = Arc::new(footlight::render::LightBuffer::from_dense(W, H, &vec![Vec3::splat(0.5); (W * H) as usize]));
     let unfinished = footlight::live::Kept { light: spot(1.0), buffer: partial.clone(), stage: Stage::Direct };
+    // (A view never shown before: A's own geometry cache already holds this
+    // light finished, and a finished buffer wins over an unfinished one.)
+    let vc = view(&scene, Camera::look_at(Vec3::new(-4.0, 3.0, 4.0), Vec3::ZERO, 55f32.to_radians()));
     let g0 = tracer.published(0).generation;
-    let (_, restored) = tracer.set_view(va.clone(), &[Some(unfinished)]);
+    let (_, restored) = tracer.set_view(vc.clone(), &[Some(unfinished)]);
     assert_eq!(restored, 1);
     let p = tracer.published(0);
     // Either the kept buffer is on screen, or the rebuild already replaced it.
     assert!(p.generation > g0 + 1 || Arc::ptr_eq(&p.buffer, &partial), "shown until rebuilt");
     wait_ready(&tracer);
-    assert_eq!(tracer.published(0).buffer.to_dense(), fresh(&scene, &va, spot(1.0)));
+    assert_eq!(tracer.published(0).buffer.to_dense(), fresh(&scene, &vc, spot(1.0)));
     assert_eq!(tracer.photon_traces(), 2);
     assert!(tracer.shutdown(Duration::from_secs(5)));
 }
@@ -691,4 +694,111 @@ fn window_controls_map_input_to_poses_within_limits_and_nan_safe() {
     ] {
         assert!(js.contains(needle), "camera.js no longer has {needle:?}: keep it and `control` in step");
     }
+}
+
+/// Waits until light 0 published something new and the tracer is idle.
+fn wait_rebuilt(tracer: &Tracer, before: u64) {
+    let t = Instant::now();
+    while tracer.published(0).generation == before || !tracer.idle() || tracer.published(0).stage != Stage::Ready {
+        assert!(t.elapsed() < Duration::from_secs(60), "the light was never rebuilt");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// Issue 16, item 2: the geometry cache (finished buffers per light
+/// position) is kept with its view across view changes. Back in view A
+/// without any kept buffers, the light's position there is published from
+/// A's cache at once, and a position preset finished in A earlier comes
+/// back without a build. The reference is the buffer the tracer published
+/// in A the first time (the same `Arc`).
+#[test]
+fn the_geometry_cache_is_kept_per_view_across_view_changes() {
+    let scene = scene();
+    let other = Camera::look_at(Vec3::new(5.0, 4.0, 2.0), Vec3::ZERO, 50f32.to_radians());
+    let (va, vb) = (view(&scene, start_camera()), view(&scene, other));
+    let tracer = Tracer::new(scene.clone(), va.clone(), 1, tracer_settings());
+    tracer.request(0, spot(0.0), 1.0);
+    wait_ready(&tracer);
+    let a0 = tracer.published(0).buffer;
+    let g = tracer.published(0).generation;
+    tracer.request(0, spot(1.0), 1.0);
+    wait_rebuilt(&tracer, g);
+    let a1 = tracer.published(0).buffer;
+    assert_eq!(tracer.cache_usage().0, 2, "two positions finished in A");
+
+    let g = tracer.published(0).generation;
+    let (_, restored) = tracer.set_view(vb.clone(), &[]);
+    assert_eq!(restored, 0, "B was never shown");
+    wait_rebuilt(&tracer, g);
+    assert_eq!(tracer.cache_usage().0, 3, "A's two entries kept aside, B's one");
+    let traces = tracer.photon_traces();
+
+    // Back to A with no kept buffers: only A's geometry cache can restore it.
+    let (_, restored) = tracer.set_view(va.clone(), &[]);
+    assert_eq!(restored, 1);
+    let p = tracer.published(0);
+    assert!(p.buffer.to_dense() == a1.to_dense() && p.stage == Stage::Ready, "A's finished buffer, at once");
+    assert!(tracer.idle(), "nothing to build");
+    // The other position finished in A comes back from the cache, no build.
+    tracer.request(0, spot(0.0), 1.0);
+    let p = tracer.published(0);
+    assert!(p.buffer.to_dense() == a0.to_dense() && p.stage == Stage::Ready);
+    assert!(tracer.idle());
+    assert_eq!(tracer.photon_traces(), traces);
+    // B's entry is still kept: with the light back at 1.0 (A's cache again),
+    // B shows it at once, as built there (from the same maps: == scratch).
+    tracer.request(0, spot(1.0), 1.0);
+    assert!(tracer.idle() && tracer.published(0).buffer.to_dense() == a1.to_dense());
+    let (_, restored) = tracer.set_view(vb.clone(), &[]);
+    assert_eq!(restored, 1);
+    assert!(tracer.idle());
+    assert_eq!(tracer.published(0).buffer.to_dense(), fresh(&scene, &vb, spot(1.0)));
+    // A view dropped everywhere takes its cache with it.
+    drop(va);
+    let vc = view(&scene, Camera::look_at(Vec3::new(-4.0, 3.0, 4.0), Vec3::ZERO, 55f32.to_radians()));
+    let _ = tracer.set_view(vc, &[]);
+    assert!(tracer.cache_usage().0 <= 1, "only B's entry may remain: {:?}", tracer.cache_usage());
+    assert!(tracer.shutdown(Duration::from_secs(5)));
+}
+
+/// Issue 16, item 1: the coarse first indirect estimate the live tracer
+/// publishes after a camera stop. Its exact anchors are the exact lookups,
+/// it stays within a few per cent of the exact buffer, and refinement
+/// starts from the exact estimate: the first exact-start buffer and every
+/// SPPM pass equal those of a build without the coarse step, bit for bit.
+#[test]
+fn a_coarse_first_indirect_estimate_is_made_exact_before_refinement() {
+    let scene = scene();
+    let v = Arc::new(View::build(&scene, start_camera(), 160, 100, Sampling::Adaptive, RecursionLimits::default()));
+    let settings = BuildSettings { photons: Some(photons()), refine_passes: 2, ..BuildSettings::default() };
+    let mut exact = LightBuild::new(spot(0.3), 0, settings, Cancel::never());
+    let exact_buffer = exact.photons(&scene, &v).unwrap().to_dense();
+    let mut coarse = LightBuild::new(spot(0.3), 0, settings, Cancel::never()).with_coarse_indirect(3);
+    let coarse_buffer = coarse.photons(&scene, &v).unwrap().to_dense();
+    assert!(check_finite(&coarse_buffer).is_ok());
+
+    // View level: exact where flagged, and the fill gives the exact lookups.
+    let maps = exact.shared_maps().unwrap();
+    let reference = v.vertex_irradiance(&scene, &maps);
+    let (mut e, flags) = v.coarse_vertex_irradiance_until(&scene, &maps, 3, &|| false).unwrap();
+    let interpolated = flags.iter().filter(|f| !**f).count();
+    assert!(interpolated > flags.len() / 3, "most vertices interpolated: {interpolated} of {}", flags.len());
+    assert!(e.iter().zip(&reference).zip(&flags).all(|((a, b), f)| !f || a == b));
+    v.fill_vertex_irradiance_until(&scene, &maps, &mut e, &flags, &|| false).unwrap();
+    assert_eq!(e, reference);
+
+    // Picture level: close, not equal.
+    let l1 = |a: &[Vec3], b: &[Vec3]| a.iter().zip(b).map(|(x, y)| (*x - *y).abs().element_sum()).sum::<f32>();
+    let total: f32 = exact_buffer.iter().map(|x| x.element_sum()).sum();
+    let rel = l1(&coarse_buffer, &exact_buffer) / total;
+    assert!(rel > 0.0 && rel < 0.03, "coarse vs exact: {rel}");
+
+    let mut r_exact = exact.into_refinement(&scene, &v).unwrap();
+    let mut r_coarse = coarse.into_refinement(&scene, &v).unwrap();
+    assert!(r_exact.exact_start(&scene, &v).unwrap().is_none(), "nothing to finish");
+    assert_eq!(r_coarse.exact_start(&scene, &v).unwrap().unwrap().to_dense(), exact_buffer);
+    for _ in 0..2 {
+        assert_eq!(r_coarse.pass(&scene, &v).unwrap().to_dense(), r_exact.pass(&scene, &v).unwrap().to_dense());
+    }
+    assert!(r_coarse.finished() && r_exact.finished());
 }

@@ -248,6 +248,11 @@ pub struct LightProfile {
     pub irradiance_ms: f64,
     /// Indirect buffer from the per-vertex values plus the D + A sum, ms.
     pub indirect_ms: f64,
+    /// The coarse first estimate the live tracer publishes instead of the
+    /// exact lookups ([`crate::render::View::coarse_vertex_irradiance_until`]), ms.
+    pub coarse_ms: f64,
+    /// Share of vertices the coarse estimate interpolated.
+    pub interpolated: f64,
 }
 
 /// Per-stage times of one camera move (the start view orbited 30°), each
@@ -274,43 +279,51 @@ impl ViewProfile {
     }
 
     /// What a view change costs before every light is at full quality
-    /// (view + every light's direct, Whitted + AA and indirect lookups), ms.
-    pub fn view_change_ms(&self) -> f64 {
+    /// (view + every light's direct, Whitted + AA and indirect lookups), ms;
+    /// with `coarse`, the coarse first estimate instead of the exact lookups.
+    pub fn view_change_ms(&self, coarse: bool) -> f64 {
         self.gbuffer_ms
             + self.expand_ms
-            + self.sum(|l| l.direct_ms + l.shade_ms + l.aa_ms + l.irradiance_ms + l.indirect_ms)
+            + self.sum(|l| {
+                l.direct_ms + l.shade_ms + l.aa_ms + if coarse { l.coarse_ms } else { l.irradiance_ms } + l.indirect_ms
+            })
     }
 
     /// The profile as a Markdown table.
     pub fn markdown(&self) -> String {
         let mut s = format!(
             "\nOne view change, stage by stage ({} threads, {} shading vertices): G-buffer {:.0} ms, path expansion \
-             {:.0} ms.\n\n| light | direct stage | Whitted (base) | AA (re-shaded px) | irradiance lookups | indirect \
-             buffer | photon trace (not redone) |\n|---|---|---|---|---|---|---|\n",
+             {:.0} ms.\n\n| light | direct stage | Whitted (base) | AA (re-shaded px) | irradiance lookups | coarse \
+             estimate (interpolated) | indirect buffer | photon trace (not redone) |\n|---|---|---|---|---|---|---|---|\n",
             self.threads, self.vertices, self.gbuffer_ms, self.expand_ms
         );
         for (i, l) in self.lights.iter().enumerate() {
             s += &format!(
-                "| {} | {:.0} | {:.0} | {:.0} ({}) | {:.0} | {:.0} | {:.0} |\n",
+                "| {} | {:.0} | {:.0} | {:.0} ({}) | {:.0} | {:.0} ({:.0} %) | {:.0} | {:.0} |\n",
                 i + 1,
                 l.direct_ms,
                 l.shade_ms,
                 l.aa_ms,
                 l.reshaded,
                 l.irradiance_ms,
+                l.coarse_ms,
+                l.interpolated * 100.0,
                 l.indirect_ms,
                 l.trace_ms
             );
         }
         s += &format!(
-            "| **all** | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} |\n\nSum of the per-view stages: **{:.0} ms**.\n",
+            "| **all** | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} |\n\nSum of the per-view stages: **{:.0} ms** \
+             with exact lookups, **{:.0} ms** with the coarse first estimate.\n",
             self.sum(|l| l.direct_ms),
             self.sum(|l| l.shade_ms),
             self.sum(|l| l.aa_ms),
             self.sum(|l| l.irradiance_ms),
+            self.sum(|l| l.coarse_ms),
             self.sum(|l| l.indirect_ms),
             self.sum(|l| l.trace_ms),
-            self.view_change_ms()
+            self.view_change_ms(false),
+            self.view_change_ms(true)
         );
         s
     }
@@ -356,7 +369,8 @@ pub fn profile(
             let flags = view.gradient_flags(scene, &dense, AaParams::new(settings.aa_threshold));
             let reshaded = view.reshade(scene, light, &mut dense, &flags);
             let aa_ms = ms(t);
-            let (mut trace_ms, mut irradiance_ms, mut indirect_ms) = (0.0, 0.0, 0.0);
+            let (mut trace_ms, mut irradiance_ms, mut indirect_ms, mut coarse_ms, mut interpolated) =
+                (0.0, 0.0, 0.0, 0.0, 0.0);
             if photons > 0 {
                 let ps = PhotonSettings { stored: photons, ..PhotonSettings::default() };
                 let t = Instant::now();
@@ -370,8 +384,24 @@ pub fn profile(
                 let sum: Vec<glam::Vec3> = dense.iter().zip(&a).map(|(d, a)| *d + *a).collect();
                 std::hint::black_box(&sum);
                 indirect_ms = ms(t);
+                let step = crate::live::TracerSettings::default().coarse_indirect;
+                let t = Instant::now();
+                if let Some((_, exact)) = view.coarse_vertex_irradiance_until(scene, &maps, step, &|| false) {
+                    interpolated = exact.iter().filter(|e| !**e).count() as f64 / exact.len().max(1) as f64;
+                }
+                coarse_ms = ms(t);
             }
-            lights.push(LightProfile { direct_ms, shade_ms, aa_ms, reshaded, trace_ms, irradiance_ms, indirect_ms });
+            lights.push(LightProfile {
+                direct_ms,
+                shade_ms,
+                aa_ms,
+                reshaded,
+                trace_ms,
+                irradiance_ms,
+                indirect_ms,
+                coarse_ms,
+                interpolated,
+            });
         }
         Ok(ViewProfile { threads, gbuffer_ms, expand_ms, vertices: view.shading.vertex_count(), lights })
     })
