@@ -802,3 +802,28 @@ fn a_coarse_first_indirect_estimate_is_made_exact_before_refinement() {
     }
     assert!(r_coarse.finished() && r_exact.finished());
 }
+
+/// A light whose refinement is given up (`max_refining`) after a coarse
+/// first estimate ends on the exact photon-map buffer, the one a build
+/// without the coarse step makes, never on the coarse one.
+#[test]
+fn a_light_dropped_from_refinement_ends_on_the_exact_estimate() {
+    let scene = scene();
+    let va = view(&scene, start_camera());
+    let mut settings = tracer_settings();
+    settings.build.refine_passes = 1;
+    settings.max_refining = 1;
+    settings.coarse_indirect = 3;
+    let tracer = Tracer::new(scene.clone(), va.clone(), 2, settings);
+    tracer.request(0, spot(-1.0), 2.0);
+    tracer.request(1, spot(1.0), 1.0);
+    let t = Instant::now();
+    while !(tracer.idle() && (0..2).all(|i| tracer.published(i).stage == Stage::Ready)) {
+        assert!(t.elapsed() < Duration::from_secs(60), "stuck at {:?}", tracer.published(1).stage);
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let mut exact = LightBuild::new(spot(1.0), 1, tracer_settings().build, Cancel::never());
+    let reference = exact.photons(&scene, &va).unwrap().to_dense();
+    assert_eq!(tracer.published(1).buffer.to_dense(), reference, "the dimmer light's final picture");
+    assert!(tracer.shutdown(Duration::from_secs(5)));
+}

@@ -802,6 +802,21 @@ fn later_stage(s: &Shared, index: usize) {
         return;
     }
     let Some((id, mut refine, at)) = refine else { return };
+    if refine.finishing() {
+        // Refinement given up: only the exact photon-map estimate is left.
+        let light = refine.light().clone();
+        match s.pool.install(|| refine.exact_start(&s.scene, &view)) {
+            Ok(Some(buffer)) => {
+                let b = Arc::new(buffer.clone());
+                if s.publish(index, id, buffer, Stage::Ready, &light) {
+                    finished(s, index, id, &light, b, at);
+                }
+            }
+            Ok(None) => mark_ready(s, index, id, &light, at),
+            Err(e) => report_bug(index, &e),
+        }
+        return;
+    }
     let result = s.pool.install(|| refine.pass(&s.scene, &view));
     match result {
         Ok(buffer) => {
@@ -854,25 +869,24 @@ fn start_refining(s: &Shared, index: usize, id: u64, refine: Refinement, at: Ins
         .enumerate()
         .filter_map(|(i, sl)| {
             let st = sl.state.lock().expect("slot lock");
-            st.refine.as_ref().map(|_| (i, st.priority))
+            st.refine.as_ref().filter(|(_, r, _)| !r.finishing()).map(|_| (i, st.priority))
         })
         .collect();
     holders.sort_by(|a, b| b.1.total_cmp(&a.1));
     for &(i, _) in holders.iter().skip(s.settings.max_refining.max(1)) {
         let taken = s.slots[i].state.lock().expect("slot lock").refine.take();
         if let Some((rid, mut r, rat)) = taken {
-            // Never left at a coarse first estimate: the exact one is its final picture.
-            let view = s.view();
-            match s.pool.install(|| r.exact_start(&s.scene, &view)) {
-                Ok(Some(buffer)) => {
-                    let light = r.light().clone();
-                    if s.publish(i, rid, buffer, Stage::Ready, &light) {
-                        let b = s.slots[i].published.lock().expect("published lock").buffer.clone();
-                        finished(s, i, rid, &light, b, rat);
-                    }
+            if r.has_coarse_start() {
+                // Never left at a coarse first estimate: its exact estimate is
+                // its final picture, computed as a later stage of its own
+                // (after every light's photons stage, not here).
+                r.finish_only();
+                let mut st = s.slots[i].state.lock().expect("slot lock");
+                if s.slots[i].latest.load(Ordering::SeqCst) == rid {
+                    st.refine = Some((rid, r, rat));
                 }
-                Ok(None) => mark_ready(s, i, rid, r.light(), rat),
-                Err(e) => report_bug(i, &e),
+            } else {
+                mark_ready(s, i, rid, r.light(), rat);
             }
         }
     }

@@ -384,6 +384,22 @@ impl Refinement {
         self.done() >= self.passes
     }
 
+    /// Gives refinement up but keeps a coarse start to finish: no SPPM pass
+    /// will run, [`Refinement::exact_start`] gives the final picture.
+    pub fn finish_only(&mut self) {
+        self.passes = 0;
+    }
+
+    /// True after [`Refinement::finish_only`] (or with no passes configured).
+    pub fn finishing(&self) -> bool {
+        self.passes == 0
+    }
+
+    /// True while a coarse start waits for [`Refinement::exact_start`].
+    pub fn has_coarse_start(&self) -> bool {
+        self.pending.is_some()
+    }
+
     /// Finishes a coarse photon-map start ([`LightBuild::with_coarse_indirect`]):
     /// the remaining vertices are looked up exactly and SPPM is set up from
     /// the exact values. Returns the exact photon-map buffer D + A, or `None`
