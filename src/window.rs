@@ -12,10 +12,14 @@
 //! drag = orbit, shift-drag or right-drag = pan, wheel = dolly,
 //! alt + wheel = field of view; arrow keys orbit, `w`/`s` dolly, `+`/`-`
 //! zoom, `1`-`9` jump to the named views in list order. Each move is a
-//! camera write to [`Views`] (the window is local: no token).
+//! camera write to [`Views`] (the window is local: no token). The mapping
+//! from input to pose is the pure [`control`] (tested in `tests/views.rs`
+//! without a display); this file only turns winit events into
+//! [`Control`] values. The window itself is not run by any test (CI has
+//! no display).
 
 use crate::live::Frame;
-use crate::live::views::{Phase, Pose, Views};
+use crate::live::views::{Control, ControlKey, PIXELS_PER_LINE, Phase, Pose, Views, control, view_key};
 use std::num::NonZeroU32;
 use std::rc::Rc;
 use std::sync::Arc;
@@ -49,9 +53,6 @@ struct App {
     shift: bool,
     alt: bool,
 }
-
-/// Radians of orbit per pixel of drag (the page uses the same).
-const ORBIT_PER_PIXEL: f32 = 0.008;
 
 impl App {
     fn present(&mut self) {
@@ -106,11 +107,16 @@ impl App {
         }
     }
 
-    /// One pixel of pan at the target's distance, in metres.
-    fn pan_scale(&self, pose: &Pose) -> f32 {
-        let h = self.window.as_ref().map_or(500, |w| w.inner_size().height.max(1));
-        let d = glam::Vec3::from_array(pose.position).distance(glam::Vec3::from_array(pose.target));
-        2.0 * d * (pose.fov_y.to_radians() / 2.0).tan() / h as f32
+    /// Height of the picture on screen, pixels (pan scale).
+    fn height(&self) -> f32 {
+        self.window.as_ref().map_or(500, |w| w.inner_size().height.max(1)) as f32
+    }
+
+    /// Applies one control input ([`control`], the same arithmetic as the page).
+    fn apply(&mut self, input: Control) {
+        if let Some(pose) = self.pose() {
+            self.write(control(&pose, input));
+        }
     }
 
     fn camera_event(&mut self, event: &WindowEvent) {
@@ -125,56 +131,40 @@ impl App {
             WindowEvent::CursorMoved { position, .. } => {
                 let now = (position.x, position.y);
                 let last = self.cursor.replace(now);
-                if let (Some(button), Some((lx, ly))) = (self.drag, last)
-                    && let Some(pose) = self.pose()
-                {
+                if let (Some(button), Some((lx, ly))) = (self.drag, last) {
                     let (dx, dy) = ((now.0 - lx) as f32, (now.1 - ly) as f32);
-                    let next = if button == MouseButton::Right || self.shift {
-                        let s = self.pan_scale(&pose);
-                        pose.pan(-dx * s, dy * s)
-                    } else {
-                        pose.orbit(dx * ORBIT_PER_PIXEL, dy * ORBIT_PER_PIXEL)
-                    };
-                    self.write(next);
+                    let pan = button == MouseButton::Right || self.shift;
+                    self.apply(Control::Drag { dx, dy, pan, height: self.height() });
                 }
             }
             WindowEvent::MouseWheel { delta, .. } => {
-                let y = match delta {
-                    MouseScrollDelta::LineDelta(_, y) => *y * 0.1,
-                    MouseScrollDelta::PixelDelta(p) => p.y as f32 * 0.002,
+                // winit: positive y scrolls up (away from the user); the
+                // control takes the browser's convention (positive = towards).
+                let pixels = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => -*y * PIXELS_PER_LINE,
+                    MouseScrollDelta::PixelDelta(p) => -p.y as f32,
                 };
-                if let Some(pose) = self.pose() {
-                    let f = (-y).clamp(-1.0, 1.0).exp();
-                    self.write(if self.alt { pose.zoom(f) } else { pose.dolly(f) });
-                }
+                self.apply(Control::Wheel { pixels, fov: self.alt });
             }
             WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
-                let step = 0.05;
-                let Some(pose) = self.pose() else { return };
-                let next = match &event.logical_key {
-                    Key::Named(NamedKey::ArrowLeft) => Some(pose.orbit(-step, 0.0)),
-                    Key::Named(NamedKey::ArrowRight) => Some(pose.orbit(step, 0.0)),
-                    Key::Named(NamedKey::ArrowUp) => Some(pose.orbit(0.0, step)),
-                    Key::Named(NamedKey::ArrowDown) => Some(pose.orbit(0.0, -step)),
-                    Key::Character(c) => match c.as_str() {
-                        "w" => Some(pose.dolly(0.9)),
-                        "s" => Some(pose.dolly(1.1)),
-                        "+" | "=" => Some(pose.zoom(0.9)),
-                        "-" => Some(pose.zoom(1.1)),
-                        d => {
-                            if let (Some(n), Some(views)) = (d.parse::<usize>().ok().filter(|n| *n >= 1), &self.views)
-                                && let Some(v) = views.list().get(n - 1)
-                                && views.go_to(&v.name).is_ok()
-                            {
-                                self.pose = Some(v.pose);
-                            }
-                            None
+                let key = match &event.logical_key {
+                    Key::Named(NamedKey::ArrowLeft) => Some(ControlKey::Left),
+                    Key::Named(NamedKey::ArrowRight) => Some(ControlKey::Right),
+                    Key::Named(NamedKey::ArrowUp) => Some(ControlKey::Up),
+                    Key::Named(NamedKey::ArrowDown) => Some(ControlKey::Down),
+                    Key::Character(c) => {
+                        if let (Some(n), Some(views)) = (view_key(c), &self.views)
+                            && let Some(v) = views.list().get(n)
+                            && views.go_to(&v.name).is_ok()
+                        {
+                            self.pose = Some(v.pose);
                         }
-                    },
+                        ControlKey::from_char(c)
+                    }
                     _ => None,
                 };
-                if let Some(next) = next {
-                    self.write(next);
+                if let Some(key) = key {
+                    self.apply(Control::Key(key));
                 }
             }
             _ => {}

@@ -148,14 +148,17 @@ fn photon_maps_survive_a_camera_move_and_a_cached_view_comes_back_with_its_buffe
     // A kept buffer that never finished shows at once and is built again.
     let partial = Arc::new(footlight::render::LightBuffer::from_dense(W, H, &vec![Vec3::splat(0.5); (W * H) as usize]));
     let unfinished = footlight::live::Kept { light: spot(1.0), buffer: partial.clone(), stage: Stage::Direct };
+    // (A view never shown before: A's own geometry cache already holds this
+    // light finished, and a finished buffer wins over an unfinished one.)
+    let vc = view(&scene, Camera::look_at(Vec3::new(-4.0, 3.0, 4.0), Vec3::ZERO, 55f32.to_radians()));
     let g0 = tracer.published(0).generation;
-    let (_, restored) = tracer.set_view(va.clone(), &[Some(unfinished)]);
+    let (_, restored) = tracer.set_view(vc.clone(), &[Some(unfinished)]);
     assert_eq!(restored, 1);
     let p = tracer.published(0);
     // Either the kept buffer is on screen, or the rebuild already replaced it.
     assert!(p.generation > g0 + 1 || Arc::ptr_eq(&p.buffer, &partial), "shown until rebuilt");
     wait_ready(&tracer);
-    assert_eq!(tracer.published(0).buffer.to_dense(), fresh(&scene, &va, spot(1.0)));
+    assert_eq!(tracer.published(0).buffer.to_dense(), fresh(&scene, &vc, spot(1.0)));
     assert_eq!(tracer.photon_traces(), 2);
     assert!(tracer.shutdown(Duration::from_secs(5)));
 }
@@ -517,4 +520,310 @@ fn headless_chromium_drags_on_the_page_and_the_picture_changes() {
     assert_ne!(crop(&before), crop(&after), "the drag changed the picture");
     let _ = stop_tx.send(());
     thread.join().unwrap();
+}
+
+/// A one-triangle glTF whose second root node is a perspective camera at
+/// `t` with rotation `q` (x, y, z, w): the scene camera as an exporter writes it.
+fn gltf_with_camera(t: Vec3, q: glam::Quat) -> String {
+    let bytes: Vec<u8> = [[-5.0f32, 0.0, -5.0], [5.0, 0.0, -5.0], [0.0, 0.0, 5.0]]
+        .iter()
+        .flatten()
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0,1]}}],
+        "nodes":[{{"mesh":0}},{{"camera":0,"translation":[{},{},{}],"rotation":[{},{},{},{}]}}],
+        "cameras":[{{"type":"perspective","perspective":{{"yfov":0.6,"znear":0.1}}}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[-5,0,-5],"max":[5,0,5]}}],
+        "bufferViews":[{{"buffer":0,"byteLength":36}}],
+        "buffers":[{{"byteLength":36,"uri":"data:application/octet-stream;base64,{}"}}]}}"#,
+        t.x,
+        t.y,
+        t.z,
+        q.x,
+        q.y,
+        q.z,
+        q.w,
+        base64::encode(&bytes)
+    )
+}
+
+/// Issue 16: a view from a glTF camera keeps its full orientation. The
+/// reference is the node's rotation itself: glTF cameras look down their
+/// local −Z with +Y up, so the camera basis must be the rotation matrix.
+#[test]
+fn a_gltf_camera_keeps_its_roll_through_the_named_view_and_json() {
+    let q = glam::Quat::from_euler(glam::EulerRot::YXZ, 0.4, -0.5, 0.35).normalize();
+    let t = Vec3::new(1.0, 3.0, 6.0);
+    let dir = std::env::temp_dir().join(format!("footlight-views-roll-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("rolled.gltf");
+    std::fs::write(&path, gltf_with_camera(t, q)).unwrap();
+    let scene = footlight::scene::load(&path).unwrap();
+    let expected = glam::Mat3::from_quat(q);
+    let named = footlight::live::views::named_views(&start_camera(), &scene, None);
+    let view = named.iter().find(|v| v.name == "scene camera").expect("the glTF camera is a named view");
+    let up = view.pose.up.expect("a rolled camera writes its up vector");
+    assert!(Vec3::from_array(up).abs_diff_eq(expected.y_axis, 1e-5), "up {up:?} vs {}", expected.y_axis);
+    // Through JSON (what the page reads from /api/views and writes back).
+    let json = serde_json::to_string(&view.pose).unwrap();
+    let back: Pose = serde_json::from_str(&json).unwrap();
+    for pose in [view.pose, back] {
+        let c = pose.camera().unwrap();
+        assert!(c.position.abs_diff_eq(t, 1e-5), "{}", c.position);
+        for (got, want) in
+            [(c.basis.x_axis, expected.x_axis), (c.basis.y_axis, expected.y_axis), (c.basis.z_axis, expected.z_axis)]
+        {
+            assert!(got.abs_diff_eq(want, 1e-4), "basis column {got} vs the node's rotation {want}");
+        }
+        assert!((c.yfov - 0.6).abs() < 1e-5);
+    }
+    // The roll is real: the level camera looking the same way differs.
+    let level = Camera::look_at(t, t - expected.z_axis, 0.6);
+    assert!(!level.basis.y_axis.abs_diff_eq(expected.y_axis, 1e-2));
+    // A level camera writes no up; an orbit levels the horizon (as the page does).
+    assert_eq!(Pose::of(&level).up, None);
+    assert!(!serde_json::to_string(&Pose::of(&level)).unwrap().contains("up"));
+    let orbited = view.pose.orbit(0.1, 0.0).camera().unwrap();
+    assert!(orbited.basis.x_axis.y.abs() < 1e-5, "right axis horizontal after an orbit: {}", orbited.basis.x_axis);
+    // Pan keeps the roll (moves in the camera's own axes).
+    let panned = view.pose.pan(0.5, 0.0).camera().unwrap();
+    assert!(panned.basis.y_axis.abs_diff_eq(expected.y_axis, 1e-4));
+    assert!((panned.position - t).abs_diff_eq(expected.x_axis * 0.5, 1e-4));
+    // An up along the viewing direction is refused, not a NaN basis.
+    let along = Pose { up: Some((-expected.z_axis).to_array()), ..view.pose };
+    assert!(along.camera().is_err());
+    let nan = Pose { up: Some([f32::NAN, 1.0, 0.0]), ..view.pose };
+    assert!(nan.camera().is_err());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The window's controls as the pure [`control`] function: orbit, pan,
+/// dolly and field of view against independent geometry (angles, a
+/// projection of the old target), the limits, and NaN/∞ inputs.
+#[test]
+fn window_controls_map_input_to_poses_within_limits_and_nan_safe() {
+    use footlight::live::views::{Control, ControlKey, control, view_key};
+    let p = Pose { position: [0.0, 2.0, 8.0], target: [0.0, 1.0, 0.0], fov_y: 40.0, up: None };
+    let off = |q: &Pose| Vec3::from_array(q.position) - Vec3::from_array(q.target);
+    let r = off(&p).length();
+
+    // Orbit: a 100-pixel drag to the right turns the eye 0.8 rad about +Y
+    // around the target (azimuth measured here with atan2), distance kept.
+    let q = control(&p, Control::Drag { dx: 100.0, dy: 0.0, pan: false, height: 500.0 });
+    let az = |v: Vec3| v.x.atan2(v.z);
+    assert!(((az(off(&p)) - az(off(&q))) - 0.8).abs() < 1e-4, "{q:?}");
+    assert!((off(&q).length() - r).abs() < 1e-4);
+    assert_eq!(q.target, p.target);
+    // Pitch stops at ±1.5 rad however far the drag goes.
+    let top = control(&p, Control::Drag { dx: 0.0, dy: 1e6, pan: false, height: 500.0 });
+    assert!((off(&top).y / r).asin() <= 1.5 + 1e-4 && (off(&top).y / r).asin() > 1.4);
+    assert!(top.camera().unwrap().basis.is_finite());
+
+    // Pan: the old target follows the mouse: projected into the new camera
+    // it sits dx pixels right and dy pixels down of the centre.
+    let h = 500.0;
+    let moved = control(&p, Control::Drag { dx: 40.0, dy: -25.0, pan: true, height: h });
+    let c = moved.camera().unwrap();
+    let local = c.basis.transpose() * (Vec3::from_array(p.target) - c.position);
+    let half = (c.yfov / 2.0).tan();
+    let px = local.x / -local.z / half * h / 2.0;
+    let py = -local.y / -local.z / half * h / 2.0;
+    assert!((px - 40.0).abs() < 1e-2 && (py + 25.0).abs() < 1e-2, "target at ({px}, {py}) px");
+
+    // Wheel: a notch (100 px towards the user) scales the distance by e^0.1;
+    // one event never scales by more than e; alt changes the fov instead.
+    let w = control(&p, Control::Wheel { pixels: 100.0, fov: false });
+    assert!((off(&w).length() / r - 0.1f32.exp()).abs() < 1e-5);
+    let big = control(&p, Control::Wheel { pixels: 1e9, fov: false });
+    assert!((off(&big).length() / r - 1f32.exp()).abs() < 1e-4);
+    let z = control(&p, Control::Wheel { pixels: -100.0, fov: true });
+    assert!((z.fov_y - 40.0 * (-0.1f32).exp()).abs() < 1e-4 && z.position == p.position);
+    // Limits: distance 0.2-500 m, field of view 5-120°.
+    let (mut near, mut wide) = (p, p);
+    for _ in 0..100 {
+        near = control(&near, Control::Key(ControlKey::DollyIn));
+        wide = control(&wide, Control::Key(ControlKey::ZoomOut));
+    }
+    assert!((off(&near).length() - 0.2).abs() < 1e-5 && wide.fov_y == 120.0);
+    let far = control(&p, Control::Wheel { pixels: 1e9, fov: false });
+    let far = (0..100).fold(far, |q, _| control(&q, Control::Wheel { pixels: 1e9, fov: false }));
+    assert!((off(&far).length() - 500.0).abs() < 1e-2);
+    // Keys: arrows orbit by 0.05 rad, w/s dolly by 0.9/1.1, +/- zoom.
+    assert_eq!(control(&p, Control::Key(ControlKey::Left)), p.orbit(-0.05, 0.0));
+    assert_eq!(control(&p, Control::Key(ControlKey::Down)), p.orbit(0.0, -0.05));
+    assert!((off(&control(&p, Control::Key(ControlKey::DollyOut))).length() / r - 1.1).abs() < 1e-5);
+    assert!((control(&p, Control::Key(ControlKey::ZoomIn)).fov_y - 36.0).abs() < 1e-4);
+    assert_eq!(ControlKey::from_char("="), Some(ControlKey::ZoomIn));
+    assert_eq!(ControlKey::from_char("x"), None);
+    assert_eq!(
+        (view_key("1"), view_key("9"), view_key("0"), view_key("12"), view_key("a")),
+        (Some(0), Some(8), None, None, None)
+    );
+
+    // NaN and infinite inputs, a zero-height picture: the pose stays.
+    for bad in [
+        Control::Drag { dx: f32::NAN, dy: 0.0, pan: false, height: 500.0 },
+        Control::Drag { dx: 0.0, dy: f32::INFINITY, pan: true, height: 500.0 },
+        Control::Drag { dx: 5.0, dy: 5.0, pan: true, height: 0.0 },
+        Control::Drag { dx: 5.0, dy: 5.0, pan: true, height: f32::NAN },
+        Control::Wheel { pixels: f32::NAN, fov: false },
+        Control::Wheel { pixels: f32::NEG_INFINITY, fov: true },
+    ] {
+        assert_eq!(control(&p, bad), p, "{bad:?}");
+    }
+    // A pose already at a limit or degenerate never yields a NaN camera.
+    let degenerate = Pose { position: p.target, ..p };
+    for input in
+        [Control::Drag { dx: 3.0, dy: 3.0, pan: false, height: 500.0 }, Control::Wheel { pixels: 50.0, fov: false }]
+    {
+        let q = control(&degenerate, input);
+        assert!(q.position.iter().chain(&q.target).all(|v| v.is_finite()), "{q:?}");
+    }
+
+    // The page does the same arithmetic: its constants are these.
+    let js = include_str!("../src/serve/camera.js");
+    for needle in [
+        "dx * 0.008",
+        "dy * 0.008",
+        "Math.max(-1.5, Math.min(1.5",
+        "e.deltaY * 0.001",
+        "Math.max(0.2, Math.min(500",
+        "Math.max(5, Math.min(120",
+    ] {
+        assert!(js.contains(needle), "camera.js no longer has {needle:?}: keep it and `control` in step");
+    }
+}
+
+/// Waits until light 0 published something new and the tracer is idle.
+fn wait_rebuilt(tracer: &Tracer, before: u64) {
+    let t = Instant::now();
+    while tracer.published(0).generation == before || !tracer.idle() || tracer.published(0).stage != Stage::Ready {
+        assert!(t.elapsed() < Duration::from_secs(60), "the light was never rebuilt");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// Issue 16, item 2: the geometry cache (finished buffers per light
+/// position) is kept with its view across view changes. Back in view A
+/// without any kept buffers, the light's position there is published from
+/// A's cache at once, and a position preset finished in A earlier comes
+/// back without a build. The reference is the buffer the tracer published
+/// in A the first time (the same `Arc`).
+#[test]
+fn the_geometry_cache_is_kept_per_view_across_view_changes() {
+    let scene = scene();
+    let other = Camera::look_at(Vec3::new(5.0, 4.0, 2.0), Vec3::ZERO, 50f32.to_radians());
+    let (va, vb) = (view(&scene, start_camera()), view(&scene, other));
+    let tracer = Tracer::new(scene.clone(), va.clone(), 1, tracer_settings());
+    tracer.request(0, spot(0.0), 1.0);
+    wait_ready(&tracer);
+    let a0 = tracer.published(0).buffer;
+    let g = tracer.published(0).generation;
+    tracer.request(0, spot(1.0), 1.0);
+    wait_rebuilt(&tracer, g);
+    let a1 = tracer.published(0).buffer;
+    assert_eq!(tracer.cache_usage().0, 2, "two positions finished in A");
+
+    let g = tracer.published(0).generation;
+    let (_, restored) = tracer.set_view(vb.clone(), &[]);
+    assert_eq!(restored, 0, "B was never shown");
+    wait_rebuilt(&tracer, g);
+    assert_eq!(tracer.cache_usage().0, 3, "A's two entries kept aside, B's one");
+    let traces = tracer.photon_traces();
+
+    // Back to A with no kept buffers: only A's geometry cache can restore it.
+    let (_, restored) = tracer.set_view(va.clone(), &[]);
+    assert_eq!(restored, 1);
+    let p = tracer.published(0);
+    assert!(p.buffer.to_dense() == a1.to_dense() && p.stage == Stage::Ready, "A's finished buffer, at once");
+    assert!(tracer.idle(), "nothing to build");
+    // The other position finished in A comes back from the cache, no build.
+    tracer.request(0, spot(0.0), 1.0);
+    let p = tracer.published(0);
+    assert!(p.buffer.to_dense() == a0.to_dense() && p.stage == Stage::Ready);
+    assert!(tracer.idle());
+    assert_eq!(tracer.photon_traces(), traces);
+    // B's entry is still kept: with the light back at 1.0 (A's cache again),
+    // B shows it at once, as built there (from the same maps: == scratch).
+    tracer.request(0, spot(1.0), 1.0);
+    assert!(tracer.idle() && tracer.published(0).buffer.to_dense() == a1.to_dense());
+    let (_, restored) = tracer.set_view(vb.clone(), &[]);
+    assert_eq!(restored, 1);
+    assert!(tracer.idle());
+    assert_eq!(tracer.published(0).buffer.to_dense(), fresh(&scene, &vb, spot(1.0)));
+    // A view dropped everywhere takes its cache with it.
+    drop(va);
+    let vc = view(&scene, Camera::look_at(Vec3::new(-4.0, 3.0, 4.0), Vec3::ZERO, 55f32.to_radians()));
+    let _ = tracer.set_view(vc, &[]);
+    assert!(tracer.cache_usage().0 <= 1, "only B's entry may remain: {:?}", tracer.cache_usage());
+    assert!(tracer.shutdown(Duration::from_secs(5)));
+}
+
+/// Issue 16, item 1: the coarse first indirect estimate the live tracer
+/// publishes after a camera stop. Its exact anchors are the exact lookups,
+/// it stays within a few per cent of the exact buffer, and refinement
+/// starts from the exact estimate: the first exact-start buffer and every
+/// SPPM pass equal those of a build without the coarse step, bit for bit.
+#[test]
+fn a_coarse_first_indirect_estimate_is_made_exact_before_refinement() {
+    let scene = scene();
+    let v = Arc::new(View::build(&scene, start_camera(), 160, 100, Sampling::Adaptive, RecursionLimits::default()));
+    let settings = BuildSettings { photons: Some(photons()), refine_passes: 2, ..BuildSettings::default() };
+    let mut exact = LightBuild::new(spot(0.3), 0, settings, Cancel::never());
+    let exact_buffer = exact.photons(&scene, &v).unwrap().to_dense();
+    let mut coarse = LightBuild::new(spot(0.3), 0, settings, Cancel::never()).with_coarse_indirect(3);
+    let coarse_buffer = coarse.photons(&scene, &v).unwrap().to_dense();
+    assert!(check_finite(&coarse_buffer).is_ok());
+
+    // View level: exact where flagged, and the fill gives the exact lookups.
+    let maps = exact.shared_maps().unwrap();
+    let reference = v.vertex_irradiance(&scene, &maps);
+    let (mut e, flags) = v.coarse_vertex_irradiance_until(&scene, &maps, 3, &|| false).unwrap();
+    let interpolated = flags.iter().filter(|f| !**f).count();
+    assert!(interpolated > flags.len() / 3, "most vertices interpolated: {interpolated} of {}", flags.len());
+    assert!(e.iter().zip(&reference).zip(&flags).all(|((a, b), f)| !f || a == b));
+    v.fill_vertex_irradiance_until(&scene, &maps, &mut e, &flags, &|| false).unwrap();
+    assert_eq!(e, reference);
+
+    // Picture level: close, not equal.
+    let l1 = |a: &[Vec3], b: &[Vec3]| a.iter().zip(b).map(|(x, y)| (*x - *y).abs().element_sum()).sum::<f32>();
+    let total: f32 = exact_buffer.iter().map(|x| x.element_sum()).sum();
+    let rel = l1(&coarse_buffer, &exact_buffer) / total;
+    assert!(rel > 0.0 && rel < 0.03, "coarse vs exact: {rel}");
+
+    let mut r_exact = exact.into_refinement(&scene, &v).unwrap();
+    let mut r_coarse = coarse.into_refinement(&scene, &v).unwrap();
+    assert!(r_exact.exact_start(&scene, &v).unwrap().is_none(), "nothing to finish");
+    assert_eq!(r_coarse.exact_start(&scene, &v).unwrap().unwrap().to_dense(), exact_buffer);
+    for _ in 0..2 {
+        assert_eq!(r_coarse.pass(&scene, &v).unwrap().to_dense(), r_exact.pass(&scene, &v).unwrap().to_dense());
+    }
+    assert!(r_coarse.finished() && r_exact.finished());
+}
+
+/// A light whose refinement is given up (`max_refining`) after a coarse
+/// first estimate ends on the exact photon-map buffer, the one a build
+/// without the coarse step makes, never on the coarse one.
+#[test]
+fn a_light_dropped_from_refinement_ends_on_the_exact_estimate() {
+    let scene = scene();
+    let va = view(&scene, start_camera());
+    let mut settings = tracer_settings();
+    settings.build.refine_passes = 1;
+    settings.max_refining = 1;
+    settings.coarse_indirect = 3;
+    let tracer = Tracer::new(scene.clone(), va.clone(), 2, settings);
+    tracer.request(0, spot(-1.0), 2.0);
+    tracer.request(1, spot(1.0), 1.0);
+    let t = Instant::now();
+    while !(tracer.idle() && (0..2).all(|i| tracer.published(i).stage == Stage::Ready)) {
+        assert!(t.elapsed() < Duration::from_secs(60), "stuck at {:?}", tracer.published(1).stage);
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let mut exact = LightBuild::new(spot(1.0), 1, tracer_settings().build, Cancel::never());
+    let reference = exact.photons(&scene, &va).unwrap().to_dense();
+    assert_eq!(tracer.published(1).buffer.to_dense(), reference, "the dimmer light's final picture");
+    assert!(tracer.shutdown(Duration::from_secs(5)));
 }

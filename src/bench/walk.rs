@@ -47,6 +47,38 @@ pub struct WalkReport {
     pub cached_restored: usize,
     /// Frame period of the clock, ms (the cached-return target).
     pub frame_ms: f64,
+    /// The picture at full quality against the finished one (every SPPM
+    /// pass done), on the 8-bit display values.
+    pub full_quality_error: PictureError,
+    /// One view change stage by stage ([`profile`]).
+    pub profile: Option<ViewProfile>,
+}
+
+/// How far one displayed picture is from another (8-bit sRGB, all channels).
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct PictureError {
+    /// Root mean square difference, in 8-bit levels.
+    pub rms: f64,
+    /// Share of pixels with some channel more than 8 levels off.
+    pub over_8: f64,
+    /// Largest difference, levels.
+    pub max: u8,
+}
+
+impl PictureError {
+    /// `a` against the reference `b` (same size, RGB bytes).
+    pub fn between(a: &[u8], b: &[u8]) -> Self {
+        let n = a.len().min(b.len());
+        if n == 0 {
+            return Self::default();
+        }
+        let sq: f64 = a.iter().zip(b).map(|(x, y)| (f64::from(*x) - f64::from(*y)).powi(2)).sum();
+        let max = a.iter().zip(b).map(|(x, y)| x.abs_diff(*y)).max().unwrap_or(0);
+        let pixels = n / 3;
+        let over =
+            a.chunks(3).zip(b.chunks(3)).filter(|(p, q)| p.iter().zip(*q).any(|(x, y)| x.abs_diff(*y) > 8)).count();
+        Self { rms: (sq / n as f64).sqrt(), over_8: over as f64 / pixels.max(1) as f64, max }
+    }
 }
 
 impl WalkReport {
@@ -57,7 +89,8 @@ impl WalkReport {
              **{:.1} new pictures per second**, preview {:.1} ms per frame (target ≥ 15 fps). Camera stops → new view on \
              screen {:.0} ms, **full quality (every light past Whitted) {:.0} ms** (target < 3000 ms), every light \
              finished {:.0} ms (settle time 200 ms included). Return to a cached view: **{:.1} ms** with {} of {} \
-             lights restored (target < one frame, {:.1} ms).\n",
+             lights restored (target < one frame, {:.1} ms). The picture at full quality against the finished one: \
+             RMS {:.2} of 255 levels, {:.2} % of pixels more than 8 levels off, at most {} levels.\n{}",
             self.lights,
             self.width,
             self.height,
@@ -69,7 +102,11 @@ impl WalkReport {
             self.cached_return_ms,
             self.cached_restored,
             self.lights,
-            self.frame_ms
+            self.frame_ms,
+            self.full_quality_error.rms,
+            self.full_quality_error.over_8 * 100.0,
+            self.full_quality_error.max,
+            self.profile.as_ref().map(ViewProfile::markdown).unwrap_or_default()
         )
     }
 }
@@ -93,6 +130,7 @@ pub fn run(
     seconds: f64,
     photons: usize,
 ) -> Result<WalkReport, String> {
+    let profile = profile(scene, patch, camera, (width, height), photons)?;
     let show = Arc::new(Show::new(patch.clone()));
     let lights = patch.fixtures.len();
     let mut config = super::harness::config(width, height);
@@ -153,8 +191,14 @@ pub fn run(
     let view_on_screen_ms = stopped.elapsed().as_secs_f64() * 1e3;
     wait(&|| stages().is_none_or(|s| s >= 3), Duration::from_secs(600))?;
     let full_quality_ms = stopped.elapsed().as_secs_f64() * 1e3;
+    // The picture on screen then: the next composite after the stage landed.
+    std::thread::sleep(Duration::from_secs_f64(2.0 * frame_ms / 1e3));
+    let at_full = handle.frames.borrow().rgb.clone();
     wait(&ready, Duration::from_secs(600))?;
     let converged_ms = stopped.elapsed().as_secs_f64() * 1e3;
+    std::thread::sleep(Duration::from_secs_f64(2.0 * frame_ms / 1e3));
+    let finished = handle.frames.borrow().rgb.clone();
+    let full_quality_error = PictureError::between(&at_full, &finished);
 
     // Back to the start view by name: from the cache.
     let hits = (handle.status)().view.cache.hits;
@@ -182,5 +226,183 @@ pub fn run(
         cached_return_ms,
         cached_restored,
         frame_ms,
+        full_quality_error,
+        profile: Some(profile),
+    })
+}
+
+/// One light's share of a view change (see [`ViewProfile`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct LightProfile {
+    /// Footprint-culled direct stage (what the daemon shows first), ms.
+    pub direct_ms: f64,
+    /// Whitted direct term on the base (binned) sample set, ms.
+    pub shade_ms: f64,
+    /// Adaptive anti-aliasing: gradient flags plus 9-sample re-shading, ms.
+    pub aa_ms: f64,
+    /// Pixels re-shaded by anti-aliasing.
+    pub reshaded: usize,
+    /// Photon tracing (done once per light geometry, *not* on a camera move), ms.
+    pub trace_ms: f64,
+    /// Irradiance lookups from the kept maps at every shading vertex, ms.
+    pub irradiance_ms: f64,
+    /// Indirect buffer from the per-vertex values plus the D + A sum, ms.
+    pub indirect_ms: f64,
+    /// The coarse first estimate the live tracer publishes instead of the
+    /// exact lookups ([`crate::render::View::coarse_vertex_irradiance_until`]), ms.
+    pub coarse_ms: f64,
+    /// Share of vertices the coarse estimate interpolated.
+    pub interpolated: f64,
+}
+
+/// Per-stage times of one camera move (the start view orbited 30°), each
+/// stage run alone on the build pool (2 threads on the bench VM): what the
+/// daemon does between the camera stopping and the full-quality picture.
+#[derive(Clone, Debug, Serialize)]
+pub struct ViewProfile {
+    /// Threads of the pool the stages ran on.
+    pub threads: usize,
+    /// 9-sample G-buffer, ms.
+    pub gbuffer_ms: f64,
+    /// Camera-path expansion through mirrors and glass, ms.
+    pub expand_ms: f64,
+    /// Shading vertices of the base sample set.
+    pub vertices: usize,
+    /// Per light, in patch order.
+    pub lights: Vec<LightProfile>,
+}
+
+impl ViewProfile {
+    /// Sum over lights of one field.
+    fn sum(&self, f: impl Fn(&LightProfile) -> f64) -> f64 {
+        self.lights.iter().map(f).sum()
+    }
+
+    /// What a view change costs before every light is at full quality
+    /// (view + every light's direct, Whitted + AA and indirect lookups), ms;
+    /// with `coarse`, the coarse first estimate instead of the exact lookups.
+    pub fn view_change_ms(&self, coarse: bool) -> f64 {
+        self.gbuffer_ms
+            + self.expand_ms
+            + self.sum(|l| {
+                l.direct_ms + l.shade_ms + l.aa_ms + if coarse { l.coarse_ms } else { l.irradiance_ms } + l.indirect_ms
+            })
+    }
+
+    /// The profile as a Markdown table.
+    pub fn markdown(&self) -> String {
+        let mut s = format!(
+            "\nOne view change, stage by stage ({} threads, {} shading vertices): G-buffer {:.0} ms, path expansion \
+             {:.0} ms.\n\n| light | direct stage | Whitted (base) | AA (re-shaded px) | irradiance lookups | coarse \
+             estimate (interpolated) | indirect buffer | photon trace (not redone) |\n|---|---|---|---|---|---|---|---|\n",
+            self.threads, self.vertices, self.gbuffer_ms, self.expand_ms
+        );
+        for (i, l) in self.lights.iter().enumerate() {
+            s += &format!(
+                "| {} | {:.0} | {:.0} | {:.0} ({}) | {:.0} | {:.0} ({:.0} %) | {:.0} | {:.0} |\n",
+                i + 1,
+                l.direct_ms,
+                l.shade_ms,
+                l.aa_ms,
+                l.reshaded,
+                l.irradiance_ms,
+                l.coarse_ms,
+                l.interpolated * 100.0,
+                l.indirect_ms,
+                l.trace_ms
+            );
+        }
+        s += &format!(
+            "| **all** | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} |\n\nSum of the per-view stages: **{:.0} ms** \
+             with exact lookups, **{:.0} ms** with the coarse first estimate.\n",
+            self.sum(|l| l.direct_ms),
+            self.sum(|l| l.shade_ms),
+            self.sum(|l| l.aa_ms),
+            self.sum(|l| l.irradiance_ms),
+            self.sum(|l| l.coarse_ms),
+            self.sum(|l| l.indirect_ms),
+            self.sum(|l| l.trace_ms),
+            self.view_change_ms(false),
+            self.view_change_ms(true)
+        );
+        s
+    }
+}
+
+/// Profiles one view change (module docs, [`ViewProfile`]): photon maps are
+/// traced first (as the daemon holds them), then the orbited view and every
+/// light's per-view stages are timed one by one.
+pub fn profile(
+    scene: &Scene,
+    patch: &crate::Patch,
+    camera: Camera,
+    (width, height): (u32, u32),
+    photons: usize,
+) -> Result<ViewProfile, String> {
+    use crate::render::build::light_seed;
+    use crate::render::footprint::{DirectQuality, primary_direct};
+    use crate::render::gbuffer::GBuffer;
+    use crate::render::photon::trace_photons;
+    use crate::render::{AaParams, RecursionLimits, Sampling, View};
+    let threads = std::thread::available_parallelism().map_or(2, |n| n.get());
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| e.to_string())?;
+    let ms = |t: Instant| t.elapsed().as_secs_f64() * 1e3;
+    let settings = crate::render::build::BuildSettings::default();
+    let moved = crate::live::views::Pose::focused(scene, &camera).orbit(30f32.to_radians(), 0.0).camera()?;
+    pool.install(|| {
+        let t = Instant::now();
+        let gbuffer = GBuffer::build(scene, moved, width, height);
+        let gbuffer_ms = ms(t);
+        let t = Instant::now();
+        let view = View::from_gbuffer(scene, gbuffer, Sampling::Adaptive, RecursionLimits::default());
+        let expand_ms = ms(t);
+        let mut lights = Vec::new();
+        for (i, f) in patch.fixtures.iter().enumerate() {
+            let light = &f.light;
+            let t = Instant::now();
+            let _ = primary_direct(scene, &view, view.tile_bounds(), light, DirectQuality::Full);
+            let direct_ms = ms(t);
+            let t = Instant::now();
+            let (mut dense, _) = view.render_direct(scene, light, None);
+            let shade_ms = ms(t);
+            let t = Instant::now();
+            let flags = view.gradient_flags(scene, &dense, AaParams::new(settings.aa_threshold));
+            let reshaded = view.reshade(scene, light, &mut dense, &flags);
+            let aa_ms = ms(t);
+            let (mut trace_ms, mut irradiance_ms, mut indirect_ms, mut coarse_ms, mut interpolated) =
+                (0.0, 0.0, 0.0, 0.0, 0.0);
+            if photons > 0 {
+                let ps = PhotonSettings { stored: photons, ..PhotonSettings::default() };
+                let t = Instant::now();
+                let maps = trace_photons(scene, light, &PhotonSettings { seed: light_seed(ps.seed, i), ..ps });
+                trace_ms = ms(t);
+                let t = Instant::now();
+                let e = view.vertex_irradiance(scene, &maps);
+                irradiance_ms = ms(t);
+                let t = Instant::now();
+                let a = view.render_vertex_irradiance(scene, &e);
+                let sum: Vec<glam::Vec3> = dense.iter().zip(&a).map(|(d, a)| *d + *a).collect();
+                std::hint::black_box(&sum);
+                indirect_ms = ms(t);
+                let step = crate::live::TracerSettings::default().coarse_indirect;
+                let t = Instant::now();
+                if let Some((_, exact)) = view.coarse_vertex_irradiance_until(scene, &maps, step, &|| false) {
+                    interpolated = exact.iter().filter(|e| !**e).count() as f64 / exact.len().max(1) as f64;
+                }
+                coarse_ms = ms(t);
+            }
+            lights.push(LightProfile {
+                direct_ms,
+                shade_ms,
+                aa_ms,
+                reshaded,
+                trace_ms,
+                irradiance_ms,
+                indirect_ms,
+                coarse_ms,
+                interpolated,
+            });
+        }
+        Ok(ViewProfile { threads, gbuffer_ms, expand_ms, vertices: view.shading.vertex_count(), lights })
     })
 }

@@ -36,7 +36,8 @@
 //! # View changes (issue 16)
 //! [`Tracer::set_view`] swaps the camera-dependent [`View`]: every build in
 //! progress is cancelled (its request id is superseded), the geometry cache
-//! (view-dependent buffers) is emptied, and every light is rebuilt for the
+//! (view-dependent buffers) is put aside with the old view (and the new
+//! view's own comes back if it was shown before), and every light is rebuilt for the
 //! new view, brightest first, through the same stages and rules as above.
 //! A light's photon maps do not depend on the camera: the tracer keeps the
 //! latest maps of each light with the geometry they were traced for, and a
@@ -90,8 +91,13 @@ pub struct TracerSettings {
     pub settle: Duration,
     /// Lights refined at the same time (each holds per-vertex SPPM state).
     pub max_refining: usize,
-    /// Geometry cache budget in bytes.
+    /// Geometry cache budget in bytes (the current view's; the caches kept
+    /// for views left behind share another budget of the same size).
     pub cache_bytes: usize,
+    /// The first indirect estimate of a build is exact every this many
+    /// pixels and interpolated in between (0 or 1: exact everywhere); the
+    /// first refinement pass finishes it ([`LightBuild::with_coarse_indirect`]).
+    pub coarse_indirect: u32,
 }
 
 impl Default for TracerSettings {
@@ -102,6 +108,7 @@ impl Default for TracerSettings {
             settle: Duration::from_millis(150),
             max_refining: 4,
             cache_bytes: 512 << 20,
+            coarse_indirect: 3,
         }
     }
 }
@@ -212,6 +219,10 @@ struct Shared {
     stop: Arc<AtomicBool>,
     next_id: AtomicU64,
     cache: Mutex<GeometryCache>,
+    /// Geometry caches of views left behind, with the view they belong to
+    /// (a `Weak` keeps the allocation, so a new view never matches an old
+    /// one's address); given back when [`Tracer::set_view`] returns to it.
+    kept_caches: Mutex<Vec<(std::sync::Weak<View>, GeometryCache)>>,
     pool: rayon::ThreadPool,
 }
 
@@ -305,6 +316,7 @@ impl Tracer {
             stop: Arc::new(AtomicBool::new(false)),
             next_id: AtomicU64::new(1),
             cache: Mutex::new(GeometryCache::new(settings.cache_bytes)),
+            kept_caches: Mutex::new(Vec::new()),
             pool,
         });
         let worker = {
@@ -372,8 +384,9 @@ impl Tracer {
     }
 
     /// Switches to `view` (same size as the old one). Builds in progress are
-    /// cancelled and the geometry cache is emptied (its buffers belong to
-    /// the old view). A light whose `kept` buffer (from a cached view) was
+    /// cancelled; the geometry cache of the old view is kept with it (and
+    /// the new view's comes back if it was shown before: a light finished
+    /// there for its current geometry is published at once). A light whose `kept` buffer (from a cached view) was
     /// built for its current geometry is published at once (a view-cache
     /// hit; a kept buffer that had not reached [`Stage::Ready`] shows while
     /// its build runs again); every other light is rebuilt for the new view
@@ -383,9 +396,31 @@ impl Tracer {
     pub fn set_view(&self, view: Arc<View>, kept: &[Option<Kept>]) -> (Vec<Option<Kept>>, usize) {
         let s = &self.shared;
         let old = self.snapshot();
-        *s.view.lock().expect("view lock") = view.clone();
+        let old_view = std::mem::replace(&mut *s.view.lock().expect("view lock"), view.clone());
         s.view_generation.fetch_add(1, Ordering::SeqCst);
-        s.cache.lock().expect("cache lock").clear();
+        // Supersede every build of the old view first: none of them may
+        // publish or fill a cache from here on.
+        for slot in &s.slots {
+            slot.latest.store(s.next_id.fetch_add(1, Ordering::Relaxed), Ordering::SeqCst);
+        }
+        if !Arc::ptr_eq(&old_view, &view) {
+            let mut cache = s.cache.lock().expect("cache lock");
+            // The old view's finished buffers stay with it; the new view gets
+            // its own back if it was here before (issue 16).
+            let mut stash = s.kept_caches.lock().expect("kept caches lock");
+            let back = stash.iter().position(|(w, _)| std::ptr::eq(w.as_ptr(), Arc::as_ptr(&view)));
+            let mine = back.map_or_else(|| GeometryCache::new(s.settings.cache_bytes), |i| stash.remove(i).1);
+            let left = std::mem::replace(&mut *cache, mine);
+            if !left.is_empty() {
+                stash.push((Arc::downgrade(&old_view), left));
+            }
+            // Views no longer held anywhere take their caches with them; past
+            // the budget the oldest kept caches go first.
+            stash.retain(|(w, _)| w.strong_count() > 0);
+            while stash.iter().map(|(_, c)| c.bytes()).sum::<usize>() > s.settings.cache_bytes && !stash.is_empty() {
+                stash.remove(0);
+            }
+        }
         let empty = Arc::new(LightBuffer::empty(view.width(), view.height()));
         let now = Instant::now();
         // Brightest first: the direct stages go by longest wait, so the
@@ -415,18 +450,26 @@ impl Tracer {
                 continue;
             };
             let hit = kept.get(i).and_then(Option::as_ref).filter(|k| k.light == light);
-            if let Some(k) = hit {
+            // A finished kept buffer first (the very `Arc` the view showed),
+            // else this view's geometry cache. Lock order as in `request`:
+            // slot state, then the cache.
+            let finished_kept = hit.filter(|k| k.stage == Stage::Ready).map(|k| k.buffer.clone());
+            let cached = finished_kept.or_else(|| s.cache.lock().expect("cache lock").get(i, &light));
+            if let Some(buffer) = cached {
+                // Finished for this very view and geometry before.
+                st.shown = Some(light);
+                st.waiting_since = None;
+                restored += 1;
+                drop(st);
+                let mut p = slot.published.lock().expect("published lock");
+                p.buffer = buffer;
+                p.generation += 1;
+                p.stage = Stage::Ready;
+                continue;
+            }
+            if hit.is_some() {
                 st.shown = Some(light.clone());
                 restored += 1;
-                if k.stage == Stage::Ready {
-                    st.waiting_since = None;
-                    drop(st);
-                    let mut p = slot.published.lock().expect("published lock");
-                    p.buffer = k.buffer.clone();
-                    p.generation += 1;
-                    p.stage = Stage::Ready;
-                    continue;
-                }
             }
             // Rebuilt for this view. A kept buffer the old visit left
             // unfinished stays on screen until the new direct stage lands.
@@ -534,10 +577,15 @@ impl Tracer {
         })
     }
 
-    /// Geometry cache entries and bytes.
+    /// Geometry cache entries and bytes: the current view's plus those
+    /// kept for views left behind.
     pub fn cache_usage(&self) -> (usize, usize) {
         let c = self.shared.cache.lock().expect("cache lock");
-        (c.len(), c.bytes())
+        let kept = self.shared.kept_caches.lock().expect("kept caches lock");
+        (
+            c.len() + kept.iter().map(|(_, k)| k.len()).sum::<usize>(),
+            c.bytes() + kept.iter().map(|(_, k)| k.bytes()).sum::<usize>(),
+        )
     }
 
     /// Stops the worker: every build's [`Cancel`] token fires, and the
@@ -676,7 +724,8 @@ fn direct_stage(s: &Shared, index: usize) {
     };
     let quality = if quality { DirectQuality::Moving } else { DirectQuality::Full };
     let cancel = Cancel::new(slot.latest.clone(), req.id, s.stop.clone());
-    let mut build = LightBuild::new(req.light.clone(), index, s.settings.build, cancel);
+    let mut build = LightBuild::new(req.light.clone(), index, s.settings.build, cancel)
+        .with_coarse_indirect(s.settings.coarse_indirect);
     let maps = slot.state.lock().expect("slot lock").maps.clone();
     if let Some((light, maps)) = maps
         && light == req.light
@@ -762,6 +811,21 @@ fn later_stage(s: &Shared, index: usize) {
         return;
     }
     let Some((id, mut refine, at)) = refine else { return };
+    if refine.finishing() {
+        // Refinement given up: only the exact photon-map estimate is left.
+        let light = refine.light().clone();
+        match s.pool.install(|| refine.exact_start(&s.scene, &view)) {
+            Ok(Some(buffer)) => {
+                let b = Arc::new(buffer.clone());
+                if s.publish(index, id, buffer, Stage::Ready, &light) {
+                    finished(s, index, id, &light, b, at);
+                }
+            }
+            Ok(None) => mark_ready(s, index, id, &light, at),
+            Err(e) => report_bug(index, &e),
+        }
+        return;
+    }
     let result = s.pool.install(|| refine.pass(&s.scene, &view));
     match result {
         Ok(buffer) => {
@@ -814,14 +878,25 @@ fn start_refining(s: &Shared, index: usize, id: u64, refine: Refinement, at: Ins
         .enumerate()
         .filter_map(|(i, sl)| {
             let st = sl.state.lock().expect("slot lock");
-            st.refine.as_ref().map(|_| (i, st.priority))
+            st.refine.as_ref().filter(|(_, r, _)| !r.finishing()).map(|_| (i, st.priority))
         })
         .collect();
     holders.sort_by(|a, b| b.1.total_cmp(&a.1));
     for &(i, _) in holders.iter().skip(s.settings.max_refining.max(1)) {
         let taken = s.slots[i].state.lock().expect("slot lock").refine.take();
-        if let Some((rid, r, rat)) = taken {
-            mark_ready(s, i, rid, r.light(), rat);
+        if let Some((rid, mut r, rat)) = taken {
+            if r.has_coarse_start() {
+                // Never left at a coarse first estimate: its exact estimate is
+                // its final picture, computed as a later stage of its own
+                // (after every light's photons stage, not here).
+                r.finish_only();
+                let mut st = s.slots[i].state.lock().expect("slot lock");
+                if s.slots[i].latest.load(Ordering::SeqCst) == rid {
+                    st.refine = Some((rid, r, rat));
+                }
+            } else {
+                mark_ready(s, i, rid, r.light(), rat);
+            }
         }
     }
 }

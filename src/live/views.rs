@@ -26,7 +26,8 @@
 //! Views come from the scene's glTF camera, the patch's `[camera]` and
 //! `[[view]]` tables, and views saved from the page (kept in memory only,
 //! never written to a file). Poses are position + target + vertical field of
-//! view: a glTF camera's roll is not kept (`Camera::look_at` keeps +Y up).
+//! view: a glTF camera keeps its roll in [`Pose::up`]
+//! (orbiting levels the horizon, as on the page).
 
 use super::daemon::StopSignal;
 use super::tracer::{Kept, Stage, Tracer};
@@ -72,6 +73,11 @@ pub struct Pose {
     pub target: [f32; 3],
     /// Vertical field of view, degrees.
     pub fov_y: f32,
+    /// The camera's up direction (roll), when it is not the level one
+    /// (world +Y projected onto the picture plane): a glTF camera keeps its
+    /// full orientation this way. Omitted in JSON for a level camera.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub up: Option<[f32; 3]>,
 }
 
 impl Pose {
@@ -87,7 +93,25 @@ impl Pose {
         if !(self.fov_y.is_finite() && self.fov_y > 0.0 && self.fov_y < 179.0) {
             return Err(format!("camera fov_y {} must be between 0 and 179 degrees", self.fov_y));
         }
-        Ok(Camera::look_at(p, t, self.fov_y.to_radians()))
+        let Some(up) = self.up else { return Ok(Camera::look_at(p, t, self.fov_y.to_radians())) };
+        let up = Vec3::from_array(up);
+        let forward = (t - p).normalize();
+        // Gram-Schmidt: the part of `up` across the viewing direction.
+        let across = forward.cross(up);
+        let right = across
+            .try_normalize()
+            .filter(|_| up.is_finite() && across.length() >= 1e-3 * up.length())
+            .ok_or_else(|| "camera up must be a finite direction not along the viewing direction".to_string())?;
+        let basis = glam::Mat3::from_cols(right, right.cross(forward), -forward);
+        Ok(Camera::from_rotation(p, glam::Quat::from_mat3(&basis).normalize(), self.fov_y.to_radians()))
+    }
+
+    /// The up vector to write for `camera`: `None` when it is the level one
+    /// [`Camera::look_at`] gives (within 1e-5), else the camera's own.
+    fn roll_of(camera: &Camera) -> Option<[f32; 3]> {
+        let forward = -camera.basis.z_axis;
+        let level = Camera::look_at(camera.position, camera.position + forward, camera.yfov);
+        (!level.basis.y_axis.abs_diff_eq(camera.basis.y_axis, 1e-5)).then(|| camera.basis.y_axis.to_array())
     }
 
     /// The pose of `camera` with its target on the surface the picture's
@@ -107,6 +131,7 @@ impl Pose {
             position: camera.position.to_array(),
             target: (camera.position + forward).to_array(),
             fov_y: camera.yfov.to_degrees(),
+            up: Self::roll_of(camera),
         }
     }
 }
@@ -114,19 +139,23 @@ impl Pose {
 impl Pose {
     /// Turns the eye around the target: `yaw` about world +Y, `pitch` up
     /// (radians); the distance to the target is kept and the pitch stays
-    /// within ±86° so the view never flips over the pole.
+    /// within ±86° so the view never flips over the pole. A rolled camera
+    /// (a glTF camera's [`Pose::up`]) comes out level. A NaN angle leaves
+    /// the pose as it was.
     pub fn orbit(&self, yaw: f32, pitch: f32) -> Self {
         let (p, t) = (Vec3::from_array(self.position), Vec3::from_array(self.target));
         let off = p - t;
         let r = off.length();
-        if r.is_nan() || r <= 0.0 {
+        if r.is_nan() || r <= 0.0 || !yaw.is_finite() || !pitch.is_finite() {
             return *self;
         }
         let limit = 1.5f32;
         let (y0, p0) = (off.x.atan2(off.z), (off.y / r).clamp(-1.0, 1.0).asin());
         let (y1, p1) = (y0 - yaw, (p0 + pitch).clamp(-limit, limit));
         let o = Vec3::new(r * p1.cos() * y1.sin(), r * p1.sin(), r * p1.cos() * y1.cos());
-        Self { position: (t + o).to_array(), ..*self }
+        // A turntable about world +Y: the horizon is levelled (roll dropped),
+        // as the page's orbit does.
+        Self { position: (t + o).to_array(), up: None, ..*self }
     }
 
     /// Moves eye and target together by `right` and `up` metres in the
@@ -135,6 +164,9 @@ impl Pose {
         let (p, t) = (Vec3::from_array(self.position), Vec3::from_array(self.target));
         let Ok(camera) = self.camera() else { return *self };
         let shift = camera.basis.x_axis * right + camera.basis.y_axis * up;
+        if !shift.is_finite() {
+            return *self;
+        }
         Self { position: (p + shift).to_array(), target: (t + shift).to_array(), ..*self }
     }
 
@@ -153,6 +185,130 @@ impl Pose {
     pub fn zoom(&self, factor: f32) -> Self {
         let fov = self.fov_y * factor;
         if fov.is_finite() { Self { fov_y: fov.clamp(5.0, 120.0), ..*self } } else { *self }
+    }
+}
+
+/// Radians of orbit per pixel of drag (the page's `camera.js` uses 0.008 too).
+pub const ORBIT_PER_PIXEL: f32 = 0.008;
+/// Radians of orbit per arrow-key press.
+pub const ORBIT_PER_KEY: f32 = 0.05;
+/// Wheel: the factor on distance (or field of view) is exp(pixels × this),
+/// the exponent kept within ±1 per event (as the page's wheel handler).
+pub const WHEEL_PER_PIXEL: f32 = 0.001;
+/// Pixels of one wheel notch ("line"), the browsers' usual `deltaY`.
+pub const PIXELS_PER_LINE: f32 = 100.0;
+
+/// A camera control input, device-independent: what the window's mouse and
+/// keys (and the page's pointer and wheel events) ask for. [`control`]
+/// turns it into the next pose.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Control {
+    /// A drag by `dx`, `dy` pixels (x right, y down) on a picture
+    /// `height` pixels tall: orbit, or pan when `pan` (shift / right button).
+    Drag {
+        /// Pixels right.
+        dx: f32,
+        /// Pixels down.
+        dy: f32,
+        /// Pan instead of orbit.
+        pan: bool,
+        /// Height of the picture on screen, pixels (pan: one pixel of drag
+        /// moves the target by one pixel's width at its distance).
+        height: f32,
+    },
+    /// A wheel turn of `pixels` (browser convention: positive = towards the
+    /// user, away from the stage): dolly, or field of view when `fov` (alt).
+    Wheel {
+        /// Pixels scrolled (a notch is [`PIXELS_PER_LINE`]).
+        pixels: f32,
+        /// Change the field of view instead of the distance.
+        fov: bool,
+    },
+    /// A key press.
+    Key(ControlKey),
+}
+
+/// The keys of the camera.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ControlKey {
+    /// Arrow left: orbit left.
+    Left,
+    /// Arrow right: orbit right.
+    Right,
+    /// Arrow up: orbit up.
+    Up,
+    /// Arrow down: orbit down.
+    Down,
+    /// `w`: dolly in (×0.9).
+    DollyIn,
+    /// `s`: dolly out (×1.1).
+    DollyOut,
+    /// `+`/`=`: narrower field of view (×0.9).
+    ZoomIn,
+    /// `-`: wider field of view (×1.1).
+    ZoomOut,
+}
+
+impl ControlKey {
+    /// The key for a typed character (`w`, `s`, `+`, `=`, `-`).
+    pub fn from_char(c: &str) -> Option<Self> {
+        match c {
+            "w" | "W" => Some(Self::DollyIn),
+            "s" | "S" => Some(Self::DollyOut),
+            "+" | "=" => Some(Self::ZoomIn),
+            "-" => Some(Self::ZoomOut),
+            _ => None,
+        }
+    }
+}
+
+/// The named view a digit key jumps to: `1`-`9` are the list's first nine
+/// views (index 0-8); `None` for anything else.
+pub fn view_key(c: &str) -> Option<usize> {
+    match c.as_bytes() {
+        [d @ b'1'..=b'9'] => Some(usize::from(d - b'1')),
+        _ => None,
+    }
+}
+
+/// The pose after `input`: the window's controls as a pure function (the
+/// page's `camera.js` does the same arithmetic). Limits: pitch within ±86°,
+/// distance 0.2-500 m, field of view 5-120°; a non-finite input (NaN or
+/// infinite pixels, a zero-height picture) leaves the pose unchanged.
+pub fn control(pose: &Pose, input: Control) -> Pose {
+    match input {
+        Control::Drag { dx, dy, pan, height } => {
+            if !(dx.is_finite() && dy.is_finite()) {
+                return *pose;
+            }
+            if pan {
+                if !(height.is_finite() && height >= 1.0) {
+                    return *pose;
+                }
+                let d = Vec3::from_array(pose.position).distance(Vec3::from_array(pose.target));
+                let scale = 2.0 * d * (pose.fov_y.to_radians() / 2.0).tan() / height;
+                pose.pan(-dx * scale, dy * scale)
+            } else {
+                pose.orbit(dx * ORBIT_PER_PIXEL, dy * ORBIT_PER_PIXEL)
+            }
+        }
+        Control::Wheel { pixels, fov } => {
+            if !pixels.is_finite() {
+                return *pose;
+            }
+            let f = (pixels * WHEEL_PER_PIXEL).clamp(-1.0, 1.0).exp();
+            if fov { pose.zoom(f) } else { pose.dolly(f) }
+        }
+        Control::Key(key) => match key {
+            ControlKey::Left => pose.orbit(-ORBIT_PER_KEY, 0.0),
+            ControlKey::Right => pose.orbit(ORBIT_PER_KEY, 0.0),
+            ControlKey::Up => pose.orbit(0.0, ORBIT_PER_KEY),
+            ControlKey::Down => pose.orbit(0.0, -ORBIT_PER_KEY),
+            ControlKey::DollyIn => pose.dolly(0.9),
+            ControlKey::DollyOut => pose.dolly(1.1),
+            ControlKey::ZoomIn => pose.zoom(0.9),
+            ControlKey::ZoomOut => pose.zoom(1.1),
+        },
     }
 }
 
@@ -191,13 +347,21 @@ pub fn named_views(start: &Camera, scene: &Scene, patch: Option<&crate::Patch>) 
     }
     if let Some(p) = patch {
         if let Some(c) = &p.camera {
-            let pose =
-                Pose { position: c.position.to_array(), target: c.look_at.to_array(), fov_y: c.fov_y.to_degrees() };
+            let pose = Pose {
+                position: c.position.to_array(),
+                target: c.look_at.to_array(),
+                fov_y: c.fov_y.to_degrees(),
+                up: None,
+            };
             out.push(NamedView { name: "patch camera".into(), pose, source: ViewSource::Patch });
         }
         for v in &p.views {
-            let pose =
-                Pose { position: v.position.to_array(), target: v.target.to_array(), fov_y: v.fov_y.to_degrees() };
+            let pose = Pose {
+                position: v.position.to_array(),
+                target: v.target.to_array(),
+                fov_y: v.fov_y.to_degrees(),
+                up: None,
+            };
             out.retain(|o| o.name != v.name);
             out.push(NamedView { name: v.name.clone(), pose, source: ViewSource::Patch });
         }
@@ -689,7 +853,7 @@ mod tests {
     use super::*;
 
     fn pose() -> Pose {
-        Pose { position: [0.0, 5.0, 6.0], target: [0.0, 1.0, 0.0], fov_y: 40.0 }
+        Pose { position: [0.0, 5.0, 6.0], target: [0.0, 1.0, 0.0], fov_y: 40.0, up: None }
     }
 
     fn dist(p: &Pose) -> f32 {

@@ -140,12 +140,42 @@ pub struct LightBuild {
     traced: bool,
     /// The photon-map irradiance at every shading vertex (refinement starts from it).
     start: Option<Vec<Vec3>>,
+    /// Coarse first indirect estimate every this many pixels (0, 1: off);
+    /// see [`LightBuild::with_coarse_indirect`].
+    coarse: u32,
+    /// Which values of `start` are exact (a coarse estimate's), to finish
+    /// before refinement.
+    exact: Option<Vec<bool>>,
 }
 
 impl LightBuild {
     /// A build of light number `index` (its photon seed).
     pub fn new(light: Light, index: usize, settings: BuildSettings, cancel: Cancel) -> Self {
-        Self { light, index, settings, cancel, direct: None, reshaded: 0, maps: None, traced: false, start: None }
+        Self {
+            light,
+            index,
+            settings,
+            cancel,
+            direct: None,
+            reshaded: 0,
+            maps: None,
+            traced: false,
+            start: None,
+            coarse: 0,
+            exact: None,
+        }
+    }
+
+    /// Makes [`LightBuild::photons`] publish a coarse indirect estimate first
+    /// (exact at every `step`-th pixel, interpolated on the same surface in
+    /// between: [`View::coarse_vertex_irradiance_until`]) when refinement
+    /// follows; the first refinement pass finishes the exact estimate
+    /// before SPPM starts from it, so the refined picture is the same as
+    /// without. The live tracer uses it (issue 16: full quality sooner after
+    /// a camera stop); `footlight render` does not.
+    pub fn with_coarse_indirect(mut self, step: u32) -> Self {
+        self.coarse = step;
+        self
     }
 
     /// Starts from photon maps traced earlier for this same light geometry
@@ -256,7 +286,14 @@ impl LightBuild {
             }
         };
         // Per vertex first: refinement starts from these values (issue 13.4).
-        let at_vertices = view.vertex_irradiance_until(scene, &maps, &stop).ok_or(Cancelled)?;
+        let coarse = self.coarse > 1 && self.settings.refine_passes > 0 && !maps.global.is_empty();
+        let at_vertices = if coarse {
+            let (e, exact) = view.coarse_vertex_irradiance_until(scene, &maps, self.coarse, &stop).ok_or(Cancelled)?;
+            self.exact = Some(exact);
+            e
+        } else {
+            view.vertex_irradiance_until(scene, &maps, &stop).ok_or(Cancelled)?
+        };
         let indirect = view.render_vertex_irradiance(scene, &at_vertices);
         self.cancel.check()?;
         let sum: Vec<Vec3> = direct.iter().zip(&indirect).map(|(d, a)| *d + *a).collect();
@@ -298,13 +335,28 @@ impl LightBuild {
             return None;
         }
         let (maps, direct) = (self.maps?, self.direct?);
+        let mut refinement = Refinement {
+            light: self.light,
+            direct,
+            sppm: None,
+            pending: None,
+            passes: self.settings.refine_passes,
+            cancel: self.cancel,
+        };
+        if let (Some(start), Some(exact)) = (self.start.clone(), self.exact) {
+            // A coarse start: finished by the first pass (not here: the
+            // tracer serves the other lights' stages first).
+            refinement.pending = Some((maps, start, exact));
+            return Some(refinement);
+        }
         // Never worse than the picture on screen: the passes are blended with
         // the photon-map estimate just shown, weighted by photon counts.
         let mut sppm = Progressive::new(scene, view, &maps);
         if let Some(start) = self.start {
             sppm = sppm.starting_from(start, maps.settings.estimate as f32);
         }
-        Some(Refinement { light: self.light, direct, sppm, passes: self.settings.refine_passes, cancel: self.cancel })
+        refinement.sppm = Some(sppm);
+        Some(refinement)
     }
 }
 
@@ -313,7 +365,10 @@ impl LightBuild {
 pub struct Refinement {
     light: Light,
     direct: Vec<Vec3>,
-    sppm: Progressive,
+    /// `None` until a coarse start is finished ([`Refinement::exact_start`]).
+    sppm: Option<Progressive>,
+    /// A coarse start still to finish: the maps, its values, which are exact.
+    pending: Option<(Arc<PhotonMaps>, Vec<Vec3>, Vec<bool>)>,
     passes: u32,
     cancel: Cancel,
 }
@@ -321,12 +376,45 @@ pub struct Refinement {
 impl Refinement {
     /// Passes done.
     pub fn done(&self) -> u32 {
-        self.sppm.passes()
+        self.sppm.as_ref().map_or(0, Progressive::passes)
     }
 
     /// True when every configured pass has run.
     pub fn finished(&self) -> bool {
-        self.sppm.passes() >= self.passes
+        self.done() >= self.passes
+    }
+
+    /// Gives refinement up but keeps a coarse start to finish: no SPPM pass
+    /// will run, [`Refinement::exact_start`] gives the final picture.
+    pub fn finish_only(&mut self) {
+        self.passes = 0;
+    }
+
+    /// True after [`Refinement::finish_only`] (or with no passes configured).
+    pub fn finishing(&self) -> bool {
+        self.passes == 0
+    }
+
+    /// True while a coarse start waits for [`Refinement::exact_start`].
+    pub fn has_coarse_start(&self) -> bool {
+        self.pending.is_some()
+    }
+
+    /// Finishes a coarse photon-map start ([`LightBuild::with_coarse_indirect`]):
+    /// the remaining vertices are looked up exactly and SPPM is set up from
+    /// the exact values. Returns the exact photon-map buffer D + A, or `None`
+    /// when the start was exact already. A tracer that gives a light's
+    /// refinement up calls it so the light never stays at the coarse estimate.
+    pub fn exact_start(&mut self, scene: &Scene, view: &View) -> Result<Option<LightBuffer>, BuildError> {
+        let Some((maps, mut start, exact)) = self.pending.take() else { return Ok(None) };
+        let cancel = &self.cancel;
+        view.fill_vertex_irradiance_until(scene, &maps, &mut start, &exact, &|| cancel.fired()).ok_or(Cancelled)?;
+        let indirect = view.render_vertex_irradiance(scene, &start);
+        let sum: Vec<Vec3> = self.direct.iter().zip(&indirect).map(|(d, a)| *d + *a).collect();
+        let buffer = LightBuffer::from_dense(view.width(), view.height(), &sum);
+        buffer.check()?;
+        self.sppm = Some(Progressive::new(scene, view, &maps).starting_from(start, maps.settings.estimate as f32));
+        Ok(Some(buffer))
     }
 
     /// The light being refined.
@@ -343,12 +431,14 @@ impl Refinement {
     /// photon-map estimate ([`Progressive::starting_from`]).
     pub fn pass(&mut self, scene: &Scene, view: &View) -> Result<LightBuffer, BuildError> {
         self.cancel.check()?;
+        self.exact_start(scene, view)?;
         let cancel = &self.cancel;
-        if !self.sppm.pass_until(scene, view, &self.light, &|| cancel.fired()) {
+        let Some(sppm) = self.sppm.as_mut() else { return Err(Cancelled.into()) };
+        if !sppm.pass_until(scene, view, &self.light, &|| cancel.fired()) {
             return Err(Cancelled.into());
         }
         self.cancel.check()?;
-        let indirect = view.render_progressive(scene, &self.sppm);
+        let indirect = view.render_progressive(scene, sppm);
         let sum: Vec<Vec3> = self.direct.iter().zip(&indirect).map(|(d, a)| *d + *a).collect();
         let buffer = LightBuffer::from_dense(view.width(), view.height(), &sum);
         buffer.check()?;

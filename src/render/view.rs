@@ -373,6 +373,143 @@ impl View {
         (!stop()).then_some(e)
     }
 
+    /// The coarse first indirect estimate of a view change (issue 16): the
+    /// photon maps' irradiance is looked up exactly at the vertices of every
+    /// `step`-th pixel in x and y (the anchor pixels); a vertex of any other
+    /// pixel takes the distance-weighted mean of the anchor vertices around
+    /// it (the up to 4 anchor pixels of its cell) that lie on the same
+    /// surface: same bounce depth and material, normals within ~18°, and
+    /// within 1 % of its distance from the eye (or 1.5 anchor spacings of
+    /// pixel footprint, when that is more). A vertex with no such
+    /// neighbour is looked up exactly. Indirect light is smooth, so this
+    /// costs about 1/`step`² of [`View::vertex_irradiance`] with a small
+    /// error (the walk bench reports it); returns the values and which
+    /// ones are exact, for [`View::fill_vertex_irradiance_until`] to finish.
+    pub fn coarse_vertex_irradiance_until(
+        &self,
+        scene: &Scene,
+        maps: &PhotonMaps,
+        step: u32,
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Option<(Vec<Vec3>, Vec<bool>)> {
+        let (w, h) = (self.width() as usize, self.height() as usize);
+        let step = step.max(1) as usize;
+        let vertices = self.shading.vertices();
+        let eye = self.gbuffer.camera.position;
+        // A surface point within this share of its distance from the eye is
+        // "near": 1 %, or 1.5 anchor spacings of pixel footprint when larger.
+        let pixel = 2.0 * (self.gbuffer.camera.yfov / 2.0).tan() / h.max(1) as f32;
+        let near = (1.5 * step as f32 * pixel).max(0.01);
+        let exact = |v: &ShadingVertex| {
+            if scene.materials[v.material as usize].diffuse.max_element() <= 0.0 {
+                Vec3::ZERO
+            } else {
+                maps.irradiance(v.position, v.normal)
+            }
+        };
+        let mut e = vec![Vec3::ZERO; vertices.len()];
+        let mut known = vec![false; vertices.len()];
+        // Anchors: every step-th pixel of every step-th row.
+        let anchors: Vec<(usize, Vec<Vec3>)> = (0..h)
+            .step_by(step)
+            .flat_map(|y| (0..w).step_by(step).map(move |x| y * w + x))
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|i| (i, if stop() { Vec::new() } else { self.shading.pixel(i).iter().map(exact).collect() }))
+            .collect();
+        if stop() {
+            return None;
+        }
+        for (i, values) in anchors {
+            let range = self.shading.pixel_range(i);
+            e[range.clone()].copy_from_slice(&values);
+            known[range].iter_mut().for_each(|k| *k = true);
+        }
+        let anchor_of = |x: usize, y: usize| -> [usize; 4] {
+            let (x0, y0) = (x - x % step, y - y % step);
+            let x1 = if x0 + step < w { x0 + step } else { x0 };
+            let y1 = if y0 + step < h { y0 + step } else { y0 };
+            [y0 * w + x0, y0 * w + x1, y1 * w + x0, y1 * w + x1]
+        };
+        let (e_ref, known_ref) = (&e, &known);
+        let rest: Vec<(usize, Vec<(Vec3, bool)>)> = (0..w * h)
+            .into_par_iter()
+            .filter(|i| (i % w) % step != 0 || (i / w) % step != 0)
+            .map(|i| {
+                if stop() {
+                    return (i, Vec::new());
+                }
+                let cell = anchor_of(i % w, i / w);
+                let values = self
+                    .shading
+                    .pixel(i)
+                    .iter()
+                    .map(|v| {
+                        if scene.materials[v.material as usize].diffuse.max_element() <= 0.0 {
+                            return (Vec3::ZERO, true);
+                        }
+                        let tolerance = near * v.position.distance(eye);
+                        let (mut sum, mut weights) = (Vec3::ZERO, 0.0f32);
+                        for (n, &a) in cell.iter().enumerate() {
+                            if cell[..n].contains(&a) {
+                                continue; // a cell on the picture's edge repeats anchors
+                            }
+                            for j in self.shading.pixel_range(a) {
+                                let u = &vertices[j];
+                                let d = u.position.distance(v.position);
+                                if known_ref[j]
+                                    && u.depth == v.depth
+                                    && u.material == v.material
+                                    && u.normal.dot(v.normal) >= 0.95
+                                    && d <= tolerance
+                                {
+                                    let wt = 1.0 / (d + 1e-3 * tolerance);
+                                    sum += e_ref[j] * wt;
+                                    weights += wt;
+                                }
+                            }
+                        }
+                        if weights > 0.0 { (sum / weights, false) } else { (exact(v), true) }
+                    })
+                    .collect();
+                (i, values)
+            })
+            .collect();
+        if stop() {
+            return None;
+        }
+        for (i, values) in rest {
+            for (j, (value, is_exact)) in self.shading.pixel_range(i).zip(values) {
+                e[j] = value;
+                known[j] = is_exact;
+            }
+        }
+        Some((e, known))
+    }
+
+    /// Replaces every value of `e` not marked `exact` by the photon maps'
+    /// irradiance there: afterwards `e` equals [`View::vertex_irradiance`].
+    /// `None` once `stop` returns true.
+    pub fn fill_vertex_irradiance_until(
+        &self,
+        scene: &Scene,
+        maps: &PhotonMaps,
+        e: &mut [Vec3],
+        exact: &[bool],
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Option<()> {
+        e.par_iter_mut().zip(self.shading.vertices().par_iter()).zip(exact.par_iter()).for_each(|((out, v), &done)| {
+            if !done && !stop() {
+                *out = if scene.materials[v.material as usize].diffuse.max_element() <= 0.0 {
+                    Vec3::ZERO
+                } else {
+                    maps.irradiance(v.position, v.normal)
+                };
+            }
+        });
+        (!stop()).then_some(())
+    }
+
     /// The indirect buffer from per-vertex irradiance `e` (one value per
     /// vertex of `shading.vertices()`): Σ w_v ⊙ ρ_d/π ⊙ e_v per pixel.
     pub fn render_vertex_irradiance(&self, scene: &Scene, e: &[Vec3]) -> Vec<Vec3> {

@@ -1,4 +1,5 @@
 // Footlight camera controls (issue 16): orbit / pan / dolly / field of view
+// (the same arithmetic as the window's, `control` in src/live/views.rs)
 // on the picture's container, a list of named views and "save view".
 // A separate module so the page's picture element (an <img> today, a canvas
 // later) can change without touching this file: the handlers sit on the
@@ -67,6 +68,7 @@ async function pump() {
 function write() {
   if (!pose) return;
   waiting = { position: pose.position, target: pose.target, fov_y: pose.fov_y };
+  if (pose.up) waiting.up = pose.up; // a rolled (glTF) camera keeps its roll
   pump();
 }
 
@@ -80,11 +82,12 @@ function orbit(dx, dy) {
   pitch = Math.max(-1.5, Math.min(1.5, pitch + dy * 0.008));
   const o = [r * Math.cos(pitch) * Math.sin(yaw), r * Math.sin(pitch), r * Math.cos(pitch) * Math.cos(yaw)];
   pose.position = add(pose.target, o);
+  delete pose.up; // a turntable about +Y: the horizon comes out level (as Pose::orbit)
 }
 
 function pan(dx, dy, height) {
   const fwd = norm(sub(pose.target, pose.position));
-  let right = cross(fwd, [0, 1, 0]);
+  let right = cross(fwd, pose.up || [0, 1, 0]);
   if (len(right) < 1e-6) right = cross(fwd, [0, 0, 1]);
   right = norm(right);
   const up = cross(right, fwd);
