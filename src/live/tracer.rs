@@ -33,6 +33,19 @@
 //! never queues behind them; the frame clock only reads published buffers
 //! (an `Arc` swap under a short lock).
 //!
+//! # Haze (issue 15)
+//! With a medium ([`Tracer::with_haze`]) every published surface buffer is
+//! dimmed by the haze at the density of the moment
+//! ([`crate::render::media::extinguish`]) and each light gets a second,
+//! haze buffer ([`Published::haze`], [`LightBuild::haze_beam`]): a coarse
+//! beam ([`HazeQuality::COARSE`]) right after each direct stage, in the same
+//! job, so a moved beam shows with its first picture; a refined beam
+//! ([`HazeQuality::REFINED`]) after the Whitted stage of a settled light. A
+//! hazer change is a weight in the frame clock ([`Tracer::set_density`] only
+//! records the density later builds use): no light is rebuilt
+//! ([`Tracer::builds`] counts builds). In haze the geometry cache and the
+//! view cache are not used (their buffers carry no beam).
+//!
 //! # View changes (issue 16)
 //! [`Tracer::set_view`] swaps the camera-dependent [`View`]: every build in
 //! progress is cancelled (its request id is superseded), the geometry cache
@@ -52,12 +65,13 @@ use super::cache::GeometryCache;
 use crate::Light;
 use crate::render::build::{BuildError, BuildSettings, Cancel, LightBuild, Refinement};
 use crate::render::footprint::DirectQuality;
+use crate::render::media::{HazeQuality, HazeView, Medium, extinguish};
 use crate::render::photon::PhotonMaps;
 use crate::render::{LightBuffer, View};
 use crate::scene::Scene;
 use serde::Serialize;
 use std::collections::VecDeque;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
@@ -115,6 +129,11 @@ pub struct Published {
     pub generation: u64,
     /// How far the build got.
     pub stage: Stage,
+    /// The light's haze buffer (in-scatter per unit density,
+    /// [`crate::render::media::live_haze_buffer`]); empty without haze.
+    pub haze: Arc<LightBuffer>,
+    /// Bumped on every publish of `haze`.
+    pub haze_generation: u64,
 }
 
 /// What a light showed in a view: kept by the view cache
@@ -213,6 +232,16 @@ struct Shared {
     next_id: AtomicU64,
     cache: Mutex<GeometryCache>,
     pool: rayon::ThreadPool,
+    /// The haze at 100 % density, if the patch has one.
+    haze: Option<Medium>,
+    /// The haze geometry of the current view (rebuilt when the view changes).
+    haze_view: Mutex<Option<(Arc<View>, Arc<HazeView>)>>,
+    /// The hazer's density now (f32 bits): what the next build uses.
+    density: AtomicU32,
+    /// Light builds started (direct stages run).
+    builds: AtomicU64,
+    /// Haze stages run (coarse and refined beams).
+    haze_stages: AtomicU64,
 }
 
 /// Background builder of per-light buffers.
@@ -271,12 +300,31 @@ pub fn schedule(slots: &[SlotView], now: Instant) -> Option<Job> {
 impl Tracer {
     /// Starts the worker for `lights` lights over `view`.
     pub fn new(scene: Arc<Scene>, view: Arc<View>, lights: usize, settings: TracerSettings) -> Self {
+        Self::with_haze(scene, view, lights, settings, None, 1.0)
+    }
+
+    /// As [`Tracer::new`], in `haze` (at 100 % density; `None`: clear air)
+    /// at `density` (0-1) until [`Tracer::set_density`] says otherwise.
+    pub fn with_haze(
+        scene: Arc<Scene>,
+        view: Arc<View>,
+        lights: usize,
+        settings: TracerSettings,
+        haze: Option<Medium>,
+        density: f32,
+    ) -> Self {
         let empty = Arc::new(LightBuffer::empty(view.width(), view.height()));
         let slots = (0..lights)
             .map(|_| Slot {
                 latest: Arc::new(AtomicU64::new(0)),
                 state: Mutex::new(SlotState { weight: 1.0, ..SlotState::default() }),
-                published: Mutex::new(Published { buffer: empty.clone(), generation: 0, stage: Stage::Queued }),
+                published: Mutex::new(Published {
+                    buffer: empty.clone(),
+                    generation: 0,
+                    stage: Stage::Queued,
+                    haze: empty.clone(),
+                    haze_generation: 0,
+                }),
             })
             .collect();
         let pool = rayon::ThreadPoolBuilder::new()
@@ -297,6 +345,11 @@ impl Tracer {
             next_id: AtomicU64::new(1),
             cache: Mutex::new(GeometryCache::new(settings.cache_bytes)),
             pool,
+            haze: haze.filter(|m| !m.is_clear()),
+            haze_view: Mutex::new(None),
+            density: AtomicU32::new(crate::render::media::medium::clean_density(density).to_bits()),
+            builds: AtomicU64::new(0),
+            haze_stages: AtomicU64::new(0),
         });
         let worker = {
             let shared = shared.clone();
@@ -332,6 +385,34 @@ impl Tracer {
     /// geometry: a camera move ([`Tracer::set_view`]) does not add to it.
     pub fn photon_traces(&self) -> u64 {
         self.shared.photon_traces.load(Ordering::SeqCst)
+    }
+
+    /// True when the lights are built in haze ([`Tracer::with_haze`]).
+    pub fn has_haze(&self) -> bool {
+        self.shared.haze.is_some()
+    }
+
+    /// Records the hazer's density (0-1; NaN → 0) for the builds that start
+    /// from now on. Rebuilds nothing: the frame clock weights the published
+    /// haze buffers with the density itself.
+    pub fn set_density(&self, density: f32) {
+        let d = crate::render::media::medium::clean_density(density);
+        self.shared.density.store(d.to_bits(), Ordering::SeqCst);
+    }
+
+    /// The density later builds use.
+    pub fn density(&self) -> f32 {
+        self.shared.density()
+    }
+
+    /// Light builds started since start (one per direct stage run).
+    pub fn builds(&self) -> u64 {
+        self.shared.builds.load(Ordering::SeqCst)
+    }
+
+    /// Haze stages run since start (coarse and refined beams).
+    pub fn haze_stages(&self) -> u64 {
+        self.shared.haze_stages.load(Ordering::SeqCst)
     }
 
     /// Pauses (true) or resumes the worker. A stage in progress finishes;
@@ -405,7 +486,8 @@ impl Tracer {
                 p.stage = Stage::Queued;
                 continue;
             };
-            let hit = kept.get(i).and_then(Option::as_ref).filter(|k| k.light == light);
+            // Kept buffers carry no beam: in haze every light is rebuilt.
+            let hit = kept.get(i).and_then(Option::as_ref).filter(|k| k.light == light && s.haze.is_none());
             if let Some(k) = hit {
                 st.shown = Some(light.clone());
                 restored += 1;
@@ -442,6 +524,10 @@ impl Tracer {
                 }
             }
             p.generation += 1;
+            if s.haze.is_some() {
+                p.haze = empty.clone();
+                p.haze_generation += 1;
+            }
         }
         s.notify();
         (old, restored)
@@ -462,7 +548,8 @@ impl Tracer {
         st.priority = priority;
         st.current = Some(light.clone());
         st.previous_move = st.last_move.replace(now);
-        if let Some(buffer) = s.cache.lock().expect("cache lock").get(index, &light) {
+        let cached = if s.haze.is_none() { s.cache.lock().expect("cache lock").get(index, &light) } else { None };
+        if let Some(buffer) = cached {
             st.pending = None;
             st.waiting_since = None;
             st.shown = Some(light);
@@ -580,12 +667,56 @@ impl Shared {
         if slot.latest.load(Ordering::SeqCst) != id {
             return false; // superseded: a newer request owns the slot
         }
+        let buffer = match (&self.haze, self.haze_view()) {
+            (Some(m), Some(hv)) => extinguish(&hv, m, light.position, &buffer, self.density()),
+            _ => buffer,
+        };
         slot.state.lock().expect("slot lock").shown = Some(light.clone());
         let mut p = slot.published.lock().expect("published lock");
         p.buffer = Arc::new(buffer);
         p.generation += 1;
         p.stage = stage;
         true
+    }
+
+    fn density(&self) -> f32 {
+        f32::from_bits(self.density.load(Ordering::SeqCst))
+    }
+
+    /// The haze geometry of the current view (made once per view), `None`
+    /// without haze.
+    fn haze_view(&self) -> Option<Arc<HazeView>> {
+        self.haze.as_ref()?;
+        let view = self.view();
+        let mut cached = self.haze_view.lock().expect("haze view lock");
+        if let Some((v, hv)) = cached.as_ref()
+            && Arc::ptr_eq(v, &view)
+        {
+            return Some(hv.clone());
+        }
+        let hv = Arc::new(HazeView::new(&self.scene, &view.gbuffer));
+        *cached = Some((view, hv.clone()));
+        Some(hv)
+    }
+
+    /// The haze stage of `build` at `quality`: publishes the light's beam if
+    /// request `id` still owns the slot. Nothing without haze.
+    fn haze_stage(&self, index: usize, id: u64, build: &LightBuild, quality: HazeQuality) {
+        let (Some(medium), Some(hv)) = (&self.haze, self.haze_view()) else { return };
+        self.haze_stages.fetch_add(1, Ordering::SeqCst);
+        let d0 = self.density();
+        let result = self.pool.install(|| build.haze_beam(&self.scene, &hv, medium, quality, d0));
+        let buffer = match result {
+            Ok(b) => b,
+            Err(e) => return report_bug(index, &e),
+        };
+        let slot = &self.slots[index];
+        if slot.latest.load(Ordering::SeqCst) != id {
+            return;
+        }
+        let mut p = slot.published.lock().expect("published lock");
+        p.haze = Arc::new(buffer);
+        p.haze_generation += 1;
     }
 
     fn views(&self, now: Instant) -> Vec<SlotView> {
@@ -675,6 +806,7 @@ fn direct_stage(s: &Shared, index: usize) {
         build = build.with_maps(maps);
     }
     let view = s.view();
+    s.builds.fetch_add(1, Ordering::SeqCst);
     let result = s.pool.install(|| build.direct(&s.scene, &view, quality));
     let (buffer, stats) = match result {
         Ok(r) => r,
@@ -683,6 +815,8 @@ fn direct_stage(s: &Shared, index: usize) {
     if !s.publish(index, req.id, buffer, Stage::Direct, &req.light) {
         return;
     }
+    // The moved beam comes with the first picture of the moved light.
+    s.haze_stage(index, req.id, &build, HazeQuality::COARSE);
     let now = Instant::now();
     let mut st = slot.state.lock().expect("slot lock");
     st.first_stage = Some(now.duration_since(waiting_since));
@@ -712,6 +846,7 @@ fn later_stage(s: &Shared, index: usize) {
                     let cached = (stage == Stage::Ready).then(|| Arc::new(buffer.clone()));
                     let light = build.light().clone();
                     if s.publish(index, id, buffer, stage, &light) {
+                        s.haze_stage(index, id, &build, HazeQuality::REFINED);
                         match cached {
                             Some(b) => finished(s, index, id, build.light(), b, at),
                             None => keep_build(s, index, id, build, at),

@@ -280,6 +280,27 @@ impl LightBuild {
         Ok(buffer)
     }
 
+    /// The live haze stage (issue 15): the light's beam at `quality` as the
+    /// compositors' haze buffer σ_s a0 e^(−d0 κ) per unit density
+    /// ([`super::media::live_haze_buffer`]); the frame clock weights it with
+    /// d · k_i, d the hazer's density now. `medium` is the haze at 100 %,
+    /// `d0` the density now.
+    pub fn haze_beam(
+        &self,
+        scene: &Scene,
+        view: &super::media::HazeView,
+        medium: &super::media::Medium,
+        quality: super::media::HazeQuality,
+        d0: f32,
+    ) -> Result<LightBuffer, BuildError> {
+        self.cancel.check()?;
+        let beam = super::media::render_inscatter(scene, view, &self.light, medium, quality);
+        self.cancel.check()?;
+        let buffer = super::media::live_haze_buffer(&beam, medium, d0);
+        buffer.check()?;
+        Ok(buffer)
+    }
+
     /// The light's photon maps, after [`LightBuild::photons`].
     pub fn maps(&self) -> Option<&PhotonMaps> {
         self.maps.as_deref()
