@@ -83,12 +83,14 @@ pub struct Frame {
     /// What the incremental composite did.
     pub update: UpdateStats,
     /// Each buffer's weight in this frame, in light order: k_i (eq. 4) per
-    /// light, then, in haze, d · k_i per light's haze buffer (d the hazer's
-    /// density). What the browser stream sends every frame (issue 17).
+    /// light; in haze, w_j(d) k_i for the knots j = 0, ½, 1 (all lights'
+    /// knot-0 buffers, then all knot-½, then all knot-1;
+    /// [`crate::render::media::knot_weights`]). What the browser stream
+    /// sends every frame (issue 17).
     pub k: Arc<Vec<Vec3>>,
     /// Each light's published buffer and its generation, in light order,
-    /// then in haze each light's haze buffer (shared, never copied: the
-    /// stream sends a buffer when its generation changes).
+    /// then in haze every light's knot-½ and knot-1 buffers (shared, never
+    /// copied: the stream sends a buffer when its generation changes).
     pub buffers: Arc<Vec<(u64, Arc<LightBuffer>)>>,
     /// The haze density of this frame (0-1), `None` without haze.
     pub haze_density: Option<f32>,
@@ -125,23 +127,27 @@ pub struct FrameClock {
 /// The last moving preview: its camera, every light with its k_i, its pixels.
 type LastPreview = (crate::scene::Camera, Vec<(Light, Vec3)>, Arc<Vec<u8>>);
 
-/// The eq. 5 entries of a frame: every light's surface buffer with k_i,
-/// then, in haze (`density` given), every light's haze buffer with d · k_i
-/// ([`crate::render::media::live`]): a hazer change is a weight, no rebuild.
+/// The eq. 5 entries of a frame: every light's buffer with k_i; in haze
+/// (`density` given) every light's buffer at each density knot with
+/// w_j(d) k_i ([`crate::render::media::live`]): a hazer change is a set of
+/// weights, no rebuild.
 pub fn frame_entries<'a>(
     published: &'a [Published],
     inputs: &[LightInput],
     density: Option<f32>,
 ) -> Vec<CompositeInput<'a>> {
+    let w = density.map_or([1.0, 0.0, 0.0], crate::render::media::knot_weights);
     let surface = published
         .iter()
         .zip(inputs)
-        .map(|(p, input)| CompositeInput { buffer: &p.buffer, generation: p.generation, k: input.k });
-    let haze = density.into_iter().flat_map(|d| {
-        published.iter().zip(inputs).map(move |(p, input)| CompositeInput {
-            buffer: &p.haze,
-            generation: p.haze_generation,
-            k: input.k * d,
+        .map(|(p, input)| CompositeInput { buffer: &p.buffer, generation: p.generation, k: input.k * w[0] });
+    let haze = density.into_iter().flat_map(|_| {
+        (0..2).flat_map(move |j| {
+            published.iter().zip(inputs).map(move |(p, input)| CompositeInput {
+                buffer: &p.hazy[j],
+                generation: p.generation,
+                k: input.k * w[j + 1],
+            })
         })
     });
     surface.chain(haze).collect()
@@ -149,7 +155,9 @@ pub fn frame_entries<'a>(
 
 /// The buffers of [`frame_entries`] with their generations, shared.
 fn frame_buffers(published: &[Published], density: Option<f32>) -> Vec<(u64, Arc<LightBuffer>)> {
-    let haze = density.iter().flat_map(|_| published.iter().map(|p| (p.haze_generation, p.haze.clone())));
+    let haze = density
+        .iter()
+        .flat_map(|_| (0..2).flat_map(|j| published.iter().map(move |p| (p.generation, p.hazy[j].clone()))));
     published.iter().map(|p| (p.generation, p.buffer.clone())).chain(haze).collect()
 }
 
@@ -220,11 +228,8 @@ impl FrameClock {
     pub fn tick_at(&mut self, universes: &dyn DmxSlots, t_seconds: f64) -> Frame {
         let t0 = Instant::now();
         let mut inputs = self.decoder.decode(universes);
-        // Haze: the density is a weight of this frame; later builds use it too.
+        // Haze: the density is a set of weights of this frame (no rebuild).
         let density = self.decoder.haze_density(universes).filter(|_| self.tracer.has_haze());
-        if let Some(d) = density {
-            self.tracer.set_density(d);
-        }
         for input in &mut inputs {
             input.k *= input.state.shutter_at(t_seconds);
         }

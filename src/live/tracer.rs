@@ -34,17 +34,17 @@
 //! (an `Arc` swap under a short lock).
 //!
 //! # Haze (issue 15)
-//! With a medium ([`Tracer::with_haze`]) every published surface buffer is
-//! dimmed by the haze at the density of the moment
-//! ([`crate::render::media::extinguish`]) and each light gets a second,
-//! haze buffer ([`Published::haze`], [`LightBuild::haze_beam`]): a coarse
-//! beam ([`HazeQuality::COARSE`]) right after each direct stage, in the same
-//! job, so a moved beam shows with its first picture; a refined beam
-//! ([`HazeQuality::REFINED`]) after the Whitted stage of a settled light. A
-//! hazer change is a weight in the frame clock ([`Tracer::set_density`] only
-//! records the density later builds use): no light is rebuilt
-//! ([`Tracer::builds`] counts builds). In haze the geometry cache and the
-//! view cache are not used (their buffers carry no beam).
+//! With a medium ([`Tracer::with_haze`]) each light keeps its beam
+//! ([`LightBuild::haze_beam`]): a coarse beam ([`HazeQuality::COARSE`]) in
+//! the same job as each direct stage, so a moved beam shows with its first
+//! picture, and a refined beam ([`HazeQuality::REFINED`]) with the Whitted
+//! stage of a settled light. Every publish resolves the surface buffer with
+//! the kept beam at the density knots ½ and 1
+//! ([`crate::render::media::live`], [`Published::hazy`]), published
+//! together with the surface buffer (the knot 0). A hazer change is a
+//! weight in the frame clock: no light is rebuilt ([`Tracer::builds`] and
+//! [`Tracer::haze_stages`] count the work). In haze the geometry cache and
+//! the view cache are not used (their buffers carry no beam).
 //!
 //! # View changes (issue 16)
 //! [`Tracer::set_view`] swaps the camera-dependent [`View`]: every build in
@@ -65,13 +65,14 @@ use super::cache::GeometryCache;
 use crate::Light;
 use crate::render::build::{BuildError, BuildSettings, Cancel, LightBuild, Refinement};
 use crate::render::footprint::DirectQuality;
-use crate::render::media::{HazeQuality, HazeView, Medium, extinguish};
+use crate::render::buffer::HazeBuffer;
+use crate::render::media::{HazeQuality, HazeView, Medium, knot_buffers};
 use crate::render::photon::PhotonMaps;
 use crate::render::{LightBuffer, View};
 use crate::scene::Scene;
 use serde::Serialize;
 use std::collections::VecDeque;
-use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
@@ -129,11 +130,10 @@ pub struct Published {
     pub generation: u64,
     /// How far the build got.
     pub stage: Stage,
-    /// The light's haze buffer (in-scatter per unit density,
-    /// [`crate::render::media::live_haze_buffer`]); empty without haze.
-    pub haze: Arc<LightBuffer>,
-    /// Bumped on every publish of `haze`.
-    pub haze_generation: u64,
+    /// In haze: the light's buffer at the density knots ½ and 1
+    /// ([`crate::render::media::knot_buffers`]; `buffer` is the knot 0),
+    /// published with `buffer` and under its `generation`. Empty without haze.
+    pub hazy: [Arc<LightBuffer>; 2],
 }
 
 /// What a light showed in a view: kept by the view cache
@@ -200,6 +200,8 @@ struct SlotState {
     maps: Option<(Light, Arc<PhotonMaps>)>,
     /// Share of the picture the light changes, in [1, 2].
     weight: f32,
+    /// In haze: the light's latest beam and the request it was built for.
+    beam: Option<(u64, Arc<HazeBuffer>)>,
     /// Direct-stage publish times in the last second.
     direct_times: VecDeque<Instant>,
     direct_total: u64,
@@ -236,8 +238,6 @@ struct Shared {
     haze: Option<Medium>,
     /// The haze geometry of the current view (rebuilt when the view changes).
     haze_view: Mutex<Option<(Arc<View>, Arc<HazeView>)>>,
-    /// The hazer's density now (f32 bits): what the next build uses.
-    density: AtomicU32,
     /// Light builds started (direct stages run).
     builds: AtomicU64,
     /// Haze stages run (coarse and refined beams).
@@ -300,18 +300,16 @@ pub fn schedule(slots: &[SlotView], now: Instant) -> Option<Job> {
 impl Tracer {
     /// Starts the worker for `lights` lights over `view`.
     pub fn new(scene: Arc<Scene>, view: Arc<View>, lights: usize, settings: TracerSettings) -> Self {
-        Self::with_haze(scene, view, lights, settings, None, 1.0)
+        Self::with_haze(scene, view, lights, settings, None)
     }
 
-    /// As [`Tracer::new`], in `haze` (at 100 % density; `None`: clear air)
-    /// at `density` (0-1) until [`Tracer::set_density`] says otherwise.
+    /// As [`Tracer::new`], in `haze` (at 100 % density; `None`: clear air).
     pub fn with_haze(
         scene: Arc<Scene>,
         view: Arc<View>,
         lights: usize,
         settings: TracerSettings,
         haze: Option<Medium>,
-        density: f32,
     ) -> Self {
         let empty = Arc::new(LightBuffer::empty(view.width(), view.height()));
         let slots = (0..lights)
@@ -322,8 +320,7 @@ impl Tracer {
                     buffer: empty.clone(),
                     generation: 0,
                     stage: Stage::Queued,
-                    haze: empty.clone(),
-                    haze_generation: 0,
+                    hazy: [empty.clone(), empty.clone()],
                 }),
             })
             .collect();
@@ -347,7 +344,6 @@ impl Tracer {
             pool,
             haze: haze.filter(|m| !m.is_clear()),
             haze_view: Mutex::new(None),
-            density: AtomicU32::new(crate::render::media::medium::clean_density(density).to_bits()),
             builds: AtomicU64::new(0),
             haze_stages: AtomicU64::new(0),
         });
@@ -390,19 +386,6 @@ impl Tracer {
     /// True when the lights are built in haze ([`Tracer::with_haze`]).
     pub fn has_haze(&self) -> bool {
         self.shared.haze.is_some()
-    }
-
-    /// Records the hazer's density (0-1; NaN → 0) for the builds that start
-    /// from now on. Rebuilds nothing: the frame clock weights the published
-    /// haze buffers with the density itself.
-    pub fn set_density(&self, density: f32) {
-        let d = crate::render::media::medium::clean_density(density);
-        self.shared.density.store(d.to_bits(), Ordering::SeqCst);
-    }
-
-    /// The density later builds use.
-    pub fn density(&self) -> f32 {
-        self.shared.density()
     }
 
     /// Light builds started since start (one per direct stage run).
@@ -525,8 +508,7 @@ impl Tracer {
             }
             p.generation += 1;
             if s.haze.is_some() {
-                p.haze = empty.clone();
-                p.haze_generation += 1;
+                p.hazy = [empty.clone(), empty.clone()];
             }
         }
         s.notify();
@@ -667,20 +649,22 @@ impl Shared {
         if slot.latest.load(Ordering::SeqCst) != id {
             return false; // superseded: a newer request owns the slot
         }
-        let buffer = match (&self.haze, self.haze_view()) {
-            (Some(m), Some(hv)) => extinguish(&hv, m, light.position, &buffer, self.density()),
-            _ => buffer,
+        let beam = slot.state.lock().expect("slot lock").beam.clone().filter(|(bid, _)| *bid == id);
+        let hazy = match (&self.haze, self.haze_view()) {
+            (Some(m), Some(hv)) => {
+                Some(knot_buffers(&hv, m, light.position, &buffer, beam.as_ref().map(|b| b.1.as_ref())).map(Arc::new))
+            }
+            _ => None,
         };
         slot.state.lock().expect("slot lock").shown = Some(light.clone());
         let mut p = slot.published.lock().expect("published lock");
+        if let Some(hazy) = hazy {
+            p.hazy = hazy;
+        }
         p.buffer = Arc::new(buffer);
         p.generation += 1;
         p.stage = stage;
         true
-    }
-
-    fn density(&self) -> f32 {
-        f32::from_bits(self.density.load(Ordering::SeqCst))
     }
 
     /// The haze geometry of the current view (made once per view), `None`
@@ -699,24 +683,21 @@ impl Shared {
         Some(hv)
     }
 
-    /// The haze stage of `build` at `quality`: publishes the light's beam if
-    /// request `id` still owns the slot. Nothing without haze.
+    /// The haze stage of `build` at `quality`: keeps the light's beam for
+    /// the next publishes of request `id`. Nothing without haze.
     fn haze_stage(&self, index: usize, id: u64, build: &LightBuild, quality: HazeQuality) {
         let (Some(medium), Some(hv)) = (&self.haze, self.haze_view()) else { return };
         self.haze_stages.fetch_add(1, Ordering::SeqCst);
-        let d0 = self.density();
-        let result = self.pool.install(|| build.haze_beam(&self.scene, &hv, medium, quality, d0));
-        let buffer = match result {
+        let result = self.pool.install(|| build.haze_beam(&self.scene, &hv, medium, quality));
+        let beam = match result {
             Ok(b) => b,
             Err(e) => return report_bug(index, &e),
         };
         let slot = &self.slots[index];
-        if slot.latest.load(Ordering::SeqCst) != id {
-            return;
+        let mut st = slot.state.lock().expect("slot lock");
+        if slot.latest.load(Ordering::SeqCst) == id {
+            st.beam = Some((id, Arc::new(beam)));
         }
-        let mut p = slot.published.lock().expect("published lock");
-        p.haze = Arc::new(buffer);
-        p.haze_generation += 1;
     }
 
     fn views(&self, now: Instant) -> Vec<SlotView> {
@@ -812,11 +793,11 @@ fn direct_stage(s: &Shared, index: usize) {
         Ok(r) => r,
         Err(e) => return report_bug(index, &e),
     };
+    // The moved beam comes with the first picture of the moved light.
+    s.haze_stage(index, req.id, &build, HazeQuality::COARSE);
     if !s.publish(index, req.id, buffer, Stage::Direct, &req.light) {
         return;
     }
-    // The moved beam comes with the first picture of the moved light.
-    s.haze_stage(index, req.id, &build, HazeQuality::COARSE);
     let now = Instant::now();
     let mut st = slot.state.lock().expect("slot lock");
     st.first_stage = Some(now.duration_since(waiting_since));
@@ -845,8 +826,8 @@ fn later_stage(s: &Shared, index: usize) {
                 Ok(buffer) => {
                     let cached = (stage == Stage::Ready).then(|| Arc::new(buffer.clone()));
                     let light = build.light().clone();
+                    s.haze_stage(index, id, &build, HazeQuality::REFINED);
                     if s.publish(index, id, buffer, stage, &light) {
-                        s.haze_stage(index, id, &build, HazeQuality::REFINED);
                         match cached {
                             Some(b) => finished(s, index, id, build.light(), b, at),
                             None => keep_build(s, index, id, build, at),

@@ -280,25 +280,22 @@ impl LightBuild {
         Ok(buffer)
     }
 
-    /// The live haze stage (issue 15): the light's beam at `quality` as the
-    /// compositors' haze buffer σ_s a0 e^(−d0 κ) per unit density
-    /// ([`super::media::live_haze_buffer`]); the frame clock weights it with
-    /// d · k_i, d the hazer's density now. `medium` is the haze at 100 %,
-    /// `d0` the density now.
+    /// The live haze stage (issue 15): the light's beam at `quality`
+    /// ([`super::media::render_inscatter`]) in `medium` (the haze at 100 %),
+    /// kept by the tracer and resolved with every surface buffer it
+    /// publishes ([`super::media::knot_buffers`]).
     pub fn haze_beam(
         &self,
         scene: &Scene,
         view: &super::media::HazeView,
         medium: &super::media::Medium,
         quality: super::media::HazeQuality,
-        d0: f32,
-    ) -> Result<LightBuffer, BuildError> {
+    ) -> Result<super::buffer::HazeBuffer, BuildError> {
         self.cancel.check()?;
         let beam = super::media::render_inscatter(scene, view, &self.light, medium, quality);
         self.cancel.check()?;
-        let buffer = super::media::live_haze_buffer(&beam, medium, d0);
-        buffer.check()?;
-        Ok(buffer)
+        beam.as_light_buffer().check()?;
+        Ok(beam)
     }
 
     /// The light's photon maps, after [`LightBuild::photons`].

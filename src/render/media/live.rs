@@ -1,53 +1,79 @@
-//! Haze in the live daemon: the two buffers per light that keep a hazer
-//! change a composite-time re-weighting (issue 15, items 1 and 2).
+//! Haze in the live daemon: what the tracer publishes per light so that a
+//! hazer change is a composite-time re-weighting (issue 15, items 1 and 2).
 //!
-//! The tracer publishes, per light, the surface buffer S_i(d0) (direct +
-//! indirect, dimmed by the haze on the camera and light paths at the density
-//! d0 of its build, [`extinguish`]) and a haze buffer
-//! H_i(d0) = σ_s a0 e^(−d0 κ) ([`live_haze_buffer`]): the in-scattered
-//! radiance per unit density. The frame clock composites
+//! A light's buffer in haze of density d, b_i(d) = S_i e^(−d κ_s) +
+//! d σ_s a0 e^(−d κ_h) ([`super::resolve`]), is not linear in d. The tracer
+//! publishes it at the density knots [`KNOTS`] (0, ½, 1): at 0 it is the
+//! surface buffer S_i itself (today's buffer, bit for bit), at ½ and 1 the
+//! two resolved buffers of [`knot_buffers`]. The frame clock composites
 //!
-//!   I = Σ k_i S_i(d0) + Σ (d · k_i) H_i(d0)                    (eq. 5)
+//!   I = Σ_i Σ_j (w_j(d) k_i) b_i(d_j)                          (eq. 5)
 //!
-//! with d the hazer's density now: both are plain entries of the eq. 5 sum,
-//! so every compositor (CPU, GPU, the browser stream) shows haze without
-//! haze-specific code, and a density change is a new weight d · k_i (no
-//! light is rebuilt). At d = d0 the picture is the exact resolve
-//! ([`super::resolve`]); away from d0 the extinction is still d0's (the bench
-//! reports the error against a rebuild at d), and every build after the
-//! change uses the new density.
+//! with w_j the piecewise-linear hat weights of [`knot_weights`]: every term
+//! is an ordinary eq. 5 entry (a buffer and an RGB weight), so every
+//! compositor (CPU, GPU, the browser stream) shows haze without
+//! haze-specific code, and a density change is a new set of weights: no
+//! light is rebuilt, no pixel re-resolved. Exact at the knots; between them
+//! the error is that of linear interpolation of e^(−d κ) (the bench reports
+//! it against an exact rebuild at d).
 
 use super::medium::{Medium, clean_density};
 use super::resolve::resolve;
 use super::single::HazeView;
-use crate::render::buffer::{HazeBuffer, LightBuffer, TILE};
+use crate::render::buffer::{HazeBuffer, LightBuffer};
 use glam::Vec3;
 
-/// The haze buffer the compositors take: σ_s a0 e^(−d0 κ) per pixel, grey,
-/// per unit density (the composite weight is d · k_i). `medium` is the haze
-/// at 100 % that `haze` was rendered with; `d0` the density of the build.
-/// Same tiles as `haze`.
-pub fn live_haze_buffer(haze: &HazeBuffer, medium: &Medium, d0: f32) -> LightBuffer {
-    let d0 = clean_density(d0);
-    let src = haze.as_light_buffer();
-    let (w, h) = (haze.width() as usize, haze.height() as usize);
-    LightBuffer::from_tiles(haze.width(), haze.height(), &src.occupied(), |tx, ty, tile| {
-        let Some(s) = src.tile(tx, ty) else { return };
-        for r in 0..TILE.min(h - ty * TILE) {
-            for c in 0..TILE.min(w - tx * TILE) {
-                let k = r * TILE + c;
-                let (a0, kappa) = (s[k].x, s[k].y);
-                if a0 > 0.0 {
-                    tile[k] = Vec3::splat(medium.sigma_s * a0 * (-d0 * kappa).exp());
-                }
-            }
+/// Densities at which a light's buffer is published: 0, ½ and 1 of the
+/// patch's haze.
+pub const KNOTS: [f32; 3] = [0.0, 0.5, 1.0];
+
+/// The weights w_j(d) of the knots for density `d` (0-1, NaN → 0): hat
+/// functions, non-negative, summing to 1, exactly one 1 at a knot.
+pub fn knot_weights(d: f32) -> [f32; 3] {
+    let d = clean_density(d);
+    let mut w = [0.0; 3];
+    for j in 0..KNOTS.len() - 1 {
+        let (a, b) = (KNOTS[j], KNOTS[j + 1]);
+        if d <= b {
+            let f = (d - a) / (b - a);
+            w[j] = 1.0 - f;
+            w[j + 1] = f;
+            return w;
         }
-    })
+    }
+    w[KNOTS.len() - 1] = 1.0;
+    w
 }
 
-/// A surface buffer (direct + indirect, no haze) seen through the haze at
-/// density `d0`: each pixel times e^(−d0 κ_s), κ_s the optical depth to the
-/// camera and to the light at 100 % ([`super::resolve`] without a beam).
-pub fn extinguish(hv: &HazeView, medium: &Medium, light_position: Vec3, surface: &LightBuffer, d0: f32) -> LightBuffer {
-    resolve(hv, medium, light_position, surface, None, d0)
+/// A light's buffers at the knots ½ and 1 (the knot 0 is `surface`
+/// itself): `surface` (direct + indirect, no haze) and `beam` (its haze
+/// buffer) resolved at those densities of `medium` (the haze at 100 %).
+pub fn knot_buffers(
+    hv: &HazeView,
+    medium: &Medium,
+    light_position: Vec3,
+    surface: &LightBuffer,
+    beam: Option<&HazeBuffer>,
+) -> [LightBuffer; 2] {
+    [KNOTS[1], KNOTS[2]].map(|d| resolve(hv, medium, light_position, surface, beam, d))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn knot_weights_are_hats() {
+        assert_eq!(knot_weights(0.0), [1.0, 0.0, 0.0]);
+        assert_eq!(knot_weights(0.5), [0.0, 1.0, 0.0]);
+        assert_eq!(knot_weights(1.0), [0.0, 0.0, 1.0]);
+        assert_eq!(knot_weights(0.25), [0.5, 0.5, 0.0]);
+        assert_eq!(knot_weights(0.75), [0.0, 0.5, 0.5]);
+        assert_eq!(knot_weights(f32::NAN), [1.0, 0.0, 0.0]);
+        assert_eq!(knot_weights(7.0), [0.0, 0.0, 1.0]);
+        for k in 0..=100 {
+            let w = knot_weights(k as f32 / 100.0);
+            assert!((w.iter().sum::<f32>() - 1.0).abs() < 1e-6 && w.iter().all(|&x| x >= 0.0));
+        }
+    }
 }

@@ -22,8 +22,8 @@
 //!   (equiangular, shadowed, coarse-then-refined): the stage function.
 //! * [`resolve`]: the composite-time density re-weighting and the
 //!   extinction of the surface terms.
-//! * [`live`]: the daemon's two buffers per light (surface dimmed at the
-//!   build's density, in-scatter per unit density) and their weights.
+//! * [`live`]: the daemon's buffers per light at densities 0, ½, 1 and
+//!   their composite weights (a hazer change re-weights, never rebuilds).
 //! * [`reference`]: the single-pass haze reference and a Monte Carlo
 //!   volume path tracer (multiple scattering).
 //!
@@ -40,7 +40,7 @@ pub mod reference;
 pub mod resolve;
 pub mod single;
 
-pub use live::{extinguish, live_haze_buffer};
+pub use live::{KNOTS, knot_buffers, knot_weights};
 pub use medium::{Medium, MediumError};
 pub use resolve::resolve;
 pub use single::{HazeQuality, HazeView, InScatter, integrate_ray, render_inscatter};
