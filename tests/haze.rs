@@ -530,7 +530,6 @@ async fn hazer_change_is_a_composite_weight_in_the_next_frame() {
             den += f64::from(y.element_sum());
         }
         assert!(peak > 0.0);
-        eprintln!("rel. L1 {:.3e}", num / den);
         assert!(num / den <= f64::from(tol), "rel. L1 {:.3e} > {tol:e}", num / den);
     };
     close(&linear(&before), &exact_at(1.0, &beam, &medium), 1e-5);
@@ -554,7 +553,7 @@ async fn hazer_change_is_a_composite_weight_in_the_next_frame() {
     // Against an exact rebuild at 25 %: linear interpolation between knots.
     let thin = medium.at_density(d);
     let rebuilt = exact_at(1.0, &render_inscatter(&scene, &hv, plain.light(), &thin, HazeQuality::REFINED), &thin);
-    close(&linear(&after), &rebuilt, 0.15);
+    close(&linear(&after), &rebuilt, 0.05);
     // The stream's decoded buffers composite to the same picture within f16.
     let decoded: Vec<LightBuffer> = after
         .buffers
