@@ -412,12 +412,15 @@ fn multiple_scattering_approximation_against_a_volume_path_tracer() {
 #[test]
 fn beam_screen_bounds_cull_nothing_the_beam_lights() {
     let scene = floor_scene();
-    let medium = Medium::new(0.05, 0.005, 0.6, Vec3::new(-6.0, 0.0, -6.0), Vec3::new(6.0, 5.0, 6.0)).unwrap();
+    let medium = Medium::new(0.05, 0.005, 0.6, Vec3::new(-6.0, 0.0, -6.0), Vec3::new(6.0, 5.0, 12.0)).unwrap();
     let camera = Camera::look_at(Vec3::new(0.5, 2.0, 9.0), Vec3::new(0.0, 1.5, 0.0), 60f32.to_radians());
     let (w, h) = (64u32, 40u32);
     let hv = HazeView::new(&scene, &footlight::render::gbuffer::GBuffer::build(&scene, camera, w, h));
     let narrow = Light::aimed(Vec3::new(-2.0, 4.0, 0.0), Vec3::new(-2.5, 0.0, 0.5), Beam::Spot(SpotBeam::from_beam_field(6.0, 10.0)));
-    for light in [spot(Vec3::new(0.0, 4.0, 0.0)), narrow.clone()] {
+    // A beam from behind the camera, past it into the picture: its hull is
+    // clipped at the near plane.
+    let behind = Light::aimed(Vec3::new(1.0, 3.5, 11.0), Vec3::new(0.0, 0.0, 0.0), Beam::Spot(SpotBeam::from_beam_field(10.0, 16.0)));
+    for light in [spot(Vec3::new(0.0, 4.0, 0.0)), narrow.clone(), behind] {
         let q = HazeQuality { scale: 1, samples: 12, refine_edges: false };
         let got = render_inscatter(&scene, &hv, &light, &medium, q);
         let mut lit = 0;

@@ -407,10 +407,12 @@ pub fn render_inscatter(
 
 /// The pixel rectangle [x0, x1) × [y0, y1) outside which no centre ray of
 /// `hv` can meet `light`'s cone inside the haze box: the projection of a
-/// convex hull of the cone cut at the farthest box corner (apex plus a
-/// 16-gon circumscribing the cone's disk there). The whole picture when the
-/// hull reaches behind the camera or the cone is 80° or wider; `None` when
-/// the hull is off screen.
+/// convex hull of the cone cut where the box ends along the beam axis (the
+/// apex plus a 16-gon circumscribing the cone's disk at the largest axial
+/// distance of a box corner). A hull reaching behind the camera is clipped
+/// at a near plane 1 mm in front of it (its points there project far out,
+/// widening the rectangle toward that side). The whole picture when the
+/// cone is 80° or wider; `None` when the hull is off screen or behind.
 pub fn beam_screen_bounds(hv: &HazeView, light: &Light, medium: &Medium) -> Option<(usize, usize, usize, usize)> {
     let (w, h) = (hv.width as usize, hv.height as usize);
     let full = Some((0, 0, w, h));
@@ -426,9 +428,12 @@ pub fn beam_screen_bounds(hv: &HazeView, light: &Light, medium: &Medium) -> Opti
             if k & 4 == 0 { medium.min.z } else { medium.max.z },
         )
     });
-    let reach = corners.map(|c| c.distance(apex)).fold(0.0f32, f32::max);
+    let reach = corners.map(|c| (c - apex).dot(axis)).fold(0.0f32, f32::max);
     if !reach.is_finite() || !apex.is_finite() || !axis.is_finite() {
         return full;
+    }
+    if reach <= 0.0 {
+        return None; // the box is wholly behind the lamp
     }
     const SIDES: usize = 16;
     let radius = reach * angle.tan() / (std::f32::consts::PI / SIDES as f32).cos();
@@ -437,30 +442,47 @@ pub fn beam_screen_bounds(hv: &HazeView, light: &Light, medium: &Medium) -> Opti
     let cam = hv.camera;
     let aspect = w as f32 / h.max(1) as f32;
     let tan_half = (cam.yfov * 0.5).tan();
+    const NEAR: f32 = 1e-3;
+    let hull: Vec<Vec3> = (0..=SIDES)
+        .map(|k| {
+            if k == SIDES {
+                apex
+            } else {
+                let phi = k as f32 * std::f32::consts::TAU / SIDES as f32;
+                centre + (u * phi.cos() + v * phi.sin()) * radius
+            }
+        })
+        .collect();
+    let depth = |p: Vec3| -(p - cam.position).dot(cam.basis.z_axis);
+    // The hull clipped at the near plane: its points in front, and where
+    // every segment between a point in front and one behind crosses the plane.
+    let mut front: Vec<Vec3> = hull.iter().copied().filter(|p| depth(*p) >= NEAR).collect();
+    if front.is_empty() {
+        return None;
+    }
+    for a in hull.iter().filter(|p| depth(**p) >= NEAR) {
+        for b in hull.iter().filter(|p| depth(**p) < NEAR) {
+            let (da, db) = (depth(*a), depth(*b));
+            front.push(*a + (*b - *a) * ((da - NEAR) / (da - db)));
+        }
+    }
     let (mut lo, mut hi) = (glam::Vec2::splat(f32::INFINITY), glam::Vec2::splat(f32::NEG_INFINITY));
-    for k in 0..=SIDES {
-        let p = if k == SIDES {
-            apex
-        } else {
-            let phi = k as f32 * std::f32::consts::TAU / SIDES as f32;
-            centre + (u * phi.cos() + v * phi.sin()) * radius
-        };
+    for p in front {
         let rel = p - cam.position;
-        let depth = -rel.dot(cam.basis.z_axis);
-        if !(depth > 1e-3) {
+        let z = depth(p).max(NEAR);
+        let nx = rel.dot(cam.basis.x_axis) / (z * tan_half * aspect);
+        let ny = rel.dot(cam.basis.y_axis) / (z * tan_half);
+        let px = glam::Vec2::new((nx + 1.0) * 0.5 * w as f32, (1.0 - ny) * 0.5 * h as f32);
+        if !px.is_finite() {
             return full;
         }
-        let nx = rel.dot(cam.basis.x_axis) / (depth * tan_half * aspect);
-        let ny = rel.dot(cam.basis.y_axis) / (depth * tan_half);
-        let px = glam::Vec2::new((nx + 1.0) * 0.5 * w as f32, (1.0 - ny) * 0.5 * h as f32);
         lo = lo.min(px);
         hi = hi.max(px);
     }
     // One pixel of margin for the centre-ray offset and rounding.
-    let x0 = (lo.x - 1.0).floor().max(0.0) as usize;
-    let y0 = (lo.y - 1.0).floor().max(0.0) as usize;
-    let x1 = ((hi.x + 2.0).ceil().max(0.0) as usize).min(w);
-    let y1 = ((hi.y + 2.0).ceil().max(0.0) as usize).min(h);
+    let clamp = |v: f32, n: usize| v.clamp(0.0, n as f32) as usize;
+    let (x0, y0) = (clamp((lo.x - 1.0).floor(), w), clamp((lo.y - 1.0).floor(), h));
+    let (x1, y1) = (clamp((hi.x + 2.0).ceil(), w), clamp((hi.y + 2.0).ceil(), h));
     (x1 > x0 && y1 > y0).then_some((x0, y0, x1, y1))
 }
 
