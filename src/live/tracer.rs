@@ -947,7 +947,10 @@ fn finished(s: &Shared, index: usize, id: u64, light: &Light, buffer: Arc<LightB
     if s.slots[index].latest.load(Ordering::SeqCst) != id {
         return; // a view change or a newer request superseded it
     }
-    s.cache.lock().expect("cache lock").insert(index, light, buffer);
+    if s.haze.is_none() {
+        // (In haze the cache is not read: its buffers carry no beam.)
+        s.cache.lock().expect("cache lock").insert(index, light, buffer);
+    }
     let elapsed = at.elapsed();
     s.slots[index].state.lock().expect("slot lock").last_build = Some(elapsed);
     tracing::debug!("light {index}: finished {:.0} ms after its last move", elapsed.as_secs_f64() * 1e3);
