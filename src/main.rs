@@ -381,9 +381,8 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         let (size, repeats, paths, moves) =
             if args.quick { ((200, 125), 1, 20_000, 2) } else { ((800, 500), 3, 200_000, 10) };
         let rig = (!args.quick).then(bench::haze::rig_lights);
-        let mut report =
-            bench::haze::run(&scene, camera, size.0, size.1, &light, repeats, paths, rig.as_deref())
-                .context("haze: the scene has no volume for the haze box")?;
+        let mut report = bench::haze::run(&scene, camera, size.0, size.1, &light, repeats, paths, rig.as_deref())
+            .context("haze: the scene has no volume for the haze box")?;
         report.moved = bench::haze::moved_beam(&scene, camera, size, 2, &light, moves);
         println!("{}", report.lines());
         return Ok(());

@@ -416,10 +416,18 @@ fn beam_screen_bounds_cull_nothing_the_beam_lights() {
     let camera = Camera::look_at(Vec3::new(0.5, 2.0, 9.0), Vec3::new(0.0, 1.5, 0.0), 60f32.to_radians());
     let (w, h) = (64u32, 40u32);
     let hv = HazeView::new(&scene, &footlight::render::gbuffer::GBuffer::build(&scene, camera, w, h));
-    let narrow = Light::aimed(Vec3::new(-2.0, 4.0, 0.0), Vec3::new(-2.5, 0.0, 0.5), Beam::Spot(SpotBeam::from_beam_field(6.0, 10.0)));
+    let narrow = Light::aimed(
+        Vec3::new(-2.0, 4.0, 0.0),
+        Vec3::new(-2.5, 0.0, 0.5),
+        Beam::Spot(SpotBeam::from_beam_field(6.0, 10.0)),
+    );
     // A beam from behind the camera, past it into the picture: its hull is
     // clipped at the near plane.
-    let behind = Light::aimed(Vec3::new(1.0, 3.5, 11.0), Vec3::new(0.0, 0.0, 0.0), Beam::Spot(SpotBeam::from_beam_field(10.0, 16.0)));
+    let behind = Light::aimed(
+        Vec3::new(1.0, 3.5, 11.0),
+        Vec3::new(0.0, 0.0, 0.0),
+        Beam::Spot(SpotBeam::from_beam_field(10.0, 16.0)),
+    );
     for light in [spot(Vec3::new(0.0, 4.0, 0.0)), narrow.clone(), behind] {
         let q = HazeQuality { scale: 1, samples: 12, refine_edges: false };
         let got = render_inscatter(&scene, &hv, &light, &medium, q);
@@ -523,7 +531,11 @@ async fn hazer_change_is_a_composite_weight_in_the_next_frame() {
     let beam = render_inscatter(&scene, &hv, plain.light(), &medium, HazeQuality::REFINED);
     let k = Vec3::new(800.0, 700.0, 600.0);
     let exact_at = |d: f32, beam: &HazeBuffer, m: &Medium| {
-        resolve(&hv, m, plain.light().position, &surface, Some(beam), d).to_dense().iter().map(|v| *v * k).collect::<Vec<_>>()
+        resolve(&hv, m, plain.light().position, &surface, Some(beam), d)
+            .to_dense()
+            .iter()
+            .map(|v| *v * k)
+            .collect::<Vec<_>>()
     };
     let close = |a: &[Vec3], b: &[Vec3], tol: f32| {
         let peak = b.iter().fold(0.0f32, |m, v| m.max(v.max_element()));

@@ -188,7 +188,15 @@ impl HazeReport {
         if let Some(r) = &self.rig {
             s += &format!(
                 "    600-fixture rig {}×{}: coarse beams of all {} lights {:.1} s ({:.0} of {} tiles per beam), beam buffers {:.0} MiB; knot buffers ½, 1: {:.0} ms to resolve, {:.0} MiB\n",
-                r.width, r.height, r.lights, r.coarse_all_s, r.beam_tiles, r.tiles, r.haze_mib, r.density_change_ms, r.knot_mib
+                r.width,
+                r.height,
+                r.lights,
+                r.coarse_all_s,
+                r.beam_tiles,
+                r.tiles,
+                r.haze_mib,
+                r.density_change_ms,
+                r.knot_mib
             );
         }
         s
@@ -298,9 +306,8 @@ pub fn run(
     let mut density_live = Vec::new();
     for d in [0.1f32, 0.25, 0.4, 0.6, 0.75, 0.9] {
         let wj = crate::render::media::knot_weights(d);
-        let live: Vec<f32> = (0..knot_dense[0].len())
-            .map(|i| (0..3).map(|j| wj[j] * knot_dense[j][i].x).sum::<f32>())
-            .collect();
+        let live: Vec<f32> =
+            (0..knot_dense[0].len()).map(|i| (0..3).map(|j| wj[j] * knot_dense[j][i].x).sum::<f32>()).collect();
         let thin = medium.at_density(d);
         let rebuilt =
             resolve(&hv, &thin, light.position, &surface, Some(&render_inscatter(scene, &hv, light, &thin, q)), 1.0);

@@ -137,10 +137,11 @@ pub fn frame_entries<'a>(
     density: Option<f32>,
 ) -> Vec<CompositeInput<'a>> {
     let w = density.map_or([1.0, 0.0, 0.0], crate::render::media::knot_weights);
-    let surface = published
-        .iter()
-        .zip(inputs)
-        .map(|(p, input)| CompositeInput { buffer: &p.buffer, generation: p.generation, k: input.k * w[0] });
+    let surface = published.iter().zip(inputs).map(|(p, input)| CompositeInput {
+        buffer: &p.buffer,
+        generation: p.generation,
+        k: input.k * w[0],
+    });
     let haze = density.into_iter().flat_map(|_| {
         (0..2).flat_map(move |j| {
             published.iter().zip(inputs).map(move |(p, input)| CompositeInput {

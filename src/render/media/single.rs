@@ -308,8 +308,9 @@ pub fn render_inscatter(
     };
     let trace =
         |i: usize| integrate_ray(scene, medium, light, hv.camera.position, hv.dirs[i], hv.t_hit[i], quality.samples);
-    let tiles: Vec<(usize, usize)> =
-        (by0 / TILE..by1.div_ceil(TILE)).flat_map(|ty| (bx0 / TILE..bx1.div_ceil(TILE)).map(move |tx| (tx, ty))).collect();
+    let tiles: Vec<(usize, usize)> = (by0 / TILE..by1.div_ceil(TILE))
+        .flat_map(|ty| (bx0 / TILE..bx1.div_ceil(TILE)).map(move |tx| (tx, ty)))
+        .collect();
     let in_bounds = |x: usize, y: usize| x >= bx0 && x < bx1 && y >= by0 && y < by1;
     let s = quality.scale.max(1) as usize;
     if s == 1 {
