@@ -581,4 +581,30 @@ async fn hazer_change_is_a_composite_weight_in_the_next_frame() {
         .collect();
     let refs: Vec<&LightBuffer> = decoded.iter().collect();
     close(&composite::composite(&refs, &after.k, w, h), &linear(&after), 2e-3);
+
+    // The daemon's frame clock task: the hazer back at 100 % lands in the
+    // very next frame, with the picture of before, and nothing is rebuilt.
+    let merged = |hazer: u8| {
+        let mut slots = [0u8; 512];
+        slots[0] = 255;
+        slots[1] = hazer;
+        let mut u = footlight_dmx::Universes::default();
+        u.update(&footlight_dmx::UniverseFrame { universe: 1, slots, at: tokio::time::Instant::now(), stale: false });
+        u
+    };
+    let (in_tx, in_rx) = tokio::sync::watch::channel(merged(64));
+    let first = Arc::new(clock.tick(&levels(255, 64)));
+    let (out_tx, mut out_rx) = tokio::sync::watch::channel(first);
+    let (_stop_tx, stop) = footlight::live::daemon::stop_signal();
+    tokio::spawn(footlight::live::run_clock(clock, 50.0, in_rx, out_tx, Default::default(), stop));
+    tokio::time::sleep(Duration::from_millis(60)).await;
+    let settled = out_rx.borrow_and_update().clone();
+    assert_eq!(settled.haze_density, Some(d));
+    in_tx.send(merged(255)).unwrap();
+    out_rx.changed().await.unwrap();
+    let next = out_rx.borrow_and_update().clone();
+    assert_eq!(next.number, settled.number + 1, "the new density shows in the very next frame");
+    assert_eq!(next.haze_density, Some(1.0));
+    assert_eq!(next.rgb, before.rgb, "back at 100 %: the picture of before");
+    assert_eq!((tracer.builds(), tracer.haze_stages()), (builds, haze_stages), "no light rebuilt");
 }
