@@ -327,6 +327,11 @@ struct BenchArgs {
     /// Only the "walking the stage" section (issue 16), printed as Markdown.
     #[arg(long)]
     walk_only: bool,
+    /// Only the haze section (issue 15): beam time vs error, density
+    /// re-weighting, a moved beam through the live tracer on 2 threads, and
+    /// (without --quick) the 600-fixture rig at 1920×1080.
+    #[arg(long)]
+    haze_only: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -368,6 +373,18 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         let walk = bench::walk::run(&Arc::new(scene), &patch, camera, size, seconds, photons)
             .map_err(|e| anyhow::anyhow!("walking the stage: {e}"))?;
         println!("{}", walk.markdown());
+        return Ok(());
+    }
+    if args.haze_only {
+        let scene = Arc::new(scene);
+        let light = patch.fixtures.first().map(|f| f.light.clone()).context("the patch has no fixtures")?;
+        let (size, repeats, paths, moves) =
+            if args.quick { ((200, 125), 1, 20_000, 2) } else { ((800, 500), 3, 200_000, 10) };
+        let rig = (!args.quick).then(bench::haze::rig_lights);
+        let mut report = bench::haze::run(&scene, camera, size.0, size.1, &light, repeats, paths, rig.as_deref())
+            .context("haze: the scene has no volume for the haze box")?;
+        report.moved = bench::haze::moved_beam(&scene, camera, size, 2, &light, moves);
+        println!("{}", report.lines());
         return Ok(());
     }
     let out = args.out.unwrap_or_else(bench::default_out_dir);

@@ -56,3 +56,42 @@ fn gpu_composite_matches_cpu_composite() {
         assert!(g.iter().any(|&c| c > 50), "frame {frame} is lit");
     }
 }
+
+/// Haze on the GPU: a frame's 3N entries (each light's buffer at the
+/// density knots 0, ½, 1 with hat weights, `render::media::live`) composite
+/// on the GPU as on the CPU, at a density between two knots.
+#[test]
+fn gpu_composite_of_hazy_knots_matches_cpu() {
+    use footlight::render::media::{HazeQuality, HazeView, Medium, knot_buffers, knot_weights, render_inscatter};
+    let (w, h) = (160, 100);
+    let display = Display::for_white_lux(300.0);
+    let Ok(Some(mut gpu)) = GpuFrames::open(CompositorChoice::Gpu, w, h, display) else {
+        assert!(std::env::var_os("FOOTLIGHT_REQUIRE_GPU").is_none(), "GPU required but unavailable");
+        eprintln!("skipping: no GPU adapter");
+        return;
+    };
+    let scene = stage();
+    let patch = default_patch();
+    let v = view(&scene, scene.camera.unwrap(), w, h, Sampling::Geometry, 5);
+    let (lo, hi) = footlight::render::media::medium::scene_bounds(&scene).unwrap();
+    let medium = Medium::new(0.05, 0.005, 0.7, lo, hi).unwrap();
+    let hv = HazeView::new(&scene, &v.gbuffer);
+    let mut knots: Vec<[LightBuffer; 3]> = Vec::new();
+    for f in patch.fixtures.iter().take(3) {
+        let s = v.render_light(&scene, &f.light, None).0;
+        let beam = render_inscatter(&scene, &hv, &f.light, &medium, HazeQuality::COARSE);
+        let [half, full] = knot_buffers(&hv, &medium, f.light.position, &s, Some(&beam));
+        knots.push([s, half, full]);
+    }
+    let wj = knot_weights(0.3);
+    let k = Vec3::new(3e4, 2.5e4, 2e4);
+    let inputs: Vec<CompositeInput> = (0..3)
+        .flat_map(|j| knots.iter().map(move |b| CompositeInput { buffer: &b[j], generation: 0, k: k * wj[j] }))
+        .collect();
+    let mut cpu = Compositor::new(w, h, display);
+    cpu.update(&inputs);
+    let g = gpu.frame(&inputs).expect("GPU frame");
+    let worst = g.iter().zip(cpu.srgb8()).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
+    assert!(worst <= 1, "GPU and CPU differ by {worst} code values");
+    assert!(g.iter().any(|&c| c > 50), "lit");
+}

@@ -405,3 +405,206 @@ fn multiple_scattering_approximation_against_a_volume_path_tracer() {
     }
     assert!(err_similar < err_single, "similarity {err_similar} vs single {err_single}");
 }
+
+/// The tile-sparse beam (screen bounds of the cone, only covered tiles) is
+/// the same, value for value, as tracing every pixel's ray on its own; a
+/// narrow beam fills a fraction of the tiles.
+#[test]
+fn beam_screen_bounds_cull_nothing_the_beam_lights() {
+    let scene = floor_scene();
+    let medium = Medium::new(0.05, 0.005, 0.6, Vec3::new(-6.0, 0.0, -6.0), Vec3::new(6.0, 5.0, 12.0)).unwrap();
+    let camera = Camera::look_at(Vec3::new(0.5, 2.0, 9.0), Vec3::new(0.0, 1.5, 0.0), 60f32.to_radians());
+    let (w, h) = (64u32, 40u32);
+    let hv = HazeView::new(&scene, &footlight::render::gbuffer::GBuffer::build(&scene, camera, w, h));
+    let narrow = Light::aimed(
+        Vec3::new(-2.0, 4.0, 0.0),
+        Vec3::new(-2.5, 0.0, 0.5),
+        Beam::Spot(SpotBeam::from_beam_field(6.0, 10.0)),
+    );
+    // A beam from behind the camera, past it into the picture: its hull is
+    // clipped at the near plane.
+    let behind = Light::aimed(
+        Vec3::new(1.0, 3.5, 11.0),
+        Vec3::new(0.0, 0.0, 0.0),
+        Beam::Spot(SpotBeam::from_beam_field(10.0, 16.0)),
+    );
+    for light in [spot(Vec3::new(0.0, 4.0, 0.0)), narrow.clone(), behind] {
+        let q = HazeQuality { scale: 1, samples: 12, refine_edges: false };
+        let got = render_inscatter(&scene, &hv, &light, &medium, q);
+        let mut lit = 0;
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y * w + x) as usize;
+                let want = integrate_ray(&scene, &medium, &light, camera.position, hv.dir(i), hv.t_hit(i), 12).pixel();
+                let (a0, kappa) = got.get(x, y);
+                assert_eq!((a0, kappa), (want.x, want.y), "pixel ({x}, {y})");
+                lit += usize::from(a0 > 0.0);
+            }
+        }
+        assert!(lit > 20, "the beam is in view ({lit} pixels)");
+    }
+    let b = footlight::render::media::single::beam_screen_bounds(&hv, &narrow, &medium).expect("in view");
+    assert!((b.2 - b.0) * (b.3 - b.1) < (w * h) as usize / 2, "narrow beam bounds {b:?}");
+    let q = HazeQuality::COARSE;
+    let coarse = render_inscatter(&scene, &hv, &narrow, &medium, q);
+    assert!(coarse.occupied_tiles() < coarse.as_light_buffer().total_tiles(), "tile-sparse");
+}
+
+/// Haze in the live daemon's frame clock, with paused tokio time: the moved
+/// light's buffer comes with its buffers at densities ½ and 1; the composite
+/// the clock publishes equals the exact resolve (the still path) at a
+/// knot; a hazer change shows in the very next frame as a weight, with
+/// no light rebuilt (the tracer's build counters do not move), and its
+/// error against an exact rebuild at the new density is bounded.
+#[tokio::test(start_paused = true)]
+async fn hazer_change_is_a_composite_weight_in_the_next_frame() {
+    use footlight::fixture::{DmxSlots, FixtureState, Universes};
+    use footlight::live::{Decode, FrameClock, LightInput, Stage, Tracer, TracerSettings};
+    use footlight::render::composite::Compositor;
+    use footlight::render::{Display, View};
+    use std::sync::Arc;
+    use std::time::Duration;
+
+    /// Slot 1 dimmer, slot 2 hazer (0-255 → 0-100 %).
+    struct Hazy;
+    impl Decode for Hazy {
+        fn len(&self) -> usize {
+            1
+        }
+        fn decode(&self, u: &dyn DmxSlots) -> Vec<LightInput> {
+            let v = u.slots(1).map_or(0.0, |s| f32::from(s[0]) / 255.0);
+            let light = spot(Vec3::new(0.0, 4.0, 0.0));
+            let state = FixtureState { v, ..FixtureState::default() };
+            vec![LightInput { light, k: Vec3::new(800.0, 700.0, 600.0) * v, k_full: Vec3::splat(800.0), state }]
+        }
+        fn haze_density(&self, u: &dyn DmxSlots) -> Option<f32> {
+            Some(u.slots(1).map_or(1.0, |s| f32::from(s[1]) / 255.0))
+        }
+    }
+    let scene = Arc::new(floor_scene());
+    let medium = Medium::new(0.08, 0.01, 0.6, Vec3::new(-6.0, 0.0, -6.0), Vec3::new(6.0, 5.0, 6.0)).unwrap();
+    let camera = Camera::look_at(Vec3::new(0.5, 2.0, 9.0), Vec3::new(0.0, 1.5, 0.0), 60f32.to_radians());
+    let (w, h) = (48u32, 32u32);
+    let limits = RecursionLimits::default();
+    let view = Arc::new(View::build(&scene, camera, w, h, Sampling::Adaptive, limits));
+    let mut settings = TracerSettings { threads: 1, ..TracerSettings::default() };
+    settings.build.photons = None;
+    let tracer = Arc::new(Tracer::with_haze(scene.clone(), view.clone(), 1, settings, Some(medium)));
+    let display = Display::neutral(1000.0);
+    let mut clock = FrameClock::new(Arc::new(Hazy), tracer.clone(), Compositor::new(w, h, display));
+    let levels = |dimmer: u8, hazer: u8| {
+        let mut u = Universes::new();
+        u.set_slot(1, 1, dimmer);
+        u.set_slot(1, 2, hazer);
+        u
+    };
+    clock.tick(&levels(255, 255));
+    let t = tracer.clone();
+    tokio::task::spawn_blocking(move || {
+        let start = std::time::Instant::now();
+        while t.published(0).stage != Stage::Ready {
+            assert!(start.elapsed() < Duration::from_secs(60), "tracer stuck");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    })
+    .await
+    .unwrap();
+    let before = clock.tick(&levels(255, 255));
+    assert_eq!(before.haze_density, Some(1.0));
+    assert_eq!(before.buffers.len(), 3, "the light's buffer at densities 0, ½ and 1");
+    let (builds, haze_stages) = (tracer.builds(), tracer.haze_stages());
+    assert_eq!((builds, haze_stages), (1, 2), "one build: coarse beam with the direct stage, refined after Whitted");
+
+    // The clock's composite against the exact resolve of the still path.
+    let linear = |f: &footlight::live::Frame| {
+        let bufs: Vec<&LightBuffer> = f.buffers.iter().map(|(_, b)| b.as_ref()).collect();
+        composite::composite(&bufs, &f.k, w, h)
+    };
+    let mut plain = footlight::render::build::LightBuild::new(
+        spot(Vec3::new(0.0, 4.0, 0.0)),
+        0,
+        settings.build,
+        footlight::render::build::Cancel::never(),
+    );
+    let surface = plain.whitted(&scene, &view).unwrap();
+    let hv = HazeView::new(&scene, &view.gbuffer);
+    let beam = render_inscatter(&scene, &hv, plain.light(), &medium, HazeQuality::REFINED);
+    let k = Vec3::new(800.0, 700.0, 600.0);
+    let exact_at = |d: f32, beam: &HazeBuffer, m: &Medium| {
+        resolve(&hv, m, plain.light().position, &surface, Some(beam), d)
+            .to_dense()
+            .iter()
+            .map(|v| *v * k)
+            .collect::<Vec<_>>()
+    };
+    let close = |a: &[Vec3], b: &[Vec3], tol: f32| {
+        let peak = b.iter().fold(0.0f32, |m, v| m.max(v.max_element()));
+        let (mut num, mut den) = (0.0f64, 0.0f64);
+        for (x, y) in a.iter().zip(b) {
+            num += f64::from((*x - *y).abs().element_sum());
+            den += f64::from(y.element_sum());
+        }
+        assert!(peak > 0.0);
+        assert!(num / den <= f64::from(tol), "rel. L1 {:.3e} > {tol:e}", num / den);
+    };
+    close(&linear(&before), &exact_at(1.0, &beam, &medium), 1e-5);
+
+    // The hazer drops to 25 % between two frames: the very next frame shows it.
+    let after = clock.tick(&levels(255, 64));
+    assert_eq!(after.number, before.number + 1);
+    let d = 64.0 / 255.0;
+    assert_eq!(after.haze_density, Some(d));
+    let wj = footlight::render::media::knot_weights(d);
+    assert_eq!(*after.k, vec![k * wj[0], k * wj[1], k * wj[2]], "knot weights w_j(d) k_i");
+    assert!(after.update.changed_lights >= 1);
+    assert_ne!(after.rgb, before.rgb, "the air got darker");
+    // Many frames later: nothing was rebuilt.
+    for _ in 0..5 {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        clock.tick(&levels(255, 64));
+    }
+    tokio::task::spawn_blocking(|| std::thread::sleep(Duration::from_millis(50))).await.unwrap();
+    assert_eq!((tracer.builds(), tracer.haze_stages()), (builds, haze_stages), "no light rebuilt for a density change");
+    // Against an exact rebuild at 25 %: linear interpolation between knots.
+    let thin = medium.at_density(d);
+    let rebuilt = exact_at(1.0, &render_inscatter(&scene, &hv, plain.light(), &thin, HazeQuality::REFINED), &thin);
+    close(&linear(&after), &rebuilt, 0.05);
+    // The stream's decoded buffers composite to the same picture within f16.
+    let decoded: Vec<LightBuffer> = after
+        .buffers
+        .iter()
+        .enumerate()
+        .map(|(i, (g, b))| {
+            let msg = footlight::serve::stream::encode_buffer(i as u32, *g, b);
+            footlight::serve::stream::decode_buffer(&msg, w, h).unwrap().2
+        })
+        .collect();
+    let refs: Vec<&LightBuffer> = decoded.iter().collect();
+    close(&composite::composite(&refs, &after.k, w, h), &linear(&after), 2e-3);
+
+    // The daemon's frame clock task: the hazer back at 100 % lands in the
+    // very next frame, with the picture of before, and nothing is rebuilt.
+    let merged = |hazer: u8| {
+        let mut slots = [0u8; 512];
+        slots[0] = 255;
+        slots[1] = hazer;
+        let mut u = footlight_dmx::Universes::default();
+        u.update(&footlight_dmx::UniverseFrame { universe: 1, slots, at: tokio::time::Instant::now(), stale: false });
+        u
+    };
+    let (in_tx, in_rx) = tokio::sync::watch::channel(merged(64));
+    let first = Arc::new(clock.tick(&levels(255, 64)));
+    let (out_tx, mut out_rx) = tokio::sync::watch::channel(first);
+    let (_stop_tx, stop) = footlight::live::daemon::stop_signal();
+    tokio::spawn(footlight::live::run_clock(clock, 50.0, in_rx, out_tx, Default::default(), stop));
+    tokio::time::sleep(Duration::from_millis(60)).await;
+    let settled = out_rx.borrow_and_update().clone();
+    assert_eq!(settled.haze_density, Some(d));
+    in_tx.send(merged(255)).unwrap();
+    out_rx.changed().await.unwrap();
+    let next = out_rx.borrow_and_update().clone();
+    assert_eq!(next.number, settled.number + 1, "the new density shows in the very next frame");
+    assert_eq!(next.haze_density, Some(1.0));
+    assert_eq!(next.rgb, before.rgb, "back at 100 %: the picture of before");
+    assert_eq!((tracer.builds(), tracer.haze_stages()), (builds, haze_stages), "no light rebuilt");
+}

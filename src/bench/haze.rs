@@ -3,7 +3,10 @@
 //! a moved beam's first (coarse) stage, the density re-weighting error
 //! against an exact rebuild and its cost, the multiple-scattering
 //! approximation against the Monte Carlo volume path tracer, and haze on the
-//! 600-fixture rig.
+//! 600-fixture rig; for the live daemon (`footlight bench --haze-only`): the
+//! density-knot re-weighting a hazer change costs (weights only) against an
+//! exact rebuild, and a moved beam through the live tracer (request → the
+//! light's direct stage with its coarse beam published).
 //!
 //! Errors are on the in-scattered radiance image of one light at 100 %
 //! density against every pixel traced with 256 samples per ray.
@@ -69,10 +72,38 @@ pub struct RigHaze {
     pub height: u32,
     /// Coarse haze buffers of all lights, s.
     pub coarse_all_s: f64,
-    /// Re-weighting all lights for a density change, ms.
+    /// Resolving every light's knot buffers (½ and 1; once per build, not
+    /// per density change), ms.
     pub density_change_ms: f64,
-    /// Haze buffer memory, MiB.
+    /// Beam (haze buffer) memory of all lights, MiB.
     pub haze_mib: f64,
+    /// Knot-buffer memory of all lights (haze part only: surfaces empty), MiB.
+    pub knot_mib: f64,
+    /// Tiles of the picture, per light.
+    pub tiles: usize,
+    /// Tiles the beams fill, mean per light.
+    pub beam_tiles: f64,
+}
+
+/// A moved beam through the live tracer ([`crate::live::Tracer`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct MovedBeam {
+    /// Picture size.
+    pub width: u32,
+    /// Picture size.
+    pub height: u32,
+    /// Build threads.
+    pub threads: usize,
+    /// Moves measured.
+    pub moves: usize,
+    /// Request → direct stage with its coarse beam published, median ms.
+    pub median_ms: f64,
+    /// The same, worst, ms.
+    pub max_ms: f64,
+    /// The coarse beam against the refined one: Σ|L − L_ref| / Σ L_ref.
+    pub coarse_rel_l1: f64,
+    /// Largest |L − L_ref| / peak(L_ref).
+    pub coarse_max_err_of_peak: f64,
 }
 
 /// All haze rows.
@@ -96,6 +127,11 @@ pub struct HazeReport {
     pub density_change_ms: f64,
     /// Multiple scattering against the path tracer.
     pub multiple: Vec<MultiplePoint>,
+    /// The live daemon's density knots (0, ½, 1) re-weighted for a hazer
+    /// change against an exact rebuild at that density.
+    pub density_live: Vec<DensityPoint>,
+    /// A moved beam through the live tracer (`--haze-only` and full runs).
+    pub moved: Option<MovedBeam>,
     /// The 600-fixture rig (full runs only).
     pub rig: Option<RigHaze>,
 }
@@ -123,6 +159,20 @@ impl HazeReport {
             );
         }
         s += &format!("    density change (one light, re-weighting only): {:.2} ms\n", self.density_change_ms);
+        for p in &self.density_live {
+            s += &format!(
+                "    live: density {:>4.0} % from knots 0/50/100 % (weights only) vs rebuilt: rel. L1 {:.2e}  max/peak {:.2e}\n",
+                p.density * 100.0,
+                p.rel_l1,
+                p.max_err_of_peak
+            );
+        }
+        if let Some(m) = &self.moved {
+            s += &format!(
+                "    live: moved beam {}×{} on {} threads, request → direct stage + coarse beam published: median {:.1} ms, max {:.1} ms over {} moves; coarse vs refined beam rel. L1 {:.4}, max/peak {:.4}\n",
+                m.width, m.height, m.threads, m.median_ms, m.max_ms, m.moves, m.coarse_rel_l1, m.coarse_max_err_of_peak
+            );
+        }
         for p in &self.multiple {
             s += &format!(
                 "    multiple scattering at y {:.1} m: path-traced {:.3e} ± {:.1e}, single {:.3e} ({:+.1} %), similarity {:.3e} ({:+.1} %)\n",
@@ -137,8 +187,16 @@ impl HazeReport {
         }
         if let Some(r) = &self.rig {
             s += &format!(
-                "    600-fixture rig {}×{}: coarse haze of all {} lights {:.1} s, density change {:.0} ms, haze buffers {:.0} MiB\n",
-                r.width, r.height, r.lights, r.coarse_all_s, r.density_change_ms, r.haze_mib
+                "    600-fixture rig {}×{}: coarse beams of all {} lights {:.1} s ({:.0} of {} tiles per beam), beam buffers {:.0} MiB; knot buffers ½, 1: {:.0} ms to resolve, {:.0} MiB\n",
+                r.width,
+                r.height,
+                r.lights,
+                r.coarse_all_s,
+                r.beam_tiles,
+                r.tiles,
+                r.haze_mib,
+                r.density_change_ms,
+                r.knot_mib
             );
         }
         s
@@ -242,6 +300,20 @@ pub fn run(
         let similarity = f64::from(dense.sigma_s * integrate_ray(&empty, &dense, &spot, o, d, f32::INFINITY, 128).a1);
         multiple.push(MultiplePoint { height: y, path_traced: mc.all, std_error: mc.std_error, single, similarity });
     }
+    // The live daemon's knots: weights only, against a rebuild at d.
+    let knots = crate::render::media::knot_buffers(&hv, &medium, light.position, &surface, Some(&haze));
+    let knot_dense: Vec<Vec<Vec3>> = [surface.to_dense(), knots[0].to_dense(), knots[1].to_dense()].into();
+    let mut density_live = Vec::new();
+    for d in [0.1f32, 0.25, 0.4, 0.6, 0.75, 0.9] {
+        let wj = crate::render::media::knot_weights(d);
+        let live: Vec<f32> =
+            (0..knot_dense[0].len()).map(|i| (0..3).map(|j| wj[j] * knot_dense[j][i].x).sum::<f32>()).collect();
+        let thin = medium.at_density(d);
+        let rebuilt =
+            resolve(&hv, &thin, light.position, &surface, Some(&render_inscatter(scene, &hv, light, &thin, q)), 1.0);
+        let (rel_l1, max_err_of_peak) = errors(&live, &luminance(&rebuilt));
+        density_live.push(DensityPoint { density: d, rel_l1, max_err_of_peak });
+    }
     let rig = rig.map(|lights| run_rig(scene, camera, lights, &medium));
     Some(HazeReport {
         sigma_s: medium.sigma_s,
@@ -253,6 +325,8 @@ pub fn run(
         density,
         density_change_ms,
         multiple,
+        density_live,
+        moved: None,
         rig,
     })
 }
@@ -267,16 +341,99 @@ fn run_rig(scene: &Scene, camera: Camera, lights: &[Light], medium: &Medium) -> 
     let coarse_all_s = t.elapsed().as_secs_f64();
     let empty = LightBuffer::empty(w, h);
     let t = std::time::Instant::now();
-    let resolved: Vec<LightBuffer> =
-        lights.iter().zip(&buffers).map(|(l, b)| resolve(&hv, medium, l.position, &empty, Some(b), 0.6)).collect();
+    let knots: Vec<[LightBuffer; 2]> = lights
+        .iter()
+        .zip(&buffers)
+        .map(|(l, b)| crate::render::media::knot_buffers(&hv, medium, l.position, &empty, Some(b)))
+        .collect();
     let density_change_ms = t.elapsed().as_secs_f64() * 1e3;
-    drop(resolved);
+    let mib = |bytes: usize| bytes as f64 / (1 << 20) as f64;
     RigHaze {
         lights: lights.len(),
         width: w,
         height: h,
         coarse_all_s,
         density_change_ms,
-        haze_mib: buffers.iter().map(|b| b.bytes()).sum::<usize>() as f64 / (1 << 20) as f64,
+        haze_mib: mib(buffers.iter().map(|b| b.bytes()).sum()),
+        knot_mib: mib(knots.iter().flatten().map(|b| b.bytes()).sum()),
+        tiles: empty.total_tiles(),
+        beam_tiles: buffers.iter().map(|b| b.occupied_tiles()).sum::<usize>() as f64 / lights.len().max(1) as f64,
     }
+}
+
+/// The 600-fixture rig's lights (`scale::rig_patch`), for the rig rows.
+pub fn rig_lights() -> Vec<Light> {
+    let root = env!("CARGO_MANIFEST_DIR");
+    crate::Patch::parse(std::path::Path::new("generated-600-rig.toml"), &super::scale::rig_patch(root))
+        .map(|p| p.lights())
+        .unwrap_or_default()
+}
+
+/// A moved beam through the live tracer at `w`×`h` on `threads` build
+/// threads: `moves` pan steps of `light` (15° about the vertical), each
+/// timed from the request to its direct stage, coarse beam included, being
+/// published (what the frame clock composites next); the tracer finishes
+/// each light (Whitted, refined beam) before the next move. Photons off:
+/// they run only on a settled light and do not delay the first stage.
+pub fn moved_beam(
+    scene: &std::sync::Arc<Scene>,
+    camera: Camera,
+    (w, h): (u32, u32),
+    threads: usize,
+    light: &Light,
+    moves: usize,
+) -> Option<MovedBeam> {
+    use crate::live::{Stage, Tracer, TracerSettings};
+    use std::time::{Duration, Instant};
+    let medium = bench_medium(scene)?;
+    let view = crate::render::View::build(
+        scene,
+        camera,
+        w,
+        h,
+        crate::render::Sampling::Adaptive,
+        crate::render::RecursionLimits::default(),
+    );
+    let hv = HazeView::new(scene, &view.gbuffer);
+    let mut settings = TracerSettings { threads, ..TracerSettings::default() };
+    settings.build.photons = None;
+    let tracer = Tracer::with_haze(scene.clone(), std::sync::Arc::new(view), 1, settings, Some(medium));
+    let wait = |what: &dyn Fn(Stage) -> bool| {
+        let t = Instant::now();
+        while !what(tracer.published(0).stage) && t.elapsed() < Duration::from_secs(120) {
+            std::thread::sleep(Duration::from_micros(200));
+        }
+    };
+    let moved = |k: usize| {
+        let turn = glam::Quat::from_rotation_y((15.0 * k as f32).to_radians());
+        Light { rotation: turn * light.rotation, ..light.clone() }
+    };
+    tracer.request(0, moved(0), 1.0);
+    wait(&|s| s == Stage::Ready);
+    let mut times = Vec::new();
+    for k in 1..=moves.max(1) {
+        let generation = tracer.published(0).generation;
+        let t = Instant::now();
+        tracer.request(0, moved(k), 1.0);
+        while tracer.published(0).generation == generation && t.elapsed() < Duration::from_secs(120) {
+            std::thread::sleep(Duration::from_micros(100));
+        }
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+        wait(&|s| s == Stage::Ready);
+    }
+    drop(tracer);
+    times.sort_by(f64::total_cmp);
+    let refined = radiance_at_full(&render_inscatter(scene, &hv, light, &medium, HazeQuality::REFINED), &medium);
+    let coarse = radiance_at_full(&render_inscatter(scene, &hv, light, &medium, HazeQuality::COARSE), &medium);
+    let (coarse_rel_l1, coarse_max_err_of_peak) = errors(&coarse, &refined);
+    Some(MovedBeam {
+        width: w,
+        height: h,
+        threads,
+        moves: times.len(),
+        median_ms: times[times.len() / 2],
+        max_ms: times[times.len() - 1],
+        coarse_rel_l1,
+        coarse_max_err_of_peak,
+    })
 }

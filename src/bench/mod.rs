@@ -846,13 +846,8 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         }
     };
     progress.set_message("haze");
-    let rig_lights = (!cfg.quick).then(|| {
-        let root = env!("CARGO_MANIFEST_DIR");
-        crate::Patch::parse(Path::new("generated-600-rig.toml"), &scale::rig_patch(root))
-            .map(|p| p.lights())
-            .unwrap_or_default()
-    });
-    let haze = haze::run(
+    let rig_lights = (!cfg.quick).then(haze::rig_lights);
+    let mut haze = haze::run(
         scene,
         camera,
         w,
@@ -862,6 +857,9 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         if cfg.quick { 20_000 } else { 200_000 },
         rig_lights.as_deref(),
     );
+    if let Some(report) = &mut haze {
+        report.moved = haze::moved_beam(&scene_arc, camera, (w, h), 2, light, if cfg.quick { 2 } else { 10 });
+    }
     progress.set_message("44 moving heads in a chase");
     let chase = if cfg.quick {
         chase::run(&scene_arc, camera, (200, 125), 2.0, 0)

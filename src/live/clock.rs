@@ -54,6 +54,11 @@ pub trait Decode: Send + Sync {
     fn labels(&self) -> Vec<LightLabel> {
         (0..self.len()).map(|i| LightLabel { fixture: None, name: format!("light {}", i + 1) }).collect()
     }
+    /// The haze density 0-1 now (the hazer channel, else the patch's
+    /// default); `None` when the show has no haze.
+    fn haze_density(&self, _universes: &dyn DmxSlots) -> Option<f32> {
+        None
+    }
     /// The DMX slots of light `index`'s footprint (status page).
     fn slots_of(&self, _index: usize, _universes: &dyn DmxSlots) -> Vec<u8> {
         Vec::new()
@@ -77,13 +82,18 @@ pub struct Frame {
     pub composite_time: Duration,
     /// What the incremental composite did.
     pub update: UpdateStats,
-    /// Each light's k_i in this frame (eq. 4), in light order: what the
-    /// browser stream sends every frame (issue 17).
+    /// Each buffer's weight in this frame, in light order: k_i (eq. 4) per
+    /// light; in haze, w_j(d) k_i for the knots j = 0, ½, 1 (all lights'
+    /// knot-0 buffers, then all knot-½, then all knot-1;
+    /// [`crate::render::media::knot_weights`]). What the browser stream
+    /// sends every frame (issue 17).
     pub k: Arc<Vec<Vec3>>,
-    /// Each light's published buffer and its generation, in light order
-    /// (shared, never copied: the stream sends a buffer when its generation
-    /// changes).
+    /// Each light's published buffer and its generation, in light order,
+    /// then in haze every light's knot-½ and knot-1 buffers (shared, never
+    /// copied: the stream sends a buffer when its generation changes).
     pub buffers: Arc<Vec<(u64, Arc<LightBuffer>)>>,
+    /// The haze density of this frame (0-1), `None` without haze.
+    pub haze_density: Option<f32>,
     /// The display settings the frame's sRGB pixels were encoded with.
     pub display: Display,
     /// A moving-camera preview (not a composite of the per-light buffers):
@@ -116,6 +126,41 @@ pub struct FrameClock {
 
 /// The last moving preview: its camera, every light with its k_i, its pixels.
 type LastPreview = (crate::scene::Camera, Vec<(Light, Vec3)>, Arc<Vec<u8>>);
+
+/// The eq. 5 entries of a frame: every light's buffer with k_i; in haze
+/// (`density` given) every light's buffer at each density knot with
+/// w_j(d) k_i ([`crate::render::media::live`]): a hazer change is a set of
+/// weights, no rebuild.
+pub fn frame_entries<'a>(
+    published: &'a [Published],
+    inputs: &[LightInput],
+    density: Option<f32>,
+) -> Vec<CompositeInput<'a>> {
+    let w = density.map_or([1.0, 0.0, 0.0], crate::render::media::knot_weights);
+    let surface = published.iter().zip(inputs).map(|(p, input)| CompositeInput {
+        buffer: &p.buffer,
+        generation: p.generation,
+        k: input.k * w[0],
+    });
+    let haze = density.into_iter().flat_map(|_| {
+        (0..2).flat_map(move |j| {
+            published.iter().zip(inputs).map(move |(p, input)| CompositeInput {
+                buffer: &p.hazy[j],
+                generation: p.generation,
+                k: input.k * w[j + 1],
+            })
+        })
+    });
+    surface.chain(haze).collect()
+}
+
+/// The buffers of [`frame_entries`] with their generations, shared.
+fn frame_buffers(published: &[Published], density: Option<f32>) -> Vec<(u64, Arc<LightBuffer>)> {
+    let haze = density
+        .iter()
+        .flat_map(|_| (0..2).flat_map(|j| published.iter().map(move |p| (p.generation, p.hazy[j].clone()))));
+    published.iter().map(|p| (p.generation, p.buffer.clone())).chain(haze).collect()
+}
 
 /// Relative luminance of linear sRGB (Rec. 709 weights).
 pub fn luminance(c: Vec3) -> f32 {
@@ -184,6 +229,8 @@ impl FrameClock {
     pub fn tick_at(&mut self, universes: &dyn DmxSlots, t_seconds: f64) -> Frame {
         let t0 = Instant::now();
         let mut inputs = self.decoder.decode(universes);
+        // Haze: the density is a set of weights of this frame (no rebuild).
+        let density = self.decoder.haze_density(universes).filter(|_| self.tracer.has_haze());
         for input in &mut inputs {
             input.k *= input.state.shutter_at(t_seconds);
         }
@@ -230,19 +277,16 @@ impl FrameClock {
                 update: UpdateStats::default(),
                 // The buffer stream keeps the last full view while the camera
                 // moves (its clients composite those buffers with this k).
-                k: Arc::new(inputs.iter().map(|i| i.k).collect()),
-                buffers: Arc::new(published.iter().map(|p| (p.generation, p.buffer.clone())).collect()),
+                k: Arc::new(frame_entries(&published, &inputs, density).iter().map(|l| l.k).collect()),
+                buffers: Arc::new(frame_buffers(&published, density)),
+                haze_density: density,
                 display: self.compositor.display(),
                 preview: true,
             };
             self.number += 1;
             return frame;
         }
-        let lights: Vec<CompositeInput> = published
-            .iter()
-            .zip(&inputs)
-            .map(|(p, input)| CompositeInput { buffer: &p.buffer, generation: p.generation, k: input.k })
-            .collect();
+        let lights = frame_entries(&published, &inputs, density);
         // The GPU path never waits: it submits this frame and takes the
         // newest finished readback (None: keep showing the last picture).
         let mut gpu_rgb = None;
@@ -261,7 +305,7 @@ impl FrameClock {
             if gpu_rgb.is_none() && !gpu_pending { self.compositor.update(&lights) } else { UpdateStats::default() };
         let intensity = inputs.iter().map(|input| luminance(input.k)).collect();
         let k = Arc::new(lights.iter().map(|l| l.k).collect());
-        let buffers = Arc::new(published.iter().map(|p| (p.generation, p.buffer.clone())).collect());
+        let buffers = Arc::new(frame_buffers(&published, density));
         let frame = Frame {
             number: self.number,
             width: self.compositor.width(),
@@ -272,6 +316,7 @@ impl FrameClock {
             update,
             k,
             buffers,
+            haze_density: density,
             display: self.compositor.display(),
             preview: false,
         };

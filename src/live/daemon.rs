@@ -376,7 +376,17 @@ impl Daemon {
             t.elapsed().as_secs_f64() * 1e3,
             view.shading.vertex_count()
         );
-        let tracer = Arc::new(Tracer::new(scene.clone(), Arc::new(view), decoder.len(), config.tracer));
+        // Haze (issue 15): the patch's [haze] at 100 %; the frame clock
+        // weights the density knots with the hazer channel's density.
+        let haze = show.as_ref().and_then(|s| {
+            let spec = s.patch().haze.as_ref()?;
+            let medium = crate::render::media::Medium::from_spec(spec, &scene);
+            if medium.is_none() {
+                tracing::warn!("[haze] has no box and the scene has no volume: no haze");
+            }
+            medium
+        });
+        let tracer = Arc::new(Tracer::with_haze(scene.clone(), Arc::new(view), decoder.len(), config.tracer, haze));
         let named = if named.is_empty() { super::views::named_views(&camera, &scene, None) } else { named };
         let views = Arc::new(Views::new(scene, tracer.clone(), camera, named, config.limits, config.views));
         let (choice, display) = (config.compositor, config.display);

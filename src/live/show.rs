@@ -125,4 +125,10 @@ impl Decode for Show {
     fn slots_of(&self, index: usize, universes: &dyn DmxSlots) -> Vec<u8> {
         self.fixture_slots(index, universes)
     }
+
+    fn haze_density(&self, universes: &dyn DmxSlots) -> Option<f32> {
+        let spec = self.patch.haze.as_ref()?;
+        let slots = spec.dmx.and_then(|(u, _)| universes.slots(u).or_else(|| self.patch.look_universes.get(u)));
+        Some(slots.map_or(spec.density, |sl| spec.density_from_slots(sl)))
+    }
 }

@@ -33,6 +33,19 @@
 //! never queues behind them; the frame clock only reads published buffers
 //! (an `Arc` swap under a short lock).
 //!
+//! # Haze (issue 15)
+//! With a medium ([`Tracer::with_haze`]) each light keeps its beam
+//! ([`LightBuild::haze_beam`]): a coarse beam ([`HazeQuality::COARSE`]) in
+//! the same job as each direct stage, so a moved beam shows with its first
+//! picture, and a refined beam ([`HazeQuality::REFINED`]) with the Whitted
+//! stage of a settled light. Every publish resolves the surface buffer with
+//! the kept beam at the density knots ½ and 1
+//! ([`crate::render::media::live`], [`Published::hazy`]), published
+//! together with the surface buffer (the knot 0). A hazer change is a
+//! weight in the frame clock: no light is rebuilt ([`Tracer::builds`] and
+//! [`Tracer::haze_stages`] count the work). In haze the geometry cache and
+//! the view cache are not used (their buffers carry no beam).
+//!
 //! # View changes (issue 16)
 //! [`Tracer::set_view`] swaps the camera-dependent [`View`]: every build in
 //! progress is cancelled (its request id is superseded), the geometry cache
@@ -51,8 +64,10 @@
 
 use super::cache::GeometryCache;
 use crate::Light;
+use crate::render::buffer::HazeBuffer;
 use crate::render::build::{BuildError, BuildSettings, Cancel, LightBuild, Refinement};
 use crate::render::footprint::DirectQuality;
+use crate::render::media::{HazeQuality, HazeView, Medium, knot_buffers};
 use crate::render::photon::PhotonMaps;
 use crate::render::{LightBuffer, View};
 use crate::scene::Scene;
@@ -122,6 +137,10 @@ pub struct Published {
     pub generation: u64,
     /// How far the build got.
     pub stage: Stage,
+    /// In haze: the light's buffer at the density knots ½ and 1
+    /// ([`crate::render::media::knot_buffers`]; `buffer` is the knot 0),
+    /// published with `buffer` and under its `generation`. Empty without haze.
+    pub hazy: [Arc<LightBuffer>; 2],
 }
 
 /// What a light showed in a view: kept by the view cache
@@ -188,6 +207,8 @@ struct SlotState {
     maps: Option<(Light, Arc<PhotonMaps>)>,
     /// Share of the picture the light changes, in [1, 2].
     weight: f32,
+    /// In haze: the light's latest beam and the request it was built for.
+    beam: Option<(u64, Arc<HazeBuffer>)>,
     /// Direct-stage publish times in the last second.
     direct_times: VecDeque<Instant>,
     direct_total: u64,
@@ -224,6 +245,14 @@ struct Shared {
     /// one's address); given back when [`Tracer::set_view`] returns to it.
     kept_caches: Mutex<Vec<(std::sync::Weak<View>, GeometryCache)>>,
     pool: rayon::ThreadPool,
+    /// The haze at 100 % density, if the patch has one.
+    haze: Option<Medium>,
+    /// The haze geometry of the current view (rebuilt when the view changes).
+    haze_view: Mutex<Option<(Arc<View>, Arc<HazeView>)>>,
+    /// Light builds started (direct stages run).
+    builds: AtomicU64,
+    /// Haze stages run (coarse and refined beams).
+    haze_stages: AtomicU64,
 }
 
 /// Background builder of per-light buffers.
@@ -282,12 +311,28 @@ pub fn schedule(slots: &[SlotView], now: Instant) -> Option<Job> {
 impl Tracer {
     /// Starts the worker for `lights` lights over `view`.
     pub fn new(scene: Arc<Scene>, view: Arc<View>, lights: usize, settings: TracerSettings) -> Self {
+        Self::with_haze(scene, view, lights, settings, None)
+    }
+
+    /// As [`Tracer::new`], in `haze` (at 100 % density; `None`: clear air).
+    pub fn with_haze(
+        scene: Arc<Scene>,
+        view: Arc<View>,
+        lights: usize,
+        settings: TracerSettings,
+        haze: Option<Medium>,
+    ) -> Self {
         let empty = Arc::new(LightBuffer::empty(view.width(), view.height()));
         let slots = (0..lights)
             .map(|_| Slot {
                 latest: Arc::new(AtomicU64::new(0)),
                 state: Mutex::new(SlotState { weight: 1.0, ..SlotState::default() }),
-                published: Mutex::new(Published { buffer: empty.clone(), generation: 0, stage: Stage::Queued }),
+                published: Mutex::new(Published {
+                    buffer: empty.clone(),
+                    generation: 0,
+                    stage: Stage::Queued,
+                    hazy: [empty.clone(), empty.clone()],
+                }),
             })
             .collect();
         let pool = rayon::ThreadPoolBuilder::new()
@@ -318,6 +363,10 @@ impl Tracer {
             cache: Mutex::new(GeometryCache::new(settings.cache_bytes)),
             kept_caches: Mutex::new(Vec::new()),
             pool,
+            haze: haze.filter(|m| !m.is_clear()),
+            haze_view: Mutex::new(None),
+            builds: AtomicU64::new(0),
+            haze_stages: AtomicU64::new(0),
         });
         let worker = {
             let shared = shared.clone();
@@ -353,6 +402,21 @@ impl Tracer {
     /// geometry: a camera move ([`Tracer::set_view`]) does not add to it.
     pub fn photon_traces(&self) -> u64 {
         self.shared.photon_traces.load(Ordering::SeqCst)
+    }
+
+    /// True when the lights are built in haze ([`Tracer::with_haze`]).
+    pub fn has_haze(&self) -> bool {
+        self.shared.haze.is_some()
+    }
+
+    /// Light builds started since start (one per direct stage run).
+    pub fn builds(&self) -> u64 {
+        self.shared.builds.load(Ordering::SeqCst)
+    }
+
+    /// Haze stages run since start (coarse and refined beams).
+    pub fn haze_stages(&self) -> u64 {
+        self.shared.haze_stages.load(Ordering::SeqCst)
     }
 
     /// Pauses (true) or resumes the worker. A stage in progress finishes;
@@ -449,12 +513,14 @@ impl Tracer {
                 p.stage = Stage::Queued;
                 continue;
             };
-            let hit = kept.get(i).and_then(Option::as_ref).filter(|k| k.light == light);
+            // Kept buffers and cached ones carry no beam: in haze every light is rebuilt.
+            let hit = kept.get(i).and_then(Option::as_ref).filter(|k| k.light == light && s.haze.is_none());
             // A finished kept buffer first (the very `Arc` the view showed),
             // else this view's geometry cache. Lock order as in `request`:
             // slot state, then the cache.
             let finished_kept = hit.filter(|k| k.stage == Stage::Ready).map(|k| k.buffer.clone());
-            let cached = finished_kept.or_else(|| s.cache.lock().expect("cache lock").get(i, &light));
+            let cached = finished_kept
+                .or_else(|| if s.haze.is_none() { s.cache.lock().expect("cache lock").get(i, &light) } else { None });
             if let Some(buffer) = cached {
                 // Finished for this very view and geometry before.
                 st.shown = Some(light);
@@ -494,6 +560,9 @@ impl Tracer {
                 }
             }
             p.generation += 1;
+            if s.haze.is_some() {
+                p.hazy = [empty.clone(), empty.clone()];
+            }
         }
         s.notify();
         (old, restored)
@@ -514,7 +583,8 @@ impl Tracer {
         st.priority = priority;
         st.current = Some(light.clone());
         st.previous_move = st.last_move.replace(now);
-        if let Some(buffer) = s.cache.lock().expect("cache lock").get(index, &light) {
+        let cached = if s.haze.is_none() { s.cache.lock().expect("cache lock").get(index, &light) } else { None };
+        if let Some(buffer) = cached {
             st.pending = None;
             st.waiting_since = None;
             st.shown = Some(light);
@@ -637,12 +707,55 @@ impl Shared {
         if slot.latest.load(Ordering::SeqCst) != id {
             return false; // superseded: a newer request owns the slot
         }
+        let beam = slot.state.lock().expect("slot lock").beam.clone().filter(|(bid, _)| *bid == id);
+        let hazy = match (&self.haze, self.haze_view()) {
+            (Some(m), Some(hv)) => {
+                Some(knot_buffers(&hv, m, light.position, &buffer, beam.as_ref().map(|b| b.1.as_ref())).map(Arc::new))
+            }
+            _ => None,
+        };
         slot.state.lock().expect("slot lock").shown = Some(light.clone());
         let mut p = slot.published.lock().expect("published lock");
+        if let Some(hazy) = hazy {
+            p.hazy = hazy;
+        }
         p.buffer = Arc::new(buffer);
         p.generation += 1;
         p.stage = stage;
         true
+    }
+
+    /// The haze geometry of the current view (made once per view), `None`
+    /// without haze.
+    fn haze_view(&self) -> Option<Arc<HazeView>> {
+        self.haze.as_ref()?;
+        let view = self.view();
+        let mut cached = self.haze_view.lock().expect("haze view lock");
+        if let Some((v, hv)) = cached.as_ref()
+            && Arc::ptr_eq(v, &view)
+        {
+            return Some(hv.clone());
+        }
+        let hv = Arc::new(HazeView::new(&self.scene, &view.gbuffer));
+        *cached = Some((view, hv.clone()));
+        Some(hv)
+    }
+
+    /// The haze stage of `build` at `quality`: keeps the light's beam for
+    /// the next publishes of request `id`. Nothing without haze.
+    fn haze_stage(&self, index: usize, id: u64, build: &LightBuild, quality: HazeQuality) {
+        let (Some(medium), Some(hv)) = (&self.haze, self.haze_view()) else { return };
+        self.haze_stages.fetch_add(1, Ordering::SeqCst);
+        let result = self.pool.install(|| build.haze_beam(&self.scene, &hv, medium, quality));
+        let beam = match result {
+            Ok(b) => b,
+            Err(e) => return report_bug(index, &e),
+        };
+        let slot = &self.slots[index];
+        let mut st = slot.state.lock().expect("slot lock");
+        if slot.latest.load(Ordering::SeqCst) == id {
+            st.beam = Some((id, Arc::new(beam)));
+        }
     }
 
     fn views(&self, now: Instant) -> Vec<SlotView> {
@@ -733,11 +846,14 @@ fn direct_stage(s: &Shared, index: usize) {
         build = build.with_maps(maps);
     }
     let view = s.view();
+    s.builds.fetch_add(1, Ordering::SeqCst);
     let result = s.pool.install(|| build.direct(&s.scene, &view, quality));
     let (buffer, stats) = match result {
         Ok(r) => r,
         Err(e) => return report_bug(index, &e),
     };
+    // The moved beam comes with the first picture of the moved light.
+    s.haze_stage(index, req.id, &build, HazeQuality::COARSE);
     if !s.publish(index, req.id, buffer, Stage::Direct, &req.light) {
         return;
     }
@@ -769,6 +885,7 @@ fn later_stage(s: &Shared, index: usize) {
                 Ok(buffer) => {
                     let cached = (stage == Stage::Ready).then(|| Arc::new(buffer.clone()));
                     let light = build.light().clone();
+                    s.haze_stage(index, id, &build, HazeQuality::REFINED);
                     if s.publish(index, id, buffer, stage, &light) {
                         match cached {
                             Some(b) => finished(s, index, id, build.light(), b, at),
@@ -915,7 +1032,10 @@ fn finished(s: &Shared, index: usize, id: u64, light: &Light, buffer: Arc<LightB
     if s.slots[index].latest.load(Ordering::SeqCst) != id {
         return; // a view change or a newer request superseded it
     }
-    s.cache.lock().expect("cache lock").insert(index, light, buffer);
+    if s.haze.is_none() {
+        // (In haze the cache is not read: its buffers carry no beam.)
+        s.cache.lock().expect("cache lock").insert(index, light, buffer);
+    }
     let elapsed = at.elapsed();
     s.slots[index].state.lock().expect("slot lock").last_build = Some(elapsed);
     tracing::debug!("light {index}: finished {:.0} ms after its last move", elapsed.as_secs_f64() * 1e3);

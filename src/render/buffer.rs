@@ -210,6 +210,11 @@ impl HazeBuffer {
         Self(LightBuffer::from_dense(width, height, dense))
     }
 
+    /// Wraps tiles of (a0, κ, 0) pixels (a tile-sparse haze stage).
+    pub fn from_light_buffer(buffer: LightBuffer) -> Self {
+        Self(buffer)
+    }
+
     /// (a0, κ) at pixel (x, y).
     pub fn get(&self, x: u32, y: u32) -> (f32, f32) {
         let v = self.0.get(x, y);

@@ -317,6 +317,24 @@ impl LightBuild {
         Ok(buffer)
     }
 
+    /// The live haze stage (issue 15): the light's beam at `quality`
+    /// ([`super::media::render_inscatter`]) in `medium` (the haze at 100 %),
+    /// kept by the tracer and resolved with every surface buffer it
+    /// publishes ([`super::media::knot_buffers`]).
+    pub fn haze_beam(
+        &self,
+        scene: &Scene,
+        view: &super::media::HazeView,
+        medium: &super::media::Medium,
+        quality: super::media::HazeQuality,
+    ) -> Result<super::buffer::HazeBuffer, BuildError> {
+        self.cancel.check()?;
+        let beam = super::media::render_inscatter(scene, view, &self.light, medium, quality);
+        self.cancel.check()?;
+        beam.as_light_buffer().check()?;
+        Ok(beam)
+    }
+
     /// The light's photon maps, after [`LightBuild::photons`].
     pub fn maps(&self) -> Option<&PhotonMaps> {
         self.maps.as_deref()

@@ -694,6 +694,7 @@ mod tests {
             buffers: Arc::new(vec![]),
             display,
             preview: false,
+            haze_density: None,
         };
         let m = encode_frame(&frame);
         assert_eq!(m.len(), 32 + 2 * 16);

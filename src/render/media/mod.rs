@@ -22,6 +22,8 @@
 //!   (equiangular, shadowed, coarse-then-refined): the stage function.
 //! * [`resolve`]: the composite-time density re-weighting and the
 //!   extinction of the surface terms.
+//! * [`live`]: the daemon's buffers per light at densities 0, ½, 1 and
+//!   their composite weights (a hazer change re-weights, never rebuilds).
 //! * [`reference`]: the single-pass haze reference and a Monte Carlo
 //!   volume path tracer (multiple scattering).
 //!
@@ -32,11 +34,13 @@
 // `!(x > 0.0)` rejects NaN along with out-of-range values: deliberate.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod live;
 pub mod medium;
 pub mod reference;
 pub mod resolve;
 pub mod single;
 
+pub use live::{KNOTS, knot_buffers, knot_weights};
 pub use medium::{Medium, MediumError};
 pub use resolve::resolve;
 pub use single::{HazeQuality, HazeView, InScatter, integrate_ray, render_inscatter};

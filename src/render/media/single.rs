@@ -40,7 +40,7 @@
 
 use super::medium::Medium;
 use crate::fixture::Light;
-use crate::render::buffer::HazeBuffer;
+use crate::render::buffer::{HazeBuffer, LightBuffer, TILE};
 use crate::render::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT};
 use crate::scene::{Camera, Scene};
 use glam::Vec3;
@@ -285,6 +285,13 @@ pub fn integrate_ray(
 /// Renders `light`'s haze buffer (a0, κ per pixel, tile-sparse) for the
 /// view `hv` at `quality`. The stage function for a moved light: call it
 /// with [`HazeQuality::COARSE`] first, then [`HazeQuality::REFINED`].
+///
+/// Cost in proportion to the beam's footprint: only the pixels inside the
+/// screen bounds of the cone's part in the haze box ([`beam_screen_bounds`])
+/// are traced (a ray there that misses the cone costs one cone test), only
+/// the tiles they cover are filled, and the result is written straight into
+/// sparse tiles (no frame-sized buffer). Pixels outside the bounds cannot
+/// see the beam, so the result is the same as tracing every pixel.
 pub fn render_inscatter(
     scene: &Scene,
     hv: &HazeView,
@@ -293,73 +300,191 @@ pub fn render_inscatter(
     quality: HazeQuality,
 ) -> HazeBuffer {
     let (w, h) = (hv.width as usize, hv.height as usize);
-    if medium.is_clear() || medium.sigma_s <= 0.0 {
+    if medium.is_clear() || medium.sigma_s <= 0.0 || w == 0 || h == 0 {
         return HazeBuffer::empty(hv.width, hv.height);
     }
+    let Some((bx0, by0, bx1, by1)) = beam_screen_bounds(hv, light, medium) else {
+        return HazeBuffer::empty(hv.width, hv.height);
+    };
     let trace =
         |i: usize| integrate_ray(scene, medium, light, hv.camera.position, hv.dirs[i], hv.t_hit[i], quality.samples);
+    let tiles: Vec<(usize, usize)> = (by0 / TILE..by1.div_ceil(TILE))
+        .flat_map(|ty| (bx0 / TILE..bx1.div_ceil(TILE)).map(move |tx| (tx, ty)))
+        .collect();
+    let in_bounds = |x: usize, y: usize| x >= bx0 && x < bx1 && y >= by0 && y < by1;
     let s = quality.scale.max(1) as usize;
     if s == 1 {
-        let mut dense = vec![Vec3::ZERO; w * h];
-        dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-            for (x, px) in row.iter_mut().enumerate() {
-                *px = trace(y * w + x).pixel();
+        let buffer = LightBuffer::from_tiles(hv.width, hv.height, &tiles, |tx, ty, tile| {
+            for r in 0..TILE.min(h - ty * TILE) {
+                for c in 0..TILE.min(w - tx * TILE) {
+                    let (x, y) = (tx * TILE + c, ty * TILE + r);
+                    if in_bounds(x, y) {
+                        tile[r * TILE + c] = trace(y * w + x).pixel();
+                    }
+                }
             }
         });
-        return HazeBuffer::from_dense(hv.width, hv.height, &dense);
+        return HazeBuffer::from_light_buffer(buffer);
     }
-    // Coarse grid: coarse pixel (cx, cy) is full pixel (rep(cx), rep(cy)).
+    // Coarse grid: coarse pixel (cx, cy) is full pixel (rep(cx), rep(cy));
+    // traced only inside the bounds (outside, the beam is not in the ray).
     let (cw, ch) = (w.div_ceil(s), h.div_ceil(s));
     let rep = |c: usize, n: usize| (c * s + s / 2).min(n - 1);
-    let mut coarse = vec![InScatter::default(); cw * ch];
-    coarse.par_chunks_mut(cw).enumerate().for_each(|(cy, row)| {
-        for (cx, px) in row.iter_mut().enumerate() {
-            *px = trace(rep(cy, h) * w + rep(cx, w));
-        }
-    });
-    let mut dense = vec![Vec3::ZERO; w * h];
-    dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        // Coarse rows around y and the bilinear weight between them.
-        let (cy0, cy1, fy) = neighbours(y, s, ch, h);
-        for (x, px) in row.iter_mut().enumerate() {
-            let (cx0, cx1, fx) = neighbours(x, s, cw, w);
-            let i = y * w + x;
-            let t_here = hv.t_hit[i];
-            let corners = [
-                (cx0, cy0, (1.0 - fx) * (1.0 - fy)),
-                (cx1, cy0, fx * (1.0 - fy)),
-                (cx0, cy1, (1.0 - fx) * fy),
-                (cx1, cy1, fx * fy),
-            ];
-            let mut sum = InScatter::default();
-            let mut wsum = 0.0;
-            let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
-            let mut depth_edge = false;
-            for (cx, cy, wb) in corners {
-                let c = coarse[cy * cw + cx];
-                let wd = depth_weight(t_here, hv.t_hit[rep(cy, h) * w + rep(cx, w)]);
-                depth_edge |= wd < 0.5;
-                lo = lo.min(c.a1);
-                hi = hi.max(c.a1);
-                let wt = wb * wd;
-                sum.a0 += wt * c.a0;
-                sum.a1 += wt * c.a1;
-                wsum += wt;
+    let (cx0, cx1) = ((bx0 / s).saturating_sub(1), (bx1 / s + 2).min(cw));
+    let (cy0, cy1) = ((by0 / s).saturating_sub(1), (by1 / s + 2).min(ch));
+    let mut coarse = vec![InScatter::default(); (cx1 - cx0) * (cy1 - cy0)];
+    coarse.par_chunks_mut(cx1 - cx0).enumerate().for_each(|(row, px)| {
+        let cy = cy0 + row;
+        for (k, p) in px.iter_mut().enumerate() {
+            let (x, y) = (rep(cx0 + k, w), rep(cy, h));
+            if in_bounds(x, y) {
+                *p = trace(y * w + x);
             }
-            // Edge: neighbours differ by over 20 % (beam or shadow edge), or
-            // a depth discontinuity the weights cannot bridge.
-            let edge = depth_edge || hi > 1.25 * lo + 1e-12;
-            *px = if quality.refine_edges && edge {
-                trace(i).pixel()
-            } else if wsum > 1e-6 {
-                InScatter { a0: sum.a0 / wsum, a1: sum.a1 / wsum }.pixel()
-            } else {
-                // No neighbour at this depth (a thin object): trace it.
-                trace(i).pixel()
-            };
         }
     });
-    HazeBuffer::from_dense(hv.width, hv.height, &dense)
+    let coarse_at = |cx: usize, cy: usize| {
+        if (cx0..cx1).contains(&cx) && (cy0..cy1).contains(&cy) {
+            coarse[(cy - cy0) * (cx1 - cx0) + cx - cx0]
+        } else {
+            InScatter::default()
+        }
+    };
+    let pixel = |x: usize, y: usize| -> Vec3 {
+        let (cy_a, cy_b, fy) = neighbours(y, s, ch, h);
+        let (cx_a, cx_b, fx) = neighbours(x, s, cw, w);
+        let i = y * w + x;
+        let t_here = hv.t_hit[i];
+        let corners = [
+            (cx_a, cy_a, (1.0 - fx) * (1.0 - fy)),
+            (cx_b, cy_a, fx * (1.0 - fy)),
+            (cx_a, cy_b, (1.0 - fx) * fy),
+            (cx_b, cy_b, fx * fy),
+        ];
+        let mut sum = InScatter::default();
+        let mut wsum = 0.0;
+        let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
+        let mut depth_edge = false;
+        for (cx, cy, wb) in corners {
+            let c = coarse_at(cx, cy);
+            let wd = depth_weight(t_here, hv.t_hit[rep(cy, h) * w + rep(cx, w)]);
+            depth_edge |= wd < 0.5;
+            lo = lo.min(c.a1);
+            hi = hi.max(c.a1);
+            let wt = wb * wd;
+            sum.a0 += wt * c.a0;
+            sum.a1 += wt * c.a1;
+            wsum += wt;
+        }
+        if hi <= 0.0 && !in_bounds(x, y) {
+            return Vec3::ZERO;
+        }
+        // Edge: neighbours differ by over 20 % (beam or shadow edge), or
+        // a depth discontinuity the weights cannot bridge.
+        let edge = depth_edge || hi > 1.25 * lo + 1e-12;
+        if quality.refine_edges && edge {
+            trace(i).pixel()
+        } else if wsum > 1e-6 {
+            InScatter { a0: sum.a0 / wsum, a1: sum.a1 / wsum }.pixel()
+        } else if in_bounds(x, y) {
+            // No neighbour at this depth (a thin object): trace it.
+            trace(i).pixel()
+        } else {
+            Vec3::ZERO
+        }
+    };
+    // Upsampled values reach up to one coarse step past the bounds.
+    let (ex0, ey0) = (bx0.saturating_sub(s) / TILE, by0.saturating_sub(s) / TILE);
+    let (ex1, ey1) = ((bx1 + s).min(w).div_ceil(TILE), (by1 + s).min(h).div_ceil(TILE));
+    let tiles: Vec<(usize, usize)> = (ey0..ey1).flat_map(|ty| (ex0..ex1).map(move |tx| (tx, ty))).collect();
+    let buffer = LightBuffer::from_tiles(hv.width, hv.height, &tiles, |tx, ty, tile| {
+        for r in 0..TILE.min(h - ty * TILE) {
+            for c in 0..TILE.min(w - tx * TILE) {
+                tile[r * TILE + c] = pixel(tx * TILE + c, ty * TILE + r);
+            }
+        }
+    });
+    HazeBuffer::from_light_buffer(buffer)
+}
+
+/// The pixel rectangle [x0, x1) × [y0, y1) outside which no centre ray of
+/// `hv` can meet `light`'s cone inside the haze box: the projection of a
+/// convex hull of the cone cut where the box ends along the beam axis (the
+/// apex plus a 16-gon circumscribing the cone's disk at the largest axial
+/// distance of a box corner). A hull reaching behind the camera is clipped
+/// at a near plane 1 mm in front of it (its points there project far out,
+/// widening the rectangle toward that side). The whole picture when the
+/// cone is 80° or wider; `None` when the hull is off screen or behind.
+pub fn beam_screen_bounds(hv: &HazeView, light: &Light, medium: &Medium) -> Option<(usize, usize, usize, usize)> {
+    let (w, h) = (hv.width as usize, hv.height as usize);
+    let full = Some((0, 0, w, h));
+    let angle = light.beam.cos_cutoff().clamp(-1.0, 1.0).acos() + CONE_MARGIN;
+    if !(angle < 80f32.to_radians()) {
+        return full;
+    }
+    let (apex, axis) = (light.position, light.axis());
+    let corners = (0..8).map(|k| {
+        Vec3::new(
+            if k & 1 == 0 { medium.min.x } else { medium.max.x },
+            if k & 2 == 0 { medium.min.y } else { medium.max.y },
+            if k & 4 == 0 { medium.min.z } else { medium.max.z },
+        )
+    });
+    let reach = corners.map(|c| (c - apex).dot(axis)).fold(0.0f32, f32::max);
+    if !reach.is_finite() || !apex.is_finite() || !axis.is_finite() {
+        return full;
+    }
+    if reach <= 0.0 {
+        return None; // the box is wholly behind the lamp
+    }
+    const SIDES: usize = 16;
+    let radius = reach * angle.tan() / (std::f32::consts::PI / SIDES as f32).cos();
+    let (u, v) = axis.any_orthonormal_pair();
+    let centre = apex + axis * reach;
+    let cam = hv.camera;
+    let aspect = w as f32 / h.max(1) as f32;
+    let tan_half = (cam.yfov * 0.5).tan();
+    const NEAR: f32 = 1e-3;
+    let hull: Vec<Vec3> = (0..=SIDES)
+        .map(|k| {
+            if k == SIDES {
+                apex
+            } else {
+                let phi = k as f32 * std::f32::consts::TAU / SIDES as f32;
+                centre + (u * phi.cos() + v * phi.sin()) * radius
+            }
+        })
+        .collect();
+    let depth = |p: Vec3| -(p - cam.position).dot(cam.basis.z_axis);
+    // The hull clipped at the near plane: its points in front, and where
+    // every segment between a point in front and one behind crosses the plane.
+    let mut front: Vec<Vec3> = hull.iter().copied().filter(|p| depth(*p) >= NEAR).collect();
+    if front.is_empty() {
+        return None;
+    }
+    for a in hull.iter().filter(|p| depth(**p) >= NEAR) {
+        for b in hull.iter().filter(|p| depth(**p) < NEAR) {
+            let (da, db) = (depth(*a), depth(*b));
+            front.push(*a + (*b - *a) * ((da - NEAR) / (da - db)));
+        }
+    }
+    let (mut lo, mut hi) = (glam::Vec2::splat(f32::INFINITY), glam::Vec2::splat(f32::NEG_INFINITY));
+    for p in front {
+        let rel = p - cam.position;
+        let z = depth(p).max(NEAR);
+        let nx = rel.dot(cam.basis.x_axis) / (z * tan_half * aspect);
+        let ny = rel.dot(cam.basis.y_axis) / (z * tan_half);
+        let px = glam::Vec2::new((nx + 1.0) * 0.5 * w as f32, (1.0 - ny) * 0.5 * h as f32);
+        if !px.is_finite() {
+            return full;
+        }
+        lo = lo.min(px);
+        hi = hi.max(px);
+    }
+    // One pixel of margin for the centre-ray offset and rounding.
+    let clamp = |v: f32, n: usize| v.clamp(0.0, n as f32) as usize;
+    let (x0, y0) = (clamp((lo.x - 1.0).floor(), w), clamp((lo.y - 1.0).floor(), h));
+    let (x1, y1) = (clamp((hi.x + 2.0).ceil(), w), clamp((hi.y + 2.0).ceil(), h));
+    (x1 > x0 && y1 > y0).then_some((x0, y0, x1, y1))
 }
 
 /// The two coarse samples around full pixel `p` (coarse scale `s`, `n`
