@@ -327,6 +327,10 @@ struct BenchArgs {
     /// Only the "walking the stage" section (issue 16), printed as Markdown.
     #[arg(long)]
     walk_only: bool,
+    /// Only the accuracy round's section (issue 13: AA cost and error, moved-light
+    /// convergence, indirect error), printed as Markdown.
+    #[arg(long)]
+    accuracy_only: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -368,6 +372,13 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         let walk = bench::walk::run(&Arc::new(scene), &patch, camera, size, seconds, photons)
             .map_err(|e| anyhow::anyhow!("walking the stage: {e}"))?;
         println!("{}", walk.markdown());
+        return Ok(());
+    }
+    if args.accuracy_only {
+        let (size, repeats) = if args.quick { ((200, 125), 1) } else { ((800, 500), 3) };
+        let report = bench::accuracy::run(&scene, &patch, camera, size, repeats)
+            .map_err(|e| anyhow::anyhow!("accuracy section: {e}"))?;
+        println!("{}", report.markdown());
         return Ok(());
     }
     let out = args.out.unwrap_or_else(bench::default_out_dir);
