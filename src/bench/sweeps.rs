@@ -294,7 +294,7 @@ pub fn aa_rules(
                 let v = View::from_gbuffer(scene, g, Sampling::Adaptive, limits);
                 let (mut dense, _) = v.render_direct(scene, light, None);
                 let f = flags(&v, &dense);
-                let n = v.reshade(scene, light, &mut dense, &f);
+                let n = v.reshade(scene, light, &mut dense, &f, AaParams::new(threshold));
                 (dense, n)
             },
         );
@@ -393,7 +393,7 @@ pub fn aa_breakdown_with_set(
         let n = if set == crate::render::SampleSet::TriangleBins {
             v.reshade_all_paths(scene, light, &mut dense, &flags)
         } else {
-            v.reshade(scene, light, &mut dense, &flags)
+            v.reshade(scene, light, &mut dense, &flags, AaParams::new(threshold))
         };
         let t4 = Instant::now();
         let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
@@ -474,7 +474,7 @@ pub fn aa_cost(
         ("before: triangle-ID bins + re-shading whole 9-sample paths", Sampling::Adaptive, SampleSet::TriangleBins, 1),
         ("after: surface bins only", Sampling::Geometry, SampleSet::Binned, 0),
         ("surface bins + re-shading whole 9-sample paths", Sampling::Adaptive, SampleSet::Binned, 1),
-        ("after: surface bins + re-shading the 9 directly seen points", Sampling::Adaptive, SampleSet::Binned, 2),
+        ("after: surface bins + re-shading directly seen points (whole paths where mirrors/glass jump)", Sampling::Adaptive, SampleSet::Binned, 2),
     ];
     let mut rows: Vec<AaCostRow> = Vec::new();
     for (name, sampling, set, reshade) in variants {
@@ -491,7 +491,7 @@ pub fn aa_cost(
                         if r == 1 {
                             v.reshade_all_paths(scene, light, &mut dense, &flags)
                         } else {
-                            v.reshade(scene, light, &mut dense, &flags)
+                            v.reshade(scene, light, &mut dense, &flags, AaParams::new(threshold))
                         }
                     }
                 };

@@ -314,7 +314,7 @@ impl View {
         let mut reshaded = 0;
         if let (Sampling::Adaptive, Some(aa)) = (self.sampling, aa) {
             let flags = self.gradient_flags(scene, &dense, aa);
-            reshaded = self.reshade(scene, light, &mut dense, &flags);
+            reshaded = self.reshade(scene, light, &mut dense, &flags, aa);
         }
         if stop() {
             return None;
@@ -324,34 +324,52 @@ impl View {
 }
 
 impl View {
-    /// Re-shades the flagged pixels of `dense` with all 9 samples where the
-    /// camera sees them directly; returns how many. The paper re-traces every
-    /// sample's whole path; here only the depth-0 vertices are re-shaded at
-    /// the 9 sample points (no ray cast: the G-buffer holds their hits) and
-    /// the base set's vertices seen through mirrors and glass keep their
-    /// values. A light's own gradient is almost always a shadow or beam edge
-    /// on a surface the camera sees; its reflections are anti-aliased by the
-    /// bins only. This makes re-shading cost 9 shadow rays per pixel instead
-    /// of 9 secondary path trees (issue 13: AA cost; error in `footlight
-    /// bench --accuracy-only` against 81 samples per pixel).
-    pub fn reshade(&self, scene: &Scene, light: &Light, dense: &mut [Vec3], flags: &[bool]) -> usize {
-        let w = self.width() as usize;
+    /// Re-shades the flagged pixels of `dense` with all 9 samples; returns
+    /// how many. The paper re-traces every sample's whole path; here a
+    /// flagged pixel re-shades only its directly seen points (depth 0, 9
+    /// shadow rays, no ray cast: the G-buffer holds the hits) and keeps its
+    /// base vertices seen through mirrors and glass, unless that part itself
+    /// has a gradient: when the pixel's mirror/glass light differs from a
+    /// flagged 4-neighbour's by more than the threshold (same relative scale
+    /// as [`View::gradient_flags`]), its whole 9-sample paths are re-shaded.
+    /// Shadow and beam edges seen directly cost 9 shadow rays per pixel, not
+    /// 9 path trees; edges seen in mirrors are still re-shaded in full
+    /// (issue 13: AA cost; error in `footlight bench --accuracy-only`
+    /// against 81 samples per pixel).
+    pub fn reshade(&self, scene: &Scene, light: &Light, dense: &mut [Vec3], flags: &[bool], aa: AaParams) -> usize {
+        let (w, h) = (self.width() as usize, self.height() as usize);
+        let Some(reference) = reference_level(dense) else { return 0 };
+        let scale = Vec3::splat(1.0 / reference);
+        // Mirror/glass part of every flagged pixel, from the base set.
+        let deep: Vec<Vec3> = (0..w * h)
+            .into_par_iter()
+            .map(|i| {
+                if !flags[i] {
+                    return Vec3::ZERO;
+                }
+                self.shading.pixel(i).iter().filter(|v| v.depth > 0).map(|v| v.weight * direct(scene, light, v)).sum()
+            })
+            .collect();
+        let shown = |v: Vec3| Vec3::from_array(srgb8(v * scale).map(f32::from));
+        let jumps = |a: usize, b: usize| flags[b] && (shown(deep[a]) - shown(deep[b])).abs().max_element() > aa.threshold;
         let primary = RecursionLimits { max_depth: 0, ..self.limits };
         dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
             let mut scratch = Vec::new();
             for (x, out) in row.iter_mut().enumerate() {
                 let i = y * w + x;
-                if flags[i] {
-                    let deep: Vec3 = self
-                        .shading
-                        .pixel(i)
-                        .iter()
-                        .filter(|v| v.depth > 0)
-                        .map(|v| v.weight * direct(scene, light, v))
-                        .sum();
+                if !flags[i] {
+                    continue;
+                }
+                let whole = (x + 1 < w && jumps(i, i + 1))
+                    || (x > 0 && jumps(i, i - 1))
+                    || (y + 1 < h && jumps(i, i + w))
+                    || (y > 0 && jumps(i, i - w));
+                if whole {
+                    *out = shade(scene, light, self.nine_samples(scene, i, &mut scratch));
+                } else {
                     scratch.clear();
                     expand_pixel(scene, &self.gbuffer, i, SampleSet::All, primary, &mut scratch);
-                    *out = deep + shade(scene, light, &scratch);
+                    *out = deep[i] + shade(scene, light, &scratch);
                 }
             }
         });
