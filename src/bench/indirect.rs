@@ -86,6 +86,49 @@ pub fn lambert_box() -> (Scene, Light, Camera) {
     (b.build(), light, camera)
 }
 
+/// The Lambert box with a tessellated Lambert sphere (radius 0.8 m, 24×16
+/// facets, smooth vertex normals) resting on the floor in the spot's pool,
+/// seen from the same camera: a curved surface meeting a flat one, where
+/// boundary clipping of the gather disk has to work on facets.
+pub fn lambert_box_with_sphere() -> (Scene, Light, Camera) {
+    let (boxed, light, camera) = lambert_box();
+    let mut b = SceneBuilder::new();
+    let m = b.add_material(Material::lambert("lambert", Vec3::splat(0.6)));
+    for (i, p) in boxed.positions.iter().enumerate() {
+        b.add_triangle(*p, Some(boxed.normals[i]), m);
+    }
+    let (centre, r) = (Vec3::new(0.6, -1.2, -0.6), 0.8);
+    let (nu, nv) = (24, 16);
+    let at = |i: usize, j: usize| {
+        let (phi, theta) =
+            (i as f32 / nu as f32 * std::f32::consts::TAU, j as f32 / nv as f32 * std::f32::consts::PI);
+        Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
+    };
+    for i in 0..nu {
+        for j in 0..nv {
+            let n = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
+            let p = n.map(|n| centre + n * r);
+            b.add_triangle([p[0], p[1], p[2]], Some([n[0], n[1], n[2]]), m);
+            b.add_triangle([p[0], p[2], p[3]], Some([n[0], n[2], n[3]]), m);
+        }
+    }
+    (b.build(), light, camera)
+}
+
+/// `scene` with every material made Lambert: albedo ρ_d + ρ_s + k_R + k_T
+/// per channel (at most 0.9), no mirror, glass or Phong lobe. The path
+/// tracer reference cannot see a point light through glass or in a mirror
+/// (delta paths: caustics), so on the bundled stage both the photon maps
+/// and the reference run on this variant: same geometry, same light, every
+/// path the reference can find.
+pub fn all_lambert(mut scene: Scene) -> Scene {
+    for m in &mut scene.materials {
+        let rho = (m.diffuse + m.specular + m.k_r + m.k_t).min(Vec3::splat(0.9));
+        *m = Material::lambert(&m.name, rho);
+    }
+    scene
+}
+
 /// Measures the indirect error of `light` in `scene` from `camera` at
 /// `w`×`h` (one vertex per pixel), before and after the boundary correction,
 /// against path tracing with `reference_samples` paths per vertex (twice).
