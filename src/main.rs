@@ -331,6 +331,9 @@ struct BenchArgs {
     /// convergence, indirect error), printed as Markdown.
     #[arg(long)]
     accuracy_only: bool,
+    /// With --accuracy-only: the parts to run (aa, converge, indirect; default all).
+    #[arg(long, value_delimiter = ',', requires = "accuracy_only")]
+    accuracy_part: Vec<bench::accuracy::Part>,
 }
 
 fn main() -> std::process::ExitCode {
@@ -376,7 +379,7 @@ fn bench_command(args: BenchArgs) -> Result<()> {
     }
     if args.accuracy_only {
         let (size, repeats) = if args.quick { ((200, 125), 1) } else { ((800, 500), 3) };
-        let report = bench::accuracy::run(&scene, &resolve(&args.input.scene), &patch, camera, size, repeats)
+        let report = bench::accuracy::run(&scene, &resolve(&args.input.scene), &patch, camera, size, repeats, &args.accuracy_part)
             .map_err(|e| anyhow::anyhow!("accuracy section: {e}"))?;
         println!("{}", report.markdown());
         return Ok(());

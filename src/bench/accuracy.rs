@@ -11,17 +11,26 @@ use crate::{Light, Patch};
 use glam::Vec3;
 use serde::Serialize;
 
-/// Everything the section measured.
+/// A part of the section (`--accuracy-part`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Part {
+    /// Anti-aliasing cost and error.
+    Aa,
+    /// A moved light's time to the converged picture.
+    Converge,
+    /// The indirect term's error.
+    Indirect,
+}
+
+/// Everything the section measured (empty where a part was not run).
 #[derive(Clone, Debug, Serialize)]
 pub struct AccuracyReport {
     /// Picture size.
     pub size: (u32, u32),
     /// AA cost and error per sampling variant.
     pub aa: Vec<sweeps::AaCostRow>,
-    /// Where the adaptive cost goes, before (triangle-ID bins).
-    pub breakdown_before: sweeps::AaBreakdown,
-    /// Where the adaptive cost goes, after (surface bins).
-    pub breakdown_after: sweeps::AaBreakdown,
+    /// Where the adaptive cost goes, before and after.
+    pub breakdowns: Vec<(String, sweeps::AaBreakdown)>,
     /// A moved light's published pictures over time, with their error.
     pub converge: Vec<ConvergeRow>,
     /// Passes behind the converged reference.
@@ -118,7 +127,9 @@ pub fn run(
     camera: Camera,
     size: (u32, u32),
     repeats: usize,
+    parts: &[Part],
 ) -> std::io::Result<AccuracyReport> {
+    let wants = |p: Part| parts.is_empty() || parts.contains(&p);
     let fixture =
         patch.fixtures.first().ok_or_else(|| std::io::Error::other("the patch has no fixtures to benchmark"))?;
     let light: &Light = &fixture.light;
@@ -127,14 +138,18 @@ pub fn run(
     let limits = RecursionLimits::default();
     let threshold = crate::render::RenderSettings::default().aa_threshold;
     let gbuffer = GBuffer::build(scene, camera, size.0, size.1);
-    let aa = sweeps::aa_cost(scene, &gbuffer, light, k_full, &display, limits, threshold, repeats);
-    let bd = |set| sweeps::aa_breakdown_with_set(scene, &gbuffer, light, limits, threshold, repeats, set);
-    let breakdown_before = bd(crate::render::SampleSet::TriangleBins);
-    let breakdown_after = bd(crate::render::SampleSet::Binned);
+    let (mut aa, mut breakdowns) = (Vec::new(), Vec::new());
+    if wants(Part::Aa) {
+        aa = sweeps::aa_cost(scene, &gbuffer, light, k_full, &display, limits, threshold, repeats);
+        let bd = |set| sweeps::aa_breakdown_with_set(scene, &gbuffer, light, limits, threshold, repeats, set);
+        breakdowns.push(("before (triangle-ID bins, whole-path re-shading)".to_string(), bd(crate::render::SampleSet::TriangleBins)));
+        breakdowns.push(("after (surface bins)".to_string(), bd(crate::render::SampleSet::Binned)));
+    }
     let reference_passes = if size.0 < 400 { 16 } else { 48 };
-    let converge = converge(scene, light, k_full, camera, size, reference_passes);
-    let indirect = indirect_rows(scene_path, light, camera, size.0 < 400)?;
-    Ok(AccuracyReport { size, aa, breakdown_before, breakdown_after, converge, reference_passes, indirect })
+    let converge =
+        if wants(Part::Converge) { converge(scene, light, k_full, camera, size, reference_passes) } else { Vec::new() };
+    let indirect = if wants(Part::Indirect) { indirect_rows(scene_path, light, camera, size.0 < 400)? } else { Vec::new() };
+    Ok(AccuracyReport { size, aa, breakdowns, converge, reference_passes, indirect })
 }
 
 /// The indirect term's error at the paper's settings (CI-sized with `quick`).
@@ -171,7 +186,7 @@ impl AccuracyReport {
             self.size.0, self.size.1
         );
         s += &sweeps::aa_cost_markdown(&self.aa);
-        for (label, b) in [("before (triangle-ID bins)", &self.breakdown_before), ("after (surface bins)", &self.breakdown_after)] {
+        for (label, b) in &self.breakdowns {
             s += &format!(
                 "\nWhere the adaptive cost goes, {label} (% of 1-sample expansion + shading = {:.1} ms): expansion {:.0} %, \
                  shading {:.0} %, gradient decision {:.0} %, 9-sample re-shading {:.0} %. Vertices: {} (1 sample) vs {} \

@@ -22,7 +22,7 @@
 
 use crate::Light;
 use crate::render::photon::pathtrace::indirect_irradiance;
-use crate::render::photon::{BoundaryMode, PhotonSettings, trace_photons};
+use crate::render::photon::{BoundaryMode, Filter, PhotonSettings, trace_photons};
 use crate::render::{RecursionLimits, Sampling, View};
 use crate::scene::{Camera, Material, Scene, SceneBuilder};
 use glam::Vec3;
@@ -172,11 +172,14 @@ pub fn measure(
     let diffuse: Vec<bool> =
         vertices.iter().map(|v| scene.materials[v.material as usize].diffuse.max_element() > 0.0).collect();
     let mut rows = Vec::new();
-    for (estimator, mode) in
-        [("before: full gather disk", BoundaryMode::None), ("after: disk clipped at boundaries", BoundaryMode::Clip)]
-    {
+    for (estimator, mode, filter) in [
+        ("before: cone filter, full gather disk", BoundaryMode::None, Filter::Cone),
+        ("cone filter, disk clipped at boundaries", BoundaryMode::Clip, Filter::Cone),
+        ("after: uniform disk, full gather disk", BoundaryMode::None, Filter::Disk),
+        ("uniform disk, clipped at boundaries", BoundaryMode::Clip, Filter::Disk),
+    ] {
         let at = |seed: u64| -> Vec<f64> {
-            let maps = trace_photons(scene, light, &PhotonSettings { seed, boundary: mode, ..photons });
+            let maps = trace_photons(scene, light, &PhotonSettings { seed, boundary: mode, filter, ..photons });
             view.vertex_irradiance(scene, &maps).iter().map(|e| f64::from(e.element_sum())).collect()
         };
         let (a, b) = (at(photons.seed ^ 0xA), at(photons.seed ^ 0xB));

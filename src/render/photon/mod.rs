@@ -24,7 +24,7 @@ pub mod pathtrace;
 pub mod sppm;
 pub mod trace;
 
-pub use map::{BoundaryMode, IrradianceCache, Photon, PhotonMap};
+pub use map::{BoundaryMode, Filter, IrradianceCache, Photon, PhotonMap};
 pub use sppm::Progressive;
 pub use trace::{PhotonMaps, trace_photons, trace_photons_until};
 
@@ -50,6 +50,10 @@ pub struct PhotonSettings {
     /// Gather disks at edges and corners (`Clip` measured in `footlight
     /// bench`; `None` by default, see [`BoundaryMode`]).
     pub boundary: BoundaryMode,
+    /// Kernel of the global map's estimates (the caustic map keeps the
+    /// sharper cone). [`Filter::Disk`]: 2/3 of the cone's variance at the
+    /// same k (issue 13, measured in `footlight bench --accuracy-only`).
+    pub filter: Filter,
 }
 
 impl Default for PhotonSettings {
@@ -63,6 +67,7 @@ impl Default for PhotonSettings {
             irradiance_stride: 4,
             seed: 0x00F0_07B1_6B75,
             boundary: BoundaryMode::None,
+            filter: Filter::Disk,
         }
     }
 }
