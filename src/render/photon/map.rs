@@ -682,6 +682,7 @@ mod tests {
             normal: Vec3::NEG_X,
         }));
         let clipped = PhotonMap::new(v.clone()).with_boundary(BoundaryMode::Clip);
+        let clipped_disk = PhotonMap::new(v.clone()).with_boundary(BoundaryMode::Clip).with_filter(Filter::Disk);
         let plain = PhotonMap::new(v);
         let mean = |m: &PhotonMap, x: f32| {
             (0..40)
@@ -695,9 +696,65 @@ mod tests {
             let (c, p) = (mean(&clipped, x), mean(&plain, x));
             eprintln!("x {x}: clipped {c}, full disk {p}");
             assert!((c - 1.0).abs() < 0.05, "clipped estimate {c} at x = {x}");
+            let cd = mean(&clipped_disk, x);
+            assert!((cd - 1.0).abs() < 0.05, "clipped uniform-disk estimate {cd} at x = {x}");
             assert!(p < low, "the full-disk estimate should read low at the wall: {p} at x = {x}");
         }
         // Away from the wall both agree.
         assert!((mean(&clipped, 0.5) - mean(&plain, 0.5)).abs() < 1e-6);
+    }
+
+    #[test]
+    fn disk_share_beyond_a_cut_matches_counting() {
+        // Share of a 4000² grid over the unit square inside the unit disk
+        // with x > δ, against the circular-segment closed form.
+        let m = 4000;
+        for d in [0.0f32, 0.3, 0.6, 0.9] {
+            let (mut inside, mut beyond) = (0u64, 0u64);
+            for i in 0..m {
+                for j in 0..m {
+                    let x = -1.0 + 2.0 * (i as f64 + 0.5) / m as f64;
+                    let y = -1.0 + 2.0 * (j as f64 + 0.5) / m as f64;
+                    if x * x + y * y <= 1.0 {
+                        inside += 1;
+                        beyond += u64::from(x > f64::from(d));
+                    }
+                }
+            }
+            let want = beyond as f64 / inside as f64;
+            assert!((f64::from(disk_share_beyond(d)) - want).abs() < 1e-3, "cut {d}: {} vs {want}", disk_share_beyond(d));
+        }
+        assert_eq!(disk_share_beyond(1.0), 0.0);
+        assert!((disk_share_beyond(0.0) - 0.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn disk_filter_is_unbiased_with_two_thirds_of_the_cone_variance() {
+        // Issue 13 (indirect error): on a uniform random field both kernels
+        // are unbiased; the uniform disk's relative variance is 1/k, the
+        // cone's 1.5/k (E[w²]/E[w]² = (1/6)/(1/9) over the unit disk).
+        let k = 150;
+        let (mut cone, mut disk) = (Vec::new(), Vec::new());
+        for seed in 0..6 {
+            let m = random_field(100_000, 1e-5, 100 + seed);
+            let d = PhotonMap::new(m.photons.clone()).with_filter(Filter::Disk);
+            for i in 0..60 {
+                // Points far apart (gather radius ≈ 0.022): independent estimates.
+                let x = Vec3::new(0.1 + 0.8 * ((i % 10) as f32 + 0.5) / 10.0, 0.1 + 0.8 * ((i / 10) as f32 + 0.5) / 6.0, 0.0);
+                cone.push(f64::from(m.estimate(x, Vec3::Z, k, 1.0).irradiance.x));
+                disk.push(f64::from(d.estimate(x, Vec3::Z, k, 1.0).irradiance.x));
+            }
+        }
+        let stats = |v: &[f64]| {
+            let mean = v.iter().sum::<f64>() / v.len() as f64;
+            (mean, v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (v.len() - 1) as f64 / (mean * mean))
+        };
+        let ((mc, vc), (md, vd)) = (stats(&cone), stats(&disk));
+        eprintln!("cone: mean {mc}, rel. variance {vc} (1.5/k = {}); disk: mean {md}, rel. variance {vd} (1/k = {})", 1.5 / k as f64, 1.0 / k as f64);
+        // Exact irradiance 1 (unit total power on the unit square); 360 samples.
+        assert!((md - 1.0).abs() < 0.01 && (mc - 1.0).abs() < 0.01, "means {md}, {mc}");
+        assert!((vd * k as f64 - 1.0).abs() < 0.3, "disk relative variance {vd}");
+        assert!((vc * k as f64 - 1.5).abs() < 0.45, "cone relative variance {vc}");
+        assert!(vd < 0.85 * vc, "disk {vd} vs cone {vc}");
     }
 }
