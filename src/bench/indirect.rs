@@ -177,6 +177,8 @@ pub fn measure(
         ("cone filter, disk clipped at boundaries", BoundaryMode::Clip, Filter::Cone),
         ("after: uniform disk, full gather disk", BoundaryMode::None, Filter::Disk),
         ("uniform disk, clipped at boundaries", BoundaryMode::Clip, Filter::Disk),
+        ("cone filter, measured cuts", BoundaryMode::Measured, Filter::Cone),
+        ("uniform disk, measured cuts", BoundaryMode::Measured, Filter::Disk),
     ] {
         let at = |seed: u64| -> Vec<f64> {
             let maps = trace_photons(scene, light, &PhotonSettings { seed, boundary: mode, filter, ..photons });
