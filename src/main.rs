@@ -379,8 +379,16 @@ fn bench_command(args: BenchArgs) -> Result<()> {
     }
     if args.accuracy_only {
         let (size, repeats) = if args.quick { ((200, 125), 1) } else { ((800, 500), 3) };
-        let report = bench::accuracy::run(&scene, &resolve(&args.input.scene), &patch, camera, size, repeats, &args.accuracy_part)
-            .map_err(|e| anyhow::anyhow!("accuracy section: {e}"))?;
+        let report = bench::accuracy::run(
+            &scene,
+            &resolve(&args.input.scene),
+            &patch,
+            camera,
+            size,
+            repeats,
+            &args.accuracy_part,
+        )
+        .map_err(|e| anyhow::anyhow!("accuracy section: {e}"))?;
         println!("{}", report.markdown());
         return Ok(());
     }

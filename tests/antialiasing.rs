@@ -102,7 +102,10 @@ fn surface_bins_merge_tessellation_edges_but_keep_geometry_edges() {
         if tris.len() == 2 && tris.iter().all(|t| floor_tris.contains(t)) {
             diagonal += 1;
             assert_eq!(surf.as_slice().len(), 1, "floor diagonal pixel kept {} bins", surf.as_slice().len());
-        } else if tris.len() >= 2 && tris.iter().any(|t| floor_tris.contains(t)) && tris.iter().any(|t| *t >= 2 && *t != NO_HIT) {
+        } else if tris.len() >= 2
+            && tris.iter().any(|t| floor_tris.contains(t))
+            && tris.iter().any(|t| *t >= 2 && *t != NO_HIT)
+        {
             outline += 1;
             assert!(surf.as_slice().len() >= 2, "block outline pixel merged into one bin");
         }

@@ -73,8 +73,12 @@ pub fn converge(
     let view = View::build(scene, camera, size.0, size.1, Sampling::Adaptive, RecursionLimits::default());
     let settings = BuildSettings { refine_passes: 16, ..BuildSettings::default() };
     let reference = {
-        let mut b =
-            LightBuild::new(light.clone(), 7, BuildSettings { refine_passes: reference_passes, ..settings }, Cancel::never());
+        let mut b = LightBuild::new(
+            light.clone(),
+            7,
+            BuildSettings { refine_passes: reference_passes, ..settings },
+            Cancel::never(),
+        );
         let mut last = b.photons(scene, &view).ok().map(|x| x.to_dense());
         if let Some(mut r) = b.into_refinement(scene, &view) {
             while !r.finished() {
@@ -112,7 +116,11 @@ pub fn converge(
             let t = ms();
             let done = r.done();
             if done.is_power_of_two() {
-                rows.push(ConvergeRow { stage: format!("SPPM pass {done} (blended)"), ms: t, mse: err(buf.to_dense()) });
+                rows.push(ConvergeRow {
+                    stage: format!("SPPM pass {done} (blended)"),
+                    ms: t,
+                    mse: err(buf.to_dense()),
+                });
             }
         }
     }
@@ -142,13 +150,17 @@ pub fn run(
     if wants(Part::Aa) {
         aa = sweeps::aa_cost(scene, &gbuffer, light, k_full, &display, limits, threshold, repeats);
         let bd = |set| sweeps::aa_breakdown_with_set(scene, &gbuffer, light, limits, threshold, repeats, set);
-        breakdowns.push(("before (triangle-ID bins, whole-path re-shading)".to_string(), bd(crate::render::SampleSet::TriangleBins)));
+        breakdowns.push((
+            "before (triangle-ID bins, whole-path re-shading)".to_string(),
+            bd(crate::render::SampleSet::TriangleBins),
+        ));
         breakdowns.push(("after (surface bins)".to_string(), bd(crate::render::SampleSet::Binned)));
     }
     let reference_passes = if size.0 < 400 { 16 } else { 48 };
     let converge =
         if wants(Part::Converge) { converge(scene, light, k_full, camera, size, reference_passes) } else { Vec::new() };
-    let indirect = if wants(Part::Indirect) { indirect_rows(scene_path, light, camera, size.0 < 400)? } else { Vec::new() };
+    let indirect =
+        if wants(Part::Indirect) { indirect_rows(scene_path, light, camera, size.0 < 400)? } else { Vec::new() };
     Ok(AccuracyReport { size, aa, breakdowns, converge, reference_passes, indirect })
 }
 
@@ -171,7 +183,8 @@ fn indirect_rows(
     rows.extend(measure("Lambert box", &s, &l, c, size, photons, samples));
     let (s, l, c) = lambert_box_with_sphere();
     rows.extend(measure("Lambert box + tessellated sphere", &s, &l, c, size, photons, samples));
-    let stage = crate::scene::load(scene_path).map_err(|e| std::io::Error::other(format!("{}: {e}", scene_path.display())))?;
+    let stage =
+        crate::scene::load(scene_path).map_err(|e| std::io::Error::other(format!("{}: {e}", scene_path.display())))?;
     rows.extend(measure("bundled stage, all Lambert", &all_lambert(stage), light, camera, size, photons, samples));
     Ok(rows)
 }

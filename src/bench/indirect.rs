@@ -100,8 +100,7 @@ pub fn lambert_box_with_sphere() -> (Scene, Light, Camera) {
     let (centre, r) = (Vec3::new(0.6, -1.2, -0.6), 0.8);
     let (nu, nv) = (24, 16);
     let at = |i: usize, j: usize| {
-        let (phi, theta) =
-            (i as f32 / nu as f32 * std::f32::consts::TAU, j as f32 / nv as f32 * std::f32::consts::PI);
+        let (phi, theta) = (i as f32 / nu as f32 * std::f32::consts::TAU, j as f32 / nv as f32 * std::f32::consts::PI);
         Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
     };
     for i in 0..nu {

@@ -474,7 +474,12 @@ pub fn aa_cost(
         ("before: triangle-ID bins + re-shading whole 9-sample paths", Sampling::Adaptive, SampleSet::TriangleBins, 1),
         ("after: surface bins only", Sampling::Geometry, SampleSet::Binned, 0),
         ("surface bins + re-shading whole 9-sample paths", Sampling::Adaptive, SampleSet::Binned, 1),
-        ("after: surface bins + re-shading directly seen points (whole paths where mirrors/glass jump)", Sampling::Adaptive, SampleSet::Binned, 2),
+        (
+            "after: surface bins + re-shading directly seen points (whole paths where mirrors/glass jump)",
+            Sampling::Adaptive,
+            SampleSet::Binned,
+            2,
+        ),
     ];
     let mut rows: Vec<AaCostRow> = Vec::new();
     for (name, sampling, set, reshade) in variants {

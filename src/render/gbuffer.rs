@@ -126,7 +126,8 @@ pub fn surface_bins(scene: &Scene, samples: &[PrimarySample; SAMPLES_PER_PIXEL])
         .as_slice()
         .iter()
         .map(|b| {
-            (b.triangle != NO_HIT).then(|| scene.surface(&crate::scene::Hit { triangle: b.triangle, t: 0.0, u: b.u, v: b.v }))
+            (b.triangle != NO_HIT)
+                .then(|| scene.surface(&crate::scene::Hit { triangle: b.triangle, t: 0.0, u: b.u, v: b.v }))
         })
         .collect();
     let same = |a: usize, b: usize| match (&surf[a], &surf[b]) {

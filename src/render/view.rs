@@ -22,7 +22,7 @@
 use super::buffer::LightBuffer;
 use super::display::srgb8;
 use super::gbuffer::PrimarySample;
-use super::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT, SAMPLES_PER_PIXEL, SAME_SURFACE_COS, bin_samples, surface_bins};
+use super::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT, SAME_SURFACE_COS, SAMPLES_PER_PIXEL, bin_samples, surface_bins};
 use super::photon::{PhotonMaps, Progressive};
 use super::whitted::{RecursionLimits, ShadingVertex, direct, expand};
 use crate::fixture::Light;
@@ -93,7 +93,6 @@ impl AaParams {
 /// shown as 255 for the anti-aliasing decision): the 99th percentile, so a
 /// few hot pixels next to the lamp do not darken the rest.
 pub const AA_REFERENCE_PERCENTILE: f32 = 0.99;
-
 
 /// Expanded camera paths of every pixel for one sample set, stored as a
 /// compressed row list (pixel i owns vertices[start[i]..start[i+1]]).
@@ -351,7 +350,8 @@ impl View {
             })
             .collect();
         let shown = |v: Vec3| Vec3::from_array(srgb8(v * scale).map(f32::from));
-        let jumps = |a: usize, b: usize| flags[b] && (shown(deep[a]) - shown(deep[b])).abs().max_element() > aa.threshold;
+        let jumps =
+            |a: usize, b: usize| flags[b] && (shown(deep[a]) - shown(deep[b])).abs().max_element() > aa.threshold;
         let primary = RecursionLimits { max_depth: 0, ..self.limits };
         dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
             let mut scratch = Vec::new();

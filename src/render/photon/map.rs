@@ -199,11 +199,7 @@ fn cut_from_centroid(offset: f32) -> f32 {
     let (mut lo, mut hi) = (0.0f32, 1.0f32);
     for _ in 0..20 {
         let mid = 0.5 * (lo + hi);
-        if kept_centroid(mid) > offset {
-            lo = mid
-        } else {
-            hi = mid
-        }
+        if kept_centroid(mid) > offset { lo = mid } else { hi = mid }
     }
     0.5 * (lo + hi)
 }
@@ -775,7 +771,11 @@ mod tests {
                 }
             }
             let want = beyond as f64 / inside as f64;
-            assert!((f64::from(disk_share_beyond(d)) - want).abs() < 1e-3, "cut {d}: {} vs {want}", disk_share_beyond(d));
+            assert!(
+                (f64::from(disk_share_beyond(d)) - want).abs() < 1e-3,
+                "cut {d}: {} vs {want}",
+                disk_share_beyond(d)
+            );
         }
         assert_eq!(disk_share_beyond(1.0), 0.0);
         assert!((disk_share_beyond(0.0) - 0.5).abs() < 1e-6);
@@ -793,7 +793,11 @@ mod tests {
             let d = PhotonMap::new(m.photons.clone()).with_filter(Filter::Disk);
             for i in 0..60 {
                 // Points far apart (gather radius ≈ 0.022): independent estimates.
-                let x = Vec3::new(0.1 + 0.8 * ((i % 10) as f32 + 0.5) / 10.0, 0.1 + 0.8 * ((i / 10) as f32 + 0.5) / 6.0, 0.0);
+                let x = Vec3::new(
+                    0.1 + 0.8 * ((i % 10) as f32 + 0.5) / 10.0,
+                    0.1 + 0.8 * ((i / 10) as f32 + 0.5) / 6.0,
+                    0.0,
+                );
                 cone.push(f64::from(m.estimate(x, Vec3::Z, k, 1.0).irradiance.x));
                 disk.push(f64::from(d.estimate(x, Vec3::Z, k, 1.0).irradiance.x));
             }
@@ -803,7 +807,11 @@ mod tests {
             (mean, v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (v.len() - 1) as f64 / (mean * mean))
         };
         let ((mc, vc), (md, vd)) = (stats(&cone), stats(&disk));
-        eprintln!("cone: mean {mc}, rel. variance {vc} (1.5/k = {}); disk: mean {md}, rel. variance {vd} (1/k = {})", 1.5 / k as f64, 1.0 / k as f64);
+        eprintln!(
+            "cone: mean {mc}, rel. variance {vc} (1.5/k = {}); disk: mean {md}, rel. variance {vd} (1/k = {})",
+            1.5 / k as f64,
+            1.0 / k as f64
+        );
         // Exact irradiance 1 (unit total power on the unit square); 360 samples.
         assert!((md - 1.0).abs() < 0.01 && (mc - 1.0).abs() < 0.01, "means {md}, {mc}");
         assert!((vd * k as f64 - 1.0).abs() < 0.3, "disk relative variance {vd}");
@@ -862,7 +870,10 @@ mod tests {
         }));
         let est = |mode| {
             let m = PhotonMap::new(v.clone()).with_boundary(mode).with_filter(Filter::Disk);
-            (0..20).map(|j| m.estimate(Vec3::new(0.4999 - 0.00002 * j as f32, 0.5, 0.0), Vec3::Z, 150, 1.0).irradiance.x).sum::<f32>() / 20.0
+            (0..20)
+                .map(|j| m.estimate(Vec3::new(0.4999 - 0.00002 * j as f32, 0.5, 0.0), Vec3::Z, 150, 1.0).irradiance.x)
+                .sum::<f32>()
+                / 20.0
         };
         let (clip, measured) = (est(BoundaryMode::Clip), est(BoundaryMode::Measured));
         eprintln!("next to a post: clip {clip}, measured {measured} (exact 1)");
