@@ -115,10 +115,9 @@ fn surface_bins_merge_tessellation_edges_but_keep_geometry_edges() {
 
 #[test]
 fn reshaded_pixels_equal_nine_samples_in_a_lambert_scene() {
-    // Re-shading only the directly seen points is exact where there is no
-    // mirror or glass: every re-shaded pixel equals the independent eq. 1
-    // renderer with all 9 samples (`render::reference`), and the others
-    // equal it with the surface bins.
+    // Every re-shaded pixel equals the independent eq. 1 renderer with all
+    // 9 samples (`render::reference`), and every other pixel equals it with
+    // the surface bins (the merged bins are the same in both).
     use footlight::render::RecursionLimits;
     use footlight::render::reference::render_eq1;
     use footlight::render::view::SampleSet;

@@ -294,7 +294,7 @@ pub fn aa_rules(
                 let v = View::from_gbuffer(scene, g, Sampling::Adaptive, limits);
                 let (mut dense, _) = v.render_direct(scene, light, None);
                 let f = flags(&v, &dense);
-                let n = v.reshade(scene, light, &mut dense, &f, AaParams::new(threshold));
+                let n = v.reshade(scene, light, &mut dense, &f);
                 (dense, n)
             },
         );
@@ -358,8 +358,7 @@ pub fn aa_breakdown(
 }
 
 /// As [`aa_breakdown`] with the base sample set given (the bench's "before"
-/// uses [`crate::render::SampleSet::TriangleBins`] and re-shades whole
-/// 9-sample paths, [`View::reshade_all_paths`]).
+/// uses [`crate::render::SampleSet::TriangleBins`]).
 pub fn aa_breakdown_with_set(
     scene: &Scene,
     gbuffer: &GBuffer,
@@ -390,11 +389,7 @@ pub fn aa_breakdown_with_set(
         let t2 = Instant::now();
         let flags = v.gradient_flags(scene, &dense, AaParams::new(threshold));
         let t3 = Instant::now();
-        let n = if set == crate::render::SampleSet::TriangleBins {
-            v.reshade_all_paths(scene, light, &mut dense, &flags)
-        } else {
-            v.reshade(scene, light, &mut dense, &flags, AaParams::new(threshold))
-        };
+        let n = v.reshade(scene, light, &mut dense, &flags);
         let t4 = Instant::now();
         let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
         let multi = (0..w * h).filter(|&i| v.shading.bins_of(scene, &v.gbuffer, i) > 1).count();
@@ -466,41 +461,22 @@ pub fn aa_cost(
     use crate::render::SampleSet;
     let (w, h) = (gbuffer.width as usize, gbuffer.height as usize);
     let reference = shown(&reference_81(scene, gbuffer, light, limits), k_full);
-    // (name, sampling, base set, re-shading: 0 none, 1 whole paths (before), 2 depth 0 (after))
-    let variants: [(&str, Sampling, SampleSet, u8); 7] = [
-        ("1 sample", Sampling::One, SampleSet::Centre, 0),
-        ("9 samples everywhere", Sampling::Nine, SampleSet::All, 0),
-        ("before: triangle-ID bins only", Sampling::Geometry, SampleSet::TriangleBins, 0),
-        ("before: triangle-ID bins + re-shading whole 9-sample paths", Sampling::Adaptive, SampleSet::TriangleBins, 1),
-        ("after: surface bins only", Sampling::Geometry, SampleSet::Binned, 0),
-        ("surface bins + re-shading whole 9-sample paths", Sampling::Adaptive, SampleSet::Binned, 1),
-        (
-            "after: surface bins + re-shading directly seen points (whole paths where mirrors/glass jump)",
-            Sampling::Adaptive,
-            SampleSet::Binned,
-            2,
-        ),
+    let variants: [(&str, Sampling, SampleSet, bool); 6] = [
+        ("1 sample", Sampling::One, SampleSet::Centre, false),
+        ("9 samples everywhere", Sampling::Nine, SampleSet::All, false),
+        ("before: triangle-ID bins only", Sampling::Geometry, SampleSet::TriangleBins, false),
+        ("before: triangle-ID bins + 9-sample re-shading", Sampling::Adaptive, SampleSet::TriangleBins, true),
+        ("after: surface bins only", Sampling::Geometry, SampleSet::Binned, false),
+        ("after: surface bins + 9-sample re-shading", Sampling::Adaptive, SampleSet::Binned, true),
     ];
     let mut rows: Vec<AaCostRow> = Vec::new();
-    for (name, sampling, set, reshade) in variants {
+    for (name, sampling, set, adaptive) in variants {
         let (ms, (dense, n)) = super::time_ms_with(
             repeats,
             || gbuffer.clone(),
             |g| {
                 let v = View::from_gbuffer_with_set(scene, g, sampling, set, limits);
-                let (mut dense, _) = v.render_direct(scene, light, None);
-                let n = match reshade {
-                    0 => 0,
-                    r => {
-                        let flags = v.gradient_flags(scene, &dense, AaParams::new(threshold));
-                        if r == 1 {
-                            v.reshade_all_paths(scene, light, &mut dense, &flags)
-                        } else {
-                            v.reshade(scene, light, &mut dense, &flags, AaParams::new(threshold))
-                        }
-                    }
-                };
-                (dense, n)
+                v.render_direct(scene, light, adaptive.then(|| AaParams::new(threshold)))
             },
         );
         let one_ms = rows.first().map_or(ms, |r| r.ms);

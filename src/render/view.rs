@@ -313,7 +313,7 @@ impl View {
         let mut reshaded = 0;
         if let (Sampling::Adaptive, Some(aa)) = (self.sampling, aa) {
             let flags = self.gradient_flags(scene, &dense, aa);
-            reshaded = self.reshade(scene, light, &mut dense, &flags, aa);
+            reshaded = self.reshade(scene, light, &mut dense, &flags);
         }
         if stop() {
             return None;
@@ -323,63 +323,12 @@ impl View {
 }
 
 impl View {
-    /// Re-shades the flagged pixels of `dense` with all 9 samples; returns
-    /// how many. The paper re-traces every sample's whole path; here a
-    /// flagged pixel re-shades only its directly seen points (depth 0, 9
-    /// shadow rays, no ray cast: the G-buffer holds the hits) and keeps its
-    /// base vertices seen through mirrors and glass, unless that part itself
-    /// has a gradient: when the pixel's mirror/glass light differs from a
-    /// flagged 4-neighbour's by more than the threshold (same relative scale
-    /// as [`View::gradient_flags`]), its whole 9-sample paths are re-shaded.
-    /// Shadow and beam edges seen directly cost 9 shadow rays per pixel, not
-    /// 9 path trees; edges seen in mirrors are still re-shaded in full
-    /// (issue 13: AA cost; error in `footlight bench --accuracy-only`
-    /// against 81 samples per pixel).
-    pub fn reshade(&self, scene: &Scene, light: &Light, dense: &mut [Vec3], flags: &[bool], aa: AaParams) -> usize {
-        let (w, h) = (self.width() as usize, self.height() as usize);
-        let Some(reference) = reference_level(dense) else { return 0 };
-        let scale = Vec3::splat(1.0 / reference);
-        // Mirror/glass part of every flagged pixel, from the base set.
-        let deep: Vec<Vec3> = (0..w * h)
-            .into_par_iter()
-            .map(|i| {
-                if !flags[i] {
-                    return Vec3::ZERO;
-                }
-                self.shading.pixel(i).iter().filter(|v| v.depth > 0).map(|v| v.weight * direct(scene, light, v)).sum()
-            })
-            .collect();
-        let shown = |v: Vec3| Vec3::from_array(srgb8(v * scale).map(f32::from));
-        let jumps =
-            |a: usize, b: usize| flags[b] && (shown(deep[a]) - shown(deep[b])).abs().max_element() > aa.threshold;
-        let primary = RecursionLimits { max_depth: 0, ..self.limits };
-        dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-            let mut scratch = Vec::new();
-            for (x, out) in row.iter_mut().enumerate() {
-                let i = y * w + x;
-                if !flags[i] {
-                    continue;
-                }
-                let whole = (x + 1 < w && jumps(i, i + 1))
-                    || (x > 0 && jumps(i, i - 1))
-                    || (y + 1 < h && jumps(i, i + w))
-                    || (y > 0 && jumps(i, i - w));
-                if whole {
-                    *out = shade(scene, light, self.nine_samples(scene, i, &mut scratch));
-                } else {
-                    scratch.clear();
-                    expand_pixel(scene, &self.gbuffer, i, SampleSet::All, primary, &mut scratch);
-                    *out = deep[i] + shade(scene, light, &scratch);
-                }
-            }
-        });
-        flags.iter().filter(|&&f| f).count()
-    }
-
-    /// The re-shading before issue 13's accuracy round (kept for the
-    /// bench's "before"): the flagged pixels' whole 9-sample paths, through
-    /// mirrors and glass, from the 9-sample cache or freshly expanded.
-    pub fn reshade_all_paths(&self, scene: &Scene, light: &Light, dense: &mut [Vec3], flags: &[bool]) -> usize {
+    /// Re-shades the flagged pixels of `dense` with all 9 samples (their
+    /// whole paths through mirrors and glass, from the 9-sample cache or
+    /// freshly expanded); returns how many. Re-shading only the directly
+    /// seen points was measured (issue 13) and doubled the error on the
+    /// bundled stage, whose shadow edges show in the glossy floor and glass.
+    pub fn reshade(&self, scene: &Scene, light: &Light, dense: &mut [Vec3], flags: &[bool]) -> usize {
         let w = self.width() as usize;
         dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
             let mut scratch = Vec::new();
