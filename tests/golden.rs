@@ -6,8 +6,8 @@
 //! `target/golden/`. Re-bless with `FOOTLIGHT_BLESS=1 cargo test golden`.
 //!
 //! Re-blessed 2026-11-30 (issue 13, accuracy round), with the replay cue
-//! images: surface bins (tessellation edges no longer split a pixel),
-//! re-shading of the directly seen points, and gather disks cut at edges
+//! images: surface bins (tessellation edges no longer split a pixel) and
+//! gather disks cut at edges
 //! with the cut measured from the photons (`BoundaryMode::Measured`, now the
 //! default: the columns and the floor along walls read brighter, as the
 //! path-traced reference says; docs/rendering.md). Mean |Δ| to the previous
