@@ -15,7 +15,7 @@
 //! anti-aliases its shadow edges the same way a bright one does, and a
 //! re-shaded light never changes when the operator changes the exposure.
 //! Neighbours on different surfaces (another triangle with a normal more than
-//! ~8° off, or another material) are not compared: the triangle-ID bins
+//! ~8° off, or another material) are not compared: the surface bins
 //! already anti-alias those edges, and a jump there is geometry, not
 //! illumination.
 
