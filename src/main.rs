@@ -332,6 +332,13 @@ struct BenchArgs {
     /// (without --quick) the 600-fixture rig at 1920×1080.
     #[arg(long)]
     haze_only: bool,
+    /// Only the accuracy round's section (issue 13: AA cost and error, moved-light
+    /// convergence, indirect error), printed as Markdown.
+    #[arg(long)]
+    accuracy_only: bool,
+    /// With --accuracy-only: the parts to run (aa, converge, indirect; default all).
+    #[arg(long, value_delimiter = ',', requires = "accuracy_only")]
+    accuracy_part: Vec<bench::accuracy::Part>,
 }
 
 fn main() -> std::process::ExitCode {
@@ -385,6 +392,21 @@ fn bench_command(args: BenchArgs) -> Result<()> {
             .context("haze: the scene has no volume for the haze box")?;
         report.moved = bench::haze::moved_beam(&scene, camera, size, 2, &light, moves);
         println!("{}", report.lines());
+        return Ok(());
+    }
+    if args.accuracy_only {
+        let (size, repeats) = if args.quick { ((200, 125), 1) } else { ((800, 500), 3) };
+        let report = bench::accuracy::run(
+            &scene,
+            &resolve(&args.input.scene),
+            &patch,
+            camera,
+            size,
+            repeats,
+            &args.accuracy_part,
+        )
+        .map_err(|e| anyhow::anyhow!("accuracy section: {e}"))?;
+        println!("{}", report.markdown());
         return Ok(());
     }
     let out = args.out.unwrap_or_else(bench::default_out_dir);

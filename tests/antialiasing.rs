@@ -62,3 +62,79 @@ fn reshaded_pixels_do_not_depend_on_exposure_or_dimmer() {
         assert_eq!(v.render_direct(&scene, &f.light, Some(aa)).1, n);
     }
 }
+
+/// A Lambert floor (two triangles) with a Lambert block standing on it, a
+/// spot grazing the block (a shadow edge on the floor), and a camera
+/// looking down at both.
+fn floor_and_block() -> (footlight::scene::Scene, footlight::Light, footlight::scene::Camera) {
+    use footlight::fixture::{Beam, SpotBeam};
+    let mut b = footlight::scene::SceneBuilder::new();
+    let m = lambert(&mut b, 0.6);
+    floor(&mut b, 4.0, 0.0, m);
+    cube(&mut b, Vec3::new(-0.5, 0.0, -0.5), Vec3::new(0.5, 0.8, 0.5), m);
+    let light = footlight::Light::aimed(
+        Vec3::new(-2.5, 3.0, 0.3),
+        Vec3::new(1.0, 0.0, 0.0),
+        Beam::Spot(SpotBeam::from_beam_field(50.0, 70.0)),
+    );
+    let cam = footlight::scene::Camera::look_at(Vec3::new(0.3, 4.0, 4.0), Vec3::new(0.2, 0.0, 0.0), 50f32.to_radians());
+    (b.build(), light, cam)
+}
+
+#[test]
+fn surface_bins_merge_tessellation_edges_but_keep_geometry_edges() {
+    // Issue 13 (AA cost): a pixel on the floor's diagonal (two coplanar
+    // triangles of one material) is one surface and gets one bin; a pixel
+    // on the block's outline (its top over the floor: same material, same
+    // normal, 0.8 m apart; or its side against the floor) keeps two.
+    use footlight::render::gbuffer::{NO_HIT, bin_samples, surface_bins};
+    let (scene, _, cam) = floor_and_block();
+    let v = view(&scene, cam, 160, 100, Sampling::Geometry, 0);
+    let floor_tris = [0u32, 1];
+    let (mut diagonal, mut outline) = (0, 0);
+    for s in &v.gbuffer.samples {
+        let tri = bin_samples(s);
+        let surf = surface_bins(&scene, s);
+        let total: f32 = surf.as_slice().iter().map(|b| b.weight).sum();
+        assert!((total - 1.0).abs() < 1e-6, "weights sum to {total}");
+        let tris: Vec<u32> = tri.as_slice().iter().map(|b| b.triangle).collect();
+        assert!(!tris.contains(&NO_HIT) || surf.as_slice().iter().any(|b| b.triangle == NO_HIT));
+        if tris.len() == 2 && tris.iter().all(|t| floor_tris.contains(t)) {
+            diagonal += 1;
+            assert_eq!(surf.as_slice().len(), 1, "floor diagonal pixel kept {} bins", surf.as_slice().len());
+        } else if tris.len() >= 2
+            && tris.iter().any(|t| floor_tris.contains(t))
+            && tris.iter().any(|t| *t >= 2 && *t != NO_HIT)
+        {
+            outline += 1;
+            assert!(surf.as_slice().len() >= 2, "block outline pixel merged into one bin");
+        }
+    }
+    assert!(diagonal > 20 && outline > 50, "diagonal {diagonal}, outline {outline} pixels");
+}
+
+#[test]
+fn reshaded_pixels_equal_nine_samples_in_a_lambert_scene() {
+    // Every re-shaded pixel equals the independent eq. 1 renderer with all
+    // 9 samples (`render::reference`), and every other pixel equals it with
+    // the surface bins (the merged bins are the same in both).
+    use footlight::render::RecursionLimits;
+    use footlight::render::reference::render_eq1;
+    use footlight::render::view::SampleSet;
+    let (scene, light, cam) = floor_and_block();
+    let v = view(&scene, cam, 160, 100, Sampling::Adaptive, 5);
+    let aa = AaParams::new(20.0);
+    let (base, _) = v.render_direct(&scene, &light, None);
+    let flags = v.gradient_flags(&scene, &base, aa);
+    let (adaptive, n) = v.render_direct(&scene, &light, Some(aa));
+    let limits = RecursionLimits { max_depth: 5, min_weight: 0.0 };
+    let lights = [light.clone()];
+    let nine = render_eq1(&scene, &v.gbuffer, &lights, &[Vec3::ONE], SampleSet::All, limits);
+    let binned = render_eq1(&scene, &v.gbuffer, &lights, &[Vec3::ONE], SampleSet::Binned, limits);
+    assert!(n > 50 && n < base.len() / 4, "{n} pixels re-shaded");
+    let scale = nine.iter().map(|x| x.max_element()).fold(0.0f32, f32::max);
+    for i in 0..base.len() {
+        let want = if flags[i] { nine[i] } else { binned[i] };
+        assert!((adaptive[i] - want).abs().max_element() <= 1e-5 * scale, "pixel {i}: {} vs {}", adaptive[i], want);
+    }
+}

@@ -22,7 +22,7 @@
 
 use crate::Light;
 use crate::render::photon::pathtrace::indirect_irradiance;
-use crate::render::photon::{BoundaryMode, PhotonSettings, trace_photons};
+use crate::render::photon::{BoundaryMode, Filter, PhotonSettings, trace_photons};
 use crate::render::{RecursionLimits, Sampling, View};
 use crate::scene::{Camera, Material, Scene, SceneBuilder};
 use glam::Vec3;
@@ -86,6 +86,48 @@ pub fn lambert_box() -> (Scene, Light, Camera) {
     (b.build(), light, camera)
 }
 
+/// The Lambert box with a tessellated Lambert sphere (radius 0.8 m, 24×16
+/// facets, smooth vertex normals) resting on the floor in the spot's pool,
+/// seen from the same camera: a curved surface meeting a flat one, where
+/// boundary clipping of the gather disk has to work on facets.
+pub fn lambert_box_with_sphere() -> (Scene, Light, Camera) {
+    let (boxed, light, camera) = lambert_box();
+    let mut b = SceneBuilder::new();
+    let m = b.add_material(Material::lambert("lambert", Vec3::splat(0.6)));
+    for (i, p) in boxed.positions.iter().enumerate() {
+        b.add_triangle(*p, Some(boxed.normals[i]), m);
+    }
+    let (centre, r) = (Vec3::new(0.6, -1.2, -0.6), 0.8);
+    let (nu, nv) = (24, 16);
+    let at = |i: usize, j: usize| {
+        let (phi, theta) = (i as f32 / nu as f32 * std::f32::consts::TAU, j as f32 / nv as f32 * std::f32::consts::PI);
+        Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
+    };
+    for i in 0..nu {
+        for j in 0..nv {
+            let n = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
+            let p = n.map(|n| centre + n * r);
+            b.add_triangle([p[0], p[1], p[2]], Some([n[0], n[1], n[2]]), m);
+            b.add_triangle([p[0], p[2], p[3]], Some([n[0], n[2], n[3]]), m);
+        }
+    }
+    (b.build(), light, camera)
+}
+
+/// `scene` with every material made Lambert: albedo ρ_d + ρ_s + k_R + k_T
+/// per channel (at most 0.9), no mirror, glass or Phong lobe. The path
+/// tracer reference cannot see a point light through glass or in a mirror
+/// (delta paths: caustics), so on the bundled stage both the photon maps
+/// and the reference run on this variant: same geometry, same light, every
+/// path the reference can find.
+pub fn all_lambert(mut scene: Scene) -> Scene {
+    for m in &mut scene.materials {
+        let rho = (m.diffuse + m.specular + m.k_r + m.k_t).min(Vec3::splat(0.9));
+        *m = Material::lambert(&m.name, rho);
+    }
+    scene
+}
+
 /// Measures the indirect error of `light` in `scene` from `camera` at
 /// `w`×`h` (one vertex per pixel), before and after the boundary correction,
 /// against path tracing with `reference_samples` paths per vertex (twice).
@@ -129,11 +171,16 @@ pub fn measure(
     let diffuse: Vec<bool> =
         vertices.iter().map(|v| scene.materials[v.material as usize].diffuse.max_element() > 0.0).collect();
     let mut rows = Vec::new();
-    for (estimator, mode) in
-        [("before: full gather disk", BoundaryMode::None), ("after: disk clipped at boundaries", BoundaryMode::Clip)]
-    {
+    for (estimator, mode, filter) in [
+        ("before: cone filter, full gather disk", BoundaryMode::None, Filter::Cone),
+        ("cone filter, disk clipped at boundaries", BoundaryMode::Clip, Filter::Cone),
+        ("after: uniform disk, full gather disk", BoundaryMode::None, Filter::Disk),
+        ("uniform disk, clipped at boundaries", BoundaryMode::Clip, Filter::Disk),
+        ("cone filter, measured cuts", BoundaryMode::Measured, Filter::Cone),
+        ("uniform disk, measured cuts", BoundaryMode::Measured, Filter::Disk),
+    ] {
         let at = |seed: u64| -> Vec<f64> {
-            let maps = trace_photons(scene, light, &PhotonSettings { seed, boundary: mode, ..photons });
+            let maps = trace_photons(scene, light, &PhotonSettings { seed, boundary: mode, filter, ..photons });
             view.vertex_irradiance(scene, &maps).iter().map(|e| f64::from(e.element_sum())).collect()
         };
         let (a, b) = (at(photons.seed ^ 0xA), at(photons.seed ^ 0xB));

@@ -6,6 +6,7 @@
 //! figure is an MSE against the 9× oversampled render of the same state.
 //! Writes `report.md` and `report.json` into the output folder.
 
+pub mod accuracy;
 pub mod chase;
 pub mod clients;
 pub mod harness;

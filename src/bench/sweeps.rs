@@ -354,6 +354,20 @@ pub fn aa_breakdown(
     threshold: f32,
     repeats: usize,
 ) -> AaBreakdown {
+    aa_breakdown_with_set(scene, gbuffer, light, limits, threshold, repeats, crate::render::SampleSet::Binned)
+}
+
+/// As [`aa_breakdown`] with the base sample set given (the bench's "before"
+/// uses [`crate::render::SampleSet::TriangleBins`]).
+pub fn aa_breakdown_with_set(
+    scene: &Scene,
+    gbuffer: &GBuffer,
+    light: &Light,
+    limits: RecursionLimits,
+    threshold: f32,
+    repeats: usize,
+    set: crate::render::SampleSet,
+) -> AaBreakdown {
     use std::time::Instant;
     let (w, h) = (gbuffer.width as usize, gbuffer.height as usize);
     let (t_one, one) = super::time_ms_with(
@@ -369,7 +383,7 @@ pub fn aa_breakdown(
     for _ in 0..repeats.max(1) {
         let g = gbuffer.clone();
         let t0 = Instant::now();
-        let v = View::from_gbuffer(scene, g, Sampling::Adaptive, limits);
+        let v = View::from_gbuffer_with_set(scene, g, Sampling::Adaptive, set, limits);
         let t1 = Instant::now();
         let (mut dense, _) = v.render_direct(scene, light, None);
         let t2 = Instant::now();
@@ -378,9 +392,7 @@ pub fn aa_breakdown(
         let n = v.reshade(scene, light, &mut dense, &flags);
         let t4 = Instant::now();
         let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
-        let multi = (0..w * h)
-            .filter(|&i| crate::render::gbuffer::bin_samples(&v.gbuffer.samples[i]).as_slice().len() > 1)
-            .count();
+        let multi = (0..w * h).filter(|&i| v.shading.bins_of(scene, &v.gbuffer, i) > 1).count();
         runs.push(([ms(t0, t1), ms(t1, t2), ms(t2, t3), ms(t3, t4)], v.shading.vertex_count(), multi, n));
     }
     runs.sort_by(|a, b| a.0.iter().sum::<f64>().total_cmp(&b.0.iter().sum::<f64>()));
@@ -397,4 +409,104 @@ pub fn aa_breakdown(
         multi_bin_share: multi as f64 / (w * h) as f64,
         reshaded_share: n as f64 / (w * h) as f64,
     }
+}
+
+/// Anti-aliasing cost and error of one sampling variant (issue 13, accuracy
+/// round): expansion + shading time against 1-sample expansion + shading,
+/// and display-space MSE against an 81-sample reference.
+#[derive(Clone, Debug, Serialize)]
+pub struct AaCostRow {
+    /// Which variant.
+    pub variant: String,
+    /// Expansion + shading + re-shading time, ms (median).
+    pub ms: f64,
+    /// `ms` / 1-sample expansion + shading, %.
+    pub cost_percent: f64,
+    /// Display-space MSE (R, G, B) against the 81-sample reference.
+    pub mse_vs_81: [f64; 3],
+    /// Share of pixels re-shaded.
+    pub reshaded_share: f64,
+}
+
+/// The 81-sample reference of one light's direct buffer: the 9-sample
+/// renderer at 3w×3h (a 9×9 sample grid per pixel), box-filtered down.
+pub fn reference_81(scene: &Scene, gbuffer: &GBuffer, light: &Light, limits: RecursionLimits) -> Vec<Vec3> {
+    let (w, h) = (gbuffer.width as usize, gbuffer.height as usize);
+    let big = View::build(scene, gbuffer.camera, 3 * w as u32, 3 * h as u32, Sampling::Nine, limits);
+    let (dense, _) = big.render_direct(scene, light, None);
+    let mut out = vec![Vec3::ZERO; w * h];
+    for (i, o) in out.iter_mut().enumerate() {
+        let (x, y) = (i % w, i / w);
+        for j in 0..9 {
+            *o += dense[(3 * y + j / 3) * 3 * w + 3 * x + j % 3] / 9.0;
+        }
+    }
+    out
+}
+
+/// Cost and error of 1 sample, 9 samples, and the binned and adaptive
+/// variants before (one bin per triangle ID) and after (one bin per smooth
+/// surface, [`crate::render::gbuffer::surface_bins`]) for `light`.
+#[allow(clippy::too_many_arguments)]
+pub fn aa_cost(
+    scene: &Scene,
+    gbuffer: &GBuffer,
+    light: &Light,
+    k_full: Vec3,
+    display: &Display,
+    limits: RecursionLimits,
+    threshold: f32,
+    repeats: usize,
+) -> Vec<AaCostRow> {
+    use crate::render::SampleSet;
+    let (w, h) = (gbuffer.width as usize, gbuffer.height as usize);
+    let reference = shown(&reference_81(scene, gbuffer, light, limits), k_full);
+    let variants: [(&str, Sampling, SampleSet, bool); 6] = [
+        ("1 sample", Sampling::One, SampleSet::Centre, false),
+        ("9 samples everywhere", Sampling::Nine, SampleSet::All, false),
+        ("before: triangle-ID bins only", Sampling::Geometry, SampleSet::TriangleBins, false),
+        ("before: triangle-ID bins + 9-sample re-shading", Sampling::Adaptive, SampleSet::TriangleBins, true),
+        ("after: surface bins only", Sampling::Geometry, SampleSet::Binned, false),
+        ("after: surface bins + 9-sample re-shading", Sampling::Adaptive, SampleSet::Binned, true),
+    ];
+    let mut rows: Vec<AaCostRow> = Vec::new();
+    for (name, sampling, set, adaptive) in variants {
+        let (ms, (dense, n)) = super::time_ms_with(
+            repeats,
+            || gbuffer.clone(),
+            |g| {
+                let v = View::from_gbuffer_with_set(scene, g, sampling, set, limits);
+                v.render_direct(scene, light, adaptive.then(|| AaParams::new(threshold)))
+            },
+        );
+        let one_ms = rows.first().map_or(ms, |r| r.ms);
+        rows.push(AaCostRow {
+            variant: name.into(),
+            ms,
+            cost_percent: ms / one_ms * 100.0,
+            mse_vs_81: mse_display(&shown(&dense, k_full), &reference, display),
+            reshaded_share: n as f64 / (w * h) as f64,
+        });
+    }
+    rows
+}
+
+/// Markdown table of [`aa_cost`] rows.
+pub fn aa_cost_markdown(rows: &[AaCostRow]) -> String {
+    let mut s = String::from(
+        "| sampling | ms | cost / 1 sample | MSE vs 81 samples R | G | B | re-shaded |\n|---|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        s += &format!(
+            "| {} | {:.1} | {:.0} % | {:.2e} | {:.2e} | {:.2e} | {:.2} % |\n",
+            r.variant,
+            r.ms,
+            r.cost_percent,
+            r.mse_vs_81[0],
+            r.mse_vs_81[1],
+            r.mse_vs_81[2],
+            r.reshaded_share * 100.0
+        );
+    }
+    s
 }

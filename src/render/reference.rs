@@ -7,7 +7,7 @@
 //! the primary sample positions, the material BRDF and the shadow-ray query,
 //! so `composite(per-light buffers) == reference` checks eq. 5 end to end.
 
-use super::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT, SAMPLES_PER_PIXEL, bin_samples};
+use super::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT, SAMPLES_PER_PIXEL, bin_samples, surface_bins};
 use super::view::SampleSet;
 use super::whitted::{RecursionLimits, ShadingVertex, direct, reflect, refract};
 use crate::fixture::Light;
@@ -52,7 +52,9 @@ pub fn render_eq1_weighted(
                     let s = samples[CENTRE_SAMPLE];
                     weighted.push((s.triangle, s.u, s.v, 1.0));
                 }
-                SampleSet::Binned => {
+                SampleSet::Binned => weighted
+                    .extend(surface_bins(scene, samples).as_slice().iter().map(|b| (b.triangle, b.u, b.v, b.weight))),
+                SampleSet::TriangleBins => {
                     weighted.extend(bin_samples(samples).as_slice().iter().map(|b| (b.triangle, b.u, b.v, b.weight)))
                 }
                 SampleSet::All => {

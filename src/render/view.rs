@@ -15,14 +15,14 @@
 //! anti-aliases its shadow edges the same way a bright one does, and a
 //! re-shaded light never changes when the operator changes the exposure.
 //! Neighbours on different surfaces (another triangle with a normal more than
-//! ~8° off, or another material) are not compared: the triangle-ID bins
+//! ~8° off, or another material) are not compared: the surface bins
 //! already anti-alias those edges, and a jump there is geometry, not
 //! illumination.
 
 use super::buffer::LightBuffer;
 use super::display::srgb8;
 use super::gbuffer::PrimarySample;
-use super::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT, SAMPLES_PER_PIXEL, bin_samples};
+use super::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT, SAME_SURFACE_COS, SAMPLES_PER_PIXEL, bin_samples, surface_bins};
 use super::photon::{PhotonMaps, Progressive};
 use super::whitted::{RecursionLimits, ShadingVertex, direct, expand};
 use crate::fixture::Light;
@@ -37,8 +37,13 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 pub enum SampleSet {
     /// Only the pixel-centre sample (1 sample per pixel, no anti-aliasing).
     Centre,
-    /// One shade per triangle-ID bin (geometry anti-aliasing).
+    /// One shade per surface bin ([`super::gbuffer::surface_bins`]:
+    /// triangle-ID bins, those on one smooth surface merged; geometry
+    /// anti-aliasing).
     Binned,
+    /// One shade per triangle-ID bin, tessellation edges included (the
+    /// binning before issue 13; kept as the bench's "before").
+    TriangleBins,
     /// All 9 samples, each weighted 1/9 (the 9× oversampled reference).
     All,
 }
@@ -89,10 +94,6 @@ impl AaParams {
 /// few hot pixels next to the lamp do not darken the rest.
 pub const AA_REFERENCE_PERCENTILE: f32 = 0.99;
 
-/// Cosine of the largest normal difference between neighbours still compared
-/// for anti-aliasing (about 8°).
-const AA_SAME_SURFACE_COS: f32 = 0.99;
-
 /// Expanded camera paths of every pixel for one sample set, stored as a
 /// compressed row list (pixel i owns vertices[start[i]..start[i+1]]).
 pub struct ShadingSet {
@@ -116,6 +117,17 @@ impl ShadingSet {
     /// All vertices, pixel after pixel.
     pub fn vertices(&self) -> &[ShadingVertex] {
         &self.vertices
+    }
+
+    /// Number of bins pixel `index` is shaded with in this set (1 for
+    /// [`SampleSet::Centre`], 9 for [`SampleSet::All`]).
+    pub fn bins_of(&self, scene: &Scene, gbuffer: &GBuffer, index: usize) -> usize {
+        match self.set {
+            SampleSet::Centre => 1,
+            SampleSet::All => SAMPLES_PER_PIXEL,
+            SampleSet::Binned => surface_bins(scene, &gbuffer.samples[index]).as_slice().len(),
+            SampleSet::TriangleBins => bin_samples(&gbuffer.samples[index]).as_slice().len(),
+        }
     }
 
     /// Range of `vertices()` belonging to pixel `index`.
@@ -164,7 +176,19 @@ impl View {
     /// Expands camera paths over an existing G-buffer (e.g. to switch the
     /// sampling mode without re-tracing primary rays).
     pub fn from_gbuffer(scene: &Scene, gbuffer: GBuffer, sampling: Sampling, limits: RecursionLimits) -> Self {
-        let shading = Self::expand_all(scene, &gbuffer, sampling.base_set(), limits);
+        Self::from_gbuffer_with_set(scene, gbuffer, sampling, sampling.base_set(), limits)
+    }
+
+    /// As [`View::from_gbuffer`] with the base sample set given explicitly
+    /// (the bench renders the pre-issue-13 [`SampleSet::TriangleBins`] this way).
+    pub fn from_gbuffer_with_set(
+        scene: &Scene,
+        gbuffer: GBuffer,
+        sampling: Sampling,
+        set: SampleSet,
+        limits: RecursionLimits,
+    ) -> Self {
+        let shading = Self::expand_all(scene, &gbuffer, set, limits);
         let nine_cache = (0..gbuffer.samples.len()).map(|_| OnceLock::new()).collect();
         Self {
             gbuffer,
@@ -299,7 +323,11 @@ impl View {
 }
 
 impl View {
-    /// Re-shades the flagged pixels of `dense` with all 9 samples; returns how many.
+    /// Re-shades the flagged pixels of `dense` with all 9 samples (their
+    /// whole paths through mirrors and glass, from the 9-sample cache or
+    /// freshly expanded); returns how many. Re-shading only the directly
+    /// seen points was measured (issue 13) and doubled the error on the
+    /// bundled stage, whose shadow edges show in the glossy floor and glass.
     pub fn reshade(&self, scene: &Scene, light: &Light, dense: &mut [Vec3], flags: &[bool]) -> usize {
         let w = self.width() as usize;
         dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
@@ -325,10 +353,11 @@ impl View {
         let scale = Vec3::splat(1.0 / reference);
         let display: Vec<Vec3> = dense.par_iter().map(|&l| Vec3::from_array(srgb8(l * scale).map(f32::from))).collect();
         // Centre sample's surface per pixel: material and shading normal.
-        let surface: Vec<Option<(u32, Vec3)>> =
-            self.gbuffer.samples.par_iter().map(|s| centre_surface(scene, &s[CENTRE_SAMPLE])).collect();
-        let same = |a: usize, b: usize| match (surface[a], surface[b]) {
-            (Some((ma, na)), Some((mb, nb))) => ma == mb && na.dot(nb) >= AA_SAME_SURFACE_COS,
+        // The surface test runs only for pairs over the threshold (few), so
+        // the centre samples' surfaces are looked up there, not per pixel.
+        let surface = |i: usize| centre_surface(scene, &self.gbuffer.samples[i][CENTRE_SAMPLE]);
+        let same = |a: usize, b: usize| match (surface(a), surface(b)) {
+            (Some((ma, na)), Some((mb, nb))) => ma == mb && na.dot(nb) >= SAME_SURFACE_COS,
             _ => false,
         };
         mark_gradients(&display, w, h, aa.threshold, same)
@@ -604,6 +633,11 @@ pub fn expand_pixel(
             one(s.triangle, s.u, s.v, 1.0);
         }
         SampleSet::Binned => {
+            for b in surface_bins(scene, samples).as_slice() {
+                one(b.triangle, b.u, b.v, b.weight);
+            }
+        }
+        SampleSet::TriangleBins => {
             for b in bin_samples(samples).as_slice() {
                 one(b.triangle, b.u, b.v, b.weight);
             }
@@ -638,37 +672,33 @@ fn reference_level(dense: &[Vec3]) -> Option<f32> {
 
 /// Marks pixels whose value differs from a right or lower neighbour with
 /// `comparable(a, b)` by more than the threshold in any channel, plus their
-/// 8 neighbours.
+/// 8 neighbours. Parallel over rows: first the pixels an edge touches, then
+/// every pixel with a touched pixel in its 3×3 neighbourhood.
 pub fn mark_gradients(
     display: &[Vec3],
     w: usize,
     h: usize,
     threshold: f32,
-    comparable: impl Fn(usize, usize) -> bool,
+    comparable: impl Fn(usize, usize) -> bool + Sync,
 ) -> Vec<bool> {
+    // The threshold first: `comparable` may be costly and is rarely needed.
+    let edge = |a: usize, b: usize| (display[b] - display[a]).abs().max_element() > threshold && comparable(a, b);
+    let touched: Vec<bool> = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            (x + 1 < w && edge(i, i + 1))
+                || (y + 1 < h && edge(i, i + w))
+                || (x > 0 && edge(i - 1, i))
+                || (y > 0 && edge(i - w, i))
+        })
+        .collect();
     let mut flags = vec![false; w * h];
-    let mut mark = |x: usize, y: usize| {
-        for yy in y.saturating_sub(1)..(y + 2).min(h) {
-            for xx in x.saturating_sub(1)..(x + 2).min(w) {
-                flags[yy * w + xx] = true;
-            }
+    flags.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
+        for (x, f) in row.iter_mut().enumerate() {
+            *f = (y.saturating_sub(1)..(y + 2).min(h))
+                .any(|yy| (x.saturating_sub(1)..(x + 2).min(w)).any(|xx| touched[yy * w + xx]));
         }
-    };
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            let here = display[i];
-            let right = (x + 1 < w) && (display[i + 1] - here).abs().max_element() > threshold && comparable(i, i + 1);
-            let down = (y + 1 < h) && (display[i + w] - here).abs().max_element() > threshold && comparable(i, i + w);
-            if right {
-                mark(x, y);
-                mark(x + 1, y);
-            }
-            if down {
-                mark(x, y);
-                mark(x, y + 1);
-            }
-        }
-    }
+    });
     flags
 }

@@ -182,7 +182,7 @@ pub fn trace_photons_until(
     if stop() {
         return None;
     }
-    let global = PhotonMap::new(global).with_boundary(settings.boundary);
+    let global = PhotonMap::new(global).with_boundary(settings.boundary).with_filter(settings.filter);
     let caustic = PhotonMap::new(caustic).with_boundary(settings.boundary);
     let irradiance = IrradianceCache::build_with_caustics(
         &global,
