@@ -232,6 +232,7 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
         movement,
         colour_wheel: colour_wheel(g, &layouts, &mut warnings),
         cto: cto_table(&layouts, &lamp_cct, planckian),
+        gate: Default::default(),
         modes,
     };
     Ok((ty, warnings))
