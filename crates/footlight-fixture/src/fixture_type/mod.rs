@@ -597,6 +597,12 @@ impl FixtureType {
         }
     }
 
+    /// The state at frame time `t_seconds` with its gobo/prism spins and
+    /// gobo-wheel spin applied ([`FixtureState::at_time`] over this type's gobo wheel).
+    pub fn state_at(&self, state: &FixtureState, t_seconds: f64) -> FixtureState {
+        state.at_time(t_seconds, self.gate.gobo_wheel.len())
+    }
+
     /// Î in candela for a state: zoom and edge focus keep the flux (profile),
     /// the iris keeps Î, Fresnel/PC focus mixes the spot and flood peaks.
     pub fn intensity(&self, state: &FixtureState) -> f32 {

@@ -1,0 +1,146 @@
+//! The spot's gate on stage (issue 14): framing-shutter cuts on a floor
+//! against their pin-hole projection, the gobo/shutter golden image through
+//! the binary, and spinning gobos rebuilt at a bounded rate by the live
+//! decoder.
+
+use crate::common::*;
+use footlight::fixture::beam::{Blade, Gate, ShapedBeam};
+use footlight::fixture::state::{Change, SPIN_UPDATE_HZ, classify};
+use footlight::fixture::{Beam, Light, SpotBeam};
+use footlight::live::{Decode, Show};
+use footlight::render::view::Sampling;
+use footlight::scene::{Camera, SceneBuilder};
+use glam::{Vec2, Vec3};
+use std::path::PathBuf;
+use std::process::Command;
+
+#[test]
+fn blade_cut_on_the_floor_is_exactly_dark_beyond_its_projected_line() {
+    let mut b = SceneBuilder::new();
+    let m = lambert(&mut b, 1.0);
+    floor(&mut b, 20.0, 0.0, m);
+    let scene = b.build();
+    let h = 3.0;
+    let pos = Vec3::new(0.0, h, 0.0);
+    let spot = SpotBeam::from_beam_field(20.0, 30.0);
+    // Blade 1 straight in to 0.3 of the diameter, blade 2 tilted (A 0.2, B 0.6), shaper turned 10°.
+    let mut gate = Gate { shaper_rot: 10.0, ..Gate::default() };
+    gate.blades[0] = Blade { a: 0.3, b: 0.3, rot: 0.0 };
+    gate.blades[1] = Blade { a: 0.2, b: 0.6, rot: 0.0 };
+    let light = Light::aimed(pos, Vec3::ZERO, Beam::Shaped(Box::new(ShapedBeam::new(spot.clone(), gate))));
+    let cam = Camera::look_at(Vec3::new(0.0, 5.0, 0.01), Vec3::ZERO, 50f32.to_radians());
+    let (w, hgt) = (96, 96);
+    let v = view(&scene, cam, w, hgt, Sampling::One, 0);
+    let (buf, _) = v.render_light(&scene, &light, None);
+    // The edges' end points in the gate (module doc of beam::gate), turned by the shaper,
+    // projected through the pin hole onto the floor: a blade's floor line.
+    let t = spot.outer.tan();
+    let turn = Vec2::from_angle(10f32.to_radians());
+    let floor_of = |g: Vec2| {
+        let g = turn.rotate(g);
+        let d = light.rotation * Vec3::new(g.x * t, g.y * t, -1.0);
+        pos + d * (h / -d.y)
+    };
+    // Blade 1 (home +y): ends (−1, 0.4) and (1, 0.4); blade 2 (home +x): (0.6, 1) and (−0.2, −1).
+    let lines = [
+        (floor_of(Vec2::new(-1.0, 0.4)), floor_of(Vec2::new(1.0, 0.4)), floor_of(Vec2::new(0.0, 1.0))),
+        (floor_of(Vec2::new(0.6, 1.0)), floor_of(Vec2::new(-0.2, -1.0)), floor_of(Vec2::new(1.0, 0.0))),
+    ];
+    // Signed side of floor point p relative to line a→b, positive on the blade's home side.
+    let side = |(a, b, home): (Vec3, Vec3, Vec3), p: Vec3| {
+        let cross = |u: Vec3, v: Vec3| u.x * v.z - u.z * v.x;
+        let s = cross(b - a, p - a);
+        if cross(b - a, home - a) > 0.0 { s } else { -s }
+    };
+    let (mut dark, mut lit) = (0, 0);
+    for y in 0..hgt {
+        for x in 0..w {
+            let s = v.gbuffer.samples[(y * w + x) as usize][footlight::render::gbuffer::CENTRE_SAMPLE];
+            let p = v.gbuffer.position(&scene, &s).unwrap();
+            let got = buf.get(x, y).x;
+            let cut = lines.iter().map(|l| side(*l, p)).fold(f32::MIN, f32::max);
+            if cut > 1e-3 {
+                assert_eq!(got, 0.0, "({x},{y}) at {p}: beyond a blade line");
+                dark += 1;
+            } else if cut < -1e-3 {
+                // Unchanged: the open spot's closed form, 1 − smoothstep over the penumbra.
+                let d = pos - p;
+                let theta = (d.y / d.length()).acos();
+                let u = ((theta - spot.inner) / (spot.outer - spot.inner)).clamp(0.0, 1.0);
+                let pattern = if theta <= spot.inner { 1.0 } else { 1.0 - u * u * (3.0 - 2.0 * u) };
+                let expected = pattern / std::f32::consts::PI * (d.y / d.length()) / d.length_squared();
+                assert!((got - expected).abs() <= 0.01 * expected + 1e-6, "({x},{y}): {got} vs {expected}");
+                if expected > 1e-3 {
+                    lit += 1;
+                }
+            }
+        }
+    }
+    // Both regions are well covered: the cut removes a real part of the pool.
+    let inside_cone = |p: Vec3| (pos - p).normalize().y > spot.outer.cos();
+    assert!(inside_cone(floor_of(Vec2::new(0.0, 0.8))), "blade 1's cut is inside the cone");
+    assert!(dark > 300 && lit > 300, "dark {dark}, lit {lit}");
+}
+
+/// Runs `footlight render` on the gate patch and compares with tests/golden/gate.png.
+#[test]
+fn gobos_and_shutter_cuts_match_the_golden_image() {
+    let dir = root().join("target/golden");
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join(format!("gate.{}.png", std::process::id()));
+    let o = Command::new(env!("CARGO_BIN_EXE_footlight"))
+        .current_dir(root())
+        .args(["render", "--patch", "tests/data/gate-patch.toml", "--photons", "0", "--width", "480", "--height", "300"])
+        .args(["--force", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let actual = image::open(&out).unwrap().to_rgb8();
+    let _ = std::fs::remove_file(&out);
+    let golden_path: PathBuf = root().join("tests/golden/gate.png");
+    if std::env::var_os("FOOTLIGHT_BLESS").is_some() {
+        actual.save(&golden_path).unwrap();
+        return;
+    }
+    let golden = image::open(&golden_path).expect("tests/golden/gate.png (bless with FOOTLIGHT_BLESS=1)").to_rgb8();
+    assert_eq!(golden.dimensions(), actual.dimensions());
+    let diffs: Vec<u8> = golden.as_raw().iter().zip(actual.as_raw()).map(|(a, b)| a.abs_diff(*b)).collect();
+    let mean = diffs.iter().map(|&d| f64::from(d)).sum::<f64>() / diffs.len() as f64;
+    let large = diffs.iter().filter(|&&d| d > 8).count() as f64 / diffs.len() as f64;
+    if mean > 0.5 || large > 0.001 {
+        let actual_path = dir.join("gate.actual.png");
+        actual.save(&actual_path).unwrap();
+        panic!("gate render differs from golden: mean |Δ| {mean:.3}/255, {:.3} % off by > 8; see {}", large * 100.0, actual_path.display());
+    }
+    // The gates are in the picture: the lit area is a fraction of what open beams would light.
+    let lit = actual.pixels().filter(|p| p.0.iter().any(|&c| c > 60)).count();
+    assert!(lit > 2000, "{lit} lit pixels");
+}
+
+#[test]
+fn a_spinning_gobo_is_rebuilt_at_a_bounded_rate() {
+    let mut patch = footlight_mvr::load_patch(&root().join("tests/data/gate-patch.toml")).unwrap();
+    // Fixture 1: ring gobo; gobo1pos 255 = continuous rotation at 360 °/s.
+    let mut u = patch.look_universes.clone();
+    u.set_slot(1, 10, 255);
+    patch.fixtures.truncate(1);
+    let show = Show::new(patch);
+    let mut last = show.decode_at(&u, 0.0);
+    assert!(last[0].state.gobo_spin > 300.0, "{}", last[0].state.gobo_spin);
+    let mut rebuilds = 0;
+    let seconds = 2.0;
+    let frames = (60.0 * seconds) as usize;
+    for f in 1..=frames {
+        let now = show.decode_at(&u, f as f64 / 60.0);
+        if classify(&last[0].state, &now[0].state) == Change::Geometry {
+            rebuilds += 1;
+            assert_ne!(now[0].light, last[0].light, "the turned gobo is a new beam");
+        }
+        last = now;
+    }
+    // 60 Hz frames, rebuilt at most SPIN_UPDATE_HZ times a second, and it does turn.
+    assert!(rebuilds as f64 <= SPIN_UPDATE_HZ * seconds + 1.0 && rebuilds as f64 >= SPIN_UPDATE_HZ * seconds - 1.0, "{rebuilds}");
+    // Without the time, the state is still (decode ignores the clock).
+    assert_eq!(classify(&show.decode(&u)[0].state, &show.decode(&u)[0].state), Change::Unchanged);
+}
