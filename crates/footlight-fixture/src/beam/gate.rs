@@ -55,6 +55,8 @@ pub const FROST_BLUR: f32 = 0.12;
 /// along the facet's rotated +x (estimated: most real files give rotation
 /// only, and visualisers choose their own spread).
 pub const PRISM_SPREAD: f32 = 0.7;
+/// Distinct gates whose flux normalisation is kept process-wide.
+const NORM_CACHE: usize = 64;
 /// Widest open cone a gate is applied to (half-angle, radians): the gate
 /// mapping uses tan of the half-angle.
 pub const MAX_GATE_HALF_ANGLE: f32 = 1.45;
@@ -345,9 +347,48 @@ impl ShapedBeam {
         sum / self.facets.len() as f32
     }
 
+    /// A key of everything the flux depends on (bit patterns; the gobo by
+    /// its name, size and texel sum).
+    fn key(&self) -> Vec<u32> {
+        let g = &self.gate;
+        let mut k = vec![self.spot.inner.to_bits(), self.spot.outer.to_bits(), g.gobo_angle.to_bits()];
+        if let Some(img) = &g.gobo {
+            let sum: f32 = img.texels.iter().sum();
+            k.extend([img.width as u32, img.height as u32, sum.to_bits()]);
+            k.extend(img.name.bytes().map(u32::from));
+        }
+        k.extend(g.blades.iter().flat_map(|b| [b.a.to_bits(), b.b.to_bits(), b.rot.to_bits()]));
+        k.extend([g.shaper_rot.to_bits(), g.prism_angle.to_bits(), g.frost.to_bits()]);
+        k.extend(g.facets.iter().flat_map(|f| [f.rotation.to_bits(), f.offset.x.to_bits(), f.offset.y.to_bits()]));
+        k
+    }
+
     /// (scale, flux): flux of the unscaled pattern vs the plain gate's.
+    /// Cached per beam and in a small process-wide table: the daemon makes
+    /// a new beam per fixture per frame, and a moving preview camera
+    /// evaluates it, so the quadrature runs once per distinct gate.
     fn norm(&self) -> (f32, f32) {
         *self.flux.get_or_init(|| {
+            static CACHE: std::sync::Mutex<Vec<(Vec<u32>, (f32, f32))>> = std::sync::Mutex::new(Vec::new());
+            let key = self.key();
+            if let Ok(c) = CACHE.lock()
+                && let Some((_, v)) = c.iter().find(|(k, _)| *k == key)
+            {
+                return *v;
+            }
+            let v = self.integrate_norm();
+            if let Ok(mut c) = CACHE.lock() {
+                if c.len() >= NORM_CACHE {
+                    c.remove(0);
+                }
+                c.push((key, v));
+            }
+            v
+        })
+    }
+
+    fn integrate_norm(&self) -> (f32, f32) {
+        {
             let plain = integrate(self.spot.outer, |d| {
                 self.gate_point(d).map_or(0.0, |p| self.through_gate(p, Some(super::axis_angle(d)), false))
             });
@@ -356,7 +397,7 @@ impl ShapedBeam {
             }
             let raw = integrate(self.cos_cut.clamp(-1.0, 1.0).acos(), |d| self.raw(d));
             if raw > 0.0 { ((plain / raw) as f32, plain as f32) } else { (0.0, 0.0) }
-        })
+        }
     }
 
     /// f_ε for a unit local direction.
@@ -366,7 +407,13 @@ impl ShapedBeam {
             return 0.0;
         }
         let raw = self.raw(dir);
-        if raw <= 0.0 { 0.0 } else { raw * self.norm().0 }
+        if raw <= 0.0 {
+            0.0
+        } else if self.facets.is_empty() && !(self.gate.frost > 0.0) {
+            raw // gobo and blades only absorb: no flux scale to compute
+        } else {
+            raw * self.norm().0
+        }
     }
 
     /// ∫ f_ε dω (steradians): the flux through the gobo and blades at 1 cd
