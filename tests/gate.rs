@@ -90,7 +90,17 @@ fn gobos_and_shutter_cuts_match_the_golden_image() {
     let out = dir.join(format!("gate.{}.png", std::process::id()));
     let o = Command::new(env!("CARGO_BIN_EXE_footlight"))
         .current_dir(root())
-        .args(["render", "--patch", "tests/data/gate-patch.toml", "--photons", "0", "--width", "480", "--height", "300"])
+        .args([
+            "render",
+            "--patch",
+            "tests/data/gate-patch.toml",
+            "--photons",
+            "0",
+            "--width",
+            "480",
+            "--height",
+            "300",
+        ])
         .args(["--force", "--out"])
         .arg(&out)
         .output()
@@ -111,7 +121,11 @@ fn gobos_and_shutter_cuts_match_the_golden_image() {
     if mean > 0.5 || large > 0.001 {
         let actual_path = dir.join("gate.actual.png");
         actual.save(&actual_path).unwrap();
-        panic!("gate render differs from golden: mean |Δ| {mean:.3}/255, {:.3} % off by > 8; see {}", large * 100.0, actual_path.display());
+        panic!(
+            "gate render differs from golden: mean |Δ| {mean:.3}/255, {:.3} % off by > 8; see {}",
+            large * 100.0,
+            actual_path.display()
+        );
     }
     // The gates are in the picture: the lit area is a fraction of what open beams would light.
     let lit = actual.pixels().filter(|p| p.0.iter().any(|&c| c > 60)).count();
@@ -140,7 +154,10 @@ fn a_spinning_gobo_is_rebuilt_at_a_bounded_rate() {
         last = now;
     }
     // 60 Hz frames, rebuilt at most SPIN_UPDATE_HZ times a second, and it does turn.
-    assert!(rebuilds as f64 <= SPIN_UPDATE_HZ * seconds + 1.0 && rebuilds as f64 >= SPIN_UPDATE_HZ * seconds - 1.0, "{rebuilds}");
+    assert!(
+        rebuilds as f64 <= SPIN_UPDATE_HZ * seconds + 1.0 && rebuilds as f64 >= SPIN_UPDATE_HZ * seconds - 1.0,
+        "{rebuilds}"
+    );
     // Without the time, the state is still (decode ignores the clock).
     assert_eq!(classify(&show.decode(&u)[0].state, &show.decode(&u)[0].state), Change::Unchanged);
 }

@@ -112,7 +112,11 @@ impl FixtureState {
         }
         let t = (t_seconds * SPIN_UPDATE_HZ).floor() / SPIN_UPDATE_HZ;
         let turn = |base: f32, rate: f32| {
-            if rate.is_finite() && rate != 0.0 { (f64::from(base) + f64::from(rate) * t).rem_euclid(360.0) as f32 } else { base }
+            if rate.is_finite() && rate != 0.0 {
+                (f64::from(base) + f64::from(rate) * t).rem_euclid(360.0) as f32
+            } else {
+                base
+            }
         };
         let mut s = *self;
         s.gobo_angle = turn(self.gobo_angle, self.gobo_spin);

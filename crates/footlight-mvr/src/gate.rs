@@ -123,7 +123,11 @@ pub fn gate_optics(g: &Gdtf, layouts: &[Layout], warnings: &mut Vec<PatchError>)
                     match g.wheel_image(media).map(|b| decode(media, b)) {
                         Some(Ok(img)) => Some(Arc::new(img)),
                         Some(Err(why)) => {
-                            warnings.push(PatchError::new(&label, 0, format!("gobo image {media:?}: {why}; slot left open")));
+                            warnings.push(PatchError::new(
+                                &label,
+                                0,
+                                format!("gobo image {media:?}: {why}; slot left open"),
+                            ));
                             None
                         }
                         None => {
@@ -140,7 +144,9 @@ pub fn gate_optics(g: &Gdtf, layouts: &[Layout], warnings: &mut Vec<PatchError>)
         })
         .unwrap_or_default();
     let prism_wheel = linked_wheel(g, layouts, "Prism1")
-        .map(|w| w.slots.iter().map(|s| s.facets.iter().map(|f| Facet::from_gdtf(rotation(&f.rotation))).collect()).collect())
+        .map(|w| {
+            w.slots.iter().map(|s| s.facets.iter().map(|f| Facet::from_gdtf(rotation(&f.rotation))).collect()).collect()
+        })
         .unwrap_or_default();
     GateOptics { gobo_wheel, prism_wheel }
 }

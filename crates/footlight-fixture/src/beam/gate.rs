@@ -55,6 +55,8 @@ pub const FROST_BLUR: f32 = 0.12;
 /// along the facet's rotated +x (estimated: most real files give rotation
 /// only, and visualisers choose their own spread).
 pub const PRISM_SPREAD: f32 = 0.7;
+/// A gate's key ([`ShapedBeam`]'s parameters as bits) and its (scale, flux).
+type NormEntry = (Vec<u32>, (f32, f32));
 /// Distinct gates whose flux normalisation is kept process-wide.
 const NORM_CACHE: usize = 64;
 /// Widest open cone a gate is applied to (half-angle, radians): the gate
@@ -165,11 +167,8 @@ impl Facet {
         let rotation = (rows[1][0] as f32).atan2(rows[0][0] as f32);
         let rotation = if rotation.is_finite() { rotation } else { 0.0 };
         let shift = Vec2::new(rows[0][2] as f32, rows[1][2] as f32);
-        let offset = if shift.is_finite() && shift.length() > 1e-6 {
-            shift
-        } else {
-            Vec2::from_angle(rotation) * PRISM_SPREAD
-        };
+        let offset =
+            if shift.is_finite() && shift.length() > 1e-6 { shift } else { Vec2::from_angle(rotation) * PRISM_SPREAD };
         Self { rotation, offset }
     }
 }
@@ -329,7 +328,10 @@ impl ShapedBeam {
         self.frosted
             .get_or_init(|| {
                 let frost = if self.gate.frost.is_finite() { self.gate.frost.clamp(0.0, 1.0) } else { 0.0 };
-                self.gate.gobo.as_ref().map(|g| if frost > 0.0 { Arc::new(g.blurred(FROST_BLUR * frost)) } else { g.clone() })
+                self.gate
+                    .gobo
+                    .as_ref()
+                    .map(|g| if frost > 0.0 { Arc::new(g.blurred(FROST_BLUR * frost)) } else { g.clone() })
             })
             .as_ref()
     }
@@ -342,8 +344,11 @@ impl ShapedBeam {
             // The spot's own angle: exactly the open spot where nothing cuts.
             return self.through_gate(p, Some(super::axis_angle(dir)), soft);
         }
-        let sum: f32 =
-            self.facets.iter().map(|(turn, off)| self.through_gate(Vec2::new(turn.x, -turn.y).rotate(p - *off), None, soft)).sum();
+        let sum: f32 = self
+            .facets
+            .iter()
+            .map(|(turn, off)| self.through_gate(Vec2::new(turn.x, -turn.y).rotate(p - *off), None, soft))
+            .sum();
         sum / self.facets.len() as f32
     }
 
@@ -369,7 +374,7 @@ impl ShapedBeam {
     /// evaluates it, so the quadrature runs once per distinct gate.
     fn norm(&self) -> (f32, f32) {
         *self.flux.get_or_init(|| {
-            static CACHE: std::sync::Mutex<Vec<(Vec<u32>, (f32, f32))>> = std::sync::Mutex::new(Vec::new());
+            static CACHE: std::sync::Mutex<Vec<NormEntry>> = std::sync::Mutex::new(Vec::new());
             let key = self.key();
             if let Ok(c) = CACHE.lock()
                 && let Some((_, v)) = c.iter().find(|(k, _)| *k == key)
@@ -466,7 +471,7 @@ mod tests {
 
     /// Four vertical bars (`gobo_bars`): columns 0-7, 16-23, … pass.
     fn bars() -> Arc<GoboImage> {
-        let luma: Vec<u8> = (0..N * N).map(|i| if (i % N / 8) % 2 == 0 { 255 } else { 0 }).collect();
+        let luma: Vec<u8> = (0..N * N).map(|i| if (i % N / 8).is_multiple_of(2) { 255 } else { 0 }).collect();
         Arc::new(GoboImage::from_luma8("bars", N, N, &luma).unwrap())
     }
 
@@ -478,12 +483,10 @@ mod tests {
     /// on 300 θ panels × 700 φ midpoints.
     fn flux(beam: &Beam) -> f64 {
         let top = f64::from(beam.cos_cutoff().clamp(-1.0, 1.0)).acos();
-        let (x, w) = ([-0.861_136_311_6, -0.339_981_043_6, 0.339_981_043_6, 0.861_136_311_6], [
-            0.347_854_845_1,
-            0.652_145_154_9,
-            0.652_145_154_9,
-            0.347_854_845_1,
-        ]);
+        let (x, w) = (
+            [-0.861_136_311_6, -0.339_981_043_6, 0.339_981_043_6, 0.861_136_311_6],
+            [0.347_854_845_1, 0.652_145_154_9, 0.652_145_154_9, 0.347_854_845_1],
+        );
         let (nt, np) = (300, 700);
         let h = top / nt as f64;
         let mut sum = 0.0;
@@ -513,7 +516,11 @@ mod tests {
         let closed = std::f64::consts::TAU * ((0.5 * t).atan().cos() - (0.9 * t).atan().cos());
         let quad = flux(&beam);
         assert!((quad / closed - 1.0).abs() < 0.03, "quadrature {quad} vs closed form {closed}");
-        assert!((f64::from(beam.solid_angle()) / quad - 1.0).abs() < 5e-3, "solid_angle {} vs {quad}", beam.solid_angle());
+        assert!(
+            (f64::from(beam.solid_angle()) / quad - 1.0).abs() < 5e-3,
+            "solid_angle {} vs {quad}",
+            beam.solid_angle()
+        );
         // Photon emission: the sampler's table and the unbiased estimate mean(f/pdf).
         let s = BeamSampler::new(&beam);
         assert!((f64::from(s.flux()) / quad - 1.0).abs() < 0.01, "sampler flux {} vs {quad}", s.flux());
@@ -597,7 +604,8 @@ mod tests {
             })
             .collect();
         assert!((facets[1].offset - Vec2::from_angle(std::f32::consts::TAU / 3.0) * PRISM_SPREAD).length() < 1e-5);
-        let prism = shaped(&spot, Gate { gobo: Some(ring()), facets: facets.clone(), prism_angle: 20.0, ..Gate::default() });
+        let prism =
+            shaped(&spot, Gate { gobo: Some(ring()), facets: facets.clone(), prism_angle: 20.0, ..Gate::default() });
         let fp = flux(&prism);
         assert!((fp / reference - 1.0).abs() < 0.01, "prism {fp} vs {reference}");
         assert!(prism.cos_cutoff() < plain.cos_cutoff(), "facets reach wider");

@@ -33,7 +33,8 @@ mod load;
 pub use load::load_type;
 
 use crate::beam::{
-    Beam, Blade, Facet, Gate, GoboImage, HermiteBeam, HermitePattern, MeasuredBeam, PhotometricTable, ShapedBeam, SpotBeam,
+    Beam, Blade, Facet, Gate, GoboImage, HermiteBeam, HermitePattern, MeasuredBeam, PhotometricTable, ShapedBeam,
+    SpotBeam,
 };
 use crate::state::{FixtureState, MAX_MIX};
 use footlight_photometry::{DimmerCurve, Gel, Lamp, Scroller, srgb};

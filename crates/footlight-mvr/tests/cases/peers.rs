@@ -5,8 +5,8 @@
 //! (gobo, prism, blades, shaper, frost) as Footlight maps them.
 
 use super::{gdtf, mvr, root};
-use footlight_mvr::gdtf::{Gdtf, GeometryKind, GeometryNode};
 use footlight_fixture::fixture_type::Attribute;
+use footlight_mvr::gdtf::{Gdtf, GeometryKind, GeometryNode};
 use footlight_mvr::mvr::Mvr;
 use serde_json::Value;
 use std::process::Command;
@@ -120,15 +120,17 @@ fn gate_agrees(t: &str, g: &Gdtf, theirs: &Value) {
         let angles = their["facets"].as_array().unwrap();
         assert_eq!(ours.len(), angles.len(), "{t}: facets of {}", their["name"]);
         for (f, a) in ours.iter().zip(angles) {
-            assert!((f64::from(f.rotation) - a.as_f64().unwrap()).abs() < 1e-5, "{t}: facet angle {} vs {a}", f.rotation);
+            assert!(
+                (f64::from(f.rotation) - a.as_f64().unwrap()).abs() < 1e-5,
+                "{t}: facet angle {} vs {a}",
+                f.rotation
+            );
         }
     }
     if t == "Spot" {
         assert_eq!((gobo.len(), prism.len()), (3, 2), "the generator's Spot has both wheels");
     }
-    let gate_attr = |a: &str| {
-        ["Gobo1", "Prism1", "Blade", "ShaperRot", "Frost1"].iter().any(|p| a.starts_with(p))
-    };
+    let gate_attr = |a: &str| ["Gobo1", "Prism1", "Blade", "ShaperRot", "Frost1"].iter().any(|p| a.starts_with(p));
     for (mode, m) in theirs["modes"].as_object().unwrap() {
         let mut their_gate: Vec<(u64, String)> = m["breaks"][0]
             .as_array()
