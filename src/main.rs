@@ -327,6 +327,10 @@ struct BenchArgs {
     /// Only the "walking the stage" section (issue 16), printed as Markdown.
     #[arg(long)]
     walk_only: bool,
+    /// Only the gate section (issue 14: gobos, shutters, prism, frost on
+    /// tests/data/gate-patch.toml), printed as Markdown.
+    #[arg(long)]
+    gate_only: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -368,6 +372,13 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         let walk = bench::walk::run(&Arc::new(scene), &patch, camera, size, seconds, photons)
             .map_err(|e| anyhow::anyhow!("walking the stage: {e}"))?;
         println!("{}", walk.markdown());
+        return Ok(());
+    }
+    if args.gate_only {
+        let size = if args.quick { (200, 125) } else { (800, 500) };
+        let gate_patch = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/gate-patch.toml");
+        let rows = bench::gate::run(&scene, camera, size, &gate_patch).map_err(|e| anyhow::anyhow!("gate: {e}"))?;
+        println!("{}", bench::gate::markdown(&rows, size));
         return Ok(());
     }
     let out = args.out.unwrap_or_else(bench::default_out_dir);

@@ -8,6 +8,7 @@
 
 pub mod chase;
 pub mod clients;
+pub mod gate;
 pub mod harness;
 pub mod haze;
 pub mod indirect;
