@@ -7,12 +7,16 @@ use crate::common::*;
 use footlight::fixture::beam::{Blade, Gate, ShapedBeam};
 use footlight::fixture::state::{Change, SPIN_UPDATE_HZ, classify};
 use footlight::fixture::{Beam, Light, SpotBeam};
-use footlight::live::{Decode, Show};
+use footlight::live::{Decode, FrameClock, Show, Stage, Tracer, TracerSettings};
+use footlight::render::composite::Compositor;
 use footlight::render::view::Sampling;
+use footlight::render::{Display, RecursionLimits, View};
 use footlight::scene::{Camera, SceneBuilder};
 use glam::{Vec2, Vec3};
 use std::path::PathBuf;
 use std::process::Command;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 #[test]
 fn blade_cut_on_the_floor_is_exactly_dark_beyond_its_projected_line() {
@@ -160,4 +164,48 @@ fn a_spinning_gobo_is_rebuilt_at_a_bounded_rate() {
     );
     // Without the time, the state is still (decode ignores the clock).
     assert_eq!(classify(&show.decode(&u)[0].state, &show.decode(&u)[0].state), Change::Unchanged);
+}
+
+#[test]
+fn the_frame_clock_rebuilds_a_spinning_gobo_only_when_its_angle_steps() {
+    let mut patch = footlight_mvr::load_patch(&root().join("tests/data/gate-patch.toml")).unwrap();
+    let mut u = patch.look_universes.clone();
+    u.set_slot(1, 10, 255); // fixture 1's ring gobo turning at 360 °/s
+    patch.fixtures.truncate(1);
+    let mut b = SceneBuilder::new();
+    let m = lambert(&mut b, 0.8);
+    floor(&mut b, 10.0, 0.0, m);
+    let scene = Arc::new(b.build());
+    let cam = Camera::look_at(Vec3::new(-4.4, 6.0, 2.0), Vec3::new(-4.4, 0.0, 0.2), 50f32.to_radians());
+    let view = View::build(&scene, cam, 32, 32, Sampling::One, RecursionLimits::default());
+    let mut settings = TracerSettings { threads: 1, ..TracerSettings::default() };
+    settings.build.photons = None;
+    let tracer = Arc::new(Tracer::new(scene.clone(), Arc::new(view), 1, settings));
+    let mut clock =
+        FrameClock::new(Arc::new(Show::new(patch)), tracer.clone(), Compositor::new(32, 32, Display::neutral(1000.0)));
+    // Waits until the light has published past generation `after` and is Ready.
+    let ready_after = |tracer: &Tracer, after: u64| {
+        let t = Instant::now();
+        loop {
+            let p = tracer.published(0);
+            if p.stage == Stage::Ready && p.generation > after {
+                return p.generation;
+            }
+            assert!(t.elapsed() < Duration::from_secs(60), "tracer stuck at {:?}", p.stage);
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    };
+    let step = 1.0 / SPIN_UPDATE_HZ;
+    clock.tick_at(&u, 0.1 * step);
+    let g0 = ready_after(&tracer, 0);
+    // Later frames within the same clock step: no request (nothing pending, nothing new published).
+    for f in [0.3, 0.6, 0.9] {
+        clock.tick_at(&u, f * step);
+        let report = tracer.report(0).unwrap();
+        assert!(report.pending_ms.is_none(), "no rebuild requested within a step");
+        assert_eq!((tracer.published(0).stage, tracer.published(0).generation), (Stage::Ready, g0));
+    }
+    // The next step turns the gobo by 360°/15 = 24°: the light is rebuilt.
+    clock.tick_at(&u, 1.1 * step);
+    assert!(ready_after(&tracer, g0) > g0, "a stepped spin is a rebuild");
 }
