@@ -86,54 +86,77 @@ fn blade_cut_on_the_floor_is_exactly_dark_beyond_its_projected_line() {
     assert!(dark > 300 && lit > 300, "dark {dark}, lit {lit}");
 }
 
-/// Runs `footlight render` on the gate patch and compares with tests/golden/gate.png.
-#[test]
-fn gobos_and_shutter_cuts_match_the_golden_image() {
+/// Runs `footlight render` with `args` (plus size, no photons) and compares
+/// with tests/golden/`name`.png (bless with FOOTLIGHT_BLESS=1); returns the
+/// number of clearly lit pixels.
+fn render_matches_golden(name: &str, args: &[&str]) -> usize {
     let dir = root().join("target/golden");
     std::fs::create_dir_all(&dir).unwrap();
-    let out = dir.join(format!("gate.{}.png", std::process::id()));
+    let out = dir.join(format!("{name}.{}.png", std::process::id()));
     let o = Command::new(env!("CARGO_BIN_EXE_footlight"))
         .current_dir(root())
-        .args([
-            "render",
-            "--patch",
-            "tests/data/gate-patch.toml",
-            "--photons",
-            "0",
-            "--width",
-            "480",
-            "--height",
-            "300",
-        ])
-        .args(["--force", "--out"])
+        .arg("render")
+        .args(args)
+        .args(["--photons", "0", "--width", "480", "--height", "300", "--force", "--out"])
         .arg(&out)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let actual = image::open(&out).unwrap().to_rgb8();
     let _ = std::fs::remove_file(&out);
-    let golden_path: PathBuf = root().join("tests/golden/gate.png");
+    let golden_path: PathBuf = root().join(format!("tests/golden/{name}.png"));
+    let lit = actual.pixels().filter(|p| p.0.iter().any(|&c| c > 60)).count();
     if std::env::var_os("FOOTLIGHT_BLESS").is_some() {
         actual.save(&golden_path).unwrap();
-        return;
+        return lit;
     }
-    let golden = image::open(&golden_path).expect("tests/golden/gate.png (bless with FOOTLIGHT_BLESS=1)").to_rgb8();
+    let golden = image::open(&golden_path).expect("golden image (bless with FOOTLIGHT_BLESS=1)").to_rgb8();
     assert_eq!(golden.dimensions(), actual.dimensions());
     let diffs: Vec<u8> = golden.as_raw().iter().zip(actual.as_raw()).map(|(a, b)| a.abs_diff(*b)).collect();
     let mean = diffs.iter().map(|&d| f64::from(d)).sum::<f64>() / diffs.len() as f64;
     let large = diffs.iter().filter(|&&d| d > 8).count() as f64 / diffs.len() as f64;
     if mean > 0.5 || large > 0.001 {
-        let actual_path = dir.join("gate.actual.png");
+        let actual_path = dir.join(format!("{name}.actual.png"));
         actual.save(&actual_path).unwrap();
         panic!(
-            "gate render differs from golden: mean |Δ| {mean:.3}/255, {:.3} % off by > 8; see {}",
+            "{name} render differs from golden: mean |Δ| {mean:.3}/255, {:.3} % off by > 8; see {}",
             large * 100.0,
             actual_path.display()
         );
     }
-    // The gates are in the picture: the lit area is a fraction of what open beams would light.
-    let lit = actual.pixels().filter(|p| p.0.iter().any(|&c| c > 60)).count();
+    lit
+}
+
+/// Gobos and shutter cuts on the floor, seen from above: five GDTF spots in
+/// a TOML patch with a camera (tests/data/gate-patch.toml: ring, bars
+/// turned, two blades, ring through a 3-facet prism, frosted bars with a blade).
+#[test]
+fn gobos_and_shutter_cuts_on_the_floor_match_the_golden_image() {
+    let lit = render_matches_golden("gate", &["--patch", "tests/data/gate-patch.toml"]);
     assert!(lit > 2000, "{lit} lit pixels");
+}
+
+/// The same gates from an MVR (tests/data/mvr/gate.mvr: the spots turned
+/// upstage onto the cyclorama), set by `--set` as a desk would, seen from
+/// the stage's own camera.
+#[test]
+fn gobos_and_shutter_cuts_from_an_mvr_match_the_golden_image() {
+    let mut set: Vec<String> = Vec::new();
+    for k in 0..5u16 {
+        let a = 1 + 30 * k;
+        // 16-bit dimmer full, shutter open.
+        set.extend([format!("1/{}=255", a + 4), format!("1/{}=255", a + 5), format!("1/{}=40", a + 6)]);
+    }
+    // 1 ring; 2 bars at 59.5°; 3 blades 1 and 2 (tilted); 4 ring + prism; 5 bars, frost, blade 3.
+    for s in ["1/9=10", "1/39=20", "1/40=21", "1/77=100", "1/78=100", "1/79=60", "1/80=160"] {
+        set.push(s.into());
+    }
+    for s in ["1/99=10", "1/101=128", "1/129=20", "1/136=255", "1/141=90", "1/142=90"] {
+        set.push(s.into());
+    }
+    let set = set.join(",");
+    let lit = render_matches_golden("gate-mvr", &["--patch", "tests/data/mvr/gate.mvr", "--set", &set]);
+    assert!(lit > 300, "{lit} lit pixels");
 }
 
 #[test]

@@ -758,17 +758,18 @@ def show_mvr():
     return zip_bytes(entries)
 
 
-# gate.mvr: five Extended-mode spots hanging 6.5 m over the downstage floor
-# (stage z = -2 m), 2.2 m apart, each at universe 1 address 1 + 30 k. The
-# golden test (tests/gate_golden.rs) sets their gobos, blades, prism and frost
-# with --set.
+# gate.mvr: five Extended-mode spots 4 m up at stage z = -2 m, 1.65 m apart,
+# turned 90 degrees about MVR X so their rest beams point upstage onto the
+# cyclorama (seen face-on from the stage's camera), each at universe 1
+# address 1 + 30 k. The golden test (tests/gate.rs) sets their gobos,
+# blades, prism and frost with --set.
 GATE_SPOTS = 5
 
 
 def gate_mvr():
     lights = uid("class/Lighting")
     fixtures = [
-        fixture_xml(f"Gate spot {k + 1}", "Footlight@Spot.gdtf", "Extended", 2000 + k, k + 1, mvr_matrix(-4400 + 2200 * k, 2000, 6500), [(0, 1 + 30 * k)], lights)
+        fixture_xml(f"Gate spot {k + 1}", "Footlight@Spot.gdtf", "Extended", 2000 + k, k + 1, mvr_matrix(-3300 + 1650 * k, 2000, 4000, rot_x_deg=90.0), [(0, 1 + 30 * k)], lights)
         for k in range(GATE_SPOTS)
     ]
     layers = [el("Layer", [el("ChildList", fixtures)], name="Gate rig", uuid=uid("layer/gate-rig"))]
