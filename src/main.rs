@@ -339,6 +339,10 @@ struct BenchArgs {
     /// With --accuracy-only: the parts to run (aa, converge, indirect; default all).
     #[arg(long, value_delimiter = ',', requires = "accuracy_only")]
     accuracy_part: Vec<bench::accuracy::Part>,
+    /// Only the gate section (issue 14: gobos, shutters, prism, frost on
+    /// tests/data/gate-patch.toml), printed as Markdown.
+    #[arg(long)]
+    gate_only: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -407,6 +411,13 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         )
         .map_err(|e| anyhow::anyhow!("accuracy section: {e}"))?;
         println!("{}", report.markdown());
+        return Ok(());
+    }
+    if args.gate_only {
+        let size = if args.quick { (200, 125) } else { (800, 500) };
+        let gate_patch = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/gate-patch.toml");
+        let rows = bench::gate::run(&scene, camera, size, &gate_patch).map_err(|e| anyhow::anyhow!("gate: {e}"))?;
+        println!("{}", bench::gate::markdown(&rows, size));
         return Ok(());
     }
     let out = args.out.unwrap_or_else(bench::default_out_dir);

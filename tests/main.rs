@@ -40,3 +40,5 @@ mod serve;
 mod stream;
 // Walking the stage: camera moves keep photon maps, cached views, orbit with DMX, write policy.
 mod views;
+// Gobos, framing shutters, prism and frost: floor cut vs its projection, golden image, spin rate.
+mod gate;

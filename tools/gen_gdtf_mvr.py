@@ -19,7 +19,9 @@ GDTF files (tests/data/gdtf/):
                           filters; modes Standard (27 ch, 16-bit pan/tilt/dimmer)
                           and Basic (8 ch, 24-bit dimmer); colour wheel (xyY),
                           gobo wheel (PNG slots in wheels/), prism facets,
-                          zoom/focus/iris, CMY, CTO, shutter/strobe, 8 blades + rotation
+                          zoom/focus/iris, CMY, CTO, shutter/strobe, 8 blades + rotation;
+                          mode Extended (29 ch) adds gobo rotation and wheel spin, prism
+                          rotation, frost and blade rotation
   Footlight@Wash.gdtf     RGBW LED wash, emitters with xyY and spectra, virtual-dimmer
                           relations; modes 8ch and 4ch
   Footlight@Bar8.gdtf     pixel bar: 8 GeometryReference cells of one Pixel beam;
@@ -34,6 +36,7 @@ MVR files (tests/data/mvr/):
                  ids/unit numbers/colour/gobo fields, and one GDTF that is named
                  but not in the archive (placeholder test)
   show150.mvr    150 fixtures of the six types over 4 universes
+  gate.mvr       5 Spots in the Extended mode (gobos, blades, prism, frost: golden image)
   bad-*.mvr      refused archives: a `..` path, an absolute path, a >100:1 entry,
                  a header claiming > 1 GiB; and malformed XML (line/column test)
 """
@@ -150,6 +153,18 @@ ATTRIBUTES = {
 for i in range(1, 5):
     for ab in "AB":
         ATTRIBUTES[f"Blade{i}{ab}"] = ("Shapers.Shapers", "None", f"Blade {i}{ab}")
+# The Spot's Extended mode (gate features: spins, prism rotation, frost, blade rotation).
+ATTRIBUTES.update(
+    {
+        "Gobo1WheelSpin": ("Gobo.Gobo", "AngularSpeed", "G1 Wheel Spin"),
+        "Gobo1PosRotate": ("Gobo.Gobo", "AngularSpeed", "G1 Rotate"),
+        "Prism1Pos": ("Beam.Beam", "Angle", "Prism1 <>"),
+        "Prism1PosRotate": ("Beam.Beam", "AngularSpeed", "Prism1 Rotate"),
+        "Frost1": ("Beam.Beam", "None", "Frost1"),
+    }
+)
+for i in range(1, 5):
+    ATTRIBUTES[f"Blade{i}Rot"] = ("Shapers.Shapers", "Angle", f"Blade {i} Rot")
 
 
 def attribute_definitions(names):
@@ -350,6 +365,7 @@ def spot():
         "Dimmer", "Pan", "Tilt", "Shutter1", "Shutter1Strobe", "Color1", "Gobo1", "Gobo1Pos", "Prism1", "Zoom",
         "Focus1", "Iris", "ColorSub_C", "ColorSub_M", "ColorSub_Y", "CTO", "ShaperRot",
     ] + [f"Blade{i}{ab}" for i in range(1, 5) for ab in "AB"]
+    used += ["Gobo1WheelSpin", "Gobo1PosRotate", "Prism1Pos", "Prism1PosRotate", "Frost1"] + [f"Blade{i}Rot" for i in range(1, 5)]
     physical = [
         el("Emitters"),
         el("Filters"),
@@ -431,11 +447,41 @@ def spot():
     ]
     text = fixture_type(
         "Spot", "Spot", used, [cw, gw, pw], physical, models, [tree],
-        [mode("Standard", "Foot", standard), mode("Basic", "Foot", basic)],
+        [mode("Standard", "Foot", standard), mode("Basic", "Foot", basic), mode("Extended", "Foot", extended_spot_mode(shutter, color, prism))],
         "moving spot with every beam feature (test data, estimated values)",
     )
     media = {"wheels/gobo_ring.png": png_gray(GOBO_SIZE, GOBO_SIZE, gobo_ring), "wheels/gobo_bars.png": png_gray(GOBO_SIZE, GOBO_SIZE, gobo_bars)}
     return text, media
+
+
+def extended_spot_mode(shutter, color, prism):
+    """The Spot's Extended mode (29 ch): every gate feature (gobo index, rotation
+    and wheel spin, prism index and rotation, frost, four blades with insertion
+    A/B and rotation, shaper rotation). Offsets in EXTENDED_OFFSETS."""
+    sets = [("Open", 0, 1), ("Ring", 10, 2), ("Bars", 20, 3)]
+    chans = [
+        simple("Arm", [1, 2], "Pan", -270, 270, default=32768),
+        simple("Lantern", [3, 4], "Tilt", -135, 135, default=32768),
+        simple("Lens", [5, 6], "Dimmer", 0, 1),
+        Chan("Lens", [7], shutter.functions, default=32),
+        Chan("ColorWheel", [8], color.functions),
+        # 0-127 slots, 128-255 wheel spin -120..120 deg/s
+        Chan("GoboWheel", [9], [("Gobo1", 0, 0, 0, {"Wheel": "Gobo1"}, sets), ("Gobo1WheelSpin", 128, -120, 120, {"Wheel": "Gobo1"}, [])]),
+        # 0-127 index 0..360 deg, 128-255 rotation -360..360 deg/s
+        Chan("GoboWheel", [10], [("Gobo1Pos", 0, 0, 360), ("Gobo1PosRotate", 128, -360, 360)]),
+        Chan("Lens", [11], prism.functions),
+        Chan("Lens", [12], [("Prism1Pos", 0, 0, 360), ("Prism1PosRotate", 128, -180, 180)]),
+        simple("Lens", [13], "Zoom", 10, 40),
+        simple("Lens", [14], "Focus1", 0, 1),
+        simple("Lens", [15], "Iris", 1, 0.2),
+        simple("Lens", [16], "Frost1", 0, 1),
+    ]
+    for k, (i, ab) in enumerate((i, ab) for i in range(1, 5) for ab in "AB"):
+        chans.append(simple("Framing", [17 + k], f"Blade{i}{ab}", 0, 1))
+    for i in range(1, 5):
+        chans.append(simple("Framing", [24 + i], f"Blade{i}Rot", -45, 45, default=128))
+    chans.append(simple("Framing", [29], "ShaperRot", -45, 45, default=128))
+    return chans
 
 
 EMITTERS = [
@@ -712,6 +758,26 @@ def show_mvr():
     return zip_bytes(entries)
 
 
+# gate.mvr: five Extended-mode spots 4 m up at stage z = -2 m, 1.65 m apart,
+# turned 90 degrees about MVR X so their rest beams point upstage onto the
+# cyclorama (seen face-on from the stage's camera), each at universe 1
+# address 1 + 30 k. The golden test (tests/gate.rs) sets their gobos,
+# blades, prism and frost with --set.
+GATE_SPOTS = 5
+
+
+def gate_mvr():
+    lights = uid("class/Lighting")
+    fixtures = [
+        fixture_xml(f"Gate spot {k + 1}", "Footlight@Spot.gdtf", "Extended", 2000 + k, k + 1, mvr_matrix(-3300 + 1650 * k, 2000, 4000, rot_x_deg=90.0), [(0, 1 + 30 * k)], lights)
+        for k in range(GATE_SPOTS)
+    ]
+    layers = [el("Layer", [el("ChildList", fixtures)], name="Gate rig", uuid=uid("layer/gate-rig"))]
+    entries = {"GeneralSceneDescription.xml": gsd(layers, [el("Class", name="Lighting", uuid=lights)])}
+    entries["Footlight@Spot.gdtf"] = gdtf_bytes("Footlight@Spot.gdtf")
+    return zip_bytes(entries)
+
+
 def minimal_gsd():
     f = fixture_xml("Spot 1", "Footlight@Spot.gdtf", "Basic", 1, 1, mvr_matrix(0, 0, 6000), [(0, 1)])
     return gsd([el("Layer", [el("ChildList", [f])], name="L", uuid=uid("layer/min"))], [])
@@ -764,6 +830,7 @@ def outputs():
         files[GDTF_DIR / name] = gdtf_bytes(name)
     files[MVR_DIR / "features.mvr"] = features_mvr()
     files[MVR_DIR / "show150.mvr"] = show_mvr()
+    files[MVR_DIR / "gate.mvr"] = gate_mvr()
     for name, data in bad_files().items():
         files[MVR_DIR / name] = data
     return files

@@ -9,6 +9,7 @@
 pub mod accuracy;
 pub mod chase;
 pub mod clients;
+pub mod gate;
 pub mod harness;
 pub mod haze;
 pub mod indirect;

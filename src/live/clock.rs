@@ -50,6 +50,13 @@ pub trait Decode: Send + Sync {
     }
     /// Every light's state for these universes, in a fixed order.
     fn decode(&self, universes: &dyn DmxSlots) -> Vec<LightInput>;
+    /// [`Decode::decode`] at frame time `t_seconds`: spinning gobos and
+    /// prisms turned on the frame clock (`FixtureState::at_time`, stepped at
+    /// `SPIN_UPDATE_HZ`, so a spinning light is rebuilt at a bounded rate).
+    /// The default ignores the time.
+    fn decode_at(&self, universes: &dyn DmxSlots, _t_seconds: f64) -> Vec<LightInput> {
+        self.decode(universes)
+    }
     /// Every light's label, in the same order.
     fn labels(&self) -> Vec<LightLabel> {
         (0..self.len()).map(|i| LightLabel { fixture: None, name: format!("light {}", i + 1) }).collect()
@@ -228,7 +235,7 @@ impl FrameClock {
     /// `t_seconds` (strobe: a composite per frame, never a rebuild), publish.
     pub fn tick_at(&mut self, universes: &dyn DmxSlots, t_seconds: f64) -> Frame {
         let t0 = Instant::now();
-        let mut inputs = self.decoder.decode(universes);
+        let mut inputs = self.decoder.decode_at(universes, t_seconds);
         // Haze: the density is a set of weights of this frame (no rebuild).
         let density = self.decoder.haze_density(universes).filter(|_| self.tracer.has_haze());
         for input in &mut inputs {

@@ -118,6 +118,22 @@ impl Decode for Show {
             .collect()
     }
 
+    fn decode_at(&self, universes: &dyn DmxSlots, t_seconds: f64) -> Vec<LightInput> {
+        self.patch
+            .fixtures
+            .iter()
+            .map(|f| {
+                let mut state = f.decode_universes(universes);
+                if state.spins()
+                    && let footlight_fixture::FixtureModel::Typed(t) = &f.model
+                {
+                    state = t.fixture_type.state_at(&state, t_seconds);
+                }
+                LightInput { light: f.light_of(&state), k: f.k_of(&state), k_full: f.k_full_of(&state), state }
+            })
+            .collect()
+    }
+
     fn labels(&self) -> Vec<LightLabel> {
         self.patch.fixtures.iter().map(|f| LightLabel { fixture: Some(f.id), name: f.name.clone() }).collect()
     }

@@ -9,8 +9,10 @@
 //! [`classify`] compares two states of one fixture: nothing changed → no
 //! event; dimmer, colour mix, colour frame, colour-wheel slot, CTO/CTB,
 //! shutter or strobe rate → the composite only (k_i); pan, tilt, zoom,
-//! focus or iris → geometry, which marks the light dirty for a rebuild
-//! (and, since zoom changes Î, also needs a new k_i).
+//! focus, iris, gobo (slot, rotation, spin), framing-shutter blades, prism
+//! and frost → geometry, which marks the light dirty for a rebuild (and,
+//! since zoom changes Î, also needs a new k_i). Spinning gobos and prisms
+//! step on the frame clock at [`SPIN_UPDATE_HZ`] ([`FixtureState::at_time`]).
 //!
 //! A strobing fixture's state does not change from frame to frame: the
 //! strobe is a time factor on k_i ([`FixtureState::shutter_at`]), evaluated
@@ -56,7 +58,34 @@ pub struct FixtureState {
     pub shutter: f32,
     /// Strobe rate in Hz while the shutter strobes; 0 = steady.
     pub strobe: f32,
+    /// Gobo-wheel position in slots, 0-based (0 is the wheel's first slot, usually open).
+    pub gobo: f32,
+    /// Gobo rotation (indexed), degrees counter-clockwise.
+    pub gobo_angle: f32,
+    /// Continuous gobo rotation, degrees per second (added on the frame clock: [`FixtureState::at_time`]).
+    pub gobo_spin: f32,
+    /// Gobo-wheel spin through its slots, degrees of the wheel per second.
+    pub gobo_wheel_spin: f32,
+    /// Framing-shutter blades 1-4: [insertion A, insertion B (fractions of
+    /// the gate diameter), edge rotation in degrees].
+    pub blades: [[f32; 3]; 4],
+    /// Rotation of the blade assembly, degrees.
+    pub shaper_rot: f32,
+    /// Prism-wheel slot, 0-based (0: usually no prism).
+    pub prism: f32,
+    /// Prism rotation (indexed), degrees.
+    pub prism_angle: f32,
+    /// Continuous prism rotation, degrees per second.
+    pub prism_spin: f32,
+    /// Frost 0 (none) .. 1 (full).
+    pub frost: f32,
 }
+
+/// Most rebuilds per second that a spinning gobo, prism or gobo wheel asks
+/// for: [`FixtureState::at_time`] steps the angles on this clock, so a
+/// spinning light is marked dirty at most this often (a rebuild of one
+/// narrow spot costs a few ms, docs/mvr-gdtf.md).
+pub const SPIN_UPDATE_HZ: f64 = 15.0;
 
 /// Fraction of each strobe period the shutter is open (estimated: a
 /// mechanical or LED strobe at a 50 % duty cycle; discharge flash tubes are
@@ -64,6 +93,42 @@ pub struct FixtureState {
 pub const STROBE_DUTY: f64 = 0.5;
 
 impl FixtureState {
+    /// True when something turns on the frame clock (gobo or prism
+    /// rotation, gobo-wheel spin).
+    pub fn spins(&self) -> bool {
+        [self.gobo_spin, self.gobo_wheel_spin, self.prism_spin].iter().any(|v| v.is_finite() && *v != 0.0)
+    }
+
+    /// The state at frame time `t_seconds` with its spins applied: gobo and
+    /// prism angles advanced by their rates, the gobo wheel advanced through
+    /// its `gobo_slots` slots (360°/slots per slot, wrapping), all on a
+    /// clock stepped at [`SPIN_UPDATE_HZ`], so consecutive frames within one
+    /// step give equal states (no rebuild) and a spinning light is rebuilt
+    /// at most [`SPIN_UPDATE_HZ`] times a second. The spin rates are kept,
+    /// so [`classify`] of two timed states sees only the angle steps. Pure.
+    pub fn at_time(&self, t_seconds: f64, gobo_slots: usize) -> FixtureState {
+        if !self.spins() || !t_seconds.is_finite() {
+            return *self;
+        }
+        let t = (t_seconds * SPIN_UPDATE_HZ).floor() / SPIN_UPDATE_HZ;
+        let turn = |base: f32, rate: f32| {
+            if rate.is_finite() && rate != 0.0 {
+                (f64::from(base) + f64::from(rate) * t).rem_euclid(360.0) as f32
+            } else {
+                base
+            }
+        };
+        let mut s = *self;
+        s.gobo_angle = turn(self.gobo_angle, self.gobo_spin);
+        s.prism_angle = turn(self.prism_angle, self.prism_spin);
+        if gobo_slots > 0 && self.gobo_wheel_spin.is_finite() && self.gobo_wheel_spin != 0.0 {
+            let n = gobo_slots as f64;
+            let pos = f64::from(self.gobo) + f64::from(self.gobo_wheel_spin) * t * n / 360.0;
+            s.gobo = pos.rem_euclid(n) as f32;
+        }
+        s
+    }
+
     /// The shutter's transmission at frame time `t_seconds`: 0 closed, 1
     /// open, and while strobing 1 for the first [`STROBE_DUTY`] of each
     /// period `1/strobe` and 0 after it. The phase origin is t = 0 of the
@@ -99,6 +164,16 @@ impl Default for FixtureState {
             cto: 0.0,
             shutter: 1.0,
             strobe: 0.0,
+            gobo: 0.0,
+            gobo_angle: 0.0,
+            gobo_spin: 0.0,
+            gobo_wheel_spin: 0.0,
+            blades: [[0.0; 3]; 4],
+            shaper_rot: 0.0,
+            prism: 0.0,
+            prism_angle: 0.0,
+            prism_spin: 0.0,
+            frost: 0.0,
         }
     }
 }
@@ -111,7 +186,8 @@ pub enum Change {
     /// Only k_i changed (dimmer, colour mix, colour frame, colour wheel,
     /// CTO/CTB, shutter, strobe rate, and with them CCT): recomposite.
     Composite,
-    /// The beam moved or changed shape (pan, tilt, zoom, focus, iris): mark
+    /// The beam moved or changed shape (pan, tilt, zoom, focus, iris, gobo,
+    /// blades, prism, frost): mark
     /// the light dirty and rebuild it; k_i is recomputed too.
     Geometry,
 }
@@ -123,7 +199,8 @@ pub fn classify(old: &FixtureState, new: &FixtureState) -> Change {
         || old.tilt != new.tilt
         || old.zoom != new.zoom
         || old.focus != new.focus
-        || old.iris != new.iris;
+        || old.iris != new.iris
+        || gate_changed(old, new);
     if geometry {
         return Change::Geometry;
     }
@@ -138,6 +215,22 @@ pub fn classify(old: &FixtureState, new: &FixtureState) -> Change {
         return Change::Composite;
     }
     Change::Unchanged
+}
+
+/// True when anything in the gate changed (gobo slot, angle or spin,
+/// blades, shaper rotation, prism, frost): the beam's shape, so the light
+/// is rebuilt.
+fn gate_changed(old: &FixtureState, new: &FixtureState) -> bool {
+    old.gobo != new.gobo
+        || old.gobo_angle != new.gobo_angle
+        || old.gobo_spin != new.gobo_spin
+        || old.gobo_wheel_spin != new.gobo_wheel_spin
+        || old.blades != new.blades
+        || old.shaper_rot != new.shaper_rot
+        || old.prism != new.prism
+        || old.prism_angle != new.prism_angle
+        || old.prism_spin != new.prism_spin
+        || old.frost != new.frost
 }
 
 /// Read access to the latest 512-slot frame of each patch universe, in
@@ -224,6 +317,17 @@ mod tests {
             FixtureState { focus: 0.5, ..a },
             FixtureState { iris: 0.5, ..a },
             FixtureState { pan: 1.0, v: 0.0, ..a },
+            FixtureState { gobo: 1.0, ..a },
+            FixtureState { gobo_angle: 15.0, ..a },
+            FixtureState { gobo_spin: 90.0, ..a },
+            FixtureState { gobo_wheel_spin: 30.0, ..a },
+            FixtureState { blades: [[0.0, 0.3, 0.0], [0.0; 3], [0.0; 3], [0.0; 3]], ..a },
+            FixtureState { blades: [[0.0; 3], [0.0; 3], [0.0; 3], [0.0, 0.0, 5.0]], ..a },
+            FixtureState { shaper_rot: 10.0, ..a },
+            FixtureState { prism: 1.0, ..a },
+            FixtureState { prism_angle: 1.0, ..a },
+            FixtureState { prism_spin: 1.0, ..a },
+            FixtureState { frost: 0.5, ..a },
         ] {
             assert_eq!(classify(&a, &change), Change::Geometry, "{change:?}");
         }
@@ -248,6 +352,37 @@ mod tests {
         assert!((mean - STROBE_DUTY).abs() < 2e-3, "{mean}");
         assert_eq!(FixtureState { strobe: f32::NAN, ..open }.shutter_at(0.07), 1.0);
         assert_eq!(FixtureState { shutter: f32::NAN, ..open }.shutter_at(0.0), 0.0);
+    }
+
+    #[test]
+    fn spins_step_on_the_frame_clock_at_a_bounded_rate() {
+        let still = FixtureState { gobo_angle: 10.0, ..FixtureState::default() };
+        assert_eq!(still.at_time(3.7, 6), still);
+        let s = FixtureState { gobo_angle: 10.0, gobo_spin: 90.0, prism_spin: -45.0, ..FixtureState::default() };
+        // 90°/s for 2 s: 190°; the prism turns back 90° and wraps to 270°.
+        assert!((s.at_time(2.0, 6).gobo_angle - 190.0).abs() < 1e-4);
+        assert!((s.at_time(2.0, 6).prism_angle - 270.0).abs() < 1e-4);
+        // Within one clock step the state does not change: no rebuild.
+        let step = 1.0 / SPIN_UPDATE_HZ;
+        assert_eq!(classify(&s.at_time(2.0 + 0.1 * step, 6), &s.at_time(2.0 + 0.9 * step, 6)), Change::Unchanged);
+        assert_eq!(classify(&s.at_time(2.0, 6), &s.at_time(2.0 + step, 6)), Change::Geometry);
+        // Rebuilds over 10 s of 60 Hz frames: at most SPIN_UPDATE_HZ per second.
+        let mut rebuilds = 0;
+        let mut last = s.at_time(0.0, 6);
+        for f in 1..600 {
+            let now = s.at_time(f as f64 / 60.0, 6);
+            if classify(&last, &now) == Change::Geometry {
+                rebuilds += 1;
+            }
+            last = now;
+        }
+        assert!(rebuilds <= (10.0 * SPIN_UPDATE_HZ) as usize && rebuilds > 100, "{rebuilds}");
+        // Wheel spin: 60°/s on a 6-slot wheel is one slot per second, wrapping.
+        let w = FixtureState { gobo: 1.0, gobo_wheel_spin: 60.0, ..FixtureState::default() };
+        assert!((w.at_time(2.0, 6).gobo - 3.0).abs() < 1e-4);
+        assert!((w.at_time(5.0, 6).gobo - 0.0).abs() < 1e-4);
+        assert_eq!(w.at_time(5.0, 0).gobo, 1.0, "no wheel: nothing to spin through");
+        assert_eq!(s.at_time(f64::NAN, 6), s);
     }
 
     #[test]

@@ -31,12 +31,14 @@
 //! * [`archive`]: the checked zip, in memory.
 //! * [`xml`]: well-formedness with file, line and column.
 //! * [`gdtf`]: GDTF files and DMX-mode expansion (geometry walked by reference).
+//! * [`gate`]: gobo and prism wheels, blades and frost of a GDTF spot (its gate).
 //! * [`mvr`]: the MVR scene, flattened; MVR → stage axes ([`mvr::stage_matrix`]).
 //! * [`show`]: GDTF → `FixtureType`, MVR → `Patch` ([`load_mvr`], [`load_patch`], [`check_patch`]).
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
 pub mod archive;
+pub mod gate;
 pub mod gdtf;
 pub mod mvr;
 pub mod show;

@@ -23,7 +23,11 @@
 //!   (`colour_wheel`); `CTO`/`CTB`/`CTC` on a Planckian lamp → target CCT
 //!   with the ideal correction filter's transmittance.
 //!
-//! Every other attribute (gobos, prism, blades, frost…) still occupies its
+//! * `Gobo1`/`Gobo1Pos…`, `Prism1…`, `Blade…`, `ShaperRot`, `Frost1` → the
+//!   spot's gate (gobo image, rotation, blades, prism facets, frost), see
+//!   [`crate::gate`]: a changed gate is a geometry change (rebuild).
+//!
+//! Every other attribute still occupies its
 //! slots as an `other` channel, with **one warning per fixture type**
 //! naming them. Not yet mapped: multi-beam fixtures
 //! (pixel cells, multi-lamp blinders) are one light at the first beam; DMX
@@ -232,6 +236,7 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
         movement,
         colour_wheel: colour_wheel(g, &layouts, &mut warnings),
         cto: cto_table(&layouts, &lamp_cct, planckian),
+        gate: crate::gate::gate_optics(g, &layouts, &mut warnings),
         modes,
     };
     Ok((ty, warnings))
@@ -241,6 +246,9 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
 fn map_attribute(c: &ChannelInfo, mix: &[String], moving: bool, planckian: bool) -> (Attribute, [f32; 2]) {
     let phys = c.functions.first().map(|f| [f.physical_from as f32, f.physical_to as f32]).unwrap_or([0.0, 1.0]);
     let unit = [0.0, 1.0];
+    if let Some(gate) = crate::gate::gate_attribute(&c.attribute, c.functions.iter().any(|f| f.wheel.is_some())) {
+        return (gate, unit);
+    }
     match c.attribute.as_str() {
         "Dimmer" => (Attribute::Dimmer, unit),
         a if is_shutter(a) => (Attribute::Shutter, unit),
@@ -316,6 +324,9 @@ fn channel_functions(c: &ChannelInfo, attribute: Attribute) -> Vec<Function> {
                     let (sf, st) = (raw16(s.dmx_from, bytes), raw16(s.dmx_to, bytes));
                     out.push(Function { from: sf, to: st, action: Action::Slot((i - 1) as u16), range });
                 }
+            }
+            Attribute::Gobo | Attribute::Prism | Attribute::Gate => {
+                return crate::gate::gate_functions(c, attribute, &|v| raw16(v, bytes));
             }
             _ => return Vec::new(),
         }

@@ -18,13 +18,16 @@
 //! * [`spot`]: cone + smoothstep penumbra; zoom, iris and edge focus.
 //! * [`hermite`]: piecewise cubic Hermite patterns and their focus mix.
 //! * [`measured`]: tabulated (C, γ) photometry.
+//! * [`gate`]: a spot shaped by its gate: gobo, framing shutters, prism, frost.
 //! * [`sampler`]: importance sampling of any pattern for photon emission.
 
+pub mod gate;
 pub mod hermite;
 pub mod measured;
 pub mod sampler;
 pub mod spot;
 
+pub use gate::{Blade, Facet, Gate, GoboImage, ShapedBeam};
 pub use hermite::{HermiteBeam, HermitePattern};
 pub use measured::{MeasuredBeam, PhotometricTable};
 pub use sampler::{BeamSample, BeamSampler};
@@ -42,6 +45,8 @@ pub enum Beam {
     Hermite(HermiteBeam),
     /// Measured photometry (IES LM-63 or EULUMDAT), possibly asymmetric.
     Measured(MeasuredBeam),
+    /// A spot through a gobo, framing shutters, prism and frost (boxed: it is large).
+    Shaped(Box<ShapedBeam>),
 }
 
 impl Beam {
@@ -51,6 +56,7 @@ impl Beam {
             Beam::Spot(s) => s.pattern(dir),
             Beam::Hermite(h) => h.pattern(dir),
             Beam::Measured(m) => m.pattern(dir),
+            Beam::Shaped(s) => s.pattern(dir),
         }
     }
 
@@ -61,6 +67,7 @@ impl Beam {
             Beam::Spot(s) => s.cos_outer,
             Beam::Hermite(h) => h.cos_cutoff(),
             Beam::Measured(m) => m.cos_cutoff(),
+            Beam::Shaped(s) => s.cos_cutoff(),
         }
     }
 
@@ -71,6 +78,7 @@ impl Beam {
             Beam::Spot(s) => s.solid_angle(),
             Beam::Hermite(h) => h.solid_angle(),
             Beam::Measured(m) => m.solid_angle(),
+            Beam::Shaped(s) => s.solid_angle(),
         }
     }
 
@@ -79,6 +87,19 @@ impl Beam {
         match self {
             Beam::Spot(_) | Beam::Hermite(_) => true,
             Beam::Measured(m) => m.is_symmetric(),
+            Beam::Shaped(_) => false,
+        }
+    }
+
+    /// Azimuths the photon sampler averages per polar sample: 1 for a
+    /// symmetric pattern, more for a finely structured one (a gobo, prism
+    /// facets off the axis).
+    pub fn azimuth_samples(&self) -> usize {
+        match self {
+            Beam::Spot(_) | Beam::Hermite(_) => 1,
+            Beam::Measured(m) if m.is_symmetric() => 1,
+            Beam::Measured(_) => BeamSampler::AZIMUTHS,
+            Beam::Shaped(_) => 8 * BeamSampler::AZIMUTHS,
         }
     }
 }

@@ -12,7 +12,7 @@ use glam::Vec3;
 /// distribution over the polar angle θ (uniform in cos θ inside each of
 /// [`BeamSampler::BINS`] bins) and a uniform azimuth, so a narrow spot
 /// spends no photons outside its cone. An asymmetric (measured) pattern is
-/// averaged over [`BeamSampler::AZIMUTHS`] azimuths per θ sample: the pdf is
+/// averaged over [`Beam::azimuth_samples`] azimuths per θ sample: the pdf is
 /// then not proportional to the pattern in azimuth, but it is positive
 /// wherever the azimuthal mean is, and photon power uses the exact ratio
 /// f_ε(ω)/pdf(ω), so the estimate stays unbiased whatever the binning error.
@@ -55,7 +55,7 @@ impl BeamSampler {
         }
         for i in 0..Self::BINS {
             let (c0, c1) = (cos_edges[i], cos_edges[i + 1]);
-            let azimuths = if beam.is_symmetric() { 1 } else { Self::AZIMUTHS };
+            let azimuths = beam.azimuth_samples();
             let mut mean = 0.0;
             for j in 0..4 {
                 let c = c0 + (c1 - c0) * (j as f32 + 0.5) / 4.0;
@@ -69,7 +69,13 @@ impl BeamSampler {
             weight.push(mean * std::f32::consts::TAU * (c0 - c1).max(0.0));
         }
         let flux: f32 = weight.iter().sum();
-        let prob: Vec<f32> = if flux > 0.0 { weight.iter().map(|w| w / flux).collect() } else { vec![0.0; Self::BINS] };
+        // An asymmetric pattern's azimuthal samples can miss light in a bin
+        // (a gobo's thin slit, a prism facet): every bin keeps a small
+        // probability so the pdf is positive wherever the pattern may be.
+        let floor = if beam.is_symmetric() { 0.0 } else { 1e-3 * flux / Self::BINS as f32 };
+        let total: f32 = weight.iter().map(|w| w + floor).sum();
+        let prob: Vec<f32> =
+            if flux > 0.0 { weight.iter().map(|w| (w + floor) / total).collect() } else { vec![0.0; Self::BINS] };
         let mut acc = 0.0;
         let cdf = prob
             .iter()

@@ -163,6 +163,7 @@ pub fn parse_type(path: &Path, text: &str, gels: Option<&GelLibrary>) -> Result<
         modes: Vec::new(),
         colour_wheel: Vec::new(),
         cto: None,
+        gate: Default::default(),
     };
     if file.mode.is_empty() {
         return Err(PatchError::new(path, 1, "needs at least one [[mode]] with its channels"));
@@ -555,6 +556,9 @@ fn range(at: &At, ty: &FixtureType, attribute: Attribute, f: &ChannelFile, name:
         | Attribute::Other
         | Attribute::Shutter
         | Attribute::ColourWheel
+        | Attribute::Gobo
+        | Attribute::Prism
+        | Attribute::Gate
         | Attribute::Cto => {
             if let Some(r) = &f.range {
                 return Err(at(r.span(), format!("{name} takes no range")));

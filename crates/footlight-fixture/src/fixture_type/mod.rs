@@ -32,7 +32,10 @@ mod load;
 
 pub use load::load_type;
 
-use crate::beam::{Beam, HermiteBeam, HermitePattern, MeasuredBeam, PhotometricTable, SpotBeam};
+use crate::beam::{
+    Beam, Blade, Facet, Gate, GoboImage, HermiteBeam, HermitePattern, MeasuredBeam, PhotometricTable, ShapedBeam,
+    SpotBeam,
+};
 use crate::state::{FixtureState, MAX_MIX};
 use footlight_photometry::{DimmerCurve, Gel, Lamp, Scroller, srgb};
 use glam::{Vec2, Vec3};
@@ -62,6 +65,23 @@ pub struct FixtureType {
     pub colour_wheel: Vec<WheelSlot>,
     /// The colour-correction (CTO/CTB) channel's transmittance table, if the type has one.
     pub cto: Option<CorrectionTable>,
+    /// Gobo and prism wheels (empty for types without them).
+    pub gate: GateOptics,
+}
+
+/// The wheels a spot's gate can hold (GDTF gobo and prism wheels).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GateOptics {
+    /// Gobo-wheel slots in wheel order: the slot's image, `None` for an open slot.
+    pub gobo_wheel: Vec<Option<Arc<GoboImage>>>,
+    /// Prism-wheel slots in wheel order: the slot's facets, empty for no prism.
+    pub prism_wheel: Vec<Vec<Facet>>,
+}
+
+/// The wheel slot at a position (rounded; clamped to the wheel).
+fn slot_at<T>(wheel: &[T], position: f32) -> Option<&T> {
+    let i = if position.is_finite() && position > 0.0 { position.round() as usize } else { 0 };
+    wheel.get(i.min(wheel.len().saturating_sub(1)))
 }
 
 /// A Planckian CCT after a correction filter to `target` (0: none).
@@ -274,6 +294,13 @@ pub enum Attribute {
     ColourWheel,
     /// Colour correction (CTO/CTB): target CCT in kelvin over the channel's range.
     Cto,
+    /// Gobo-wheel slot and wheel spin, by the channel's DMX ranges ([`Channel::functions`]).
+    Gobo,
+    /// Prism-wheel slot, by the channel's DMX ranges.
+    Prism,
+    /// Gobo or prism rotation, blades, shaper rotation or frost, by the
+    /// channel's DMX ranges ([`Action::Gate`]).
+    Gate,
     /// Something Footlight does not model (strobe, gobo, control…): decoded and ignored.
     Other,
 }
@@ -327,10 +354,56 @@ pub enum Action {
     Closed,
     /// Strobe at the range's rate (Hz, interpolated over the range).
     Strobe,
-    /// Colour-wheel slot (0-based).
+    /// Wheel slot (0-based) of the channel's wheel: colour, gobo or prism.
     Slot(u16),
+    /// A gate value over the range (degrees, degrees per second, insertion or frost).
+    Gate(GateTarget),
     /// Nothing Footlight models (the state keeps its value).
     Hold,
+}
+
+/// Which gate value an [`Action::Gate`] range sets (units in [`FixtureState`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GateTarget {
+    /// Indexed gobo rotation, degrees.
+    GoboAngle,
+    /// Continuous gobo rotation, degrees per second.
+    GoboSpin,
+    /// Gobo-wheel spin, degrees of the wheel per second.
+    GoboWheelSpin,
+    /// Indexed prism rotation, degrees.
+    PrismAngle,
+    /// Continuous prism rotation, degrees per second.
+    PrismSpin,
+    /// Blade `n` (0-3): insertion A.
+    BladeA(u8),
+    /// Blade `n` (0-3): insertion B.
+    BladeB(u8),
+    /// Blade `n` (0-3): edge rotation, degrees.
+    BladeRot(u8),
+    /// Rotation of the blade assembly, degrees.
+    ShaperRot,
+    /// Frost 0..1.
+    Frost,
+}
+
+impl GateTarget {
+    /// Writes `value` into the state's field.
+    pub fn apply(self, s: &mut FixtureState, value: f32) {
+        let blade = |n: u8| usize::from(n).min(3);
+        match self {
+            GateTarget::GoboAngle => s.gobo_angle = value,
+            GateTarget::GoboSpin => s.gobo_spin = value,
+            GateTarget::GoboWheelSpin => s.gobo_wheel_spin = value,
+            GateTarget::PrismAngle => s.prism_angle = value,
+            GateTarget::PrismSpin => s.prism_spin = value,
+            GateTarget::BladeA(n) => s.blades[blade(n)][0] = value.clamp(0.0, 1.0),
+            GateTarget::BladeB(n) => s.blades[blade(n)][1] = value.clamp(0.0, 1.0),
+            GateTarget::BladeRot(n) => s.blades[blade(n)][2] = value,
+            GateTarget::ShaperRot => s.shaper_rot = value,
+            GateTarget::Frost => s.frost = value.clamp(0.0, 1.0),
+        }
+    }
 }
 
 impl Channel {
@@ -446,7 +519,17 @@ impl FixtureType {
                             let hz = f.range[0] * (1.0 - x) + f.range[1] * x;
                             (s.shutter, s.strobe) = (1.0, if hz > 0.0 { hz } else { 0.0 });
                         }
-                        Action::Slot(i) => s.wheel = f32::from(i),
+                        Action::Slot(i) => match c.attribute {
+                            Attribute::Gobo => (s.gobo, s.gobo_wheel_spin) = (f32::from(i), 0.0),
+                            Attribute::Prism => s.prism = f32::from(i),
+                            _ => s.wheel = f32::from(i),
+                        },
+                        Action::Gate(t) => {
+                            let v = f.range[0] * (1.0 - x) + f.range[1] * x;
+                            if v.is_finite() {
+                                t.apply(&mut s, v);
+                            }
+                        }
                         Action::Hold => {}
                     }
                 }
@@ -471,21 +554,54 @@ impl FixtureType {
                 }
                 Attribute::Mix(i) => s.mix[usize::from(i)] = real.clamp(0.0, 1.0),
                 Attribute::Cto => s.cto = real,
-                Attribute::Shutter | Attribute::ColourWheel | Attribute::Other => {}
+                Attribute::Shutter
+                | Attribute::ColourWheel
+                | Attribute::Gobo
+                | Attribute::Prism
+                | Attribute::Gate
+                | Attribute::Other => {}
             }
         }
         s
     }
 
-    /// The beam (unit-intensity pattern) for a state.
+    /// The beam (unit-intensity pattern) for a state: a spot shaped by its
+    /// gate ([`FixtureType::gate_of`]) when anything is in it.
     pub fn beam(&self, state: &FixtureState) -> Beam {
         match &self.optics {
-            Optics::Spot(o) => Beam::Spot(o.open_beam(state.zoom, state.focus).irised(state.iris)),
+            Optics::Spot(o) => {
+                let spot = o.open_beam(state.zoom, state.focus).irised(state.iris);
+                let gate = self.gate_of(state);
+                if gate.is_open() { Beam::Spot(spot) } else { Beam::Shaped(Box::new(ShapedBeam::new(spot, gate))) }
+            }
             Optics::Hermite(h) => {
                 Beam::Hermite(HermiteBeam::new(h.spot.clone(), h.spot_cd, h.flood.clone(), h.flood_cd, state.focus))
             }
             Optics::Measured(t) => Beam::Measured(MeasuredBeam::new(t.clone())),
         }
+    }
+
+    /// The gate for a state: the gobo-wheel slot's image at the state's
+    /// angle, the blades, the prism slot's facets, the frost. Only spot
+    /// optics have a gate (GDTF profile and moving-head spots).
+    pub fn gate_of(&self, state: &FixtureState) -> Gate {
+        let finite = |v: f32| if v.is_finite() { v } else { 0.0 };
+        let blade = |b: [f32; 3]| Blade { a: finite(b[0]), b: finite(b[1]), rot: finite(b[2]) };
+        Gate {
+            gobo: slot_at(&self.gate.gobo_wheel, state.gobo).cloned().flatten(),
+            gobo_angle: finite(state.gobo_angle),
+            blades: state.blades.map(blade),
+            shaper_rot: finite(state.shaper_rot),
+            facets: slot_at(&self.gate.prism_wheel, state.prism).cloned().unwrap_or_default(),
+            prism_angle: finite(state.prism_angle),
+            frost: finite(state.frost),
+        }
+    }
+
+    /// The state at frame time `t_seconds` with its gobo/prism spins and
+    /// gobo-wheel spin applied ([`FixtureState::at_time`] over this type's gobo wheel).
+    pub fn state_at(&self, state: &FixtureState, t_seconds: f64) -> FixtureState {
+        state.at_time(t_seconds, self.gate.gobo_wheel.len())
     }
 
     /// Î in candela for a state: zoom and edge focus keep the flux (profile),

@@ -1,6 +1,7 @@
 //! Test modules and shared helpers.
 
 mod fuzz;
+mod gate;
 mod peers;
 mod readers;
 mod show;

@@ -1,9 +1,11 @@
 //! The Rust readers against pygdtf 1.4.5 and pymvr 1.0.7 (installed by
 //! `.ci/run`) on the same generated files: fixture count, addresses, mode
 //! channel counts and offsets per break, geometry tree, beam angles, wheel
-//! slot counts.
+//! slot counts, gobo slot image names, prism facets, and the gate channels
+//! (gobo, prism, blades, shaper, frost) as Footlight maps them.
 
 use super::{gdtf, mvr, root};
+use footlight_fixture::fixture_type::Attribute;
 use footlight_mvr::gdtf::{Gdtf, GeometryKind, GeometryNode};
 use footlight_mvr::mvr::Mvr;
 use serde_json::Value;
@@ -67,6 +69,7 @@ fn gdtf_agrees_with_pygdtf() {
             assert_eq!(theirs["wheels"][name], w.slots.len(), "{t} wheel {name}");
         }
         assert_eq!(theirs["wheels"].as_object().unwrap().len(), g.ft.wheels.len(), "{t}");
+        gate_agrees(t, &g, theirs);
         let modes = theirs["modes"].as_object().unwrap();
         assert_eq!(modes.len(), g.mode_names().len(), "{t}");
         for (mode, m) in modes {
@@ -95,6 +98,61 @@ fn gdtf_agrees_with_pygdtf() {
                 assert!((b[2].as_f64().unwrap() - field).abs() < 1e-9, "{t} {mode} {name}: field angle");
                 assert!((b[3].as_f64().unwrap() - flux).abs() < 1e-6, "{t} {mode} {name}: flux");
             }
+        }
+    }
+}
+
+/// The gate as Footlight maps it against pygdtf's reading: gobo slot image
+/// names (slot count and order), prism facet counts and angles, and the
+/// gobo/prism/blade/shaper/frost channels of every mode (offset, attribute).
+fn gate_agrees(t: &str, g: &Gdtf, theirs: &Value) {
+    let Ok((ty, _)) = footlight_mvr::fixture_type(g) else { return };
+    let slots = |wheel: &str| theirs["wheel_slots"][wheel].as_array().cloned().unwrap_or_default();
+    let gobo = slots("Gobo1");
+    assert_eq!(ty.gate.gobo_wheel.len(), gobo.len(), "{t}: gobo slots");
+    for (ours, their) in ty.gate.gobo_wheel.iter().zip(&gobo) {
+        let name = ours.as_ref().map(|i| i.name.clone()).unwrap_or_default();
+        assert_eq!(Value::from(name), their["media"], "{t}: gobo slot {}", their["name"]);
+    }
+    let prism = slots("Prism1");
+    assert_eq!(ty.gate.prism_wheel.len(), prism.len(), "{t}: prism slots");
+    for (ours, their) in ty.gate.prism_wheel.iter().zip(&prism) {
+        let angles = their["facets"].as_array().unwrap();
+        assert_eq!(ours.len(), angles.len(), "{t}: facets of {}", their["name"]);
+        for (f, a) in ours.iter().zip(angles) {
+            assert!(
+                (f64::from(f.rotation) - a.as_f64().unwrap()).abs() < 1e-5,
+                "{t}: facet angle {} vs {a}",
+                f.rotation
+            );
+        }
+    }
+    if t == "Spot" {
+        assert_eq!((gobo.len(), prism.len()), (3, 2), "the generator's Spot has both wheels");
+    }
+    let gate_attr = |a: &str| ["Gobo1", "Prism1", "Blade", "ShaperRot", "Frost1"].iter().any(|p| a.starts_with(p));
+    for (mode, m) in theirs["modes"].as_object().unwrap() {
+        let mut their_gate: Vec<(u64, String)> = m["breaks"][0]
+            .as_array()
+            .map(|b| {
+                b.iter()
+                    .filter(|c| gate_attr(c[1].as_str().unwrap()))
+                    .map(|c| (c[0][0].as_u64().unwrap(), c[1].as_str().unwrap().to_ascii_lowercase()))
+                    .collect()
+            })
+            .unwrap_or_default();
+        their_gate.sort();
+        let md = &ty.modes[ty.mode(mode).unwrap()];
+        let mut ours: Vec<(u64, String)> = md
+            .channels
+            .iter()
+            .filter(|c| matches!(c.attribute, Attribute::Gobo | Attribute::Prism | Attribute::Gate))
+            .map(|c| (u64::from(c.offset) + 1, c.name.clone()))
+            .collect();
+        ours.sort();
+        assert_eq!(ours, their_gate, "{t} {mode}: gate channels (gobo, prism, blades, shaper, frost)");
+        if t == "Spot" && mode == "Extended" {
+            assert_eq!(ours.iter().filter(|c| c.1.starts_with("blade")).count(), 12, "8 insertions + 4 rotations");
         }
     }
 }

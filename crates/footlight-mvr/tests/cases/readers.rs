@@ -9,7 +9,7 @@ use glam::DVec3;
 fn spot_mode_channels_and_geometry() {
     let g = Gdtf::open(&gdtf("Spot")).unwrap();
     assert_eq!(g.data_version, "1.2");
-    assert_eq!(g.mode_names(), ["Standard", "Basic"]);
+    assert_eq!(g.mode_names(), ["Standard", "Basic", "Extended"]);
     let l = g.layout("Standard").unwrap();
     assert_eq!(l.footprints.get(&1), Some(&27));
     let pan = l.channels.iter().find(|c| c.attribute == "Pan").unwrap();

@@ -3,11 +3,13 @@
 
 Prints one JSON object: per GDTF file, per mode, the channels per DMX break
 (offsets, attribute), the geometry tree (names, kinds) walked from the mode,
-the beams' angles and the wheel slot counts; per MVR file, every fixture's
+the beams' angles, the wheel slot counts, each slot's gobo image name and
+prism facet angles; per MVR file, every fixture's
 spec, mode, addresses, ids and local matrix. The Rust test
 (tests/peers.rs) compares its own reader with these numbers.
 """
 import json
+import math
 import sys
 
 import pygdtf
@@ -47,7 +49,18 @@ def gdtf(path):
             "tree": tree(ft, root),
             "beams": beams(ft, root, []),
         }
-    return {"name": ft.name, "wheels": {w.name: len(w.wheel_slots) for w in ft.wheels}, "modes": modes}
+    slots = {
+        w.name: [
+            {
+                "name": sl.name,
+                "media": (sl.media_file_name.name if sl.media_file_name and sl.media_file_name.name else ""),
+                "facets": [math.atan2(f.rotation.matrix[1][0], f.rotation.matrix[0][0]) for f in sl.facets],
+            }
+            for sl in w.wheel_slots
+        ]
+        for w in ft.wheels
+    }
+    return {"name": ft.name, "wheels": {w.name: len(w.wheel_slots) for w in ft.wheels}, "wheel_slots": slots, "modes": modes}
 
 
 def mvr(path):

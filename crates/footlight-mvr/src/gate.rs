@@ -1,0 +1,201 @@
+//! A GDTF spot's gate (issue 14): gobo wheels with their slot images, prism
+//! wheels with their facets, and the channels that turn, insert and frost
+//! them, mapped onto `footlight_fixture`'s [`GateOptics`] and gate
+//! attributes ([`Attribute::Gobo`], [`Attribute::Prism`], [`Attribute::Gate`]).
+//!
+//! * `Gobo1` (with a `Wheel` link) → gobo slot by the channel sets'
+//!   `WheelSlotIndex`; a `Gobo1WheelSpin` function → wheel spin (deg/s).
+//!   Each slot's `MediaFileName` image in `wheels/` (PNG, up to 4096² texels;
+//!   luminance × alpha = transmission, white passes) becomes a
+//!   [`GoboImage`]; a slot without an image is open.
+//! * `Gobo1Pos` → indexed rotation (degrees), `Gobo1PosRotate` → continuous
+//!   rotation (deg/s); `Prism1Pos` / `Prism1PosRotate` likewise for the prism.
+//! * `Prism1` (with a `Wheel` link) → prism slot; a slot's `<Facet>`
+//!   rotation matrices become [`Facet`]s ([`Facet::from_gdtf`]).
+//! * `Blade1A` … `Blade4B` (insertion, physical 0..1 of the gate diameter),
+//!   `Blade1Rot` … (degrees), `ShaperRot` (degrees), `Frost1` (0..1).
+//!
+//! Only the first gobo and prism wheel are modelled (`Gobo2`, `Prism2`… stay
+//! `other` channels with the type's warning).
+
+use crate::gdtf::{ChannelInfo, Gdtf, Layout};
+use footlight_fixture::PatchError;
+use footlight_fixture::beam::{Facet, GoboImage};
+use footlight_fixture::fixture_type::{Action, Attribute, Function, GateOptics, GateTarget};
+use std::sync::Arc;
+
+/// Largest gobo image side read (GDTF recommends 256, allows 1024).
+pub const MAX_GOBO_SIDE: u32 = 4096;
+
+/// The gate attribute of a GDTF channel, if it is one (`wheel`: the channel links a wheel).
+pub fn gate_attribute(attribute: &str, wheel: bool) -> Option<Attribute> {
+    match attribute {
+        "Gobo1" if wheel => Some(Attribute::Gobo),
+        "Prism1" if wheel => Some(Attribute::Prism),
+        a if gate_target(a).is_some() => Some(Attribute::Gate),
+        _ => None,
+    }
+}
+
+/// The state field a GDTF function attribute sets.
+pub fn gate_target(attribute: &str) -> Option<GateTarget> {
+    Some(match attribute {
+        "Gobo1Pos" => GateTarget::GoboAngle,
+        "Gobo1PosRotate" => GateTarget::GoboSpin,
+        "Gobo1WheelSpin" => GateTarget::GoboWheelSpin,
+        "Prism1Pos" => GateTarget::PrismAngle,
+        "Prism1PosRotate" => GateTarget::PrismSpin,
+        "ShaperRot" => GateTarget::ShaperRot,
+        "Frost1" => GateTarget::Frost,
+        a => {
+            let rest = a.strip_prefix("Blade")?;
+            let n = rest.chars().next()?.to_digit(10)?;
+            if !(1..=4).contains(&n) {
+                return None;
+            }
+            let i = (n - 1) as u8;
+            match &rest[1..] {
+                "A" => GateTarget::BladeA(i),
+                "B" => GateTarget::BladeB(i),
+                "Rot" => GateTarget::BladeRot(i),
+                _ => return None,
+            }
+        }
+    })
+}
+
+/// The DMX ranges of a gate channel: wheel slots from the channel sets
+/// (gobo and prism), and every function whose attribute is a gate value
+/// over its physical range. `raw16` converts a raw value at the channel's
+/// resolution to Footlight's 8/16-bit reading.
+pub fn gate_functions(c: &ChannelInfo, attribute: Attribute, raw16: &dyn Fn(u64) -> u16) -> Vec<Function> {
+    let mut out = Vec::new();
+    for f in &c.functions {
+        let (from, to) = (raw16(f.dmx_from), raw16(f.dmx_to));
+        let range = [f.physical_from as f32, f.physical_to as f32];
+        if let Some(t) = gate_target(&f.attribute) {
+            out.push(Function { from, to, action: Action::Gate(t), range });
+            continue;
+        }
+        let slots: Vec<_> = if matches!(attribute, Attribute::Gobo | Attribute::Prism) && f.wheel.is_some() {
+            f.sets.iter().filter_map(|s| s.wheel_slot.filter(|i| *i >= 1).map(|i| (s, i))).collect()
+        } else {
+            Vec::new()
+        };
+        if slots.is_empty() {
+            out.push(Function { from, to, action: Action::Hold, range });
+        }
+        for (s, i) in slots {
+            out.push(Function {
+                from: raw16(s.dmx_from),
+                to: raw16(s.dmx_to),
+                action: Action::Slot((i - 1) as u16),
+                range,
+            });
+        }
+    }
+    out.sort_by_key(|f| f.from);
+    out
+}
+
+/// The wheel the first channel with `attribute` links.
+fn linked_wheel<'a>(g: &'a Gdtf, layouts: &[Layout], attribute: &str) -> Option<&'a gdtf::wheel::Wheel> {
+    let name = layouts
+        .iter()
+        .flat_map(|l| l.channels.iter())
+        .filter(|c| c.attribute == attribute)
+        .flat_map(|c| c.functions.iter())
+        .find_map(|f| f.wheel.clone())?;
+    g.ft.wheels.iter().find(|w| w.name.as_deref() == Some(name.as_str()))
+}
+
+/// The gobo and prism wheels of a GDTF type: each gobo slot's image
+/// (decoded once per type), each prism slot's facets. A missing or
+/// unreadable image is a warning and an open slot.
+pub fn gate_optics(g: &Gdtf, layouts: &[Layout], warnings: &mut Vec<PatchError>) -> GateOptics {
+    let label = g.label.join("description.xml");
+    let gobo_wheel = linked_wheel(g, layouts, "Gobo1")
+        .map(|w| {
+            w.slots
+                .iter()
+                .map(|slot| {
+                    let media = slot.media_name.as_deref()?;
+                    match g.wheel_image(media).map(|b| decode(media, b)) {
+                        Some(Ok(img)) => Some(Arc::new(img)),
+                        Some(Err(why)) => {
+                            warnings.push(PatchError::new(
+                                &label,
+                                0,
+                                format!("gobo image {media:?}: {why}; slot left open"),
+                            ));
+                            None
+                        }
+                        None => {
+                            warnings.push(PatchError::new(
+                                &label,
+                                0,
+                                format!("gobo image {media:?} is not in wheels/; slot left open"),
+                            ));
+                            None
+                        }
+                    }
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    let prism_wheel = linked_wheel(g, layouts, "Prism1")
+        .map(|w| {
+            w.slots.iter().map(|s| s.facets.iter().map(|f| Facet::from_gdtf(rotation(&f.rotation))).collect()).collect()
+        })
+        .unwrap_or_default();
+    GateOptics { gobo_wheel, prism_wheel }
+}
+
+/// A wheel image as a gobo: PNG (or any format the `image` crate's enabled
+/// decoders read), at most [`MAX_GOBO_SIDE`] per side.
+pub fn decode(name: &str, bytes: &[u8]) -> Result<GoboImage, String> {
+    let mut reader =
+        image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format().map_err(|e| e.to_string())?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_GOBO_SIDE);
+    limits.max_image_height = Some(MAX_GOBO_SIDE);
+    limits.max_alloc = Some(256 << 20);
+    reader.limits(limits);
+    let img = reader.decode().map_err(|e| e.to_string())?.to_luma_alpha8();
+    let (w, h) = img.dimensions();
+    let luma: Vec<u8> = img.pixels().map(|p| ((u16::from(p.0[0]) * u16::from(p.0[1]) + 127) / 255) as u8).collect();
+    GoboImage::from_luma8(name, w as usize, h as usize, &luma).ok_or_else(|| "empty image".to_string())
+}
+
+/// A GDTF `Rotation` (`{a,b,c}{d,e,f}{g,h,i}`, rows) as numbers; the
+/// `gdtf` crate keeps them private, so they are read back from its
+/// serialiser (as [`crate::gdtf::matrix`] does); identity if unreadable.
+pub fn rotation(r: &gdtf::values::Rotation) -> [[f64; 3]; 3] {
+    let text = quick_xml::se::to_string_with_root("m", r).unwrap_or_default();
+    let inner = text.trim_start_matches("<m>").trim_end_matches("</m>");
+    let nums: Vec<f64> =
+        inner.split(['{', '}', ',']).filter(|s| !s.trim().is_empty()).filter_map(|s| s.trim().parse().ok()).collect();
+    if nums.len() != 9 || nums.iter().any(|x| !x.is_finite()) {
+        return [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    }
+    [[nums[0], nums[1], nums[2]], [nums[3], nums[4], nums[5]], [nums[6], nums[7], nums[8]]]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gate_attribute_names() {
+        assert_eq!(gate_target("Blade3Rot"), Some(GateTarget::BladeRot(2)));
+        assert_eq!(gate_target("Blade1A"), Some(GateTarget::BladeA(0)));
+        assert_eq!(gate_target("Blade4B"), Some(GateTarget::BladeB(3)));
+        assert_eq!(gate_target("Blade5A"), None);
+        assert_eq!(gate_target("Blade"), None);
+        assert_eq!(gate_target("BladeSoft1A"), None);
+        assert_eq!(gate_attribute("Gobo1", true), Some(Attribute::Gobo));
+        assert_eq!(gate_attribute("Gobo1", false), None);
+        assert_eq!(gate_attribute("Frost1", false), Some(Attribute::Gate));
+        assert!(decode("x", b"not a png").is_err());
+    }
+}
