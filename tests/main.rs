@@ -40,3 +40,5 @@ mod serve;
 mod stream;
 // Walking the stage: camera moves keep photon maps, cached views, orbit with DMX, write policy.
 mod views;
+// Pixel cells of MVR pixel bars against the eq. 1 renderer.
+mod pixels;
