@@ -327,6 +327,10 @@ struct BenchArgs {
     /// Only the "walking the stage" section (issue 16), printed as Markdown.
     #[arg(long)]
     walk_only: bool,
+    /// Only the pixel-bar rig of the 150-fixture MVR (issue 14): its build and
+    /// composite cost, printed as text. Without --patch the MVR is the patch.
+    #[arg(long)]
+    pixels_only: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -368,6 +372,13 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         let walk = bench::walk::run(&Arc::new(scene), &patch, camera, size, seconds, photons)
             .map_err(|e| anyhow::anyhow!("walking the stage: {e}"))?;
         println!("{}", walk.markdown());
+        return Ok(());
+    }
+    if args.pixels_only {
+        let size = if args.quick { (200, 125) } else { (800, 500) };
+        let show = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr/show150.mvr");
+        let report = bench::mvr::pixels(&scene, camera, size, &show).map_err(|e| anyhow::anyhow!("pixel bars: {e}"))?;
+        print!("{}", report.lines());
         return Ok(());
     }
     let out = args.out.unwrap_or_else(bench::default_out_dir);
