@@ -190,20 +190,26 @@ impl PixelReport {
     }
 }
 
-/// Runs the pixel-bar measurements on `show` (its fixtures whose GDTF type
-/// has emitting `GeometryReference`s: the cells) over `scene` from `camera`.
+/// Runs the pixel-bar measurements on `show` (its LED fixtures that became
+/// several lights: the cells of their GDTF `GeometryReference`s) over
+/// `scene` from `camera`.
 pub fn pixels(scene: &Scene, camera: Camera, (w, h): (u32, u32), show: &Path) -> Result<PixelReport, String> {
     use crate::render::build::{BuildSettings, Cancel, LightBuild};
     use crate::render::footprint::DirectQuality;
     let t = Instant::now();
     let import = footlight_mvr::load_mvr(show).map_err(|e| e.first().map(|e| e.to_string()).unwrap_or_default())?;
     let import_ms = t.elapsed().as_secs_f64() * 1e3;
-    // Cells: fixtures sharing an id with another fixture (one MVR fixture became several lights).
+    // Pixel cells: LED fixtures sharing an id with another (one MVR fixture
+    // became several lights); the blinders' tungsten lamps are left out.
+    let led = |f: &&crate::fixture::Fixture| match &f.model {
+        crate::fixture::FixtureModel::Typed(t) => matches!(t.fixture_type.lamp, footlight_photometry::Lamp::Led { .. }),
+        crate::fixture::FixtureModel::Builtin(_) => false,
+    };
     let mut per_id: std::collections::BTreeMap<u32, usize> = std::collections::BTreeMap::new();
-    for f in &import.patch.fixtures {
+    for f in import.patch.fixtures.iter().filter(led) {
         *per_id.entry(f.id).or_default() += 1;
     }
-    let cells: Vec<_> = import.patch.fixtures.iter().filter(|f| per_id[&f.id] > 1).collect();
+    let cells: Vec<_> = import.patch.fixtures.iter().filter(led).filter(|f| per_id[&f.id] > 1).collect();
     let bars = per_id.values().filter(|n| **n > 1).count();
     if cells.is_empty() {
         return Err(format!("{}: no pixel cells", show.display()));

@@ -705,7 +705,9 @@ fn break_base(b: u16) -> Option<u16> {
 
 /// One emitting cell of a multi-instance fixture (a `GeometryReference`
 /// whose referenced geometry holds a `<Beam>`: an LED bar's pixel, a
-/// matrix's cell, a ring wash's segment): one light of its own.
+/// matrix's cell, a ring wash's segment; or, in a type without such
+/// references, one of several plain `<Beam>`s: a multi-lamp blinder's
+/// lamp): one light of its own.
 #[derive(Clone, Debug)]
 pub struct Cell {
     /// The reference's name in the GDTF (e.g. `Cell3`).
@@ -722,14 +724,19 @@ pub struct Cell {
 
 /// The emitting cells of DMX mode `mode` of `g`, as built on `ty` (the
 /// fixture type [`fixture_type`] made of `g`), in tree order. Empty when
-/// the mode has fewer than two emitting references: such a fixture stays
-/// one light.
+/// the mode has fewer than two emitting references and fewer than two
+/// plain beams: such a fixture stays one light.
 pub fn cells(g: &Gdtf, ty: &FixtureType, mode: &str) -> Result<Vec<Cell>, PatchError> {
     let l = g.layout(mode)?;
     let Some(index) = ty.mode(&l.mode) else { return Ok(Vec::new()) };
     let base = &ty.modes[index];
     let mut refs: Vec<(&GeometryNode, Vec3)> = Vec::new();
     emitting_references(&l.root, &mut refs);
+    if refs.len() < 2 {
+        // No instanced cells: several plain `<Beam>`s (a multi-lamp blinder) are cells too.
+        refs.clear();
+        plain_beams(&l.root, &mut refs);
+    }
     if refs.len() < 2 {
         return Ok(Vec::new());
     }
@@ -756,6 +763,15 @@ pub fn cells(g: &Gdtf, ty: &FixtureType, mode: &str) -> Result<Vec<Cell>, PatchE
         out.push(Cell { name: node.name.clone(), offset: *offset, fixture_type: Arc::new(cell_ty) });
     }
     Ok(out)
+}
+
+/// The `<Beam>` geometries under `node` outside references, with their positions.
+fn plain_beams<'a>(node: &'a GeometryNode, out: &mut Vec<(&'a GeometryNode, Vec3)>) {
+    match node.kind {
+        GeometryKind::Reference(_) => {}
+        GeometryKind::Beam(_) => out.push((node, node.to_fixture.w_axis.truncate().as_vec3())),
+        _ => node.children.iter().for_each(|c| plain_beams(c, out)),
+    }
 }
 
 /// GeometryReferences under `node` whose instance holds a beam, with that

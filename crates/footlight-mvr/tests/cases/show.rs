@@ -42,8 +42,8 @@ fn spot_gdtf_maps_onto_a_fixture_type() {
 fn features_mvr_becomes_a_patch_with_warnings() {
     let import = load_mvr(&mvr("features")).unwrap();
     let p = &import.patch;
-    // 9 MVR fixtures; the hazer is not a light; the pixel bar is 8 lights (its cells).
-    assert_eq!(p.fixtures.len(), 15);
+    // 9 MVR fixtures; the hazer is not a light; the pixel bar is 8 lights (its cells), the blinder 2 (its lamps).
+    assert_eq!(p.fixtures.len(), 16);
     let ghosts: Vec<_> = import.warnings.iter().filter(|w| w.message.contains("Footlight@Missing.gdtf")).collect();
     assert_eq!(ghosts.len(), 1, "{:?}", import.warnings);
     assert!(ghosts[0].message.contains("Ghost 1 (id 701)") && ghosts[0].message.contains("Ghost 2 (id 702)"));
@@ -79,8 +79,8 @@ fn features_mvr_becomes_a_patch_with_warnings() {
 #[test]
 fn show150_imports_every_fixture() {
     let import = load_mvr(&mvr("show150")).unwrap();
-    // 150 fixtures, 2 of them hazers (not lights), 24 pixel bars of 8 cells each.
-    assert_eq!(import.patch.fixtures.len(), 148 - 24 + 24 * 8);
+    // 150 fixtures, 2 of them hazers (not lights), 24 pixel bars of 8 cells each, 20 blinders of 2 lamps.
+    assert_eq!(import.patch.fixtures.len(), 148 - 24 + 24 * 8 - 20 + 20 * 2);
     assert_eq!(import.patch.fixtures.iter().filter(|f| f.name.starts_with("Bar8 ")).count(), 24 * 8);
     let universes: std::collections::BTreeSet<u16> =
         import.patch.fixtures.iter().filter_map(|f| f.dmx.map(|d| d.0)).collect();
@@ -253,4 +253,20 @@ fn split_bar_decodes_dmx_break_two() {
     let ltp = p.ltp_addresses();
     assert_eq!(ltp.get(&2).map(|v| v.len()), Some(24));
     assert!(!ltp.get(&1).is_some_and(|v| v.contains(&201)));
+}
+
+/// A multi-lamp blinder (two plain `<Beam>`s, no references) is two lights:
+/// in mode 2ch each lamp has its own dimmer (slots 301 and 302), 240 mm apart.
+#[test]
+fn blinder_lamps_are_lights_with_their_own_dimmers() {
+    let import = load_mvr(&mvr("features")).unwrap();
+    let lamps: Vec<_> = import.patch.fixtures.iter().filter(|f| f.id == 401).collect();
+    assert_eq!(lamps.len(), 2);
+    assert_eq!((lamps[0].name.as_str(), lamps[1].name.as_str()), ("Blinder 1 / Cell1", "Blinder 1 / Cell2"));
+    assert!(((lamps[1].light.position - lamps[0].light.position).length() - 0.24).abs() < 1e-4);
+    let mut u = Universes::new();
+    u.set_slot(1, 302, 255);
+    let k: Vec<Vec3> = lamps.iter().map(|f| f.k_of(&f.decode_universes(&u))).collect();
+    assert_eq!(k[0], Vec3::ZERO);
+    assert!(k[1].min_element() > 0.0, "{}", k[1]);
 }
