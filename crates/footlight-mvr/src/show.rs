@@ -25,9 +25,15 @@
 //!
 //! Every other attribute (gobos, prism, blades, frost…) still occupies its
 //! slots as an `other` channel, with **one warning per fixture type**
-//! naming them. Not yet mapped: multi-beam fixtures
-//! (pixel cells, multi-lamp blinders) are one light at the first beam; DMX
-//! breaks after the first are reported, not decoded.
+//! naming them.
+//!
+//! Multi-beam fixtures are one light per emitting cell ([`cells`]): each
+//! `GeometryReference` holding a beam (pixel bars, matrices), else each
+//! plain beam (multi-lamp blinders), with the cell's own channels and the
+//! shared ones (the master dimmer). A mode spanning several DMX breaks
+//! puts break b's channels at offsets from `BREAK_STRIDE · (b − 1)`; the
+//! MVR `<Addresses>` of break 2, 3… go to `TypedFixture::breaks`
+//! ([`footlight_fixture::Fixture::slot_address`] resolves them).
 
 use crate::gdtf::{BeamInfo, ChannelInfo, Gdtf, GeometryKind, GeometryNode, LampType, Layout};
 use crate::mvr::{Mvr, Scene, stage_pose};
@@ -777,11 +783,11 @@ fn plain_beams<'a>(node: &'a GeometryNode, out: &mut Vec<(&'a GeometryNode, Vec3
 /// GeometryReferences under `node` whose instance holds a beam, with that
 /// beam's position (depth-first; a reference inside a cell is part of it).
 fn emitting_references<'a>(node: &'a GeometryNode, out: &mut Vec<(&'a GeometryNode, Vec3)>) {
-    if matches!(node.kind, GeometryKind::Reference(_)) {
-        if let Some((beam, _)) = first_beam(node) {
-            out.push((node, beam.to_fixture.w_axis.truncate().as_vec3()));
-            return;
-        }
+    if matches!(node.kind, GeometryKind::Reference(_))
+        && let Some((beam, _)) = first_beam(node)
+    {
+        out.push((node, beam.to_fixture.w_axis.truncate().as_vec3()));
+        return;
     }
     node.children.iter().for_each(|c| emitting_references(c, out));
 }
