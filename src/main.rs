@@ -343,6 +343,10 @@ struct BenchArgs {
     /// tests/data/gate-patch.toml), printed as Markdown.
     #[arg(long)]
     gate_only: bool,
+    /// Only the pixel-bar rig of the 150-fixture MVR (issue 14): its build and
+    /// composite cost, printed as text. Without --patch the MVR is the patch.
+    #[arg(long)]
+    pixels_only: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -418,6 +422,13 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         let gate_patch = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/gate-patch.toml");
         let rows = bench::gate::run(&scene, camera, size, &gate_patch).map_err(|e| anyhow::anyhow!("gate: {e}"))?;
         println!("{}", bench::gate::markdown(&rows, size));
+        return Ok(());
+    }
+    if args.pixels_only {
+        let size = if args.quick { (200, 125) } else { (800, 500) };
+        let show = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr/show150.mvr");
+        let report = bench::mvr::pixels(&scene, camera, size, &show).map_err(|e| anyhow::anyhow!("pixel bars: {e}"))?;
+        print!("{}", report.lines());
         return Ok(());
     }
     let out = args.out.unwrap_or_else(bench::default_out_dir);

@@ -145,9 +145,15 @@ fn quick_bench_writes_a_consistent_report() {
     let sum = |i: usize| mse[i][1].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).sum::<f64>();
     assert!(sum(1) < sum(0), "adaptive AA is closer to 9× than one sample");
     assert!(json["ratios"].as_array().unwrap().iter().all(|r| r["ours"].as_f64().unwrap().is_finite()));
-    // Issue 14: the 150-fixture MVR imported (148 lights: two hazers), and 50 strobing
+    // Issue 14: the 150-fixture MVR imported (336 lights: two hazers are none, 24
+    // pixel bars are 8 cells each, 20 blinders 2 lamps each), and 50 strobing
     // fixtures flip some lights each frame (never none, never more than all).
-    assert_eq!(json["mvr"]["fixtures"].as_u64(), Some(148));
+    assert_eq!(json["mvr"]["fixtures"].as_u64(), Some(148 - 24 + 24 * 8 - 20 + 20 * 2));
+    // The pixel-bar rig: 24 bars × 8 cells; one fader recomposites fewer tiles than all of them.
+    let px = &json["mvr"]["pixels"];
+    assert_eq!((px["bars"].as_u64(), px["cells"].as_u64()), (Some(24), Some(192)));
+    let (one, all) = (px["one_fader_tiles"].as_f64().unwrap(), px["all_faders_tiles"].as_f64().unwrap());
+    assert!(one > 0.0 && one < all, "one fader {one} tiles, all faders {all}");
     assert!(json["mvr"]["import_ms"].as_f64().unwrap().is_finite());
     let flips = json["mvr"]["strobe_changed_per_frame"].as_f64().unwrap();
     assert!(flips > 0.0 && flips <= 50.0, "{flips}");
@@ -490,4 +496,15 @@ fn render_refine_blends_progressive_passes_into_the_still() {
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--refine"));
     let o = run(&dir.join("y.pfm"), "1.5");
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--refine"));
+}
+
+/// `footlight bench --pixels-only --quick`: the pixel-bar rig of the
+/// 150-fixture MVR alone, its 24 bars × 8 cells built and composited.
+#[test]
+fn pixel_bar_bench_section_runs_alone() {
+    let o = footlight().args(["bench", "--pixels-only", "--quick"]).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("pixel bars: 24 bars × 8 cells = 192 lights"), "{out}");
+    assert!(out.contains("all faders moving") && out.contains("one fader"), "{out}");
 }

@@ -42,3 +42,5 @@ mod stream;
 mod views;
 // Gobos, framing shutters, prism and frost: floor cut vs its projection, golden image, spin rate.
 mod gate;
+// Pixel cells of MVR pixel bars against the eq. 1 renderer.
+mod pixels;

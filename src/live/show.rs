@@ -44,10 +44,9 @@ impl Show {
                 None => map.block(input),
             };
         }
-        // Fixtures' universes, and the hazer channel's (it drives the haze density).
+        // Fixtures' universes (every DMX break's), and the hazer channel's (it drives the haze density).
         let hazer = patch.haze.as_ref().and_then(|h| h.dmx.map(|(u, _)| u));
-        let mut universes: Vec<u16> =
-            patch.fixtures.iter().filter_map(|f| f.dmx.map(|(u, _)| u)).chain(hazer).collect();
+        let mut universes: Vec<u16> = patch.fixtures.iter().flat_map(|f| f.universes()).chain(hazer).collect();
         universes.sort_unstable();
         universes.dedup();
         let ltp = patch.ltp_addresses().into_iter().map(|(u, addrs)| (u, SlotMask::from_addresses(addrs))).collect();

@@ -44,4 +44,6 @@ pub mod mvr;
 pub mod show;
 pub mod xml;
 
-pub use show::{GdtfTypes, Import, check_patch, fixture_type, is_mvr, load_mvr, load_patch, time_load_mvr};
+pub use show::{
+    Cell, GdtfTypes, Import, cells, check_patch, fixture_type, is_mvr, load_mvr, load_patch, time_load_mvr,
+};

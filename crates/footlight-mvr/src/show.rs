@@ -29,9 +29,15 @@
 //!
 //! Every other attribute still occupies its
 //! slots as an `other` channel, with **one warning per fixture type**
-//! naming them. Not yet mapped: multi-beam fixtures
-//! (pixel cells, multi-lamp blinders) are one light at the first beam; DMX
-//! breaks after the first are reported, not decoded.
+//! naming them.
+//!
+//! Multi-beam fixtures are one light per emitting cell ([`cells`]): each
+//! `GeometryReference` holding a beam (pixel bars, matrices), else each
+//! plain beam (multi-lamp blinders), with the cell's own channels and the
+//! shared ones (the master dimmer). A mode spanning several DMX breaks
+//! puts break b's channels at offsets from `BREAK_STRIDE · (b − 1)`; the
+//! MVR `<Addresses>` of break 2, 3… go to `TypedFixture::breaks`
+//! ([`footlight_fixture::Fixture::slot_address`] resolves them).
 
 use crate::gdtf::{BeamInfo, ChannelInfo, Gdtf, GeometryKind, GeometryNode, LampType, Layout};
 use crate::mvr::{Mvr, Scene, stage_pose};
@@ -39,7 +45,7 @@ use footlight_fixture::beam::SpotBeam;
 use footlight_fixture::fixture_type::{
     Action, Attribute, Channel, CorrectionTable, Function, Mode, Movement, Optics, SpotOptics, WheelSlot, wheel_factor,
 };
-use footlight_fixture::patch::{BuiltinSpot, TypeLoader, TypedFixture};
+use footlight_fixture::patch::{BREAK_STRIDE, BuiltinSpot, TypeLoader, TypedFixture};
 use footlight_fixture::state::{MAX_MIX, SLOTS, Universes};
 use footlight_fixture::{Beam, Fixture, FixtureModel, FixtureState, FixtureType, Light, Manual, Patch, PatchError};
 use footlight_photometry::{Chroma, DimmerCurve, Emitter, Gel, Lamp};
@@ -172,11 +178,14 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
             if c.offsets.is_empty() {
                 continue;
             }
-            if c.dmx_break != 1 {
+            // Later breaks: offsets from BREAK_STRIDE · (break − 1) (see `TypedFixture::breaks`).
+            let Some(base) = break_base(c.dmx_break) else {
                 later_breaks = true;
                 continue;
+            };
+            if c.dmx_break == 1 {
+                footprint = footprint.max(*c.offsets.iter().max().unwrap_or(&0));
             }
-            footprint = footprint.max(*c.offsets.iter().max().unwrap_or(&0));
             let (attribute, range) = map_attribute(c, &mix_names, movement.is_some(), planckian);
             let functions = channel_functions(c, attribute);
             if attribute == Attribute::Other && !unsupported.contains(&c.attribute) {
@@ -196,8 +205,8 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
             channels.push(Channel {
                 attribute,
                 name: c.attribute.to_ascii_lowercase(),
-                offset: c.offsets[0].saturating_sub(1),
-                fine,
+                offset: base + c.offsets[0].saturating_sub(1).min(BREAK_STRIDE - 1),
+                fine: fine.map(|o| base + o.min(BREAK_STRIDE - 1)),
                 default,
                 curve,
                 range,
@@ -210,7 +219,7 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
             warnings.push(PatchError::new(
                 &label,
                 0,
-                format!("mode {:?}: channels on DMX breaks after the first are not decoded yet", l.mode),
+                format!("mode {:?}: channels on DMX breaks past {MAX_BREAKS} are not decoded", l.mode),
             ));
         }
         modes.push(Mode { name: l.mode.clone(), channels, footprint: footprint.min(SLOTS as u16), line: 0 });
@@ -452,6 +461,7 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
     let mut fixtures: Vec<Fixture> = Vec::new();
     let mut used: Vec<(u16, u16, u16, String)> = Vec::new(); // universe, first, last, fixture name
     let mut frames = Universes::new();
+    let mut cell_plans: BTreeMap<String, BTreeMap<String, Vec<Cell>>> = BTreeMap::new();
     let beam_frame = Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2); // GDTF local → stage local
     for (n, f) in m.scene.fixtures.iter().enumerate() {
         let id = f.fixture_id_numeric.or_else(|| f.fixture_id.parse().ok()).unwrap_or(n as u32 + 1);
@@ -468,25 +478,14 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
                     let beam =
                         g.layout(&g.mode_names()[0]).ok().and_then(|l| first_beam(&l.root).map(|(n, _)| n.to_fixture));
                     let off = beam.map(|t| t.w_axis.truncate().as_vec3()).unwrap_or(Vec3::ZERO);
+                    cell_plans.insert(f.gdtf_spec.clone(), mode_cells(&g, &ty, &mut warnings));
                     Ok((Arc::new(ty), off))
                 }
                 Err(e) => Err(e.to_string()),
             }
         });
         let dmx = f.addresses.iter().find(|a| a.dmx_break == 0).map(|a| (a.universe, a.address));
-        for a in f.addresses.iter().filter(|a| a.dmx_break != 0) {
-            warnings.push(PatchError::new(
-                path,
-                0,
-                format!(
-                    "fixture {:?} (id {id}): DMX break {} at {}.{} is not decoded yet",
-                    f.name,
-                    a.dmx_break + 1,
-                    a.universe,
-                    a.address
-                ),
-            ));
-        }
+        let breaks = later_breaks(f);
         match entry {
             Err(why) if why == "missing" => {
                 missing.entry(f.gdtf_spec.clone()).or_default().push(format!("{} (id {id})", f.name));
@@ -532,55 +531,73 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
                 };
                 let md = &ty.modes[mode];
                 let rotation = if ty.movement.is_some() { q } else { q * beam_frame };
-                let offset = q * beam_frame * *beam_offset;
-                let typed = TypedFixture {
-                    fixture_type: ty.clone(),
-                    mode,
-                    position: position + offset,
-                    rotation,
-                    gel: None,
-                    scroller: None,
-                    gels: None,
-                    manual: Manual::default(),
-                };
-                let mut local = vec![0u8; usize::from(md.footprint)];
+                // Channel defaults by (break-aware) offset.
+                let mut local: BTreeMap<u16, u8> = BTreeMap::new();
                 for c in &md.channels {
-                    for (o, v) in c.slots_for(c.default) {
-                        if let Some(s) = local.get_mut(usize::from(o)) {
-                            *s = v;
-                        }
-                    }
+                    local.extend(c.slots_for(c.default));
                 }
-                if let Some((u, a)) = dmx {
-                    let end = u32::from(a) + u32::from(md.footprint) - 1;
-                    if end > SLOTS as u32 {
-                        errors.push(PatchError::new(
-                            path,
-                            0,
-                            format!(
-                                "fixture {:?} (id {id}): its {} slots from {u}.{a} run past slot 512",
-                                f.name, md.footprint
-                            ),
-                        ));
-                    } else {
-                        used.push((u, a, end as u16, f.name.clone()));
-                        for (o, v) in local.iter().enumerate() {
-                            frames.set_slot(u, a + o as u16, *v);
-                        }
-                    }
-                }
-                let mut fixture = Fixture {
-                    id,
-                    name: f.name.clone(),
-                    light: Light { position, rotation, beam: Beam::Spot(SpotBeam::from_half_angles(0.0, 0.0)) },
-                    dmx,
-                    line: 0,
-                    model: FixtureModel::Typed(typed),
-                    look: FixtureState::default(),
+                let cells = cell_plans.get(&f.gdtf_spec).and_then(|m| m.get(&md.name)).filter(|c| !c.is_empty());
+                let parts: Vec<(String, Arc<FixtureType>, usize, Vec3)> = match cells {
+                    Some(cells) => cells
+                        .iter()
+                        .map(|c| (format!("{} / {}", f.name, c.name), c.fixture_type.clone(), 0, c.offset))
+                        .collect(),
+                    None => vec![(f.name.clone(), ty.clone(), mode, *beam_offset)],
                 };
-                fixture.look = fixture.decode_with(&|o| local.get(usize::from(o)).copied().unwrap_or(0));
-                fixture.light = fixture.light_of(&fixture.look);
-                fixtures.push(fixture);
+                let ranges = match dmx {
+                    Some(start) => break_ranges(md, start, &breaks),
+                    None => Ok((Vec::new(), Vec::new())),
+                };
+                match ranges {
+                    Err(why) => {
+                        errors.push(PatchError::new(path, 0, format!("fixture {:?} (id {id}): {why}", f.name)));
+                        continue;
+                    }
+                    Ok((ranges, missing)) => {
+                        used.extend(ranges.into_iter().map(|(u, a, e)| (u, a, e, f.name.clone())));
+                        if !missing.is_empty() {
+                            warnings.push(PatchError::new(
+                                path,
+                                0,
+                                format!(
+                                    "fixture {:?} (id {id}): mode {:?} uses DMX breaks {missing:?}, which its \
+                                     <Addresses> do not give; those channels read 0",
+                                    f.name, md.name
+                                ),
+                            ));
+                        }
+                    }
+                }
+                for (name, fixture_type, mode, beam_offset) in parts {
+                    let typed = TypedFixture {
+                        fixture_type,
+                        mode,
+                        position: position + q * beam_frame * beam_offset,
+                        rotation,
+                        gel: None,
+                        scroller: None,
+                        gels: None,
+                        manual: Manual::default(),
+                        breaks: breaks.clone(),
+                    };
+                    let mut fixture = Fixture {
+                        id,
+                        name,
+                        light: Light { position, rotation, beam: Beam::Spot(SpotBeam::from_half_angles(0.0, 0.0)) },
+                        dmx,
+                        line: 0,
+                        model: FixtureModel::Typed(typed),
+                        look: FixtureState::default(),
+                    };
+                    for (o, v) in &local {
+                        if let Some((u, a)) = fixture.slot_address(*o) {
+                            frames.set_slot(u, a, *v);
+                        }
+                    }
+                    fixture.look = fixture.decode_with(&|o| local.get(&o).copied().unwrap_or(0));
+                    fixture.light = fixture.light_of(&fixture.look);
+                    fixtures.push(fixture);
+                }
             }
         }
     }
@@ -629,6 +646,161 @@ fn footprint_of(m: &Mvr, spec: &str, mode: &str) -> Result<u16, PatchError> {
     let g = Gdtf::from_bytes(&m.archive.label(spec), bytes.to_vec())?;
     let l = g.layout(mode)?;
     Ok(l.footprints.get(&1).copied().unwrap_or(0))
+}
+
+/// The cells of every mode of a type ([`cells`]), by mode name; a mode
+/// whose cells cannot be worked out stays one light, with a warning.
+fn mode_cells(g: &Gdtf, ty: &FixtureType, warnings: &mut Vec<PatchError>) -> BTreeMap<String, Vec<Cell>> {
+    let mut out = BTreeMap::new();
+    for m in &ty.modes {
+        match cells(g, ty, &m.name) {
+            Ok(c) => {
+                out.insert(m.name.clone(), c);
+            }
+            Err(e) => warnings.push(e),
+        }
+    }
+    out
+}
+
+/// `(universe, address)` of an MVR fixture's breaks after the first, in
+/// break order (MVR numbers breaks from 0; break 2 is the first entry). A
+/// break the fixture gives no address for reads nothing: its channels
+/// decode as 0, and the gap ends the list.
+fn later_breaks(f: &crate::mvr::MvrFixture) -> Vec<(u16, u16)> {
+    let mut out = Vec::new();
+    for b in 1..MAX_BREAKS {
+        match f.addresses.iter().find(|a| a.dmx_break == b) {
+            Some(a) => out.push((a.universe, a.address)),
+            None => break,
+        }
+    }
+    out
+}
+
+/// The slots a mode occupies on each break, `(universe, first, last)`,
+/// from the start address and the later breaks' addresses, and the breaks
+/// the mode uses that have no address (their channels read 0); an error
+/// when a break's slots run past 512.
+fn break_ranges(md: &Mode, start: (u16, u16), breaks: &[(u16, u16)]) -> Result<BreakRanges, String> {
+    let mut missing = Vec::new();
+    let mut hi: BTreeMap<u16, u16> = BTreeMap::new();
+    for c in &md.channels {
+        for o in std::iter::once(c.offset).chain(c.fine) {
+            let e = hi.entry(o / BREAK_STRIDE).or_insert(0);
+            *e = (*e).max(o % BREAK_STRIDE + 1);
+        }
+    }
+    hi.entry(0).or_insert(md.footprint);
+    let mut out = Vec::new();
+    for (k, n) in hi {
+        let n = if k == 0 { n.max(md.footprint) } else { n };
+        let Some(&(u, a)) = (if k == 0 { Some(&start) } else { breaks.get(usize::from(k) - 1) }) else {
+            missing.push(k + 1);
+            continue;
+        };
+        let end = u32::from(a) + u32::from(n.max(1)) - 1;
+        if end > SLOTS as u32 {
+            return Err(format!("its {n} slots of DMX break {} from {u}.{a} run past slot 512", k + 1));
+        }
+        out.push((u, a, end as u16));
+    }
+    Ok((out, missing))
+}
+
+/// Slots per break `(universe, first, last)`, and the breaks without an address.
+type BreakRanges = (Vec<(u16, u16, u16)>, Vec<u16>);
+
+/// Most DMX breaks a mode may span: break `b`'s channels sit at offsets
+/// from `BREAK_STRIDE · (b − 1)`, which must fit a `u16`.
+pub const MAX_BREAKS: u16 = (u16::MAX / BREAK_STRIDE) + 1;
+
+/// First channel offset of GDTF DMX break `b` (1-based); `None` past [`MAX_BREAKS`].
+fn break_base(b: u16) -> Option<u16> {
+    (1..=MAX_BREAKS).contains(&b).then(|| (b - 1) * BREAK_STRIDE)
+}
+
+/// One emitting cell of a multi-instance fixture (a `GeometryReference`
+/// whose referenced geometry holds a `<Beam>`: an LED bar's pixel, a
+/// matrix's cell, a ring wash's segment; or, in a type without such
+/// references, one of several plain `<Beam>`s: a multi-lamp blinder's
+/// lamp): one light of its own.
+#[derive(Clone, Debug)]
+pub struct Cell {
+    /// The reference's name in the GDTF (e.g. `Cell3`).
+    pub name: String,
+    /// Its beam's position from the fixture origin (GDTF axes, metres).
+    pub offset: Vec3,
+    /// The cell's fixture type: the fixture's type with one mode holding
+    /// the cell's own channels (on the reference's geometries, at the
+    /// reference's break offsets) and the channels of geometries outside
+    /// every cell (the bar's master dimmer, whose value multiplies each
+    /// cell's as a GDTF `Multiply` relation would).
+    pub fixture_type: Arc<FixtureType>,
+}
+
+/// The emitting cells of DMX mode `mode` of `g`, as built on `ty` (the
+/// fixture type [`fixture_type`] made of `g`), in tree order. Empty when
+/// the mode has fewer than two emitting references and fewer than two
+/// plain beams: such a fixture stays one light.
+pub fn cells(g: &Gdtf, ty: &FixtureType, mode: &str) -> Result<Vec<Cell>, PatchError> {
+    let l = g.layout(mode)?;
+    let Some(index) = ty.mode(&l.mode) else { return Ok(Vec::new()) };
+    let base = &ty.modes[index];
+    let mut refs: Vec<(&GeometryNode, Vec3)> = Vec::new();
+    emitting_references(&l.root, &mut refs);
+    if refs.len() < 2 {
+        // No instanced cells: several plain `<Beam>`s (a multi-lamp blinder) are cells too.
+        refs.clear();
+        plain_beams(&l.root, &mut refs);
+    }
+    if refs.len() < 2 {
+        return Ok(Vec::new());
+    }
+    let in_cell = |geometry: &str, cell: &str| {
+        geometry == cell || geometry.strip_prefix(cell).is_some_and(|r| r.starts_with('.'))
+    };
+    let slot = |c: &ChannelInfo| {
+        break_base(c.dmx_break)
+            .map(|b| b + c.offsets.first().copied().unwrap_or(1).saturating_sub(1).min(BREAK_STRIDE - 1))
+    };
+    let mut out = Vec::new();
+    for (node, offset) in &refs {
+        let mut offsets: Vec<u16> = Vec::new();
+        for c in l.channels.iter().filter(|c| !c.offsets.is_empty()) {
+            let mine = in_cell(&c.geometry, &node.name);
+            let shared = !refs.iter().any(|(r, _)| in_cell(&c.geometry, &r.name));
+            if let (true, Some(o)) = (mine || shared, slot(c)) {
+                offsets.push(o);
+            }
+        }
+        let channels: Vec<Channel> = base.channels.iter().filter(|c| offsets.contains(&c.offset)).cloned().collect();
+        let mode = Mode { name: base.name.clone(), channels, footprint: base.footprint, line: base.line };
+        let cell_ty = FixtureType { modes: vec![mode], ..ty.clone() };
+        out.push(Cell { name: node.name.clone(), offset: *offset, fixture_type: Arc::new(cell_ty) });
+    }
+    Ok(out)
+}
+
+/// The `<Beam>` geometries under `node` outside references, with their positions.
+fn plain_beams<'a>(node: &'a GeometryNode, out: &mut Vec<(&'a GeometryNode, Vec3)>) {
+    match node.kind {
+        GeometryKind::Reference(_) => {}
+        GeometryKind::Beam(_) => out.push((node, node.to_fixture.w_axis.truncate().as_vec3())),
+        _ => node.children.iter().for_each(|c| plain_beams(c, out)),
+    }
+}
+
+/// GeometryReferences under `node` whose instance holds a beam, with that
+/// beam's position (depth-first; a reference inside a cell is part of it).
+fn emitting_references<'a>(node: &'a GeometryNode, out: &mut Vec<(&'a GeometryNode, Vec3)>) {
+    if matches!(node.kind, GeometryKind::Reference(_))
+        && let Some((beam, _)) = first_beam(node)
+    {
+        out.push((node, beam.to_fixture.w_axis.truncate().as_vec3()));
+        return;
+    }
+    node.children.iter().for_each(|c| emitting_references(c, out));
 }
 
 fn quat(q: DQuat) -> Quat {

@@ -610,6 +610,7 @@ impl<'a> Builder<'a> {
             scroller,
             gels,
             manual,
+            breaks: Vec::new(),
         });
         Some(Made { model, rotation, level: None, local })
     }

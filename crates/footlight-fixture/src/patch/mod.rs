@@ -103,7 +103,17 @@ pub struct TypedFixture {
     pub gels: Option<Arc<GelLibrary>>,
     /// Hand-set values for attributes the mode has no channel for.
     pub manual: Manual,
+    /// DMX breaks after the first (a GDTF mode spanning several
+    /// universes/addresses, MVR `<Addresses>`): `(universe, start address)`
+    /// of break 2, 3…. A channel offset `o ≥ BREAK_STRIDE` reads slot
+    /// `o % BREAK_STRIDE` of break `o / BREAK_STRIDE + 1` ([`Fixture::slot_address`]).
+    /// Empty for a one-break fixture (every TOML patch).
+    pub breaks: Vec<(u16, u16)>,
 }
+
+/// Channel offsets per DMX break in a mode whose channels span several
+/// breaks: offset `o` is slot `o % BREAK_STRIDE` of break `o / BREAK_STRIDE + 1`.
+pub const BREAK_STRIDE: u16 = SLOTS as u16;
 
 impl Fixture {
     /// k_i of eq. 4 for this fixture's default look.
@@ -136,12 +146,51 @@ impl Fixture {
     }
 
     /// The state from the patch's universes; the default look when the
-    /// fixture is unpatched or its universe has no frame yet.
+    /// fixture is unpatched or none of its universes has a frame yet. A
+    /// fixture over several DMX breaks reads each break from its own
+    /// universe; a break whose universe has no frame yet reads 0.
     pub fn decode_universes(&self, universes: &(impl DmxSlots + ?Sized)) -> FixtureState {
-        match self.dmx.and_then(|(u, _)| universes.slots(u)) {
-            Some(slots) => self.decode(slots),
-            None => self.look,
+        if self.breaks().is_empty() {
+            return match self.dmx.and_then(|(u, _)| universes.slots(u)) {
+                Some(slots) => self.decode(slots),
+                None => self.look,
+            };
         }
+        if !self.universes().into_iter().any(|u| universes.slots(u).is_some()) {
+            return self.look;
+        }
+        let read = |o: u16| {
+            self.slot_address(o)
+                .and_then(|(u, a)| universes.slots(u).and_then(|s| s.get(usize::from(a).wrapping_sub(1)).copied()))
+                .unwrap_or(0)
+        };
+        self.decode_with(&read)
+    }
+
+    /// DMX breaks after the first (empty for most fixtures): see [`TypedFixture::breaks`].
+    pub fn breaks(&self) -> &[(u16, u16)] {
+        match &self.model {
+            FixtureModel::Typed(t) => &t.breaks,
+            FixtureModel::Builtin(_) => &[],
+        }
+    }
+
+    /// Universe and 1-based address of channel offset `o` (break-aware:
+    /// offsets from [`BREAK_STRIDE`] on address the later breaks); `None`
+    /// when unpatched, past slot 512 or on a break the fixture has no
+    /// address for.
+    pub fn slot_address(&self, o: u16) -> Option<(u16, u16)> {
+        let (k, local) = (o / BREAK_STRIDE, o % BREAK_STRIDE);
+        let (u, a) = if k == 0 { self.dmx? } else { *self.breaks().get(usize::from(k) - 1)? };
+        let addr = u32::from(a) + u32::from(local);
+        (addr >= 1 && addr <= SLOTS as u32).then_some((u, addr as u16))
+    }
+
+    /// Every patch universe the fixture reads (its start address's, then its later breaks').
+    pub fn universes(&self) -> Vec<u16> {
+        let mut out: Vec<u16> = self.dmx.iter().chain(self.breaks()).map(|(u, _)| *u).collect();
+        out.dedup();
+        out
     }
 
     /// The state from slot values relative to the start address
@@ -334,11 +383,13 @@ impl Patch {
     pub fn ltp_addresses(&self) -> BTreeMap<u16, Vec<u16>> {
         let mut out: BTreeMap<u16, Vec<u16>> = BTreeMap::new();
         for f in &self.fixtures {
-            let (Some((u, a)), FixtureModel::Typed(t)) = (f.dmx, &f.model) else { continue };
-            let slots = out.entry(u).or_default();
+            let (Some((u, _)), FixtureModel::Typed(t)) = (f.dmx, &f.model) else { continue };
+            out.entry(u).or_default();
             for c in &t.fixture_type.modes[t.mode].channels {
                 if c.attribute != Attribute::Dimmer {
-                    slots.extend(std::iter::once(c.offset).chain(c.fine).map(|o| a + o));
+                    for (u, a) in std::iter::once(c.offset).chain(c.fine).filter_map(|o| f.slot_address(o)) {
+                        out.entry(u).or_default().push(a);
+                    }
                 }
             }
         }

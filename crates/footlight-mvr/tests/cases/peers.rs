@@ -188,3 +188,49 @@ fn mvr_agrees_with_pymvr() {
         }
     }
 }
+
+/// Pixel cells: every emitting GeometryReference pygdtf finds in a mode is
+/// one light of ours, with the same name, beam position and DMX slots
+/// (the referenced Pixel's R, G, B at offsets 1-3, shifted by the
+/// reference's `Break`, on that break).
+#[test]
+fn pixel_cells_agree_with_pygdtf() {
+    if !peers_available() {
+        return;
+    }
+    let path = gdtf("Bar8");
+    let peer = dump(std::slice::from_ref(&path));
+    let g = Gdtf::open(&path).unwrap();
+    let (ty, _) = footlight_mvr::fixture_type(&g).unwrap();
+    for mode in ["25ch", "Split"] {
+        let theirs = peer["gdtf"][path.to_str().unwrap()]["modes"][mode]["cells"].as_array().unwrap().clone();
+        let ours = footlight_mvr::show::cells(&g, &ty, mode).unwrap();
+        assert_eq!(ours.len(), theirs.len(), "{mode}: cell count");
+        assert_eq!(ours.len(), 8, "{mode}");
+        for (c, t) in ours.iter().zip(&theirs) {
+            assert_eq!(t[0], c.name.as_str(), "{mode}");
+            for (axis, x) in c.offset.to_array().iter().enumerate() {
+                assert!(
+                    (t[1][axis].as_f64().unwrap() - f64::from(*x)).abs() < 1e-6,
+                    "{mode} {}: offset {axis}",
+                    c.name
+                );
+            }
+            let (brk, off) = (t[2][0][0].as_u64().unwrap() as u16, t[2][0][1].as_u64().unwrap() as u16);
+            let m = &c.fixture_type.modes[0];
+            let mut mix: Vec<u16> = m
+                .channels
+                .iter()
+                .filter(|ch| matches!(ch.attribute, footlight_fixture::Attribute::Mix(_)))
+                .map(|ch| ch.offset)
+                .collect();
+            mix.sort_unstable();
+            let first = (brk - 1) * footlight_fixture::patch::BREAK_STRIDE + off - 1;
+            assert_eq!(mix, [first, first + 1, first + 2], "{mode} {}: its R, G, B slots", c.name);
+            // The bar's master dimmer (on the bar, outside every cell) is in every cell, on break 1 slot 1.
+            let d = m.channel(footlight_fixture::Attribute::Dimmer).unwrap();
+            assert_eq!(d.offset, 0, "{mode} {}", c.name);
+            assert_eq!(m.channels.len(), 4, "{mode} {}: master dimmer + R, G, B", c.name);
+        }
+    }
+}

@@ -40,15 +40,16 @@ fn spot_gdtf_maps_onto_a_fixture_type() {
 fn features_mvr_becomes_a_patch_with_warnings() {
     let import = load_mvr(&mvr("features")).unwrap();
     let p = &import.patch;
-    // 9 MVR fixtures; the hazer is not a light.
-    assert_eq!(p.fixtures.len(), 8);
+    // 9 MVR fixtures; the hazer is not a light; the pixel bar is 8 lights (its cells), the blinder 2 (its lamps).
+    assert_eq!(p.fixtures.len(), 16);
     let ghosts: Vec<_> = import.warnings.iter().filter(|w| w.message.contains("Footlight@Missing.gdtf")).collect();
     assert_eq!(ghosts.len(), 1, "{:?}", import.warnings);
     assert!(ghosts[0].message.contains("Ghost 1 (id 701)") && ghosts[0].message.contains("Ghost 2 (id 702)"));
     let ghost = p.fixtures.iter().find(|f| f.id == 701).unwrap();
     assert!(matches!(ghost.model, FixtureModel::Builtin(_)) && ghost.k() == Vec3::ZERO);
     assert!(import.warnings.iter().any(|w| w.message.contains("Hazer 1") && w.message.contains("not a light")));
-    assert!(import.warnings.iter().any(|w| w.message.contains("break 2")));
+    // Its DMX break 2 is decoded now: no warning about it.
+    assert!(!import.warnings.iter().any(|w| w.message.contains("break")), "{:?}", import.warnings);
     // Spot 1 hangs at MVR (−2000, 2000, 6800) + 500 mm layer: its lens 0.75 m below, beam straight down.
     let spot = p.fixtures.iter().find(|f| f.id == 101).unwrap();
     assert!((spot.light.position - Vec3::new(-2.0, 7.3 - 0.75, -2.0)).length() < 1e-4, "{}", spot.light.position);
@@ -76,8 +77,9 @@ fn features_mvr_becomes_a_patch_with_warnings() {
 #[test]
 fn show150_imports_every_fixture() {
     let import = load_mvr(&mvr("show150")).unwrap();
-    // 150 fixtures, 2 of them hazers (not lights).
-    assert_eq!(import.patch.fixtures.len(), 148);
+    // 150 fixtures, 2 of them hazers (not lights), 24 pixel bars of 8 cells each, 20 blinders of 2 lamps.
+    assert_eq!(import.patch.fixtures.len(), 148 - 24 + 24 * 8 - 20 + 20 * 2);
+    assert_eq!(import.patch.fixtures.iter().filter(|f| f.name.starts_with("Bar8 ")).count(), 24 * 8);
     let universes: std::collections::BTreeSet<u16> =
         import.patch.fixtures.iter().filter_map(|f| f.dmx.map(|d| d.0)).collect();
     // Packed in file order, 512 slots per universe (tools/gen_gdtf_mvr.py, SHOW).
@@ -207,4 +209,62 @@ fn cto_turns_the_lamp_warmer_and_costs_its_transmittance() {
     let c3200 = footlight_photometry::colour(&footlight_photometry::Lamp::Discharge { cct: 3200.0 }, 1.0, None);
     let (a, b) = (k1 / k1.x, c3200 / c3200.x);
     assert!((a - b).abs().max_element() < 1e-3, "{a} {b}");
+}
+
+/// The split-mode bar reads its master dimmer from break 1 (universe 1 slot
+/// 201) and its cells from break 2 (universe 2 from slot 1), merges them
+/// latest-takes-precedence on both universes, and its defaults land on both.
+#[test]
+fn split_bar_decodes_dmx_break_two() {
+    use footlight_fixture::fixture_type::Attribute;
+    let import = load_mvr(&mvr("features")).unwrap();
+    let p = &import.patch;
+    let cells: Vec<_> = p.fixtures.iter().filter(|f| f.id == 301).collect();
+    assert_eq!(cells.len(), 8);
+    assert_eq!(cells[0].breaks(), [(2, 1)]);
+    assert_eq!(cells[0].universes(), [1, 2]);
+    // Cell 5's R, G, B: break 2 slots 13, 14, 15; its dimmer: the bar's, 1.201.
+    let FixtureModel::Typed(t) = &cells[4].model else { panic!() };
+    let m = &t.fixture_type.modes[t.mode];
+    let at: Vec<_> = m.channels.iter().map(|c| (c.attribute, cells[4].slot_address(c.offset))).collect();
+    assert_eq!(
+        at,
+        [
+            (Attribute::Dimmer, Some((1, 201))),
+            (Attribute::Mix(0), Some((2, 13))),
+            (Attribute::Mix(1), Some((2, 14))),
+            (Attribute::Mix(2), Some((2, 15)))
+        ]
+    );
+    let mut u = Universes::new();
+    u.set_slot(1, 201, 255);
+    for (slot, v) in [(13, 10), (14, 200), (15, 40)] {
+        u.set_slot(2, slot, v);
+    }
+    let s = cells[4].decode_universes(&u);
+    assert_eq!((s.v, s.mix[0], s.mix[1], s.mix[2]), (1.0, 10.0 / 255.0, 200.0 / 255.0, 40.0 / 255.0));
+    // Only universe 1 arrived: the cells' colour reads 0 (dark), not the default look.
+    let mut only1 = Universes::new();
+    only1.set_slot(1, 201, 255);
+    assert_eq!(cells[4].k_of(&cells[4].decode_universes(&only1)), Vec3::ZERO);
+    // LTP: the colour slots on universe 2, not universe 1 (the dimmer stays HTP).
+    let ltp = p.ltp_addresses();
+    assert_eq!(ltp.get(&2).map(|v| v.len()), Some(24));
+    assert!(!ltp.get(&1).is_some_and(|v| v.contains(&201)));
+}
+
+/// A multi-lamp blinder (two plain `<Beam>`s, no references) is two lights:
+/// in mode 2ch each lamp has its own dimmer (slots 301 and 302), 240 mm apart.
+#[test]
+fn blinder_lamps_are_lights_with_their_own_dimmers() {
+    let import = load_mvr(&mvr("features")).unwrap();
+    let lamps: Vec<_> = import.patch.fixtures.iter().filter(|f| f.id == 401).collect();
+    assert_eq!(lamps.len(), 2);
+    assert_eq!((lamps[0].name.as_str(), lamps[1].name.as_str()), ("Blinder 1 / Cell1", "Blinder 1 / Cell2"));
+    assert!(((lamps[1].light.position - lamps[0].light.position).length() - 0.24).abs() < 1e-4);
+    let mut u = Universes::new();
+    u.set_slot(1, 302, 255);
+    let k: Vec<Vec3> = lamps.iter().map(|f| f.k_of(&f.decode_universes(&u))).collect();
+    assert_eq!(k[0], Vec3::ZERO);
+    assert!(k[1].min_element() > 0.0, "{}", k[1]);
 }

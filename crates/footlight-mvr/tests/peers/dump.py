@@ -3,7 +3,8 @@
 
 Prints one JSON object: per GDTF file, per mode, the channels per DMX break
 (offsets, attribute), the geometry tree (names, kinds) walked from the mode,
-the beams' angles, the wheel slot counts, each slot's gobo image name and
+the beams' angles, the emitting GeometryReferences (pixel cells: name,
+beam position, breaks), the wheel slot counts, each slot's gobo image name and
 prism facet angles; per MVR file, every fixture's
 spec, mode, addresses, ids and local matrix. The Rust test
 (tests/peers.rs) compares its own reader with these numbers.
@@ -38,6 +39,37 @@ def beams(ft, g, acc):
     return acc
 
 
+def matmul(a, b):
+    return [[sum(a[i][k] * b[k][j] for k in range(4)) for j in range(4)] for i in range(4)]
+
+
+def first_beam_matrix(ft, g, m):
+    """Matrix of the first beam under g (g's own position already in m), depth-first."""
+    if isinstance(g, pygdtf.GeometryBeam):
+        return m
+    for c in getattr(g, "geometries", []) or []:
+        found = first_beam_matrix(ft, c, matmul(m, c.position.matrix))
+        if found is not None:
+            return found
+    return None
+
+
+def cells(ft, g, m, acc):
+    """Emitting GeometryReferences under g: name, their beam's translation from
+    the fixture origin, and their breaks [[DMXBreak, DMXOffset]]."""
+    for c in getattr(g, "geometries", []) or []:
+        mc = matmul(m, c.position.matrix)
+        if isinstance(c, pygdtf.GeometryReference):
+            ref = ft.geometries.get_geometry_by_name(c.geometry)
+            beam = first_beam_matrix(ft, ref, mc)  # the reference's position replaces the referenced geometry's
+            if beam is not None:
+                breaks = [[b.dmx_break, b.dmx_offset.address] for b in c.breaks]
+                acc.append([c.name, [beam[0][3], beam[1][3], beam[2][3]], breaks])
+            continue
+        cells(ft, c, mc, acc)
+    return acc
+
+
 def gdtf(path):
     ft = pygdtf.FixtureType(path)
     modes = {}
@@ -48,6 +80,7 @@ def gdtf(path):
             "breaks": [[[list(c.offset), str(c.logical_channels[0].attribute)] for c in b] for b in breaks],
             "tree": tree(ft, root),
             "beams": beams(ft, root, []),
+            "cells": cells(ft, root, root.position.matrix, []),
         }
     slots = {
         w.name: [

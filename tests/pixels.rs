@@ -1,0 +1,237 @@
+//! Pixel cells of an MVR pixel bar (issue 14): each emitting cell of the
+//! GDTF's `GeometryReference`s is its own light with its own channels.
+//! Known answer: the split-mode bar of `tests/data/mvr/features.mvr` (bar
+//! master dimmer on universe 1 slot 201, the cells' R, G, B on DMX break 2
+//! = universe 2 from slot 1) with cell 3's red at full lights exactly what
+//! the single-pass eq. 1 renderer (`render::reference`) gives for cell 3
+//! alone, red only, centred under cell 3.
+
+use crate::common::*;
+use footlight::fixture::Universes;
+use footlight::render::RecursionLimits;
+use footlight::render::buffer::LightBuffer;
+use footlight::render::composite;
+use footlight::render::reference::render_eq1;
+use footlight::render::view::Sampling;
+use footlight::scene::{Camera, SceneBuilder};
+use glam::Vec3;
+
+#[test]
+fn cell_three_red_lights_only_cell_three() {
+    let import = footlight_mvr::load_mvr(&root().join("tests/data/mvr/features.mvr")).unwrap();
+    let cells: Vec<_> = import.patch.fixtures.iter().filter(|f| f.id == 301).collect();
+    assert_eq!(cells.len(), 8, "one light per cell");
+    assert_eq!(cells[2].name, "Bar split / SplitCell3");
+    // Cells 125 mm apart along the bar (GDTF X = stage X here), all at the bar's height.
+    for w in cells.windows(2) {
+        let d = w[1].light.position - w[0].light.position;
+        assert!((d - Vec3::new(0.125, 0.0, 0.0)).length() < 1e-4, "{d}");
+    }
+    let mut u = Universes::new();
+    u.set_slot(1, 201, 255); // the bar's master dimmer (break 1)
+    u.set_slot(2, 7, 255); // cell 3's red: break 2 offset 7 (Break DMXOffset 7 + channel offset 1 − 1)
+    let states: Vec<_> = cells.iter().map(|f| f.decode_universes(&u)).collect();
+    let k: Vec<Vec3> = cells.iter().zip(&states).map(|(f, s)| f.k_of(s)).collect();
+    for (i, k) in k.iter().enumerate() {
+        if i == 2 {
+            // The red emitter (xy 0.70, 0.299 in the generator) in linear RGB: red, a trace of blue.
+            assert!(k.x > 0.0 && k.y < 0.02 * k.x && k.z < 0.02 * k.x, "cell 3 is red: {k}");
+        } else {
+            assert_eq!(*k, Vec3::ZERO, "cell {} stays dark", i + 1);
+        }
+    }
+    // Master dimmer at 0: cell 3 goes dark too (the bar's dimmer multiplies every cell).
+    let mut off = u.clone();
+    off.set_slot(1, 201, 0);
+    assert_eq!(cells[2].k_of(&cells[2].decode_universes(&off)), Vec3::ZERO);
+
+    // A floor under the bar, seen from above.
+    let mut b = SceneBuilder::new();
+    let m = lambert(&mut b, 0.5);
+    let centre = cells[2].light.position;
+    floor(&mut b, 30.0, 0.0, m);
+    let scene = b.build();
+    let cam = Camera::look_at(
+        Vec3::new(centre.x, 14.0, centre.z + 0.01),
+        Vec3::new(centre.x, 0.0, centre.z),
+        40f32.to_radians(),
+    );
+    let (w, h) = (96, 64);
+    let v = view(&scene, cam, w, h, Sampling::Geometry, 0);
+    let lights: Vec<_> = cells.iter().zip(&states).map(|(f, s)| f.light_of(s)).collect();
+    let buffers: Vec<LightBuffer> = lights.iter().map(|l| v.render_light(&scene, l, None).0).collect();
+    let comp = composite(&buffers.iter().collect::<Vec<_>>(), &k, w, h);
+    let limits = RecursionLimits { max_depth: 0, min_weight: 0.0 };
+    let alone = render_eq1(&scene, &v.gbuffer, &lights[2..3], &k[2..3], Sampling::Geometry.base_set(), limits);
+    assert_finite(&comp, "composite");
+    let peak = alone.iter().map(|p| p.x).fold(0.0f32, f32::max);
+    assert!(peak > 0.0);
+    let (mut lit, mut sum, mut weight) = (0, 0.0f64, 0.0f64);
+    for (i, (a, e)) in comp.iter().zip(&alone).enumerate() {
+        assert!((*a - *e).abs().max_element() <= 1e-5 * peak, "pixel {i}: composite {a} vs eq. 1 of cell 3 alone {e}");
+        assert!(a.y <= 0.02 * a.x.max(peak * 1e-6) && a.z <= 0.02 * a.x.max(peak * 1e-6), "pixel {i} is red: {a}");
+        if a.x > 0.0 {
+            lit += 1;
+            let s = v.gbuffer.samples[i][footlight::render::gbuffer::CENTRE_SAMPLE];
+            if let Some(p) = v.gbuffer.position(&scene, &s) {
+                sum += f64::from(a.x) * f64::from(p.x);
+                weight += f64::from(a.x);
+            }
+        }
+    }
+    assert!(lit > 200, "cell 3's pool is in the picture: {lit} pixels");
+    // The pool is centred under cell 3, not under its neighbours 125 mm away.
+    let cx = (sum / weight) as f32;
+    assert!((cx - centre.x).abs() < 0.04, "pool centre x {cx} vs cell 3 at {}", centre.x);
+}
+
+async fn pause_real(ms: u64) {
+    // Real time for the sockets while tokio's clock is paused (a blocking
+    // task holds off the paused clock's auto-advance).
+    tokio::task::spawn_blocking(move || std::thread::sleep(std::time::Duration::from_millis(ms))).await.unwrap();
+}
+
+/// Universe 1 with the bar's master dimmer at full; universe 2 with cell 3's red at full.
+fn bar_packets() -> (Vec<u8>, Vec<u8>) {
+    let (mut u1, mut u2) = ([0u8; 512], [0u8; 512]);
+    u1[200] = 255;
+    u2[6] = 255;
+    (art_dmx(0, 1, &u1), art_dmx(1, 1, &u2))
+}
+
+/// k_i of the features rig's bar cells (fixture id 301), in cell order.
+fn cell_k(show: &footlight::live::Show, k: &[Vec3]) -> Vec<Vec3> {
+    show.patch().fixtures.iter().zip(k).filter(|(f, _)| f.id == 301).map(|(_, k)| *k).collect()
+}
+
+fn assert_only_cell_three(k: &[Vec3], what: &str) {
+    assert_eq!(k.len(), 8, "{what}");
+    for (i, k) in k.iter().enumerate() {
+        assert_eq!(k.x > 0.0, i == 2, "{what}: cell {} has k {k}", i + 1);
+    }
+}
+
+/// DMX break 2 through the whole daemon path: the Show listens to both of
+/// the split bar's universes (Art-Net Port-Address 0 and 1 on loopback),
+/// the daemon's frames carry cell 3's red from universe 2 and the master
+/// dimmer from universe 1; a recording of the same packets replays (by
+/// `state_at`, what `render --dmx` and replay use) to the same k_i.
+#[tokio::test(start_paused = true)]
+async fn split_bar_breaks_reach_the_daemon_and_a_recording() {
+    use footlight::live::{Daemon, DaemonConfig, Decode, DmxSource, Show};
+    use std::sync::Arc;
+    let import = footlight_mvr::load_mvr(&root().join("tests/data/mvr/features.mvr")).unwrap();
+    let show = Arc::new(Show::new(import.patch));
+    assert!(show.universes().contains(&2), "universe 2 (the bar's break 2) is listened to: {:?}", show.universes());
+    let ltp = &show.input_patch().ltp;
+    assert!(ltp.contains_key(&2), "cell colours merge latest-takes-precedence on universe 2");
+    let (p1, p2) = bar_packets();
+    let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+
+    // Record the two packets through the Show's input patch, then read the recording back.
+    let path = std::env::temp_dir().join(format!("footlight-pixels-{}.pcapng", std::process::id()));
+    let config = footlight_dmx::InputConfig {
+        artnet: Some(footlight_dmx::artnet::ArtNetConfig {
+            bind: "127.0.0.1:0".parse().unwrap(),
+            ..Default::default()
+        }),
+        sacn: None,
+        usbpro: None,
+        patch: show.input_patch().clone(),
+    };
+    let input = footlight_dmx::DmxInput::bind(config).await.unwrap();
+    let (frames, art) = (input.frames(), input.local_addrs().artnet.unwrap());
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let out = path.clone();
+    let recorder =
+        tokio::spawn(async move { footlight_dmx::record_input(&out, input, async { stopped.await.unwrap() }).await });
+    tx.send_to(&p1, art).unwrap();
+    tx.send_to(&p2, art).unwrap();
+    for _ in 0..2000 {
+        if frames.borrow().get(2).is_some_and(|f| f.slots[6] == 255) && frames.borrow().get(1).is_some() {
+            break;
+        }
+        pause_real(5).await;
+    }
+    stop.send(()).unwrap();
+    let summary = recorder.await.unwrap().unwrap();
+    assert_eq!(summary.packets, 2);
+    let recording = footlight_dmx::Recording::open(&path).unwrap();
+    let end = footlight_dmx::state_at(&recording, recording.duration(), show.input_patch()).unwrap();
+    let mut replayed = footlight::fixture::Universes::new();
+    for f in &end {
+        for (a, v) in f.slots.iter().enumerate() {
+            replayed.set_slot(f.universe, a as u16 + 1, *v);
+        }
+    }
+    let k: Vec<Vec3> = show.decode(&replayed).into_iter().map(|i| i.k).collect();
+    assert_only_cell_three(&cell_k(&show, &k), "replayed recording");
+    let _ = std::fs::remove_file(&path);
+
+    // The daemon, on a small floor scene, fed the same packets over loopback.
+    let mut b = SceneBuilder::new();
+    let m = lambert(&mut b, 0.5);
+    floor(&mut b, 30.0, 0.0, m);
+    let scene = Arc::new(b.build());
+    let camera = Camera::look_at(Vec3::new(0.0, 14.0, -3.0 + 0.01), Vec3::new(0.0, 0.0, -3.0), 60f32.to_radians());
+    let mut config = DaemonConfig {
+        width: 32,
+        height: 20,
+        fps: 30.0,
+        compositor: footlight::gpu::CompositorChoice::Cpu,
+        ..DaemonConfig::default()
+    };
+    config.tracer.build.photons = None;
+    config.tracer.build.refine_passes = 0;
+    let source = DmxSource::Network {
+        artnet: Some(footlight_dmx::artnet::ArtNetConfig {
+            bind: "127.0.0.1:0".parse().unwrap(),
+            ..Default::default()
+        }),
+        sacn: None,
+        usbpro: None,
+    };
+    let (run_tx, run_rx) = std::sync::mpsc::channel();
+    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let daemon = Daemon::new(scene, show.clone(), camera, config).input(source).on_running(run_tx);
+    let task = tokio::spawn(daemon.run(async move {
+        let _ = stop_rx.await;
+    }));
+    let handle = loop {
+        if let Ok(h) = run_rx.try_recv() {
+            break h;
+        }
+        pause_real(5).await;
+    };
+    let art = handle.dmx.and_then(|d| d.artnet).expect("Art-Net socket");
+    let labels = show.labels();
+    assert!(
+        labels.iter().any(|l| l.fixture == Some(301) && l.name == "Bar split / SplitCell3"),
+        "status names fixture + cell"
+    );
+    tx.send_to(&p1, art).unwrap();
+    tx.send_to(&p2, art).unwrap();
+    let mut frames = handle.frames.clone();
+    let mut got = None;
+    for _ in 0..400 {
+        tokio::time::sleep(std::time::Duration::from_millis(40)).await;
+        pause_real(5).await;
+        let f = frames.borrow_and_update().clone();
+        let k = cell_k(&show, &f.k);
+        if k.get(2).is_some_and(|k| k.x > 0.0) {
+            got = Some(k);
+            break;
+        }
+    }
+    let k = got.expect("cell 3's red reached the daemon's frames");
+    assert_only_cell_three(&k, "daemon frame");
+    let expect = cell_k(&show, &k_of_show(&show, &replayed));
+    assert_eq!(k, expect, "the daemon decodes what the recording replays");
+    stop_tx.send(()).unwrap();
+    task.await.unwrap().unwrap();
+}
+
+fn k_of_show(show: &footlight::live::Show, u: &footlight::fixture::Universes) -> Vec<Vec3> {
+    use footlight::live::Decode;
+    show.decode(u).into_iter().map(|i| i.k).collect()
+}
