@@ -247,10 +247,10 @@ struct RunArgs {
 /// Scene, patch and image options shared by `render` and `bench`.
 #[derive(Args, Clone)]
 struct SceneArgs {
-    /// glTF 2.0 scene (.gltf/.glb).
-    #[arg(long, default_value = footlight::DEFAULT_SCENE)]
-    scene: PathBuf,
-    /// Patch file: TOML, or an MVR show (its GDTF fixture types; the scene stays `--scene`).
+    /// glTF 2.0 scene (.gltf/.glb). Default: an MVR patch's own geometry, else the bundled stage.
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Patch file: TOML, or an MVR show (its GDTF fixture types, and its geometry unless `--scene`).
     #[arg(long, default_value = footlight::DEFAULT_PATCH)]
     patch: PathBuf,
 }
@@ -371,7 +371,10 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         return Ok(());
     }
     let out = args.out.unwrap_or_else(bench::default_out_dir);
-    let config = bench::BenchConfig::new(args.quick, resolve(&args.input.scene));
+    let config = bench::BenchConfig::new(
+        args.quick,
+        resolve(args.input.scene.as_deref().unwrap_or(Path::new(footlight::DEFAULT_SCENE))),
+    );
     let report = bench::run(&scene, &patch, camera, &config, &out)?;
     println!("{}", report.summary());
     println!("report written to {}", out.display());
@@ -389,9 +392,8 @@ fn resolve(path: &Path) -> PathBuf {
 }
 
 fn load_inputs(args: &SceneArgs) -> Result<(Scene, Patch)> {
-    let scene_path = resolve(&args.scene);
     let t = std::time::Instant::now();
-    let scene = footlight::scene::load(&scene_path)?;
+    let (scene_path, scene) = load_scene(args)?;
     tracing::info!(
         "{}: {} triangles, {:.1} % specular, {} materials, loaded in {:.0} ms",
         scene_path.display(),
@@ -404,6 +406,26 @@ fn load_inputs(args: &SceneArgs) -> Result<(Scene, Patch)> {
     let patch = footlight_mvr::load_patch(&resolve(&args.patch))?;
     tracing::info!("{}: {} fixtures", patch.path.display(), patch.fixtures.len());
     Ok((scene, patch))
+}
+
+/// The scene: `--scene`, else an MVR patch's own geometry (issue 14), else the bundled stage.
+fn load_scene(args: &SceneArgs) -> Result<(PathBuf, Scene)> {
+    use footlight::scene::mvr_scene::{SceneSource, scene_source};
+    let patch = resolve(&args.patch);
+    let default = resolve(Path::new(footlight::DEFAULT_SCENE));
+    match scene_source(args.scene.as_deref().map(resolve).as_deref(), &patch, &default) {
+        SceneSource::Gltf(path) => {
+            let scene = footlight::scene::load(&path)?;
+            Ok((path, scene))
+        }
+        SceneSource::Mvr(path) => {
+            let loaded = footlight::scene::load_mvr_scene(&path)?;
+            for w in &loaded.warnings {
+                tracing::warn!("{w}");
+            }
+            Ok((path, loaded.scene))
+        }
+    }
 }
 
 /// Patch camera first, then the scene's, then a seat in the stalls.
@@ -609,6 +631,19 @@ fn check(path: &Path) -> Result<()> {
         Ok((patch, warnings)) => {
             for w in &warnings {
                 eprintln!("warning: {w}");
+            }
+            if footlight_mvr::is_mvr(path) {
+                // The MVR's geometry is the show's scene (unless `--scene`): its problems too.
+                let loaded = footlight::scene::load_mvr_scene(path)?;
+                for w in &loaded.warnings {
+                    eprintln!("warning: {w}");
+                }
+                println!(
+                    "{}: scene of {} object(s), {} triangles",
+                    path.display(),
+                    loaded.objects,
+                    loaded.scene.triangle_count()
+                );
             }
             let show = Show::new(patch);
             let universes = show.universes();

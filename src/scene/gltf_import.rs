@@ -150,12 +150,30 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 
 /// [`load`] under explicit limits.
 pub fn load_with(path: &Path, limits: &ImportLimits) -> Result<Scene, SceneError> {
-    Importer { path, limits }.load()
+    Importer { path, limits, in_archive: false }.load()
 }
 
 struct Importer<'a> {
     path: &'a Path,
     limits: &'a ImportLimits,
+    /// True for a file read from inside an archive (an MVR): `path` is a
+    /// label, so only `data:` URIs and the GLB chunk can be read.
+    in_archive: bool,
+}
+
+/// Adds a glTF/GLB file given as bytes (an entry of an MVR archive, named
+/// `label` in messages) to `builder`, every vertex placed by `placement`
+/// after the file's node transforms. External URIs are refused (there is no
+/// folder to resolve them in); `data:` URIs and the GLB binary chunk are
+/// read. Returns the count of NaN/Inf vertex normals (replaced).
+pub fn import_bytes_into(
+    label: &Path,
+    bytes: &[u8],
+    builder: &mut SceneBuilder,
+    placement: Mat4,
+    limits: &ImportLimits,
+) -> Result<usize, SceneError> {
+    Importer { path: label, limits, in_archive: true }.import_into(bytes, builder, placement)
 }
 
 /// What a checked accessor reads as.
@@ -195,9 +213,33 @@ impl Importer<'_> {
     fn load(&self) -> Result<Scene, SceneError> {
         let path = self.path;
         let bytes = self.read_scene_file()?;
-        let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(&bytes)
-            .map_err(|source| SceneError::Gltf { path: path.to_path_buf(), source })?;
+        let mut builder = SceneBuilder::new();
+        let non_finite_normals = self.import_into(&bytes, &mut builder, Mat4::IDENTITY)?;
         drop(bytes);
+        let mut scene = builder.build();
+        scene.report.non_finite_normals = non_finite_normals;
+        let r = scene.report;
+        if r.non_finite + r.degenerate > 0 {
+            tracing::warn!(
+                "{}: dropped {} triangle(s) with NaN/Inf vertices and {} with zero area",
+                path.display(),
+                r.non_finite,
+                r.degenerate
+            );
+        }
+        if scene.triangle_count() == 0 {
+            tracing::warn!("{}: the scene has no triangles; renders will be black", path.display());
+        }
+        Ok(scene)
+    }
+
+    /// Adds the file's triangles (placed by `placement` after their node
+    /// transforms), materials and first camera to `builder`; returns how
+    /// many vertex normals were NaN/Inf.
+    fn import_into(&self, bytes: &[u8], builder: &mut SceneBuilder, placement: Mat4) -> Result<usize, SceneError> {
+        let path = self.path;
+        let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(bytes)
+            .map_err(|source| SceneError::Gltf { path: path.to_path_buf(), source })?;
         let root = document.into_json();
         self.check_validator_preconditions(&root)?;
         let doc =
@@ -229,7 +271,8 @@ impl Importer<'_> {
         }
 
         let buffers = self.buffers(root, blob)?;
-        let mut builder = SceneBuilder::new();
+        // glTF material i is builder material `first_material + i`; no material: the default grey 0.
+        let first_material = builder.material_count() as u32;
         for m in material_index {
             builder.add_material(m);
         }
@@ -237,6 +280,7 @@ impl Importer<'_> {
         let mut non_finite_normals = 0usize;
         let mut camera: Option<Camera> = None;
         for &(node, world) in &instances {
+            let world = placement * world;
             let n = &root.nodes[node];
             if camera.is_none()
                 && let Some(c) = n.camera
@@ -289,7 +333,7 @@ impl Importer<'_> {
                 if let Some(&bad_index) = indices.iter().find(|&&i| i as usize >= positions.len()) {
                     return Err(bad(format!("index {bad_index} past the {} vertices", positions.len())));
                 }
-                let material = prim.material.map_or(0, |m| m.value() as u32 + 1);
+                let material = prim.material.map_or(0, |m| m.value() as u32 + first_material);
                 for [a, b, c] in triangle_list(mode, &indices) {
                     let (b, c) = if flip { (c, b) } else { (b, c) };
                     let p = [positions[a as usize], positions[b as usize], positions[c as usize]];
@@ -320,24 +364,12 @@ impl Importer<'_> {
                 path.display()
             );
         }
-        if let Some(cam) = camera {
+        if let Some(cam) = camera
+            && !builder.has_camera()
+        {
             builder.set_camera(cam);
         }
-        let mut scene = builder.build();
-        scene.report.non_finite_normals = non_finite_normals;
-        let r = scene.report;
-        if r.non_finite + r.degenerate > 0 {
-            tracing::warn!(
-                "{}: dropped {} triangle(s) with NaN/Inf vertices and {} with zero area",
-                path.display(),
-                r.non_finite,
-                r.degenerate
-            );
-        }
-        if scene.triangle_count() == 0 {
-            tracing::warn!("{}: the scene has no triangles; renders will be black", path.display());
-        }
-        Ok(scene)
+        Ok(non_finite_normals)
     }
 
     /// The scene file's bytes; it must be a regular file.
@@ -714,6 +746,9 @@ impl Importer<'_> {
                 return Err(refuse("only base64 data URIs are supported"));
             };
             return base64::decode(payload).map_err(|e| refuse(&format!("bad base64 ({e})")));
+        }
+        if self.in_archive {
+            return Err(refuse("a model inside an MVR archive can only use data: URIs or the GLB binary chunk"));
         }
         let decoded = urlencoding::decode(uri).map_err(|_| refuse("its %-escapes are not UTF-8"))?;
         let rel = Path::new(decoded.as_ref());

@@ -1,6 +1,7 @@
 //! The stage: triangles, materials, a camera and the BVH over them.
 //!
-//! Data comes from a glTF 2.0 file ([`gltf_import`]) or is built in code
+//! Data comes from a glTF 2.0 file ([`gltf_import`]), an MVR show's 3D files
+//! ([`mvr_scene`]) or is built in code
 //! ([`SceneBuilder`], used by tests). Every triangle is checked once on the
 //! way in: triangles with non-finite vertices or (near) zero area are dropped
 //! and counted, so the ray loops never meet NaN geometry.
@@ -9,11 +10,13 @@ pub mod bvh;
 pub mod camera;
 pub mod gltf_import;
 pub mod material;
+pub mod mvr_scene;
 
 pub use bvh::{Accel, Hit};
 pub use camera::Camera;
 pub use gltf_import::{ImportLimits, SceneError, load, load_with};
 pub use material::Material;
+pub use mvr_scene::{MvrScene, load_mvr_scene};
 
 use glam::Vec3;
 
@@ -176,6 +179,21 @@ impl SceneBuilder {
     pub fn add_material(&mut self, m: Material) -> u32 {
         self.materials.push(m);
         (self.materials.len() - 1) as u32
+    }
+
+    /// Materials so far (index of the next one added).
+    pub fn material_count(&self) -> usize {
+        self.materials.len()
+    }
+
+    /// Triangles kept so far.
+    pub fn triangle_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// True when a camera was set.
+    pub fn has_camera(&self) -> bool {
+        self.camera.is_some()
     }
 
     /// Sets the scene camera.
