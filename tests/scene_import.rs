@@ -364,3 +364,63 @@ fn the_scene_file_must_be_a_regular_file() {
     let e = error(&d.join("absent.glb"));
     assert!(e.contains("absent.glb") && e.contains("cannot open"), "{e}");
 }
+
+// --- The MVR's geometry as the scene (issue 14 item 4) -------------------------
+
+fn venue() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr/venue.mvr")
+}
+
+/// First hit of a ray straight down from `(x, 20, z)`: the height of the top surface there.
+fn top_at(scene: &footlight::scene::Scene, x: f32, z: f32) -> Option<f32> {
+    use glam::Vec3;
+    scene.accel.intersect(Vec3::new(x, 20.0, z), Vec3::NEG_Y, f32::INFINITY).map(|h| 20.0 - h.t)
+}
+
+#[test]
+fn mvr_geometry_is_converted_once_from_millimetres_and_z_up() {
+    // venue.mvr (tools/gen_gdtf_mvr.py): GLB floor 10 m x 8 m at y = 0; a GLB
+    // truss 2 x 0.3 x 0.3 m instanced 3x by a Symdef at MVR (-2500 + 2500k,
+    // 2000, 6000) mm; a 3DS 1000 mm cube (z 0..1000 mm, MVR frame) at MVR
+    // (2000, 0, 0) mm inside a GroupObject; a Support whose model is missing.
+    let loaded = footlight::scene::load_mvr_scene(&venue()).expect("venue.mvr loads");
+    let s = &loaded.scene;
+    // 2 floor + 3 x 12 truss + 12 cube + 12 stand-in.
+    assert_eq!(s.triangle_count(), 2 + 36 + 12 + 12, "{:?}", loaded.warnings);
+    assert_eq!(loaded.objects, 6);
+    // The 3DS cube: mm -> m, MVR x stays x, MVR z (up) -> stage y: it stands on
+    // the floor (y 0..1 m) centred on x = 2 m, z = 0.
+    let top = top_at(s, 2.0, 0.0).expect("the cube");
+    assert!((top - 1.0).abs() < 1e-5, "cube top at {top}");
+    assert!((top_at(s, 2.45, 0.45).unwrap() - 1.0).abs() < 1e-5);
+    assert!(top_at(s, 2.55, 0.0).unwrap().abs() < 1e-5, "beside the cube: the floor");
+    assert!(top_at(s, 1.45, 0.0).unwrap().abs() < 1e-5);
+    // Its bottom sits on y = 0 (a ray up from under the floor meets it there).
+    let up = s.accel.intersect(glam::Vec3::new(2.0, -1.0, 0.3), glam::Vec3::Y, f32::INFINITY).unwrap();
+    assert!((up.t - 1.0).abs() < 1e-5, "{}", up.t);
+    // GLB floor (metres, Y up: passes through unchanged) spans x ±5, z ±4.
+    assert!(top_at(s, -4.9, 3.9).unwrap().abs() < 1e-5);
+    assert!(top_at(s, 5.1, 0.0).is_none());
+    // Trusses: MVR y = 2000 mm upstage -> stage z = -2, MVR z = 6000 mm -> y = 6;
+    // the box's top is 0.15 m above its centre line.
+    for x in [-2.5, 0.0, 2.5] {
+        let t = top_at(s, x + 0.9, -2.0).expect("a truss");
+        assert!((t - 6.15).abs() < 1e-5, "truss at x {x}: top {t}");
+    }
+    assert!(top_at(s, 0.0, -1.8).unwrap().abs() < 1e-5, "trusses are 0.3 m deep");
+    // The missing hoist model: a warning naming it, and a 0.5 m stand-in cube
+    // standing at MVR (-4000, 2000, 6000) mm -> (-4, 6..6.5, -2).
+    assert!(loaded.warnings.iter().any(|w| w.contains("chain_hoist.glb") && w.contains("Hoist 1")), "{:?}", loaded.warnings);
+    assert!((top_at(s, -4.0, -2.0).unwrap() - 6.5).abs() < 1e-5);
+    assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
+}
+
+#[test]
+fn mvr_scene_budget_counts_every_instance() {
+    let limits = ImportLimits { max_triangles: 20 };
+    let err = match footlight::scene::mvr_scene::load_mvr_scene_with(&venue(), &limits) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("62 triangles loaded under a budget of 20"),
+    };
+    assert!(err.contains("venue.mvr/") && err.contains("limit of"), "{err}");
+}

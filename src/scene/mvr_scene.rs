@@ -55,7 +55,8 @@ pub fn load_mvr_scene_with(path: &Path, limits: &ImportLimits) -> Result<MvrScen
     let mvr = Mvr::open(path).map_err(|e| SceneError::Read { path: path.to_path_buf(), what: e.to_string() })?;
     let mut builder = SceneBuilder::new();
     let stand_in = builder.add_material(Material::lambert("MVR stand-in (missing model)", Vec3::splat(0.5)));
-    let mut warnings: Vec<String> = mvr.warnings.iter().map(ToString::to_string).collect();
+    // The scene description's own warnings (bad matrices…) come with the patch (`load_mvr`).
+    let mut warnings: Vec<String> = Vec::new();
     // 3DS files are parsed once, however often they are instanced.
     let mut parsed_3ds: BTreeMap<String, Result<ds3::Scene3ds, String>> = BTreeMap::new();
     let mut material_3ds: BTreeMap<String, u32> = BTreeMap::new();
