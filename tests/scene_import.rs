@@ -424,3 +424,79 @@ fn mvr_scene_budget_counts_every_instance() {
     };
     assert!(err.contains("venue.mvr/") && err.contains("limit of"), "{err}");
 }
+
+// --- Base-colour textures (issue 14 item 4, also for plain glTF scenes) --------
+
+/// sRGB byte → linear (IEC 61966-2-1), written out here independently of the importer.
+fn srgb_byte(b: u8) -> f32 {
+    let c = f64::from(b) / 255.0;
+    (if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }) as f32
+}
+
+#[test]
+fn a_textured_plane_shades_each_texel_as_its_albedo() {
+    use crate::common::{omni, view};
+    use footlight::render::view::Sampling;
+    use glam::Vec3;
+    // A 2 m plane at y = 0: uv (0, 0) at (-1, 0, -1), u along +x, v along +z;
+    // a 2×2 checker PNG beside the file, NEAREST sampling, factor 0.8.
+    let d = dir("texture");
+    let texels: [[u8; 3]; 4] = [[255, 0, 0], [0, 200, 0], [30, 60, 255], [128, 128, 128]];
+    let mut img = image::RgbImage::new(2, 2);
+    for (i, t) in texels.iter().enumerate() {
+        img.put_pixel(i as u32 % 2, i as u32 / 2, image::Rgb(*t));
+    }
+    img.save(d.join("checker.png")).unwrap();
+    let pos: [[f32; 3]; 4] = [[-1.0, 0.0, -1.0], [1.0, 0.0, -1.0], [1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]];
+    let uv: [[f32; 2]; 4] = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    let idx: [u16; 6] = [0, 2, 1, 0, 3, 2];
+    let mut bin: Vec<u8> = pos.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
+    bin.extend(uv.iter().flatten().flat_map(|f| f.to_le_bytes()));
+    bin.extend(idx.iter().flat_map(|i| i.to_le_bytes()));
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"material":0}}]}}],
+        "materials":[{{"pbrMetallicRoughness":{{"baseColorFactor":[0.8,0.8,0.8,1],"metallicFactor":0,"roughnessFactor":1,
+            "baseColorTexture":{{"index":0}}}}}}],
+        "textures":[{{"source":0,"sampler":0}}],"samplers":[{{"magFilter":9728,"minFilter":9728}}],
+        "images":[{{"uri":"checker.png"}}],
+        "accessors":[
+          {{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,-1],"max":[1,0,1]}},
+          {{"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"}},
+          {{"bufferView":2,"componentType":5123,"count":6,"type":"SCALAR"}}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":32}},
+          {{"buffer":0,"byteOffset":80,"byteLength":12}}],
+        "buffers":[{{"byteLength":92,"uri":"{}"}}]}}"#,
+        data_uri(&bin)
+    );
+    let scene = load(&write(&d, "textured.gltf", &json)).expect("textured plane loads");
+    assert!(scene.materials[1].base_texture.is_some());
+    let light_pos = Vec3::new(0.2, 2.0, 0.1);
+    let cam = footlight::scene::Camera::look_at(Vec3::new(0.0, 4.0, 0.01), Vec3::ZERO, 40f32.to_radians());
+    let (w, h) = (48, 48);
+    let v = view(&scene, cam, w, h, Sampling::One, 0);
+    let (buf, _) = v.render_light(&scene, &omni(light_pos), None);
+    let mut seen = [0usize; 4];
+    for y in 0..h {
+        for x in 0..w {
+            let s = v.gbuffer.samples[(y * w + x) as usize][footlight::render::gbuffer::CENTRE_SAMPLE];
+            let Some(p) = v.gbuffer.position(&scene, &s) else { continue };
+            // Skip pixels on a texel edge (x = 0 or z = 0) and off the plane.
+            if p.x.abs() < 0.02 || p.z.abs() < 0.02 || p.x.abs() > 0.98 || p.z.abs() > 0.98 {
+                continue;
+            }
+            let texel = usize::from(p.x > 0.0) + 2 * usize::from(p.z > 0.0);
+            let rho = Vec3::from_array(texels[texel].map(srgb_byte)) * 0.8;
+            let d = light_pos - p;
+            let e = d.y / d.length() / d.length_squared(); // 1 cd: E = cos θ / d²
+            let expected = rho / std::f32::consts::PI * e;
+            let got = buf.get(x, y);
+            assert!(
+                (got - expected).abs().max_element() <= 1e-4 * expected.max_element(),
+                "({x},{y}) texel {texel} at {p}: got {got}, expected {expected}"
+            );
+            seen[texel] += 1;
+        }
+    }
+    assert!(seen.iter().all(|&n| n > 20), "every texel checked: {seen:?}");
+}

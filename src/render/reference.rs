@@ -96,6 +96,7 @@ fn radiance(
             geometric_normal: ng,
             wo: -dir,
             material: s.material,
+            diffuse: scene.diffuse_at(&s),
             weight: Vec3::ONE,
             depth,
         };

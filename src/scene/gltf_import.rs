@@ -40,8 +40,10 @@
 //!    by the face normal and counted (a warning), non-finite or zero-area
 //!    triangles are dropped and counted (a warning).
 
+use super::texture::{Texture, Wrap};
 use super::{Camera, Material, Scene, SceneBuilder};
-use glam::{Mat3, Mat4, Vec3};
+use glam::{Mat3, Mat4, Vec2, Vec3};
+use std::sync::Arc;
 use gltf::json;
 use gltf::json::validation::Checked;
 use std::io::Read;
@@ -183,7 +185,12 @@ enum Want {
     Vec3,
     /// SCALAR of UNSIGNED_BYTE/SHORT/INT (indices).
     Index,
+    /// VEC2 of FLOAT (TEXCOORD_0).
+    Vec2,
 }
+
+/// Bytes at most read for one image file beside the scene (256 MiB).
+pub const MAX_IMAGE_BYTES: u64 = 256 << 20;
 
 /// An accessor whose every byte range was checked against its buffer.
 #[derive(Clone, Debug)]
@@ -271,6 +278,10 @@ impl Importer<'_> {
         }
 
         let buffers = self.buffers(root, blob)?;
+        let mut material_index = material_index;
+        self.attach_textures(&doc, &buffers, &mut material_index);
+        let textured: Vec<bool> = material_index.iter().map(|m| m.base_texture.is_some()).collect();
+        let mut bad_texcoords = 0usize;
         // glTF material i is builder material `first_material + i`; no material: the default grey 0.
         let first_material = builder.material_count() as u32;
         for m in material_index {
@@ -334,24 +345,32 @@ impl Importer<'_> {
                     return Err(bad(format!("index {bad_index} past the {} vertices", positions.len())));
                 }
                 let material = prim.material.map_or(0, |m| m.value() as u32 + first_material);
+                // Texture coordinates, read only where a base-colour texture uses them.
+                let uvs: Option<Vec<Vec2>> = match prim.material {
+                    Some(m) if textured.get(m.value()).copied().unwrap_or(false) => {
+                        match self.texcoords(root, prim, pos_span.count, &buffers) {
+                            Ok(uv) => uv,
+                            Err(e) => {
+                                tracing::warn!("{}: {}", path.display(), bad(e).to_string());
+                                bad_texcoords += 1;
+                                None
+                            }
+                        }
+                    }
+                    _ => None,
+                };
                 for [a, b, c] in triangle_list(mode, &indices) {
                     let (b, c) = if flip { (c, b) } else { (b, c) };
                     let p = [positions[a as usize], positions[b as usize], positions[c as usize]];
                     let n = normals.as_ref().map(|n| [n[a as usize], n[b as usize], n[c as usize]]);
-                    builder.add_triangle(p, n, material);
+                    let uv = uvs.as_ref().map_or([Vec2::ZERO; 3], |t| [t[a as usize], t[b as usize], t[c as usize]]);
+                    builder.add_triangle_uv(p, n, uv, material);
                 }
             }
         }
-        let textured = doc
-            .materials()
-            .filter(|m| {
-                let pbr = m.pbr_metallic_roughness();
-                pbr.base_color_texture().is_some() || pbr.metallic_roughness_texture().is_some()
-            })
-            .count();
-        if textured > 0 {
+        if bad_texcoords > 0 {
             tracing::warn!(
-                "{}: {textured} material(s) use textures; only their constant factors are used",
+                "{}: {bad_texcoords} textured primitive(s) without usable TEXCOORD_0 read texel (0, 0)",
                 path.display()
             );
         }
@@ -552,6 +571,103 @@ impl Importer<'_> {
         Ok(m)
     }
 
+    /// Base-colour textures (PNG, see [`super::texture`]) onto their
+    /// materials; each texture is decoded once. A texture that cannot be
+    /// used leaves the constant factor, with a warning naming it.
+    fn attach_textures(&self, doc: &gltf::Document, buffers: &[Vec<u8>], materials: &mut [Material]) {
+        let root = doc.as_json();
+        let mut cache: std::collections::HashMap<usize, Option<Arc<Texture>>> = Default::default();
+        let mut metallic_roughness = 0usize;
+        for (i, m) in doc.materials().enumerate() {
+            let pbr = m.pbr_metallic_roughness();
+            if pbr.metallic_roughness_texture().is_some() {
+                metallic_roughness += 1;
+            }
+            let Some(info) = pbr.base_color_texture() else { continue };
+            let label = named("material", i, m.name());
+            if info.tex_coord() != 0 {
+                tracing::warn!(
+                    "{}: {label}: its baseColorTexture reads TEXCOORD_{}; only TEXCOORD_0 is read, so its constant \
+                     factor is used",
+                    self.path.display(),
+                    info.tex_coord()
+                );
+                continue;
+            }
+            let texture = info.texture();
+            let decoded = cache
+                .entry(texture.index())
+                .or_insert_with(|| {
+                    let image = texture.source();
+                    let name = named("image", image.index(), image.name());
+                    let bytes = match image.source() {
+                        gltf::image::Source::View { view, .. } => self
+                            .view(root, view.index())
+                            .ok()
+                            .and_then(|(b, start, len, _)| {
+                                buffers.get(b)?.get(usize::try_from(start).ok()?..usize::try_from(start + len).ok()?)
+                            })
+                            .map(<[u8]>::to_vec)
+                            .ok_or_else(|| "its bufferView is outside its buffer".to_string()),
+                        gltf::image::Source::Uri { uri, .. } => {
+                            self.read_uri(&name, uri, None).map_err(|e| e.to_string())
+                        }
+                    };
+                    match bytes.and_then(|b| Texture::decode_png(&name, &b)) {
+                        Ok(mut t) => {
+                            let sampler = texture.sampler();
+                            t.nearest = sampler.mag_filter() == Some(gltf::texture::MagFilter::Nearest);
+                            let wrap = |w: gltf::texture::WrappingMode| match w {
+                                gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
+                                gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
+                                gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+                            };
+                            t.wrap_u = wrap(sampler.wrap_s());
+                            t.wrap_v = wrap(sampler.wrap_t());
+                            Some(Arc::new(t))
+                        }
+                        Err(e) => {
+                            tracing::warn!(
+                                "{}: {name}: {e}; materials using it keep their constant base colour",
+                                self.path.display()
+                            );
+                            None
+                        }
+                    }
+                })
+                .clone();
+            if let Some(slot) = materials.get_mut(i) {
+                slot.base_texture = decoded;
+            }
+        }
+        if metallic_roughness > 0 {
+            tracing::warn!(
+                "{}: {metallic_roughness} material(s) use metallic-roughness textures; only their constant \
+                 factors are used",
+                self.path.display()
+            );
+        }
+    }
+
+    /// A primitive's TEXCOORD_0 as VEC2 FLOAT, one per position; `None`
+    /// when it has none. The error says why they cannot be used.
+    fn texcoords(
+        &self,
+        root: &json::Root,
+        prim: &json::mesh::Primitive,
+        positions: u64,
+        buffers: &[Vec<u8>],
+    ) -> Result<Option<Vec<Vec2>>, String> {
+        let Some(i) = prim.attributes.get(&Checked::Valid(json::mesh::Semantic::TexCoords(0))) else {
+            return Ok(None);
+        };
+        let span = self.accessor_span(root, i.value(), Want::Vec2).map_err(|e| format!("TEXCOORD_0: {e}"))?;
+        if span.count != positions {
+            return Err(format!("TEXCOORD_0 has {} elements for {positions} positions", span.count));
+        }
+        Ok(Some(read_vec2(&span, buffers).map_err(|e| format!("TEXCOORD_0: {e}"))?))
+    }
+
     /// The checked spans of a triangle primitive's POSITION, NORMAL and indices.
     fn primitive_spans(
         &self,
@@ -605,6 +721,10 @@ impl Importer<'_> {
         use json::accessor::{ComponentType as C, Type as T};
         let component_size: u64 = match (want, ty, component) {
             (Want::Vec3, T::Vec3, C::F32) => 4,
+            (Want::Vec2, T::Vec2, C::F32) => 4,
+            (Want::Vec2, ..) => {
+                return Err(fail(format!("is {ty:?} of {component:?}; texture coordinates are read as VEC2 of FLOAT")));
+            }
             (Want::Index, T::Scalar, C::U8) => 1,
             (Want::Index, T::Scalar, C::U16) => 2,
             (Want::Index, T::Scalar, C::U32) => 4,
@@ -620,7 +740,12 @@ impl Importer<'_> {
         if a.normalized {
             return Err(fail("is normalized; positions, normals and indices must not be".into()));
         }
-        let elem = component_size * if want == Want::Vec3 { 3 } else { 1 };
+        let elem = component_size
+            * match want {
+                Want::Vec3 => 3,
+                Want::Vec2 => 2,
+                Want::Index => 1,
+            };
         let count = a.count.0;
         if count == 0 {
             return Err(fail("count is 0 (glTF requires at least 1)".into()));
@@ -723,7 +848,7 @@ impl Importer<'_> {
                 None => blob.take().ok_or_else(|| {
                     self.invalid(format!("{label} has no uri and there is no (further) GLB binary chunk"))
                 })?,
-                Some(uri) => self.read_uri(&label, uri, want)?,
+                Some(uri) => self.read_uri(&label, uri, Some(want))?,
             };
             if (data.len() as u64) < want {
                 return Err(
@@ -736,9 +861,11 @@ impl Importer<'_> {
         Ok(out)
     }
 
-    /// A buffer's URI: base64 `data:`, or a relative path inside the scene's
-    /// folder (see the module docs); at most `want` bytes are read.
-    fn read_uri(&self, label: &str, uri: &str, want: u64) -> Result<Vec<u8>, SceneError> {
+    /// A buffer's or image's URI: base64 `data:`, or a relative path inside
+    /// the scene's folder (see the module docs); exactly `want` bytes are
+    /// read (a shorter file is an error), or with `None` the whole file up
+    /// to [`MAX_IMAGE_BYTES`].
+    fn read_uri(&self, label: &str, uri: &str, want: Option<u64>) -> Result<Vec<u8>, SceneError> {
         let shown: String = uri.chars().take(80).collect();
         let refuse = |why: &str| self.invalid(format!("{label}: uri {shown:?} refused: {why}"));
         if let Some(rest) = uri.strip_prefix("data:") {
@@ -776,6 +903,7 @@ impl Importer<'_> {
         if !meta.is_file() {
             return Err(refuse("not a regular file"));
         }
+        let want = want.unwrap_or(meta.len().min(MAX_IMAGE_BYTES));
         if meta.len() < want {
             return Err(self.invalid(format!(
                 "{label}: byteLength is {want}, but {} has only {} bytes",
@@ -836,6 +964,26 @@ fn read_vec3(s: &Span, buffers: &[Vec<u8>]) -> Result<Vec<[f32; 3]>, String> {
         for (k, i) in sparse_indices(sp, s.count, buffers)?.into_iter().enumerate() {
             let v = element(buffers, sp.values, 12, k as u64, 12).map(f).ok_or("sparse value past its buffer")?;
             out[i as usize] = v;
+        }
+    }
+    Ok(out)
+}
+
+/// Reads a checked VEC2/FLOAT span (sparse substitution included).
+fn read_vec2(s: &Span, buffers: &[Vec<u8>]) -> Result<Vec<Vec2>, String> {
+    let f = |b: &[u8]| -> Vec2 {
+        let c = |j: usize| f32::from_le_bytes([b[4 * j], b[4 * j + 1], b[4 * j + 2], b[4 * j + 3]]);
+        Vec2::new(c(0), c(1))
+    };
+    let mut out = match s.base {
+        Some(at) => (0..s.count)
+            .map(|k| element(buffers, at, s.stride, k, 8).map(f).ok_or("element past its buffer"))
+            .collect::<Result<Vec<_>, _>>()?,
+        None => vec![Vec2::ZERO; s.count as usize],
+    };
+    if let Some(sp) = &s.sparse {
+        for (k, i) in sparse_indices(sp, s.count, buffers)?.into_iter().enumerate() {
+            out[i as usize] = element(buffers, sp.values, 8, k as u64, 8).map(f).ok_or("sparse value past its buffer")?;
         }
     }
     Ok(out)

@@ -11,14 +11,16 @@ pub mod camera;
 pub mod gltf_import;
 pub mod material;
 pub mod mvr_scene;
+pub mod texture;
 
 pub use bvh::{Accel, Hit};
 pub use camera::Camera;
 pub use gltf_import::{ImportLimits, SceneError, load, load_with};
 pub use material::Material;
 pub use mvr_scene::{MvrScene, load_mvr_scene};
+pub use texture::Texture;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 /// A surface point found by a ray, with everything shading needs.
 #[derive(Clone, Copy, Debug)]
@@ -33,6 +35,8 @@ pub struct SurfacePoint {
     pub material: u32,
     /// Triangle index (the paper's triangle ID).
     pub triangle: u32,
+    /// Texture coordinates (glTF TEXCOORD_0), interpolated; zero without them.
+    pub uv: Vec2,
 }
 
 /// A surface point's normals turned toward the side a ray arrives from
@@ -81,6 +85,8 @@ pub struct Scene {
     pub face_normals: Vec<Vec3>,
     /// Material index per triangle.
     pub material_of: Vec<u32>,
+    /// Texture coordinates per triangle vertex (zero when the file had none).
+    pub uvs: Vec<[Vec2; 3]>,
     /// Material table; index 0 always exists (a neutral grey default).
     pub materials: Vec<Material>,
     /// Camera from the file, if it had one.
@@ -118,6 +124,20 @@ impl Scene {
             shading_normal: ns,
             material: self.material_of[i],
             triangle: hit.triangle,
+            uv: {
+                let [ta, tb, tc] = self.uvs[i];
+                ta * w + tb * hit.u + tc * hit.v
+            },
+        }
+    }
+
+    /// The diffuse albedo ρ_d at a surface point: the material's, times its
+    /// base-colour texture sampled at the point's texture coordinates.
+    pub fn diffuse_at(&self, s: &SurfacePoint) -> Vec3 {
+        let m = &self.materials[s.material as usize];
+        match &m.base_texture {
+            Some(t) => m.diffuse * t.sample(s.uv),
+            None => m.diffuse,
         }
     }
 
@@ -150,6 +170,7 @@ pub struct SceneBuilder {
     normals: Vec<[Vec3; 3]>,
     face_normals: Vec<Vec3>,
     material_of: Vec<u32>,
+    uvs: Vec<[Vec2; 3]>,
     materials: Vec<Material>,
     camera: Option<Camera>,
     report: ImportReport,
@@ -169,6 +190,7 @@ impl SceneBuilder {
             normals: Vec::new(),
             face_normals: Vec::new(),
             material_of: Vec::new(),
+            uvs: Vec::new(),
             materials: vec![Material::lambert("default grey", Vec3::splat(0.5))],
             camera: None,
             report: ImportReport::default(),
@@ -204,6 +226,18 @@ impl SceneBuilder {
     /// Adds one triangle; `normals` may be `None` for flat shading. Returns
     /// false (and counts why) when the triangle was dropped.
     pub fn add_triangle(&mut self, p: [Vec3; 3], normals: Option<[Vec3; 3]>, material: u32) -> bool {
+        self.add_triangle_uv(p, normals, [Vec2::ZERO; 3], material)
+    }
+
+    /// [`SceneBuilder::add_triangle`] with texture coordinates per vertex
+    /// (non-finite ones read as zero).
+    pub fn add_triangle_uv(
+        &mut self,
+        p: [Vec3; 3],
+        normals: Option<[Vec3; 3]>,
+        uv: [Vec2; 3],
+        material: u32,
+    ) -> bool {
         if !p.iter().all(|v| v.is_finite()) {
             self.report.non_finite += 1;
             return false;
@@ -224,6 +258,7 @@ impl SceneBuilder {
         self.normals.push(ns);
         self.face_normals.push(ng);
         self.material_of.push(material);
+        self.uvs.push(uv.map(|t| if t.is_finite() { t } else { Vec2::ZERO }));
         true
     }
 
@@ -256,6 +291,7 @@ impl SceneBuilder {
         retain_marked(&mut self.normals, &keep);
         retain_marked(&mut self.face_normals, &keep);
         retain_marked(&mut self.material_of, &keep);
+        retain_marked(&mut self.uvs, &keep);
     }
 
     /// Builds the BVH and returns the finished scene.
@@ -267,6 +303,7 @@ impl SceneBuilder {
             normals: self.normals,
             face_normals: self.face_normals,
             material_of: self.material_of,
+            uvs: self.uvs,
             materials: self.materials,
             camera: self.camera,
             report: self.report,
