@@ -410,7 +410,11 @@ fn mvr_geometry_is_converted_once_from_millimetres_and_z_up() {
     assert!(top_at(s, 0.0, -1.8).unwrap().abs() < 1e-5, "trusses are 0.3 m deep");
     // The missing hoist model: a warning naming it, and a 0.5 m stand-in cube
     // standing at MVR (-4000, 2000, 6000) mm -> (-4, 6..6.5, -2).
-    assert!(loaded.warnings.iter().any(|w| w.contains("chain_hoist.glb") && w.contains("Hoist 1")), "{:?}", loaded.warnings);
+    assert!(
+        loaded.warnings.iter().any(|w| w.contains("chain_hoist.glb") && w.contains("Hoist 1")),
+        "{:?}",
+        loaded.warnings
+    );
     assert!((top_at(s, -4.0, -2.0).unwrap() - 6.5).abs() < 1e-5);
     assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
 }

@@ -4,9 +4,14 @@
 //! transform, turns triangle primitives (lists, strips and fans) into scene
 //! triangles, maps materials with [`Material::from_pbr`] (base colour,
 //! metallic, roughness, `KHR_materials_transmission`, `KHR_materials_ior`),
-//! and takes the first perspective camera. What the renderer cannot use
-//! (textures, points/lines, punctual lights: lights come from the patch) is
-//! reported once with `tracing::warn!`, never silently.
+//! base-colour textures (PNG, with TEXCOORD_0; [`super::texture`]), and
+//! takes the first perspective camera. What the renderer cannot use
+//! (metallic-roughness, normal and other textures, JPEG images, texture sets
+//! other than TEXCOORD_0, points/lines, punctual lights: lights come from
+//! the patch) is reported once with `tracing::warn!`, never silently.
+//!
+//! [`import_bytes_into`] reads a file given as bytes (an MVR archive's
+//! model) into a shared [`SceneBuilder`] under a placement matrix.
 //!
 //! A scene file is untrusted input (issue 12 items 2, 3 and 10), so
 //! everything is checked before it is used, in this order, and every error
@@ -34,8 +39,10 @@
 //!    path that, canonicalised, stays inside the scene's folder and is a
 //!    regular file; at most `byteLength` bytes are read, and a shorter file is
 //!    an error. `file:` and other schemes, absolute paths, `..` escapes and
-//!    devices are refused. Images are never read (only constant material
-//!    factors are used).
+//!    devices are refused. Base-colour images are read the same way (or
+//!    from a bufferView), the whole file up to [`MAX_IMAGE_BYTES`], decoded
+//!    with at most [`super::texture::MAX_TEXTURE_SIDE`] texels a side; one
+//!    that cannot be read leaves the constant factor, with a warning.
 //! 7. Index values below the vertex count; non-finite normals are replaced
 //!    by the face normal and counted (a warning), non-finite or zero-area
 //!    triangles are dropped and counted (a warning).
@@ -43,11 +50,11 @@
 use super::texture::{Texture, Wrap};
 use super::{Camera, Material, Scene, SceneBuilder};
 use glam::{Mat3, Mat4, Vec2, Vec3};
-use std::sync::Arc;
 use gltf::json;
 use gltf::json::validation::Checked;
 use std::io::Read;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Why a scene file could not be loaded. Always names the file.
 #[derive(Debug, thiserror::Error)]
@@ -983,7 +990,8 @@ fn read_vec2(s: &Span, buffers: &[Vec<u8>]) -> Result<Vec<Vec2>, String> {
     };
     if let Some(sp) = &s.sparse {
         for (k, i) in sparse_indices(sp, s.count, buffers)?.into_iter().enumerate() {
-            out[i as usize] = element(buffers, sp.values, 8, k as u64, 8).map(f).ok_or("sparse value past its buffer")?;
+            out[i as usize] =
+                element(buffers, sp.values, 8, k as u64, 8).map(f).ok_or("sparse value past its buffer")?;
         }
     }
     Ok(out)

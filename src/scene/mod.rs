@@ -231,13 +231,7 @@ impl SceneBuilder {
 
     /// [`SceneBuilder::add_triangle`] with texture coordinates per vertex
     /// (non-finite ones read as zero).
-    pub fn add_triangle_uv(
-        &mut self,
-        p: [Vec3; 3],
-        normals: Option<[Vec3; 3]>,
-        uv: [Vec2; 3],
-        material: u32,
-    ) -> bool {
+    pub fn add_triangle_uv(&mut self, p: [Vec3; 3], normals: Option<[Vec3; 3]>, uv: [Vec2; 3], material: u32) -> bool {
         if !p.iter().all(|v| v.is_finite()) {
             self.report.non_finite += 1;
             return false;

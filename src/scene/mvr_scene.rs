@@ -72,9 +72,8 @@ pub fn load_mvr_scene_with(path: &Path, limits: &ImportLimits) -> Result<MvrScen
         }
         for (file, world) in &object.geometries {
             let label = mvr.archive.label(file);
-            let budget = ImportLimits {
-                max_triangles: limits.max_triangles.saturating_sub(builder.triangle_count() as u64),
-            };
+            let budget =
+                ImportLimits { max_triangles: limits.max_triangles.saturating_sub(builder.triangle_count() as u64) };
             let Some(bytes) = mvr.archive.get(file) else {
                 warnings.push(format!(
                     "{}: {what} names the model {file:?}, which the archive does not contain; a stand-in cube",
@@ -94,13 +93,16 @@ pub fn load_mvr_scene_with(path: &Path, limits: &ImportLimits) -> Result<MvrScen
                         e => Ok(e.to_string()),
                     })
             } else if lower.ends_with(".3ds") {
-                let parsed = parsed_3ds
-                    .entry(file.clone())
-                    .or_insert_with(|| ds3::parse(bytes).map_err(|e| format!("{}: not a readable 3DS file: {e}", label.display())));
+                let parsed = parsed_3ds.entry(file.clone()).or_insert_with(|| {
+                    ds3::parse(bytes).map_err(|e| format!("{}: not a readable 3DS file: {e}", label.display()))
+                });
                 match parsed {
                     Ok(model) => {
                         let material = *material_3ds.entry(file.clone()).or_insert_with(|| {
-                            builder.add_material(Material::lambert(&format!("{file} (3DS, no colour read)"), Vec3::splat(0.6)))
+                            builder.add_material(Material::lambert(
+                                &format!("{file} (3DS, no colour read)"),
+                                Vec3::splat(0.6),
+                            ))
                         });
                         add_3ds(&label, model, *world, material, &mut builder, &budget).map_err(|e| match e {
                             e @ SceneError::Budget { .. } => Err(e),
@@ -233,10 +235,7 @@ mod tests {
     #[test]
     fn the_scene_comes_from_the_flag_then_the_mvr_then_the_default() {
         let d = Path::new("scenes/stage.glb");
-        assert_eq!(
-            scene_source(Some(Path::new("a.glb")), Path::new("show.mvr"), d),
-            SceneSource::Gltf("a.glb".into())
-        );
+        assert_eq!(scene_source(Some(Path::new("a.glb")), Path::new("show.mvr"), d), SceneSource::Gltf("a.glb".into()));
         assert_eq!(scene_source(None, Path::new("show.MVR"), d), SceneSource::Mvr("show.MVR".into()));
         assert_eq!(scene_source(None, Path::new("rig.toml"), d), SceneSource::Gltf(d.into()));
     }
