@@ -420,6 +420,15 @@ fn load_scene(args: &SceneArgs) -> Result<(PathBuf, Scene)> {
         }
         SceneSource::Mvr(path) => {
             let loaded = footlight::scene::load_mvr_scene(&path)?;
+            if loaded.objects == 0 {
+                // A rig without a venue (what a desk exports): light it on the bundled stage.
+                tracing::info!(
+                    "{}: no scene objects; the bundled stage {} is used (--scene chooses another)",
+                    path.display(),
+                    default.display()
+                );
+                return Ok((default.clone(), footlight::scene::load(&default)?));
+            }
             for w in &loaded.warnings {
                 tracing::warn!("{w}");
             }
@@ -635,15 +644,19 @@ fn check(path: &Path) -> Result<()> {
             if footlight_mvr::is_mvr(path) {
                 // The MVR's geometry is the show's scene (unless `--scene`): its problems too.
                 let loaded = footlight::scene::load_mvr_scene(path)?;
-                for w in &loaded.warnings {
-                    eprintln!("warning: {w}");
+                if loaded.objects == 0 {
+                    println!("{}: no scene objects; shows use the bundled stage", path.display());
+                } else {
+                    for w in &loaded.warnings {
+                        eprintln!("warning: {w}");
+                    }
+                    println!(
+                        "{}: scene of {} object(s), {} triangles",
+                        path.display(),
+                        loaded.objects,
+                        loaded.scene.triangle_count()
+                    );
                 }
-                println!(
-                    "{}: scene of {} object(s), {} triangles",
-                    path.display(),
-                    loaded.objects,
-                    loaded.scene.triangle_count()
-                );
             }
             let show = Show::new(patch);
             let universes = show.universes();

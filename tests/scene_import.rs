@@ -504,3 +504,64 @@ fn a_textured_plane_shades_each_texel_as_its_albedo() {
     }
     assert!(seen.iter().all(|&n| n > 20), "every texel checked: {seen:?}");
 }
+
+#[test]
+fn footlight_check_reports_the_mvr_scene() {
+    let run = |file: &str| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_footlight"))
+            .arg("check")
+            .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr").join(file))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
+    };
+    let (out, err) = run("venue.mvr");
+    assert!(out.contains("scene of 6 object(s), 62 triangles"), "{out}");
+    assert!(err.contains("\"Hoist 1\"") && err.contains("chain_hoist.glb"), "{err}");
+    // A rig without scene objects is lit on the bundled stage.
+    let (out, _) = run("show150.mvr");
+    assert!(out.contains("no scene objects; shows use the bundled stage"), "{out}");
+}
+
+#[test]
+fn mangled_3ds_files_never_panic() {
+    use footlight::scene::mvr_scene::{add_3ds, parse_3ds};
+    let archive = footlight_mvr::archive::Archive::open(&venue()).unwrap();
+    let cube = archive.get("cube.3ds").expect("cube.3ds in venue.mvr").to_vec();
+    let label = Path::new("venue.mvr/cube.3ds");
+    let limits = ImportLimits::default();
+    // The intact file: 12 triangles.
+    let mut b = footlight::scene::SceneBuilder::new();
+    add_3ds(label, &parse_3ds(label, &cube).unwrap(), glam::DMat4::IDENTITY, 0, &mut b, &limits).unwrap();
+    assert_eq!(b.triangle_count(), 12);
+    // Seeded mutations (bytes overwritten, truncations): an error or a
+    // scene, never a panic; an index past the vertices is reported.
+    let mut rng = crate::common::Rng(0x3D5);
+    let (mut errors, mut loaded) = (0, 0);
+    for _ in 0..3000 {
+        let mut bytes = cube.clone();
+        for _ in 0..1 + (rng.next_f32() * 4.0) as usize {
+            let i = (rng.next_f32() * bytes.len() as f32) as usize % bytes.len();
+            bytes[i] = (rng.next_f32() * 256.0) as u8;
+        }
+        if rng.next_f32() < 0.2 {
+            bytes.truncate((rng.next_f32() * bytes.len() as f32) as usize);
+        }
+        let mut b = footlight::scene::SceneBuilder::new();
+        match parse_3ds(label, &bytes) {
+            Err(e) => {
+                assert!(e.contains("cube.3ds"), "{e}");
+                errors += 1;
+            }
+            Ok(m) => match add_3ds(label, &m, glam::DMat4::IDENTITY, 0, &mut b, &limits) {
+                Ok(()) => loaded += 1,
+                Err(e) => {
+                    assert!(e.to_string().contains("cube.3ds"), "{e}");
+                    errors += 1;
+                }
+            },
+        }
+    }
+    assert!(errors > 100 && loaded > 100, "errors {errors}, loaded {loaded}");
+}

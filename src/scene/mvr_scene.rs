@@ -93,9 +93,7 @@ pub fn load_mvr_scene_with(path: &Path, limits: &ImportLimits) -> Result<MvrScen
                         e => Ok(e.to_string()),
                     })
             } else if lower.ends_with(".3ds") {
-                let parsed = parsed_3ds.entry(file.clone()).or_insert_with(|| {
-                    ds3::parse(bytes).map_err(|e| format!("{}: not a readable 3DS file: {e}", label.display()))
-                });
+let parsed = parsed_3ds.entry(file.clone()).or_insert_with(|| parse_3ds(&label, bytes));
                 match parsed {
                     Ok(model) => {
                         let material = *material_3ds.entry(file.clone()).or_insert_with(|| {
@@ -147,9 +145,15 @@ fn z_up_to_y_up() -> Mat4 {
     Mat4::from_rotation_x(-std::f32::consts::FRAC_PI_2)
 }
 
+/// Parses a 3DS file (`label` names it in the message) with the `ds3` crate.
+pub fn parse_3ds(label: &Path, bytes: &[u8]) -> Result<ds3::Scene3ds, String> {
+    ds3::parse(bytes).map_err(|e| format!("{}: not a readable 3DS file: {e}", label.display()))
+}
+
 /// A 3DS model's triangles (MVR frame: millimetres, Z up) placed by the MVR
-/// world matrix `world` (millimetres).
-fn add_3ds(
+/// world matrix `world` (millimetres); face indices are checked here (an
+/// index past the vertices is an error naming the mesh and face).
+pub fn add_3ds(
     label: &Path,
     model: &ds3::Scene3ds,
     world: DMat4,
