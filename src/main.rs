@@ -312,6 +312,10 @@ struct RenderArgs {
     /// Replace an existing output file.
     #[arg(long)]
     force: bool,
+    /// Draw each light's fixture body (a primitive box posed at its pan/tilt, its
+    /// lens glowing with the light's own level; docs/rendering.md).
+    #[arg(long)]
+    bodies: bool,
 }
 
 #[derive(Args)]
@@ -750,7 +754,17 @@ fn render(args: RenderArgs) -> Result<()> {
             quality: footlight::render::media::HazeQuality::REFINED,
         })
     });
-    let still = render_still_hazy(&scene, camera, &jobs, &settings, haze.as_ref())?;
+    let mut still = render_still_hazy(&scene, camera, &jobs, &settings, haze.as_ref())?;
+    if args.bodies {
+        // Fixture bodies: a layer over the composite, never in the light buffers (issue 14).
+        use footlight::render::bodies::{Body, BodyLayer};
+        let bodies: Vec<Body> = jobs.iter().map(|j| Body { light: j.light.clone(), k: j.k }).collect();
+        BodyLayer::build(&scene, &camera, settings.width, settings.height, &bodies).overlay(
+            &camera,
+            &bodies,
+            &mut still.linear,
+        );
+    }
     if let Err((i, v)) = check_finite(&still.linear) {
         bail!("composite pixel {i} is {v}: this is a bug, please report it");
     }

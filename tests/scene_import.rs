@@ -565,3 +565,43 @@ fn mangled_3ds_files_never_panic() {
     }
     assert!(errors > 100 && loaded > 100, "errors {errors}, loaded {loaded}");
 }
+
+#[test]
+fn mvr_model_placement_agrees_with_pymvr() {
+    // pymvr (PyPI, installed by .ci/run) reads the same files; a Python
+    // script composes layer, group, object, symbol and Geometry3D matrices.
+    if !std::process::Command::new("python3").args(["-c", "import pymvr"]).output().is_ok_and(|o| o.status.success()) {
+        eprintln!("skipped: python3 with pymvr is missing (.ci/run installs it with pip)");
+        return;
+    }
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/footlight-mvr/tests/peers/geometry.py");
+    for file in ["venue.mvr", "features.mvr"] {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr").join(file);
+        let o = std::process::Command::new("python3").arg(&script).arg(&path).output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let peer: Vec<(String, String, Vec<f64>)> = serde_json::from_slice(&o.stdout).unwrap();
+        let mvr = footlight_mvr::mvr::Mvr::open(&path).unwrap();
+        let mut ours: Vec<(String, String, Vec<f64>)> = mvr
+            .scene
+            .objects
+            .iter()
+            .flat_map(|obj| {
+                obj.geometries
+                    .iter()
+                    .map(|(f, m)| (obj.name.clone(), f.clone(), m.transpose().to_cols_array().to_vec()))
+            })
+            .collect();
+        let mut peer = peer;
+        let key = |a: &(String, String, Vec<f64>), b: &(String, String, Vec<f64>)| (&a.0, &a.1).cmp(&(&b.0, &b.1));
+        ours.sort_by(key);
+        peer.sort_by(key);
+        assert_eq!(ours.len(), peer.len(), "{file}: models placed");
+        assert!(ours.len() >= 6, "{file}");
+        for (a, b) in ours.iter().zip(&peer) {
+            assert_eq!((&a.0, &a.1), (&b.0, &b.1), "{file}");
+            for (x, y) in a.2.iter().zip(&b.2) {
+                assert!((x - y).abs() < 1e-6, "{file}: {} {}: {:?} vs pymvr {:?}", a.0, a.1, a.2, b.2);
+            }
+        }
+    }
+}

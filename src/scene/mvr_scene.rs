@@ -93,7 +93,7 @@ pub fn load_mvr_scene_with(path: &Path, limits: &ImportLimits) -> Result<MvrScen
                         e => Ok(e.to_string()),
                     })
             } else if lower.ends_with(".3ds") {
-let parsed = parsed_3ds.entry(file.clone()).or_insert_with(|| parse_3ds(&label, bytes));
+                let parsed = parsed_3ds.entry(file.clone()).or_insert_with(|| parse_3ds(&label, bytes));
                 match parsed {
                     Ok(model) => {
                         let material = *material_3ds.entry(file.clone()).or_insert_with(|| {
