@@ -758,11 +758,16 @@ fn render(args: RenderArgs) -> Result<()> {
     if args.bodies {
         // Fixture bodies: a layer over the composite, never in the light buffers (issue 14).
         use footlight::render::bodies::{Body, BodyLayer};
+        let t = std::time::Instant::now();
         let bodies: Vec<Body> = jobs.iter().map(|j| Body { light: j.light.clone(), k: j.k }).collect();
-        BodyLayer::build(&scene, &camera, settings.width, settings.height, &bodies).overlay(
-            &camera,
-            &bodies,
-            &mut still.linear,
+        let layer = BodyLayer::build(&scene, &camera, settings.width, settings.height, &bodies);
+        layer.overlay(&camera, &bodies, &mut still.linear);
+        let tested: u64 = (0..bodies.len()).map(|i| layer.footprint_pixels(i)).sum();
+        tracing::info!(
+            "bodies: {} drawn, {tested} pixel tests ({:.0} per body), {:.1} ms",
+            bodies.len(),
+            tested as f64 / bodies.len().max(1) as f64,
+            t.elapsed().as_secs_f64() * 1e3
         );
     }
     if let Err((i, v)) = check_finite(&still.linear) {
