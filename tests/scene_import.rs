@@ -605,3 +605,26 @@ fn mvr_model_placement_agrees_with_pymvr() {
         }
     }
 }
+
+#[test]
+fn photon_bounces_take_their_albedo_from_the_texture() {
+    // A closed 4 m box, white factor × a texture of linear 0.5 everywhere:
+    // each bounce keeps ρ = 0.5 of the power, so the stored indirect power
+    // is Φ ρ/(1−ρ) (closed form). Were the texture ignored, ρ would be 1.
+    use footlight::render::photon::{PhotonSettings, trace_photons};
+    use footlight::scene::{Material, SceneBuilder, Texture};
+    use glam::Vec3;
+    let half = Texture::from_linear("half", 2, 2, vec![Vec3::splat(0.5); 4]).unwrap();
+    let mut b = SceneBuilder::new();
+    let m = b.add_material(Material {
+        base_texture: Some(std::sync::Arc::new(half)),
+        ..Material::lambert("textured white", Vec3::ONE)
+    });
+    crate::common::cube(&mut b, Vec3::splat(-2.0), Vec3::splat(2.0), m);
+    let scene = b.build();
+    let light = crate::common::omni(Vec3::new(0.3, -0.2, 0.1));
+    let maps = trace_photons(&scene, &light, &PhotonSettings { stored: 50_000, seed: 7, ..PhotonSettings::default() });
+    let total: Vec3 = maps.global.photons.iter().map(|p| p.power).sum();
+    let expected = maps.flux * 0.5 / (1.0 - 0.5);
+    assert!((total.x - expected).abs() < 0.04 * expected, "stored indirect power {} vs {expected}", total.x);
+}
