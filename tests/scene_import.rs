@@ -628,3 +628,44 @@ fn photon_bounces_take_their_albedo_from_the_texture() {
     let expected = maps.flux * 0.5 / (1.0 - 0.5);
     assert!((total.x - expected).abs() < 0.04 * expected, "stored indirect power {} vs {expected}", total.x);
 }
+
+#[test]
+fn render_bodies_draws_the_rig_over_the_still() {
+    // features.mvr on the bundled stage, all lights dark: the only change
+    // --bodies makes is body pixels, each the work-lit housing
+    // ρ_body/π · E_work (lenses glow with k_i = 0).
+    let dir = dir("bodies");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let render = |name: &str, bodies: bool| {
+        let out = dir.join(name);
+        let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_footlight"));
+        c.args(["render", "--width", "160", "--height", "100", "--photons", "0", "--white-balance", "none"])
+            .arg("--patch")
+            .arg(root.join("tests/data/mvr/features.mvr"))
+            .arg("--scene")
+            .arg(root.join("scenes/stage.glb"))
+            .arg("--out")
+            .arg(&out);
+        if bodies {
+            c.arg("--bodies");
+        }
+        let o = c.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let bytes = std::fs::read(&out).unwrap();
+        let header_end = bytes.iter().enumerate().filter(|(_, b)| **b == b'\n').nth(2).unwrap().0 + 1;
+        bytes[header_end..].chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect::<Vec<f32>>()
+    };
+    let plain = render("plain.pfm", false);
+    let with = render("bodies.pfm", true);
+    assert_eq!(plain.len(), with.len());
+    let housing =
+        footlight::render::bodies::BODY_ALBEDO / std::f32::consts::PI * footlight::render::bodies::WORK_LIGHT_LUX;
+    let mut changed = 0;
+    for (a, b) in plain.iter().zip(&with) {
+        if a != b {
+            assert!((b - housing).abs() < 1e-5, "a body pixel is {b}, the housing {housing}");
+            changed += 1;
+        }
+    }
+    assert!(changed >= 3 * 4, "{changed} channel values changed");
+}
