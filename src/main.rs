@@ -759,7 +759,7 @@ fn render(args: RenderArgs) -> Result<()> {
         // Fixture bodies: a layer over the composite, never in the light buffers (issue 14).
         use footlight::render::bodies::{Body, BodyLayer};
         let t = std::time::Instant::now();
-        let bodies: Vec<Body> = jobs.iter().map(|j| Body { light: j.light.clone(), k: j.k }).collect();
+        let bodies: Vec<Body> = jobs.iter().map(|j| Body::primitive(j.light.clone(), j.k)).collect();
         let layer = BodyLayer::build(&scene, &camera, settings.width, settings.height, &bodies);
         layer.overlay(&camera, &bodies, &mut still.linear);
         let tested: u64 = (0..bodies.len()).map(|i| layer.footprint_pixels(i)).sum();

@@ -17,9 +17,9 @@
 //!   dimmer/colour/strobe changes stay a composite-only update of the layer.
 //!
 //! Bodies cast no shadows and receive no stage light (they are not in the
-//! scene the lights are traced against). Each body is the light's primitive
-//! box ([`BODY_SIZE`], estimated; the GDTF model's own dimensions and mesh
-//! are not read yet), its lens at the light's position on the beam axis,
+//! scene the lights are traced against). Each body is a box ([`Body::size`];
+//! `render --bodies` uses the estimated [`BODY_SIZE`]: the GDTF model's own
+//! dimensions and mesh are not read yet), its lens at the light's position on the beam axis,
 //! the housing behind it, posed by the light's current rotation (pan/tilt).
 //!
 //! Cost: a body touches only the pixels inside the screen rectangle of its
@@ -47,13 +47,24 @@ pub const BODY_ALBEDO: f32 = 0.05;
 /// Illuminance of the fixed work light on every housing face, lux (estimated).
 pub const WORK_LIGHT_LUX: f32 = 20.0;
 
-/// One fixture body: the light it belongs to and its current k_i.
+/// One fixture body: the light it belongs to, its current k_i and its box.
 #[derive(Clone, Debug)]
 pub struct Body {
     /// The light (position = lens centre, rotation = current pan/tilt).
     pub light: Light,
     /// k_i now (eq. 4): the lens glow's colour and level.
     pub k: Vec3,
+    /// Box size: width (light-local x), height (y), length behind the lens (+z), metres.
+    pub size: Vec3,
+    /// Lens disc radius, metres.
+    pub lens_radius: f32,
+}
+
+impl Body {
+    /// The estimated primitive body ([`BODY_SIZE`], [`LENS_RADIUS`]) of a light.
+    pub fn primitive(light: Light, k: Vec3) -> Self {
+        Self { light, k, size: BODY_SIZE, lens_radius: LENS_RADIUS }
+    }
 }
 
 /// What a pixel of the body layer sees.
@@ -85,7 +96,7 @@ impl BodyLayer {
     /// Ray-casts every body into an empty layer.
     pub fn build(scene: &Scene, camera: &Camera, width: u32, height: u32, bodies: &[Body]) -> Self {
         let mut layer = Self { width, height, hits: vec![None; (width * height) as usize], rects: Vec::new() };
-        layer.rects = bodies.iter().map(|b| footprint(camera, width, height, &b.light)).collect();
+        layer.rects = bodies.iter().map(|b| footprint(camera, width, height, b)).collect();
         for i in 0..bodies.len() {
             let r = layer.rects[i];
             layer.retest(scene, camera, bodies, r);
@@ -97,7 +108,7 @@ impl BodyLayer {
     /// pixels of its old and new rectangles are tested again.
     pub fn redraw(&mut self, scene: &Scene, camera: &Camera, bodies: &[Body], i: usize) {
         let Some(&old) = self.rects.get(i) else { return };
-        let new = footprint(camera, self.width, self.height, &bodies[i].light);
+        let new = footprint(camera, self.width, self.height, &bodies[i]);
         self.rects[i] = new;
         self.retest(scene, camera, bodies, old);
         self.retest(scene, camera, bodies, new);
@@ -116,7 +127,7 @@ impl BodyLayer {
                 let stage = scene.accel.intersect(camera.position, dir, f32::INFINITY).map_or(f32::INFINITY, |h| h.t);
                 let mut best: Option<BodyHit> = None;
                 for &j in &overlapping {
-                    if let Some(hit) = cast(&bodies[j].light, camera.position, dir)
+                    if let Some(hit) = cast(&bodies[j], camera.position, dir)
                         && hit.0 < stage
                         && best.is_none_or(|b| hit.0 < b.depth)
                     {
@@ -145,7 +156,7 @@ impl BodyLayer {
                 let to_camera = -camera.direction(x as f32 + 0.5, y as f32 + 0.5, self.width, self.height);
                 let cos_lens = to_camera.dot(b.light.axis()).max(0.05);
                 let intensity = b.k * b.light.pattern_toward(to_camera);
-                l += intensity / (std::f32::consts::PI * LENS_RADIUS * LENS_RADIUS * cos_lens);
+                l += intensity / (std::f32::consts::PI * b.lens_radius * b.lens_radius * cos_lens);
             }
             out.push(Some(l));
         }
@@ -167,17 +178,18 @@ fn overlaps(a: (u32, u32, u32, u32), b: (u32, u32, u32, u32)) -> bool {
 }
 
 /// The body's box in light-local coordinates: x, y ±half size, z from 0 (lens) to the length.
-fn local_box() -> (Vec3, Vec3) {
-    let h = BODY_SIZE.xy() * 0.5;
-    (Vec3::new(-h.x, -h.y, 0.0), Vec3::new(h.x, h.y, BODY_SIZE.z))
+fn local_box(size: Vec3) -> (Vec3, Vec3) {
+    let h = size.xy() * 0.5;
+    (Vec3::new(-h.x, -h.y, 0.0), Vec3::new(h.x, h.y, size.z))
 }
 
-/// Nearest hit of a ray with the body of `light`: (t, world normal, lens?).
-fn cast(light: &Light, origin: Vec3, dir: Vec3) -> Option<(f32, Vec3, bool)> {
+/// Nearest hit of a ray with a body: (t, world normal, lens?).
+fn cast(body: &Body, origin: Vec3, dir: Vec3) -> Option<(f32, Vec3, bool)> {
+    let light = &body.light;
     let inv = light.rotation.inverse();
     let o = inv * (origin - light.position);
     let d = inv * dir;
-    let (lo, hi) = local_box();
+    let (lo, hi) = local_box(body.size);
     let (mut t0, mut t1, mut axis) = (0.0f32, f32::INFINITY, usize::MAX);
     for k in 0..3 {
         if d[k].abs() < 1e-12 {
@@ -204,15 +216,16 @@ fn cast(light: &Light, origin: Vec3, dir: Vec3) -> Option<(f32, Vec3, bool)> {
     n[axis] = -d[axis].signum();
     let p = o + d * t0;
     // The lens: the z = 0 face (facing −z, the beam side), inside the lens radius.
-    let lens = axis == 2 && n.z < 0.0 && p.xy().length() <= LENS_RADIUS;
+    let lens = axis == 2 && n.z < 0.0 && p.xy().length() <= body.lens_radius;
     Some((t0, light.rotation * n, lens))
 }
 
 /// A conservative pixel rectangle around the body's bounding sphere (the
 /// whole image when the sphere reaches behind the camera).
-fn footprint(camera: &Camera, width: u32, height: u32, light: &Light) -> (u32, u32, u32, u32) {
-    let centre = light.position + light.rotation * Vec3::new(0.0, 0.0, BODY_SIZE.z * 0.5);
-    let radius = (BODY_SIZE * Vec3::new(0.5, 0.5, 0.5)).length() + 1e-3;
+fn footprint(camera: &Camera, width: u32, height: u32, body: &Body) -> (u32, u32, u32, u32) {
+    let light = &body.light;
+    let centre = light.position + light.rotation * Vec3::new(0.0, 0.0, body.size.z * 0.5);
+    let radius = (body.size * 0.5).length() + 1e-3;
     let rel = camera.basis.transpose() * (centre - camera.position);
     let depth = -rel.z;
     let all = (0, 0, width, height);
@@ -258,7 +271,7 @@ mod tests {
         // A 20°/30° spot at (0, 3, 0) aimed at the camera: the lens faces it.
         let light =
             Light::aimed(Vec3::new(0.0, 3.0, 0.0), cam.position, Beam::Spot(SpotBeam::from_beam_field(20.0, 30.0)));
-        let bodies = [Body { light, k: Vec3::new(100.0, 50.0, 25.0) }];
+        let bodies = [Body::primitive(light, Vec3::new(100.0, 50.0, 25.0))];
         let (w, h) = (101, 101);
         let layer = BodyLayer::build(&scene, &cam, w, h, &bodies);
         let centre = layer.hits[(50 * w + 50) as usize].expect("the lens at the image centre");
@@ -284,8 +297,8 @@ mod tests {
         let beam = Beam::Spot(SpotBeam::from_beam_field(20.0, 30.0));
         // One body under the floor (hidden by the depth test), one above it.
         let mut bodies = vec![
-            Body { light: Light::aimed(Vec3::new(0.0, -1.0, 0.0), Vec3::ZERO, beam.clone()), k: Vec3::ONE },
-            Body { light: Light::aimed(Vec3::new(2.0, 1.0, 0.0), Vec3::new(2.0, 0.0, 0.0), beam), k: Vec3::ONE },
+            Body::primitive(Light::aimed(Vec3::new(0.0, -1.0, 0.0), Vec3::ZERO, beam.clone()), Vec3::ONE),
+            Body::primitive(Light::aimed(Vec3::new(2.0, 1.0, 0.0), Vec3::new(2.0, 0.0, 0.0), beam), Vec3::ONE),
         ];
         let (w, h) = (120, 80);
         let mut layer = BodyLayer::build(&scene, &cam, w, h, &bodies);
