@@ -417,6 +417,18 @@ fn mvr_geometry_is_converted_once_from_millimetres_and_z_up() {
     );
     assert!((top_at(s, -4.0, -2.0).unwrap() - 6.5).abs() < 1e-5);
     assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
+    // The floor's base-colour texture comes from the GLB's binary chunk inside
+    // the archive: factor 0.5 × a NEAREST 2×2 checker, sRGB 255 where x and z
+    // share a sign, 64 elsewhere.
+    let albedo = |x: f32, z: f32| {
+        let h = s.accel.intersect(glam::Vec3::new(x, 0.5, z), glam::Vec3::NEG_Y, f32::INFINITY).unwrap();
+        s.diffuse_at(&s.surface(&h))
+    };
+    for (x, z, byte) in [(-3.0, -3.0, 255), (3.0, 3.0, 255), (3.0, -3.0, 64), (-3.0, 3.0, 64)] {
+        let want = 0.5 * srgb_byte(byte);
+        let got = albedo(x, z);
+        assert!((got - glam::Vec3::splat(want)).abs().max_element() < 1e-6, "floor at ({x}, {z}): {got} vs {want}");
+    }
 }
 
 #[test]

@@ -682,11 +682,13 @@ def features_mvr():
 # --- venue geometry (issue 14 item 4): a GLB floor and truss, a 3DS cube ---------
 
 
-def glb_bytes(positions, indices, colour, name):
+def glb_bytes(positions, indices, colour, name, texture=None):
     """A minimal GLB (glTF 2.0 binary): one mesh, one node, one matte material.
 
     positions: list of (x, y, z) in metres, glTF axes (Y up); indices: list of
-    (a, b, c) triangles, counter-clockwise seen from outside.
+    (a, b, c) triangles, counter-clockwise seen from outside; texture: None or
+    (PNG bytes, one (u, v) per position): a base-colour texture in the GLB's
+    binary chunk, sampled NEAREST.
     """
     import json
 
@@ -694,6 +696,13 @@ def glb_bytes(positions, indices, colour, name):
     idx = b"".join(struct.pack("<3H", *t) for t in indices)
     idx += b"\0" * (-len(idx) % 4)
     bin_chunk = pos + idx
+    if texture is not None:
+        png, uvs = texture
+        uv = b"".join(struct.pack("<2f", *t) for t in uvs)
+        uv_at = len(bin_chunk)
+        bin_chunk += uv
+        png_at = len(bin_chunk)
+        bin_chunk += png + b"\0" * (-len(png) % 4)
     lo = [min(p[k] for p in positions) for k in range(3)]
     hi = [max(p[k] for p in positions) for k in range(3)]
     doc = {
@@ -713,6 +722,17 @@ def glb_bytes(positions, indices, colour, name):
             {"bufferView": 1, "componentType": 5123, "count": 3 * len(indices), "type": "SCALAR"},
         ],
     }
+    if texture is not None:
+        doc["bufferViews"] += [
+            {"buffer": 0, "byteOffset": uv_at, "byteLength": len(uv)},
+            {"buffer": 0, "byteOffset": png_at, "byteLength": len(png)},
+        ]
+        doc["accessors"].append({"bufferView": 2, "componentType": 5126, "count": len(uvs), "type": "VEC2"})
+        doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = 2
+        doc["images"] = [{"bufferView": 3, "mimeType": "image/png"}]
+        doc["samplers"] = [{"magFilter": 9728, "minFilter": 9728}]
+        doc["textures"] = [{"source": 0, "sampler": 0}]
+        doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = {"index": 0}
     js = json.dumps(doc, separators=(",", ":"), sort_keys=True).encode()
     js += b" " * (-len(js) % 4)
     body = struct.pack("<II", len(js), 0x4E4F534A) + js + struct.pack("<II", len(bin_chunk), 0x004E4942) + bin_chunk
@@ -748,7 +768,9 @@ def three_ds_bytes(positions, faces, name):
 def venue_mvr():
     """venue.mvr: the MVR's geometry is the scene (known answers in tests/scene_import.rs).
 
-    * floor.glb: a 10 m x 8 m matte floor quad at glTF y = 0 (2 triangles), placed at the origin;
+    * floor.glb: a 10 m x 8 m matte floor quad at glTF y = 0 (2 triangles), placed at the origin,
+      factor 0.5 times a 2x2 NEAREST checker texture in the GLB: sRGB 255 where x and z have the
+      same sign, 64 elsewhere (u = (x + 5)/10, v = (z + 4)/8);
     * truss.glb: a 2 m x 0.3 m x 0.3 m box along glTF x (12 triangles), a Symdef instanced by 3
       Truss objects at MVR (-2500 + 2500 k, 2000, 6000) mm -> stage x = -2.5 + 2.5k, y = 6, z = -2 m;
     * cube.3ds: a 1000 mm cube x, y in [-500, 500], z in [0, 1000] mm (MVR frame, Z up) at
@@ -775,12 +797,14 @@ def venue_mvr():
     layers = [el("Layer", [el("ChildList", [floor, group, hoist, spot] + trusses)], name="Venue", uuid=uid("layer/venue-geometry"))]
     floor_v = [(-5.0, 0.0, -4.0), (5.0, 0.0, -4.0), (5.0, 0.0, 4.0), (-5.0, 0.0, 4.0)]
     floor_t = [(0, 3, 2), (0, 2, 1)]  # counter-clockwise seen from +y
+    floor_uv = [((x + 5.0) / 10.0, (z + 4.0) / 8.0) for x, _, z in floor_v]
+    checker = png_gray(2, 2, lambda x, y: 255 if x == y else 64)
     truss_v, truss_t = box_mesh((-1.0, -0.15, -0.15), (1.0, 0.15, 0.15))
     cube_v, cube_t = box_mesh((-500.0, -500.0, 0.0), (500.0, 500.0, 1000.0))
     entries = {
         "GeneralSceneDescription.xml": gsd(layers, aux),
         "Footlight@Spot.gdtf": gdtf_bytes("Footlight@Spot.gdtf"),
-        "floor.glb": glb_bytes(floor_v, floor_t, (0.5, 0.5, 0.5), "floor"),
+        "floor.glb": glb_bytes(floor_v, floor_t, (0.5, 0.5, 0.5), "floor", (checker, floor_uv)),
         "truss.glb": glb_bytes(truss_v, truss_t, (0.2, 0.2, 0.2), "truss"),
         "cube.3ds": three_ds_bytes(cube_v, cube_t, "cube"),
     }
