@@ -247,10 +247,10 @@ struct RunArgs {
 /// Scene, patch and image options shared by `render` and `bench`.
 #[derive(Args, Clone)]
 struct SceneArgs {
-    /// glTF 2.0 scene (.gltf/.glb).
-    #[arg(long, default_value = footlight::DEFAULT_SCENE)]
-    scene: PathBuf,
-    /// Patch file: TOML, or an MVR show (its GDTF fixture types; the scene stays `--scene`).
+    /// glTF 2.0 scene (.gltf/.glb). Default: an MVR patch's own geometry, else the bundled stage.
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Patch file: TOML, or an MVR show (its GDTF fixture types, and its geometry unless `--scene`).
     #[arg(long, default_value = footlight::DEFAULT_PATCH)]
     patch: PathBuf,
 }
@@ -312,6 +312,10 @@ struct RenderArgs {
     /// Replace an existing output file.
     #[arg(long)]
     force: bool,
+    /// Draw each light's fixture body (a primitive box posed at its pan/tilt, its
+    /// lens glowing with the light's own level; docs/rendering.md).
+    #[arg(long)]
+    bodies: bool,
 }
 
 #[derive(Args)]
@@ -432,7 +436,10 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         return Ok(());
     }
     let out = args.out.unwrap_or_else(bench::default_out_dir);
-    let config = bench::BenchConfig::new(args.quick, resolve(&args.input.scene));
+    let config = bench::BenchConfig::new(
+        args.quick,
+        resolve(args.input.scene.as_deref().unwrap_or(Path::new(footlight::DEFAULT_SCENE))),
+    );
     let report = bench::run(&scene, &patch, camera, &config, &out)?;
     println!("{}", report.summary());
     println!("report written to {}", out.display());
@@ -450,9 +457,8 @@ fn resolve(path: &Path) -> PathBuf {
 }
 
 fn load_inputs(args: &SceneArgs) -> Result<(Scene, Patch)> {
-    let scene_path = resolve(&args.scene);
     let t = std::time::Instant::now();
-    let scene = footlight::scene::load(&scene_path)?;
+    let (scene_path, scene) = load_scene(args)?;
     tracing::info!(
         "{}: {} triangles, {:.1} % specular, {} materials, loaded in {:.0} ms",
         scene_path.display(),
@@ -465,6 +471,35 @@ fn load_inputs(args: &SceneArgs) -> Result<(Scene, Patch)> {
     let patch = footlight_mvr::load_patch(&resolve(&args.patch))?;
     tracing::info!("{}: {} fixtures", patch.path.display(), patch.fixtures.len());
     Ok((scene, patch))
+}
+
+/// The scene: `--scene`, else an MVR patch's own geometry (issue 14), else the bundled stage.
+fn load_scene(args: &SceneArgs) -> Result<(PathBuf, Scene)> {
+    use footlight::scene::mvr_scene::{SceneSource, scene_source};
+    let patch = resolve(&args.patch);
+    let default = resolve(Path::new(footlight::DEFAULT_SCENE));
+    match scene_source(args.scene.as_deref().map(resolve).as_deref(), &patch, &default) {
+        SceneSource::Gltf(path) => {
+            let scene = footlight::scene::load(&path)?;
+            Ok((path, scene))
+        }
+        SceneSource::Mvr(path) => {
+            let loaded = footlight::scene::load_mvr_scene(&path)?;
+            if loaded.objects == 0 {
+                // A rig without a venue (what a desk exports): light it on the bundled stage.
+                tracing::info!(
+                    "{}: no scene objects; the bundled stage {} is used (--scene chooses another)",
+                    path.display(),
+                    default.display()
+                );
+                return Ok((default.clone(), footlight::scene::load(&default)?));
+            }
+            for w in &loaded.warnings {
+                tracing::warn!("{w}");
+            }
+            Ok((path, loaded.scene))
+        }
+    }
 }
 
 /// Patch camera first, then the scene's, then a seat in the stalls.
@@ -671,6 +706,23 @@ fn check(path: &Path) -> Result<()> {
             for w in &warnings {
                 eprintln!("warning: {w}");
             }
+            if footlight_mvr::is_mvr(path) {
+                // The MVR's geometry is the show's scene (unless `--scene`): its problems too.
+                let loaded = footlight::scene::load_mvr_scene(path)?;
+                if loaded.objects == 0 {
+                    println!("{}: no scene objects; shows use the bundled stage", path.display());
+                } else {
+                    for w in &loaded.warnings {
+                        eprintln!("warning: {w}");
+                    }
+                    println!(
+                        "{}: scene of {} object(s), {} triangles",
+                        path.display(),
+                        loaded.objects,
+                        loaded.scene.triangle_count()
+                    );
+                }
+            }
             let show = Show::new(patch);
             let universes = show.universes();
             println!(
@@ -763,7 +815,22 @@ fn render(args: RenderArgs) -> Result<()> {
             quality: footlight::render::media::HazeQuality::REFINED,
         })
     });
-    let still = render_still_hazy(&scene, camera, &jobs, &settings, haze.as_ref())?;
+    let mut still = render_still_hazy(&scene, camera, &jobs, &settings, haze.as_ref())?;
+    if args.bodies {
+        // Fixture bodies: a layer over the composite, never in the light buffers (issue 14).
+        use footlight::render::bodies::{Body, BodyLayer};
+        let t = std::time::Instant::now();
+        let bodies: Vec<Body> = jobs.iter().map(|j| Body::primitive(j.light.clone(), j.k)).collect();
+        let layer = BodyLayer::build(&scene, &camera, settings.width, settings.height, &bodies);
+        layer.overlay(&camera, &bodies, &mut still.linear);
+        let tested: u64 = (0..bodies.len()).map(|i| layer.footprint_pixels(i)).sum();
+        tracing::info!(
+            "bodies: {} drawn, {tested} pixel tests ({:.0} per body), {:.1} ms",
+            bodies.len(),
+            tested as f64 / bodies.len().max(1) as f64,
+            t.elapsed().as_secs_f64() * 1e3
+        );
+    }
     if let Err((i, v)) = check_finite(&still.linear) {
         bail!("composite pixel {i} is {v}: this is a bug, please report it");
     }

@@ -364,3 +364,320 @@ fn the_scene_file_must_be_a_regular_file() {
     let e = error(&d.join("absent.glb"));
     assert!(e.contains("absent.glb") && e.contains("cannot open"), "{e}");
 }
+
+// --- The MVR's geometry as the scene (issue 14 item 4) -------------------------
+
+fn venue() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr/venue.mvr")
+}
+
+/// First hit of a ray straight down from `(x, 20, z)`: the height of the top surface there.
+fn top_at(scene: &footlight::scene::Scene, x: f32, z: f32) -> Option<f32> {
+    use glam::Vec3;
+    scene.accel.intersect(Vec3::new(x, 20.0, z), Vec3::NEG_Y, f32::INFINITY).map(|h| 20.0 - h.t)
+}
+
+#[test]
+fn mvr_geometry_is_converted_once_from_millimetres_and_z_up() {
+    // venue.mvr (tools/gen_gdtf_mvr.py): GLB floor 10 m x 8 m at y = 0; a GLB
+    // truss 2 x 0.3 x 0.3 m instanced 3x by a Symdef at MVR (-2500 + 2500k,
+    // 2000, 6000) mm; a 3DS 1000 mm cube (z 0..1000 mm, MVR frame) at MVR
+    // (2000, 0, 0) mm inside a GroupObject; a Support whose model is missing.
+    let loaded = footlight::scene::load_mvr_scene(&venue()).expect("venue.mvr loads");
+    let s = &loaded.scene;
+    // 2 floor + 3 x 12 truss + 12 cube + 12 stand-in.
+    assert_eq!(s.triangle_count(), 2 + 36 + 12 + 12, "{:?}", loaded.warnings);
+    assert_eq!(loaded.objects, 6);
+    // The 3DS cube: mm -> m, MVR x stays x, MVR z (up) -> stage y: it stands on
+    // the floor (y 0..1 m) centred on x = 2 m, z = 0.
+    let top = top_at(s, 2.0, 0.0).expect("the cube");
+    assert!((top - 1.0).abs() < 1e-5, "cube top at {top}");
+    assert!((top_at(s, 2.45, 0.45).unwrap() - 1.0).abs() < 1e-5);
+    assert!(top_at(s, 2.55, 0.0).unwrap().abs() < 1e-5, "beside the cube: the floor");
+    assert!(top_at(s, 1.45, 0.0).unwrap().abs() < 1e-5);
+    // Its bottom sits on y = 0 (a ray up from under the floor meets it there).
+    let up = s.accel.intersect(glam::Vec3::new(2.0, -1.0, 0.3), glam::Vec3::Y, f32::INFINITY).unwrap();
+    assert!((up.t - 1.0).abs() < 1e-5, "{}", up.t);
+    // GLB floor (metres, Y up: passes through unchanged) spans x ±5, z ±4.
+    assert!(top_at(s, -4.9, 3.9).unwrap().abs() < 1e-5);
+    assert!(top_at(s, 5.1, 0.0).is_none());
+    // Trusses: MVR y = 2000 mm upstage -> stage z = -2, MVR z = 6000 mm -> y = 6;
+    // the box's top is 0.15 m above its centre line.
+    for x in [-2.5, 0.0, 2.5] {
+        let t = top_at(s, x + 0.9, -2.0).expect("a truss");
+        assert!((t - 6.15).abs() < 1e-5, "truss at x {x}: top {t}");
+    }
+    assert!(top_at(s, 0.0, -1.8).unwrap().abs() < 1e-5, "trusses are 0.3 m deep");
+    // The missing hoist model: a warning naming it, and a 0.5 m stand-in cube
+    // standing at MVR (-4000, 2000, 6000) mm -> (-4, 6..6.5, -2).
+    assert!(
+        loaded.warnings.iter().any(|w| w.contains("chain_hoist.glb") && w.contains("Hoist 1")),
+        "{:?}",
+        loaded.warnings
+    );
+    assert!((top_at(s, -4.0, -2.0).unwrap() - 6.5).abs() < 1e-5);
+    assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
+    // The floor's base-colour texture comes from the GLB's binary chunk inside
+    // the archive: factor 0.5 × a NEAREST 2×2 checker, sRGB 255 where x and z
+    // share a sign, 64 elsewhere.
+    let albedo = |x: f32, z: f32| {
+        let h = s.accel.intersect(glam::Vec3::new(x, 0.5, z), glam::Vec3::NEG_Y, f32::INFINITY).unwrap();
+        s.diffuse_at(&s.surface(&h))
+    };
+    for (x, z, byte) in [(-3.0, -3.0, 255), (3.0, 3.0, 255), (3.0, -3.0, 64), (-3.0, 3.0, 64)] {
+        let want = 0.5 * srgb_byte(byte);
+        let got = albedo(x, z);
+        assert!((got - glam::Vec3::splat(want)).abs().max_element() < 1e-6, "floor at ({x}, {z}): {got} vs {want}");
+    }
+}
+
+#[test]
+fn mvr_scene_budget_counts_every_instance() {
+    let limits = ImportLimits { max_triangles: 20 };
+    let err = match footlight::scene::mvr_scene::load_mvr_scene_with(&venue(), &limits) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("62 triangles loaded under a budget of 20"),
+    };
+    assert!(err.contains("venue.mvr/") && err.contains("limit of"), "{err}");
+}
+
+// --- Base-colour textures (issue 14 item 4, also for plain glTF scenes) --------
+
+/// sRGB byte → linear (IEC 61966-2-1), written out here independently of the importer.
+fn srgb_byte(b: u8) -> f32 {
+    let c = f64::from(b) / 255.0;
+    (if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }) as f32
+}
+
+#[test]
+fn a_textured_plane_shades_each_texel_as_its_albedo() {
+    use crate::common::{omni, view};
+    use footlight::render::view::Sampling;
+    use glam::Vec3;
+    // A 2 m plane at y = 0: uv (0, 0) at (-1, 0, -1), u along +x, v along +z;
+    // a 2×2 checker PNG beside the file, NEAREST sampling, factor 0.8.
+    let d = dir("texture");
+    let texels: [[u8; 3]; 4] = [[255, 0, 0], [0, 200, 0], [30, 60, 255], [128, 128, 128]];
+    let mut img = image::RgbImage::new(2, 2);
+    for (i, t) in texels.iter().enumerate() {
+        img.put_pixel(i as u32 % 2, i as u32 / 2, image::Rgb(*t));
+    }
+    img.save(d.join("checker.png")).unwrap();
+    let pos: [[f32; 3]; 4] = [[-1.0, 0.0, -1.0], [1.0, 0.0, -1.0], [1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]];
+    let uv: [[f32; 2]; 4] = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    let idx: [u16; 6] = [0, 2, 1, 0, 3, 2];
+    let mut bin: Vec<u8> = pos.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
+    bin.extend(uv.iter().flatten().flat_map(|f| f.to_le_bytes()));
+    bin.extend(idx.iter().flat_map(|i| i.to_le_bytes()));
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"material":0}}]}}],
+        "materials":[{{"pbrMetallicRoughness":{{"baseColorFactor":[0.8,0.8,0.8,1],"metallicFactor":0,"roughnessFactor":1,
+            "baseColorTexture":{{"index":0}}}}}}],
+        "textures":[{{"source":0,"sampler":0}}],"samplers":[{{"magFilter":9728,"minFilter":9728}}],
+        "images":[{{"uri":"checker.png"}}],
+        "accessors":[
+          {{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,-1],"max":[1,0,1]}},
+          {{"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"}},
+          {{"bufferView":2,"componentType":5123,"count":6,"type":"SCALAR"}}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":32}},
+          {{"buffer":0,"byteOffset":80,"byteLength":12}}],
+        "buffers":[{{"byteLength":92,"uri":"{}"}}]}}"#,
+        data_uri(&bin)
+    );
+    let scene = load(&write(&d, "textured.gltf", &json)).expect("textured plane loads");
+    assert!(scene.materials[1].base_texture.is_some());
+    let light_pos = Vec3::new(0.2, 2.0, 0.1);
+    let cam = footlight::scene::Camera::look_at(Vec3::new(0.0, 4.0, 0.01), Vec3::ZERO, 40f32.to_radians());
+    let (w, h) = (48, 48);
+    let v = view(&scene, cam, w, h, Sampling::One, 0);
+    let (buf, _) = v.render_light(&scene, &omni(light_pos), None);
+    let mut seen = [0usize; 4];
+    for y in 0..h {
+        for x in 0..w {
+            let s = v.gbuffer.samples[(y * w + x) as usize][footlight::render::gbuffer::CENTRE_SAMPLE];
+            let Some(p) = v.gbuffer.position(&scene, &s) else { continue };
+            // Skip pixels on a texel edge (x = 0 or z = 0) and off the plane.
+            if p.x.abs() < 0.02 || p.z.abs() < 0.02 || p.x.abs() > 0.98 || p.z.abs() > 0.98 {
+                continue;
+            }
+            let texel = usize::from(p.x > 0.0) + 2 * usize::from(p.z > 0.0);
+            let rho = Vec3::from_array(texels[texel].map(srgb_byte)) * 0.8;
+            let d = light_pos - p;
+            let e = d.y / d.length() / d.length_squared(); // 1 cd: E = cos θ / d²
+            let expected = rho / std::f32::consts::PI * e;
+            let got = buf.get(x, y);
+            assert!(
+                (got - expected).abs().max_element() <= 1e-4 * expected.max_element(),
+                "({x},{y}) texel {texel} at {p}: got {got}, expected {expected}"
+            );
+            seen[texel] += 1;
+        }
+    }
+    assert!(seen.iter().all(|&n| n > 20), "every texel checked: {seen:?}");
+}
+
+#[test]
+fn footlight_check_reports_the_mvr_scene() {
+    let run = |file: &str| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_footlight"))
+            .arg("check")
+            .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr").join(file))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
+    };
+    let (out, err) = run("venue.mvr");
+    assert!(out.contains("scene of 6 object(s), 62 triangles"), "{out}");
+    assert!(err.contains("\"Hoist 1\"") && err.contains("chain_hoist.glb"), "{err}");
+    // A rig without scene objects is lit on the bundled stage.
+    let (out, _) = run("show150.mvr");
+    assert!(out.contains("no scene objects; shows use the bundled stage"), "{out}");
+}
+
+#[test]
+fn mangled_3ds_files_never_panic() {
+    use footlight::scene::mvr_scene::{add_3ds, parse_3ds};
+    let archive = footlight_mvr::archive::Archive::open(&venue()).unwrap();
+    let cube = archive.get("cube.3ds").expect("cube.3ds in venue.mvr").to_vec();
+    let label = Path::new("venue.mvr/cube.3ds");
+    let limits = ImportLimits::default();
+    // The intact file: 12 triangles.
+    let mut b = footlight::scene::SceneBuilder::new();
+    add_3ds(label, &parse_3ds(label, &cube).unwrap(), glam::DMat4::IDENTITY, 0, &mut b, &limits).unwrap();
+    assert_eq!(b.triangle_count(), 12);
+    // Seeded mutations (bytes overwritten, truncations): an error or a
+    // scene, never a panic; an index past the vertices is reported.
+    let mut rng = crate::common::Rng(0x3D5);
+    let (mut errors, mut loaded) = (0, 0);
+    for _ in 0..3000 {
+        let mut bytes = cube.clone();
+        for _ in 0..1 + (rng.next_f32() * 4.0) as usize {
+            let i = (rng.next_f32() * bytes.len() as f32) as usize % bytes.len();
+            bytes[i] = (rng.next_f32() * 256.0) as u8;
+        }
+        if rng.next_f32() < 0.2 {
+            bytes.truncate((rng.next_f32() * bytes.len() as f32) as usize);
+        }
+        let mut b = footlight::scene::SceneBuilder::new();
+        match parse_3ds(label, &bytes) {
+            Err(e) => {
+                assert!(e.contains("cube.3ds"), "{e}");
+                errors += 1;
+            }
+            Ok(m) => match add_3ds(label, &m, glam::DMat4::IDENTITY, 0, &mut b, &limits) {
+                Ok(()) => loaded += 1,
+                Err(e) => {
+                    assert!(e.to_string().contains("cube.3ds"), "{e}");
+                    errors += 1;
+                }
+            },
+        }
+    }
+    assert!(errors > 100 && loaded > 100, "errors {errors}, loaded {loaded}");
+}
+
+#[test]
+fn mvr_model_placement_agrees_with_pymvr() {
+    // pymvr (PyPI, installed by .ci/run) reads the same files; a Python
+    // script composes layer, group, object, symbol and Geometry3D matrices.
+    if !std::process::Command::new("python3").args(["-c", "import pymvr"]).output().is_ok_and(|o| o.status.success()) {
+        eprintln!("skipped: python3 with pymvr is missing (.ci/run installs it with pip)");
+        return;
+    }
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/footlight-mvr/tests/peers/geometry.py");
+    for file in ["venue.mvr", "features.mvr"] {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr").join(file);
+        let o = std::process::Command::new("python3").arg(&script).arg(&path).output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let peer: Vec<(String, String, Vec<f64>)> = serde_json::from_slice(&o.stdout).unwrap();
+        let mvr = footlight_mvr::mvr::Mvr::open(&path).unwrap();
+        let mut ours: Vec<(String, String, Vec<f64>)> = mvr
+            .scene
+            .objects
+            .iter()
+            .flat_map(|obj| {
+                obj.geometries
+                    .iter()
+                    .map(|(f, m)| (obj.name.clone(), f.clone(), m.transpose().to_cols_array().to_vec()))
+            })
+            .collect();
+        let mut peer = peer;
+        let key = |a: &(String, String, Vec<f64>), b: &(String, String, Vec<f64>)| (&a.0, &a.1).cmp(&(&b.0, &b.1));
+        ours.sort_by(key);
+        peer.sort_by(key);
+        assert_eq!(ours.len(), peer.len(), "{file}: models placed");
+        assert!(ours.len() >= 4, "{file}");
+        for (a, b) in ours.iter().zip(&peer) {
+            assert_eq!((&a.0, &a.1), (&b.0, &b.1), "{file}");
+            for (x, y) in a.2.iter().zip(&b.2) {
+                assert!((x - y).abs() < 1e-6, "{file}: {} {}: {:?} vs pymvr {:?}", a.0, a.1, a.2, b.2);
+            }
+        }
+    }
+}
+
+#[test]
+fn photon_bounces_take_their_albedo_from_the_texture() {
+    // A closed 4 m box, white factor × a texture of linear 0.5 everywhere:
+    // each bounce keeps ρ = 0.5 of the power, so the stored indirect power
+    // is Φ ρ/(1−ρ) (closed form). Were the texture ignored, ρ would be 1.
+    use footlight::render::photon::{PhotonSettings, trace_photons};
+    use footlight::scene::{Material, SceneBuilder, Texture};
+    use glam::Vec3;
+    let half = Texture::from_linear("half", 2, 2, vec![Vec3::splat(0.5); 4]).unwrap();
+    let mut b = SceneBuilder::new();
+    let m = b.add_material(Material {
+        base_texture: Some(std::sync::Arc::new(half)),
+        ..Material::lambert("textured white", Vec3::ONE)
+    });
+    crate::common::cube(&mut b, Vec3::splat(-2.0), Vec3::splat(2.0), m);
+    let scene = b.build();
+    let light = crate::common::omni(Vec3::new(0.3, -0.2, 0.1));
+    let maps = trace_photons(&scene, &light, &PhotonSettings { stored: 50_000, seed: 7, ..PhotonSettings::default() });
+    let total: Vec3 = maps.global.photons.iter().map(|p| p.power).sum();
+    let expected = maps.flux * 0.5 / (1.0 - 0.5);
+    assert!((total.x - expected).abs() < 0.04 * expected, "stored indirect power {} vs {expected}", total.x);
+}
+
+#[test]
+fn render_bodies_draws_the_rig_over_the_still() {
+    // features.mvr on the bundled stage, all lights dark: the only change
+    // --bodies makes is body pixels, each the work-lit housing
+    // ρ_body/π · E_work (lenses glow with k_i = 0).
+    let dir = dir("bodies");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let render = |name: &str, bodies: bool| {
+        let out = dir.join(name);
+        let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_footlight"));
+        c.args(["render", "--width", "160", "--height", "100", "--photons", "0", "--white-balance", "none"])
+            .arg("--patch")
+            .arg(root.join("tests/data/mvr/features.mvr"))
+            .arg("--scene")
+            .arg(root.join("scenes/stage.glb"))
+            .arg("--out")
+            .arg(&out);
+        if bodies {
+            c.arg("--bodies");
+        }
+        let o = c.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let bytes = std::fs::read(&out).unwrap();
+        let header_end = bytes.iter().enumerate().filter(|(_, b)| **b == b'\n').nth(2).unwrap().0 + 1;
+        bytes[header_end..].chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect::<Vec<f32>>()
+    };
+    let plain = render("plain.pfm", false);
+    let with = render("bodies.pfm", true);
+    assert_eq!(plain.len(), with.len());
+    let housing =
+        footlight::render::bodies::BODY_ALBEDO / std::f32::consts::PI * footlight::render::bodies::WORK_LIGHT_LUX;
+    let mut changed = 0;
+    for (a, b) in plain.iter().zip(&with) {
+        if a != b {
+            assert!((b - housing).abs() < 1e-5, "a body pixel is {b}, the housing {housing}");
+            changed += 1;
+        }
+    }
+    assert!(changed >= 3 * 4, "{changed} channel values changed");
+}

@@ -37,6 +37,8 @@ MVR files (tests/data/mvr/):
                  but not in the archive (placeholder test)
   show150.mvr    150 fixtures of the six types over 4 universes
   gate.mvr       5 Spots in the Extended mode (gobos, blades, prism, frost: golden image)
+  venue.mvr      the MVR's geometry as the scene: a GLB floor, a GLB truss instanced
+                 3x by a Symdef, a 3DS 1000 mm cube in a GroupObject, a missing model
   bad-*.mvr      refused archives: a `..` path, an absolute path, a >100:1 entry,
                  a header claiming > 1 GiB; and malformed XML (line/column test)
 """
@@ -723,6 +725,138 @@ def features_mvr():
     return zip_bytes(entries)
 
 
+# --- venue geometry (issue 14 item 4): a GLB floor and truss, a 3DS cube ---------
+
+
+def glb_bytes(positions, indices, colour, name, texture=None):
+    """A minimal GLB (glTF 2.0 binary): one mesh, one node, one matte material.
+
+    positions: list of (x, y, z) in metres, glTF axes (Y up); indices: list of
+    (a, b, c) triangles, counter-clockwise seen from outside; texture: None or
+    (PNG bytes, one (u, v) per position): a base-colour texture in the GLB's
+    binary chunk, sampled NEAREST.
+    """
+    import json
+
+    pos = b"".join(struct.pack("<3f", *p) for p in positions)
+    idx = b"".join(struct.pack("<3H", *t) for t in indices)
+    idx += b"\0" * (-len(idx) % 4)
+    bin_chunk = pos + idx
+    if texture is not None:
+        png, uvs = texture
+        uv = b"".join(struct.pack("<2f", *t) for t in uvs)
+        uv_at = len(bin_chunk)
+        bin_chunk += uv
+        png_at = len(bin_chunk)
+        bin_chunk += png + b"\0" * (-len(png) % 4)
+    lo = [min(p[k] for p in positions) for k in range(3)]
+    hi = [max(p[k] for p in positions) for k in range(3)]
+    doc = {
+        "asset": {"version": "2.0", "generator": "Footlight gen_gdtf_mvr.py"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "name": name}],
+        "meshes": [{"name": name, "primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "material": 0}]}],
+        "materials": [{"name": name, "pbrMetallicRoughness": {"baseColorFactor": list(colour) + [1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0}}],
+        "buffers": [{"byteLength": len(bin_chunk)}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": len(pos), "target": 34962},
+            {"buffer": 0, "byteOffset": len(pos), "byteLength": 6 * len(indices), "target": 34963},
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": len(positions), "type": "VEC3", "min": lo, "max": hi},
+            {"bufferView": 1, "componentType": 5123, "count": 3 * len(indices), "type": "SCALAR"},
+        ],
+    }
+    if texture is not None:
+        doc["bufferViews"] += [
+            {"buffer": 0, "byteOffset": uv_at, "byteLength": len(uv)},
+            {"buffer": 0, "byteOffset": png_at, "byteLength": len(png)},
+        ]
+        doc["accessors"].append({"bufferView": 2, "componentType": 5126, "count": len(uvs), "type": "VEC2"})
+        doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = 2
+        doc["images"] = [{"bufferView": 3, "mimeType": "image/png"}]
+        doc["samplers"] = [{"magFilter": 9728, "minFilter": 9728}]
+        doc["textures"] = [{"source": 0, "sampler": 0}]
+        doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = {"index": 0}
+    js = json.dumps(doc, separators=(",", ":"), sort_keys=True).encode()
+    js += b" " * (-len(js) % 4)
+    body = struct.pack("<II", len(js), 0x4E4F534A) + js + struct.pack("<II", len(bin_chunk), 0x004E4942) + bin_chunk
+    return struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body
+
+
+def box_mesh(lo, hi):
+    """The 8 corners and 12 outward-wound triangles of an axis-aligned box."""
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    v = [(x, y, z) for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)]
+    # corner index = 4*ix + 2*iy + iz
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    tris = []
+    for a, b, c, d in quads:
+        tris += [(a, b, c), (a, c, d)]
+    return v, tris
+
+
+def three_ds_bytes(positions, faces, name):
+    """A minimal 3DS file: MAIN3DS > EDIT3DS > EDIT_OBJECT > OBJ_TRIMESH with
+    TRI_VERTEXL (0x4110) and TRI_FACEL1 (0x4120). Units as given (MVR: mm, Z up)."""
+
+    def chunk(cid, payload):
+        return struct.pack("<HI", cid, 6 + len(payload)) + payload
+
+    verts = struct.pack("<H", len(positions)) + b"".join(struct.pack("<3f", *p) for p in positions)
+    tris = struct.pack("<H", len(faces)) + b"".join(struct.pack("<4H", a, b, c, 0) for a, b, c in faces)
+    trimesh = chunk(0x4100, chunk(0x4110, verts) + chunk(0x4120, tris))
+    obj = chunk(0x4000, name.encode() + b"\0" + trimesh)
+    return chunk(0x4D4D, chunk(0x0002, struct.pack("<I", 3)) + chunk(0x3D3D, obj))
+
+
+def venue_mvr():
+    """venue.mvr: the MVR's geometry is the scene (known answers in tests/scene_import.rs).
+
+    * floor.glb: a 10 m x 8 m matte floor quad at glTF y = 0 (2 triangles), placed at the origin,
+      factor 0.5 times a 2x2 NEAREST checker texture in the GLB: sRGB 255 where x and z have the
+      same sign, 64 elsewhere (u = (x + 5)/10, v = (z + 4)/8);
+    * truss.glb: a 2 m x 0.3 m x 0.3 m box along glTF x (12 triangles), a Symdef instanced by 3
+      Truss objects at MVR (-2500 + 2500 k, 2000, 6000) mm -> stage x = -2.5 + 2.5k, y = 6, z = -2 m;
+    * cube.3ds: a 1000 mm cube x, y in [-500, 500], z in [0, 1000] mm (MVR frame, Z up) at
+      MVR (2000, 0, 0) mm inside a GroupObject -> stage x in [1.5, 2.5], y in [0, 1], z in [-0.5, 0.5];
+    * a Support naming chain_hoist.glb, which the archive does not hold -> a stand-in cube + warning;
+    * one Spot fixture (the show's one light), 7 m above the stage centre.
+    """
+    scenery = uid("class/Scenery")
+    truss_def = uid("symdef/venue-truss")
+    ident = "{1,0,0}{0,1,0}{0,0,1}{0,0,0}"
+    aux = [
+        el("Class", name="Scenery", uuid=scenery),
+        el("Symdef", [el("ChildList", [el("Geometry3D", [el("Matrix", ident)], fileName="truss.glb")])], name="Truss 2 m", uuid=truss_def),
+    ]
+    floor = el("SceneObject", [el("Matrix", mvr_matrix(0, 0, 0)), el("Classing", scenery), el("Geometries", [el("Geometry3D", fileName="floor.glb")])], name="Floor", uuid=uid("venue/floor"))
+    trusses = [
+        el("Truss", [el("Matrix", mvr_matrix(-2500 + 2500 * k, 2000, 6000)), el("Classing", scenery), el("Geometries", [el("Symbol", [el("Matrix", ident)], uuid=uid(f"venue/symbol/{k}"), symdef=truss_def)])], name=f"Truss {k + 1}", uuid=uid(f"venue/truss/{k}"))
+        for k in range(3)
+    ]
+    cube = el("SceneObject", [el("Matrix", mvr_matrix(2000, 0, 0)), el("Geometries", [el("Geometry3D", fileName="cube.3ds")])], name="Cube", uuid=uid("venue/cube"))
+    group = el("GroupObject", [el("Matrix", mvr_matrix(0, 0, 0)), el("ChildList", [cube])], name="Set pieces", uuid=uid("venue/group"))
+    hoist = el("Support", [el("Matrix", mvr_matrix(-4000, 2000, 6000)), el("Geometries", [el("Geometry3D", fileName="chain_hoist.glb")])], name="Hoist 1", uuid=uid("venue/hoist"))
+    spot = fixture_xml("Spot 1", "Footlight@Spot.gdtf", "Basic", 1, 1, mvr_matrix(0, 0, 7000), [(0, 1)])
+    layers = [el("Layer", [el("ChildList", [floor, group, hoist, spot] + trusses)], name="Venue", uuid=uid("layer/venue-geometry"))]
+    floor_v = [(-5.0, 0.0, -4.0), (5.0, 0.0, -4.0), (5.0, 0.0, 4.0), (-5.0, 0.0, 4.0)]
+    floor_t = [(0, 3, 2), (0, 2, 1)]  # counter-clockwise seen from +y
+    floor_uv = [((x + 5.0) / 10.0, (z + 4.0) / 8.0) for x, _, z in floor_v]
+    checker = png_gray(2, 2, lambda x, y: 255 if x == y else 64)
+    truss_v, truss_t = box_mesh((-1.0, -0.15, -0.15), (1.0, 0.15, 0.15))
+    cube_v, cube_t = box_mesh((-500.0, -500.0, 0.0), (500.0, 500.0, 1000.0))
+    entries = {
+        "GeneralSceneDescription.xml": gsd(layers, aux),
+        "Footlight@Spot.gdtf": gdtf_bytes("Footlight@Spot.gdtf"),
+        "floor.glb": glb_bytes(floor_v, floor_t, (0.5, 0.5, 0.5), "floor", (checker, floor_uv)),
+        "truss.glb": glb_bytes(truss_v, truss_t, (0.2, 0.2, 0.2), "truss"),
+        "cube.3ds": three_ds_bytes(cube_v, cube_t, "cube"),
+    }
+    return zip_bytes(entries)
+
+
 SHOW = [
     # (spec, mode, count, footprint, height mm, y mm)
     ("Footlight@Spot.gdtf", "Standard", 44, 27, 7000, 2000),
@@ -831,6 +965,7 @@ def outputs():
     files[MVR_DIR / "features.mvr"] = features_mvr()
     files[MVR_DIR / "show150.mvr"] = show_mvr()
     files[MVR_DIR / "gate.mvr"] = gate_mvr()
+    files[MVR_DIR / "venue.mvr"] = venue_mvr()
     for name, data in bad_files().items():
         files[MVR_DIR / name] = data
     return files

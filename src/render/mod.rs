@@ -19,6 +19,7 @@
 //! * [`reference`]: single-pass eq. 1 renderer for the linearity tests.
 //! * [`still`]: the whole pipeline for one still image (`footlight render`).
 
+pub mod bodies;
 pub mod buffer;
 pub mod build;
 pub mod composite;

@@ -98,6 +98,7 @@ fn radiance(
             geometric_normal: ng,
             wo: -dir,
             material: s.material,
+            diffuse: scene.diffuse_at(&s),
             weight: Vec3::ONE,
             depth,
         };

@@ -567,8 +567,9 @@ impl View {
                     .pixel_range(y * w + x)
                     .map(|i| {
                         let v = &vertices[i];
-                        let rho = scene.materials[v.material as usize].diffuse;
-                        if rho.max_element() <= 0.0 {
+                        // ρ_d at the vertex (material times texture).
+                        let rho = v.diffuse;
+                        if scene.materials[v.material as usize].diffuse.max_element() <= 0.0 {
                             Vec3::ZERO
                         } else {
                             v.weight * rho * std::f32::consts::FRAC_1_PI * irradiance(i, v)

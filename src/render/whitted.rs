@@ -29,6 +29,9 @@ pub struct ShadingVertex {
     pub wo: Vec3,
     /// Material index.
     pub material: u32,
+    /// Diffuse albedo ρ_d here: the material's times its base-colour
+    /// texture ([`crate::scene::Scene::diffuse_at`]).
+    pub diffuse: Vec3,
     /// Path weight: bin weight times the k_R/k_T products along the path.
     pub weight: Vec3,
     /// Bounces before this vertex (0 = seen directly by the camera).
@@ -86,6 +89,7 @@ fn expand_at(
             geometric_normal: ng,
             wo: -dir,
             material: surface.material,
+            diffuse: scene.diffuse_at(&surface),
             weight,
             depth,
         });
@@ -176,7 +180,7 @@ pub fn direct(scene: &Scene, light: &Light, v: &ShadingVertex) -> Vec3 {
         return Vec3::ZERO;
     }
     let m = &scene.materials[v.material as usize];
-    m.brdf(v.normal, wi, v.wo) * (f_e * cos / dist2)
+    m.brdf_with(v.diffuse, v.normal, wi, v.wo) * (f_e * cos / dist2)
 }
 
 #[cfg(test)]

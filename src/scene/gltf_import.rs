@@ -4,9 +4,14 @@
 //! transform, turns triangle primitives (lists, strips and fans) into scene
 //! triangles, maps materials with [`Material::from_pbr`] (base colour,
 //! metallic, roughness, `KHR_materials_transmission`, `KHR_materials_ior`),
-//! and takes the first perspective camera. What the renderer cannot use
-//! (textures, points/lines, punctual lights: lights come from the patch) is
-//! reported once with `tracing::warn!`, never silently.
+//! base-colour textures (PNG, with TEXCOORD_0; [`super::texture`]), and
+//! takes the first perspective camera. What the renderer cannot use
+//! (metallic-roughness, normal and other textures, JPEG images, texture sets
+//! other than TEXCOORD_0, points/lines, punctual lights: lights come from
+//! the patch) is reported once with `tracing::warn!`, never silently.
+//!
+//! [`import_bytes_into`] reads a file given as bytes (an MVR archive's
+//! model) into a shared [`SceneBuilder`] under a placement matrix.
 //!
 //! A scene file is untrusted input (issue 12 items 2, 3 and 10), so
 //! everything is checked before it is used, in this order, and every error
@@ -34,18 +39,22 @@
 //!    path that, canonicalised, stays inside the scene's folder and is a
 //!    regular file; at most `byteLength` bytes are read, and a shorter file is
 //!    an error. `file:` and other schemes, absolute paths, `..` escapes and
-//!    devices are refused. Images are never read (only constant material
-//!    factors are used).
+//!    devices are refused. Base-colour images are read the same way (or
+//!    from a bufferView), the whole file up to [`MAX_IMAGE_BYTES`], decoded
+//!    with at most [`super::texture::MAX_TEXTURE_SIDE`] texels a side; one
+//!    that cannot be read leaves the constant factor, with a warning.
 //! 7. Index values below the vertex count; non-finite normals are replaced
 //!    by the face normal and counted (a warning), non-finite or zero-area
 //!    triangles are dropped and counted (a warning).
 
+use super::texture::{Texture, Wrap};
 use super::{Camera, Material, Scene, SceneBuilder};
-use glam::{Mat3, Mat4, Vec3};
+use glam::{Mat3, Mat4, Vec2, Vec3};
 use gltf::json;
 use gltf::json::validation::Checked;
 use std::io::Read;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Why a scene file could not be loaded. Always names the file.
 #[derive(Debug, thiserror::Error)]
@@ -150,12 +159,30 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 
 /// [`load`] under explicit limits.
 pub fn load_with(path: &Path, limits: &ImportLimits) -> Result<Scene, SceneError> {
-    Importer { path, limits }.load()
+    Importer { path, limits, in_archive: false }.load()
 }
 
 struct Importer<'a> {
     path: &'a Path,
     limits: &'a ImportLimits,
+    /// True for a file read from inside an archive (an MVR): `path` is a
+    /// label, so only `data:` URIs and the GLB chunk can be read.
+    in_archive: bool,
+}
+
+/// Adds a glTF/GLB file given as bytes (an entry of an MVR archive, named
+/// `label` in messages) to `builder`, every vertex placed by `placement`
+/// after the file's node transforms. External URIs are refused (there is no
+/// folder to resolve them in); `data:` URIs and the GLB binary chunk are
+/// read. Returns the count of NaN/Inf vertex normals (replaced).
+pub fn import_bytes_into(
+    label: &Path,
+    bytes: &[u8],
+    builder: &mut SceneBuilder,
+    placement: Mat4,
+    limits: &ImportLimits,
+) -> Result<usize, SceneError> {
+    Importer { path: label, limits, in_archive: true }.import_into(bytes, builder, placement)
 }
 
 /// What a checked accessor reads as.
@@ -165,7 +192,12 @@ enum Want {
     Vec3,
     /// SCALAR of UNSIGNED_BYTE/SHORT/INT (indices).
     Index,
+    /// VEC2 of FLOAT (TEXCOORD_0).
+    Vec2,
 }
+
+/// Bytes at most read for one image file beside the scene (256 MiB).
+pub const MAX_IMAGE_BYTES: u64 = 256 << 20;
 
 /// An accessor whose every byte range was checked against its buffer.
 #[derive(Clone, Debug)]
@@ -195,9 +227,33 @@ impl Importer<'_> {
     fn load(&self) -> Result<Scene, SceneError> {
         let path = self.path;
         let bytes = self.read_scene_file()?;
-        let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(&bytes)
-            .map_err(|source| SceneError::Gltf { path: path.to_path_buf(), source })?;
+        let mut builder = SceneBuilder::new();
+        let non_finite_normals = self.import_into(&bytes, &mut builder, Mat4::IDENTITY)?;
         drop(bytes);
+        let mut scene = builder.build();
+        scene.report.non_finite_normals = non_finite_normals;
+        let r = scene.report;
+        if r.non_finite + r.degenerate > 0 {
+            tracing::warn!(
+                "{}: dropped {} triangle(s) with NaN/Inf vertices and {} with zero area",
+                path.display(),
+                r.non_finite,
+                r.degenerate
+            );
+        }
+        if scene.triangle_count() == 0 {
+            tracing::warn!("{}: the scene has no triangles; renders will be black", path.display());
+        }
+        Ok(scene)
+    }
+
+    /// Adds the file's triangles (placed by `placement` after their node
+    /// transforms), materials and first camera to `builder`; returns how
+    /// many vertex normals were NaN/Inf.
+    fn import_into(&self, bytes: &[u8], builder: &mut SceneBuilder, placement: Mat4) -> Result<usize, SceneError> {
+        let path = self.path;
+        let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(bytes)
+            .map_err(|source| SceneError::Gltf { path: path.to_path_buf(), source })?;
         let root = document.into_json();
         self.check_validator_preconditions(&root)?;
         let doc =
@@ -229,7 +285,12 @@ impl Importer<'_> {
         }
 
         let buffers = self.buffers(root, blob)?;
-        let mut builder = SceneBuilder::new();
+        let mut material_index = material_index;
+        self.attach_textures(&doc, &buffers, &mut material_index);
+        let textured: Vec<bool> = material_index.iter().map(|m| m.base_texture.is_some()).collect();
+        let mut bad_texcoords = 0usize;
+        // glTF material i is builder material `first_material + i`; no material: the default grey 0.
+        let first_material = builder.material_count() as u32;
         for m in material_index {
             builder.add_material(m);
         }
@@ -237,6 +298,7 @@ impl Importer<'_> {
         let mut non_finite_normals = 0usize;
         let mut camera: Option<Camera> = None;
         for &(node, world) in &instances {
+            let world = placement * world;
             let n = &root.nodes[node];
             if camera.is_none()
                 && let Some(c) = n.camera
@@ -289,25 +351,33 @@ impl Importer<'_> {
                 if let Some(&bad_index) = indices.iter().find(|&&i| i as usize >= positions.len()) {
                     return Err(bad(format!("index {bad_index} past the {} vertices", positions.len())));
                 }
-                let material = prim.material.map_or(0, |m| m.value() as u32 + 1);
+                let material = prim.material.map_or(0, |m| m.value() as u32 + first_material);
+                // Texture coordinates, read only where a base-colour texture uses them.
+                let uvs: Option<Vec<Vec2>> = match prim.material {
+                    Some(m) if textured.get(m.value()).copied().unwrap_or(false) => {
+                        match self.texcoords(root, prim, pos_span.count, &buffers) {
+                            Ok(uv) => uv,
+                            Err(e) => {
+                                tracing::warn!("{}: {}", path.display(), bad(e).to_string());
+                                bad_texcoords += 1;
+                                None
+                            }
+                        }
+                    }
+                    _ => None,
+                };
                 for [a, b, c] in triangle_list(mode, &indices) {
                     let (b, c) = if flip { (c, b) } else { (b, c) };
                     let p = [positions[a as usize], positions[b as usize], positions[c as usize]];
                     let n = normals.as_ref().map(|n| [n[a as usize], n[b as usize], n[c as usize]]);
-                    builder.add_triangle(p, n, material);
+                    let uv = uvs.as_ref().map_or([Vec2::ZERO; 3], |t| [t[a as usize], t[b as usize], t[c as usize]]);
+                    builder.add_triangle_uv(p, n, uv, material);
                 }
             }
         }
-        let textured = doc
-            .materials()
-            .filter(|m| {
-                let pbr = m.pbr_metallic_roughness();
-                pbr.base_color_texture().is_some() || pbr.metallic_roughness_texture().is_some()
-            })
-            .count();
-        if textured > 0 {
+        if bad_texcoords > 0 {
             tracing::warn!(
-                "{}: {textured} material(s) use textures; only their constant factors are used",
+                "{}: {bad_texcoords} textured primitive(s) without usable TEXCOORD_0 read texel (0, 0)",
                 path.display()
             );
         }
@@ -320,24 +390,12 @@ impl Importer<'_> {
                 path.display()
             );
         }
-        if let Some(cam) = camera {
+        if let Some(cam) = camera
+            && !builder.has_camera()
+        {
             builder.set_camera(cam);
         }
-        let mut scene = builder.build();
-        scene.report.non_finite_normals = non_finite_normals;
-        let r = scene.report;
-        if r.non_finite + r.degenerate > 0 {
-            tracing::warn!(
-                "{}: dropped {} triangle(s) with NaN/Inf vertices and {} with zero area",
-                path.display(),
-                r.non_finite,
-                r.degenerate
-            );
-        }
-        if scene.triangle_count() == 0 {
-            tracing::warn!("{}: the scene has no triangles; renders will be black", path.display());
-        }
-        Ok(scene)
+        Ok(non_finite_normals)
     }
 
     /// The scene file's bytes; it must be a regular file.
@@ -520,6 +578,103 @@ impl Importer<'_> {
         Ok(m)
     }
 
+    /// Base-colour textures (PNG, see [`super::texture`]) onto their
+    /// materials; each texture is decoded once. A texture that cannot be
+    /// used leaves the constant factor, with a warning naming it.
+    fn attach_textures(&self, doc: &gltf::Document, buffers: &[Vec<u8>], materials: &mut [Material]) {
+        let root = doc.as_json();
+        let mut cache: std::collections::HashMap<usize, Option<Arc<Texture>>> = Default::default();
+        let mut metallic_roughness = 0usize;
+        for (i, m) in doc.materials().enumerate() {
+            let pbr = m.pbr_metallic_roughness();
+            if pbr.metallic_roughness_texture().is_some() {
+                metallic_roughness += 1;
+            }
+            let Some(info) = pbr.base_color_texture() else { continue };
+            let label = named("material", i, m.name());
+            if info.tex_coord() != 0 {
+                tracing::warn!(
+                    "{}: {label}: its baseColorTexture reads TEXCOORD_{}; only TEXCOORD_0 is read, so its constant \
+                     factor is used",
+                    self.path.display(),
+                    info.tex_coord()
+                );
+                continue;
+            }
+            let texture = info.texture();
+            let decoded = cache
+                .entry(texture.index())
+                .or_insert_with(|| {
+                    let image = texture.source();
+                    let name = named("image", image.index(), image.name());
+                    let bytes = match image.source() {
+                        gltf::image::Source::View { view, .. } => self
+                            .view(root, view.index())
+                            .ok()
+                            .and_then(|(b, start, len, _)| {
+                                buffers.get(b)?.get(usize::try_from(start).ok()?..usize::try_from(start + len).ok()?)
+                            })
+                            .map(<[u8]>::to_vec)
+                            .ok_or_else(|| "its bufferView is outside its buffer".to_string()),
+                        gltf::image::Source::Uri { uri, .. } => {
+                            self.read_uri(&name, uri, None).map_err(|e| e.to_string())
+                        }
+                    };
+                    match bytes.and_then(|b| Texture::decode_png(&name, &b)) {
+                        Ok(mut t) => {
+                            let sampler = texture.sampler();
+                            t.nearest = sampler.mag_filter() == Some(gltf::texture::MagFilter::Nearest);
+                            let wrap = |w: gltf::texture::WrappingMode| match w {
+                                gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
+                                gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
+                                gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+                            };
+                            t.wrap_u = wrap(sampler.wrap_s());
+                            t.wrap_v = wrap(sampler.wrap_t());
+                            Some(Arc::new(t))
+                        }
+                        Err(e) => {
+                            tracing::warn!(
+                                "{}: {name}: {e}; materials using it keep their constant base colour",
+                                self.path.display()
+                            );
+                            None
+                        }
+                    }
+                })
+                .clone();
+            if let Some(slot) = materials.get_mut(i) {
+                slot.base_texture = decoded;
+            }
+        }
+        if metallic_roughness > 0 {
+            tracing::warn!(
+                "{}: {metallic_roughness} material(s) use metallic-roughness textures; only their constant \
+                 factors are used",
+                self.path.display()
+            );
+        }
+    }
+
+    /// A primitive's TEXCOORD_0 as VEC2 FLOAT, one per position; `None`
+    /// when it has none. The error says why they cannot be used.
+    fn texcoords(
+        &self,
+        root: &json::Root,
+        prim: &json::mesh::Primitive,
+        positions: u64,
+        buffers: &[Vec<u8>],
+    ) -> Result<Option<Vec<Vec2>>, String> {
+        let Some(i) = prim.attributes.get(&Checked::Valid(json::mesh::Semantic::TexCoords(0))) else {
+            return Ok(None);
+        };
+        let span = self.accessor_span(root, i.value(), Want::Vec2).map_err(|e| format!("TEXCOORD_0: {e}"))?;
+        if span.count != positions {
+            return Err(format!("TEXCOORD_0 has {} elements for {positions} positions", span.count));
+        }
+        Ok(Some(read_vec2(&span, buffers).map_err(|e| format!("TEXCOORD_0: {e}"))?))
+    }
+
     /// The checked spans of a triangle primitive's POSITION, NORMAL and indices.
     fn primitive_spans(
         &self,
@@ -573,6 +728,10 @@ impl Importer<'_> {
         use json::accessor::{ComponentType as C, Type as T};
         let component_size: u64 = match (want, ty, component) {
             (Want::Vec3, T::Vec3, C::F32) => 4,
+            (Want::Vec2, T::Vec2, C::F32) => 4,
+            (Want::Vec2, ..) => {
+                return Err(fail(format!("is {ty:?} of {component:?}; texture coordinates are read as VEC2 of FLOAT")));
+            }
             (Want::Index, T::Scalar, C::U8) => 1,
             (Want::Index, T::Scalar, C::U16) => 2,
             (Want::Index, T::Scalar, C::U32) => 4,
@@ -588,7 +747,12 @@ impl Importer<'_> {
         if a.normalized {
             return Err(fail("is normalized; positions, normals and indices must not be".into()));
         }
-        let elem = component_size * if want == Want::Vec3 { 3 } else { 1 };
+        let elem = component_size
+            * match want {
+                Want::Vec3 => 3,
+                Want::Vec2 => 2,
+                Want::Index => 1,
+            };
         let count = a.count.0;
         if count == 0 {
             return Err(fail("count is 0 (glTF requires at least 1)".into()));
@@ -691,7 +855,7 @@ impl Importer<'_> {
                 None => blob.take().ok_or_else(|| {
                     self.invalid(format!("{label} has no uri and there is no (further) GLB binary chunk"))
                 })?,
-                Some(uri) => self.read_uri(&label, uri, want)?,
+                Some(uri) => self.read_uri(&label, uri, Some(want))?,
             };
             if (data.len() as u64) < want {
                 return Err(
@@ -704,9 +868,11 @@ impl Importer<'_> {
         Ok(out)
     }
 
-    /// A buffer's URI: base64 `data:`, or a relative path inside the scene's
-    /// folder (see the module docs); at most `want` bytes are read.
-    fn read_uri(&self, label: &str, uri: &str, want: u64) -> Result<Vec<u8>, SceneError> {
+    /// A buffer's or image's URI: base64 `data:`, or a relative path inside
+    /// the scene's folder (see the module docs); exactly `want` bytes are
+    /// read (a shorter file is an error), or with `None` the whole file up
+    /// to [`MAX_IMAGE_BYTES`].
+    fn read_uri(&self, label: &str, uri: &str, want: Option<u64>) -> Result<Vec<u8>, SceneError> {
         let shown: String = uri.chars().take(80).collect();
         let refuse = |why: &str| self.invalid(format!("{label}: uri {shown:?} refused: {why}"));
         if let Some(rest) = uri.strip_prefix("data:") {
@@ -714,6 +880,9 @@ impl Importer<'_> {
                 return Err(refuse("only base64 data URIs are supported"));
             };
             return base64::decode(payload).map_err(|e| refuse(&format!("bad base64 ({e})")));
+        }
+        if self.in_archive {
+            return Err(refuse("a model inside an MVR archive can only use data: URIs or the GLB binary chunk"));
         }
         let decoded = urlencoding::decode(uri).map_err(|_| refuse("its %-escapes are not UTF-8"))?;
         let rel = Path::new(decoded.as_ref());
@@ -741,6 +910,7 @@ impl Importer<'_> {
         if !meta.is_file() {
             return Err(refuse("not a regular file"));
         }
+        let want = want.unwrap_or(meta.len().min(MAX_IMAGE_BYTES));
         if meta.len() < want {
             return Err(self.invalid(format!(
                 "{label}: byteLength is {want}, but {} has only {} bytes",
@@ -801,6 +971,27 @@ fn read_vec3(s: &Span, buffers: &[Vec<u8>]) -> Result<Vec<[f32; 3]>, String> {
         for (k, i) in sparse_indices(sp, s.count, buffers)?.into_iter().enumerate() {
             let v = element(buffers, sp.values, 12, k as u64, 12).map(f).ok_or("sparse value past its buffer")?;
             out[i as usize] = v;
+        }
+    }
+    Ok(out)
+}
+
+/// Reads a checked VEC2/FLOAT span (sparse substitution included).
+fn read_vec2(s: &Span, buffers: &[Vec<u8>]) -> Result<Vec<Vec2>, String> {
+    let f = |b: &[u8]| -> Vec2 {
+        let c = |j: usize| f32::from_le_bytes([b[4 * j], b[4 * j + 1], b[4 * j + 2], b[4 * j + 3]]);
+        Vec2::new(c(0), c(1))
+    };
+    let mut out = match s.base {
+        Some(at) => (0..s.count)
+            .map(|k| element(buffers, at, s.stride, k, 8).map(f).ok_or("element past its buffer"))
+            .collect::<Result<Vec<_>, _>>()?,
+        None => vec![Vec2::ZERO; s.count as usize],
+    };
+    if let Some(sp) = &s.sparse {
+        for (k, i) in sparse_indices(sp, s.count, buffers)?.into_iter().enumerate() {
+            out[i as usize] =
+                element(buffers, sp.values, 8, k as u64, 8).map(f).ok_or("sparse value past its buffer")?;
         }
     }
     Ok(out)

@@ -38,6 +38,9 @@ pub struct Material {
     pub k_t: Vec3,
     /// Index of refraction used to bend transmitted rays.
     pub ior: f32,
+    /// Base-colour texture: multiplies [`Material::diffuse`] at each surface
+    /// point ([`crate::scene::Scene::diffuse_at`]).
+    pub base_texture: Option<std::sync::Arc<super::texture::Texture>>,
 }
 
 impl Material {
@@ -51,6 +54,7 @@ impl Material {
             k_r: Vec3::ZERO,
             k_t: Vec3::ZERO,
             ior: 1.0,
+            base_texture: None,
         }
     }
 
@@ -90,7 +94,7 @@ impl Material {
         // Energy: the diffuse part only gets what is neither mirrored,
         // transmitted nor reflected by the dielectric's specular lobe.
         let diffuse = base * ((1.0 - metallic) * (1.0 - transmission) * (1.0 - dielectric_specular));
-        Self { name: name.to_string(), diffuse, specular, exponent, k_r: f0 * gloss, k_t, ior }
+        Self { name: name.to_string(), diffuse, specular, exponent, k_r: f0 * gloss, k_t, ior, base_texture: None }
     }
 
     /// True when the material spawns secondary rays (k_R or k_T non-zero):
@@ -109,7 +113,13 @@ impl Material {
     /// mirror direction of `wi`. The lobe is normalised so it never reflects
     /// more than ρ_s.
     pub fn brdf(&self, n: Vec3, wi: Vec3, wo: Vec3) -> Vec3 {
-        let lambert = self.diffuse * std::f32::consts::FRAC_1_PI;
+        self.brdf_with(self.diffuse, n, wi, wo)
+    }
+
+    /// [`Material::brdf`] with the diffuse albedo at the surface point
+    /// (`diffuse` = ρ_d times the base-colour texel, [`crate::scene::Scene::diffuse_at`]).
+    pub fn brdf_with(&self, diffuse: Vec3, n: Vec3, wi: Vec3, wo: Vec3) -> Vec3 {
+        let lambert = diffuse * std::f32::consts::FRAC_1_PI;
         if self.specular.max_element() <= 0.0 {
             return lambert;
         }

@@ -1,6 +1,7 @@
 //! The stage: triangles, materials, a camera and the BVH over them.
 //!
-//! Data comes from a glTF 2.0 file ([`gltf_import`]) or is built in code
+//! Data comes from a glTF 2.0 file ([`gltf_import`]), an MVR show's 3D files
+//! ([`mvr_scene`]) or is built in code
 //! ([`SceneBuilder`], used by tests). Every triangle is checked once on the
 //! way in: triangles with non-finite vertices or (near) zero area are dropped
 //! and counted, so the ray loops never meet NaN geometry.
@@ -9,13 +10,17 @@ pub mod bvh;
 pub mod camera;
 pub mod gltf_import;
 pub mod material;
+pub mod mvr_scene;
+pub mod texture;
 
 pub use bvh::{Accel, Hit};
 pub use camera::Camera;
 pub use gltf_import::{ImportLimits, SceneError, load, load_with};
 pub use material::Material;
+pub use mvr_scene::{MvrScene, load_mvr_scene};
+pub use texture::Texture;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 /// A surface point found by a ray, with everything shading needs.
 #[derive(Clone, Copy, Debug)]
@@ -30,6 +35,8 @@ pub struct SurfacePoint {
     pub material: u32,
     /// Triangle index (the paper's triangle ID).
     pub triangle: u32,
+    /// Texture coordinates (glTF TEXCOORD_0), interpolated; zero without them.
+    pub uv: Vec2,
 }
 
 /// A surface point's normals turned toward the side a ray arrives from
@@ -78,6 +85,9 @@ pub struct Scene {
     pub face_normals: Vec<Vec3>,
     /// Material index per triangle.
     pub material_of: Vec<u32>,
+    /// Texture coordinates per triangle vertex (zero when the file had
+    /// none); empty when no material has a texture (24 bytes a triangle saved).
+    pub uvs: Vec<[Vec2; 3]>,
     /// Material table; index 0 always exists (a neutral grey default).
     pub materials: Vec<Material>,
     /// Camera from the file, if it had one.
@@ -115,6 +125,17 @@ impl Scene {
             shading_normal: ns,
             material: self.material_of[i],
             triangle: hit.triangle,
+            uv: self.uvs.get(i).map_or(Vec2::ZERO, |&[ta, tb, tc]| ta * w + tb * hit.u + tc * hit.v),
+        }
+    }
+
+    /// The diffuse albedo ρ_d at a surface point: the material's, times its
+    /// base-colour texture sampled at the point's texture coordinates.
+    pub fn diffuse_at(&self, s: &SurfacePoint) -> Vec3 {
+        let m = &self.materials[s.material as usize];
+        match &m.base_texture {
+            Some(t) => m.diffuse * t.sample(s.uv),
+            None => m.diffuse,
         }
     }
 
@@ -147,6 +168,7 @@ pub struct SceneBuilder {
     normals: Vec<[Vec3; 3]>,
     face_normals: Vec<Vec3>,
     material_of: Vec<u32>,
+    uvs: Vec<[Vec2; 3]>,
     materials: Vec<Material>,
     camera: Option<Camera>,
     report: ImportReport,
@@ -166,6 +188,7 @@ impl SceneBuilder {
             normals: Vec::new(),
             face_normals: Vec::new(),
             material_of: Vec::new(),
+            uvs: Vec::new(),
             materials: vec![Material::lambert("default grey", Vec3::splat(0.5))],
             camera: None,
             report: ImportReport::default(),
@@ -178,6 +201,21 @@ impl SceneBuilder {
         (self.materials.len() - 1) as u32
     }
 
+    /// Materials so far (index of the next one added).
+    pub fn material_count(&self) -> usize {
+        self.materials.len()
+    }
+
+    /// Triangles kept so far.
+    pub fn triangle_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// True when a camera was set.
+    pub fn has_camera(&self) -> bool {
+        self.camera.is_some()
+    }
+
     /// Sets the scene camera.
     pub fn set_camera(&mut self, camera: Camera) {
         self.camera = Some(camera);
@@ -186,6 +224,12 @@ impl SceneBuilder {
     /// Adds one triangle; `normals` may be `None` for flat shading. Returns
     /// false (and counts why) when the triangle was dropped.
     pub fn add_triangle(&mut self, p: [Vec3; 3], normals: Option<[Vec3; 3]>, material: u32) -> bool {
+        self.add_triangle_uv(p, normals, [Vec2::ZERO; 3], material)
+    }
+
+    /// [`SceneBuilder::add_triangle`] with texture coordinates per vertex
+    /// (non-finite ones read as zero).
+    pub fn add_triangle_uv(&mut self, p: [Vec3; 3], normals: Option<[Vec3; 3]>, uv: [Vec2; 3], material: u32) -> bool {
         if !p.iter().all(|v| v.is_finite()) {
             self.report.non_finite += 1;
             return false;
@@ -206,6 +250,7 @@ impl SceneBuilder {
         self.normals.push(ns);
         self.face_normals.push(ng);
         self.material_of.push(material);
+        self.uvs.push(uv.map(|t| if t.is_finite() { t } else { Vec2::ZERO }));
         true
     }
 
@@ -238,17 +283,22 @@ impl SceneBuilder {
         retain_marked(&mut self.normals, &keep);
         retain_marked(&mut self.face_normals, &keep);
         retain_marked(&mut self.material_of, &keep);
+        retain_marked(&mut self.uvs, &keep);
     }
 
     /// Builds the BVH and returns the finished scene.
     pub fn build(mut self) -> Scene {
         self.drop_duplicates();
+        if self.materials.iter().all(|m| m.base_texture.is_none()) {
+            self.uvs = Vec::new();
+        }
         let accel = Accel::build(&self.positions);
         Scene {
             positions: self.positions,
             normals: self.normals,
             face_normals: self.face_normals,
             material_of: self.material_of,
+            uvs: self.uvs,
             materials: self.materials,
             camera: self.camera,
             report: self.report,

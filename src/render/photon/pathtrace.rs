@@ -40,6 +40,7 @@ fn radiance_along(scene: &Scene, light: &Light, origin: Vec3, dir: Vec3, rng: &m
     let Some(hit) = scene.accel.intersect(origin, dir, f32::INFINITY) else { return Vec3::ZERO };
     let s = scene.surface(&hit);
     let m = &scene.materials[s.material as usize];
+    let rho = scene.diffuse_at(&s);
     let Facing { geometric: ng, shading: ns, .. } = s.facing(dir);
     let v = ShadingVertex {
         position: s.position,
@@ -47,12 +48,13 @@ fn radiance_along(scene: &Scene, light: &Light, origin: Vec3, dir: Vec3, rng: &m
         geometric_normal: ng,
         wo: -dir,
         material: s.material,
+        diffuse: rho,
         weight: Vec3::ONE,
         depth: 0,
     };
     let mut l = direct(scene, light, &v);
     // Continue: diffuse bounce or mirror, chosen by Russian roulette.
-    let pd = m.diffuse.max_element();
+    let pd = rho.max_element();
     let pr = m.k_r.max_element();
     let total = (pd + pr).min(1.0);
     if total <= 0.0 {
@@ -62,7 +64,7 @@ fn radiance_along(scene: &Scene, light: &Light, origin: Vec3, dir: Vec3, rng: &m
     if u < pd.min(total) {
         let d = cosine_hemisphere(ns, rng.random(), rng.random());
         if d.dot(ng) > 0.0 {
-            l += m.diffuse / pd * radiance_along(scene, light, offset_origin(s.position, ng), d, rng, depth + 1);
+            l += rho / pd * radiance_along(scene, light, offset_origin(s.position, ng), d, rng, depth + 1);
         }
     } else if u < total {
         let r = reflect(dir, ns);

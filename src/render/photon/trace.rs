@@ -226,13 +226,14 @@ pub(crate) fn trace_chunk(
             let Some(hit) = scene.accel.intersect(origin, dir, f32::INFINITY) else { break };
             let sp = scene.surface(&hit);
             let m = &scene.materials[sp.material as usize];
+            let rho = scene.diffuse_at(&sp);
             let Facing { front, geometric: ng, shading: ns } = sp.facing(dir);
-            if bounce > 0 && m.diffuse.max_element() > 0.0 {
+            if bounce > 0 && rho.max_element() > 0.0 {
                 let photon = Photon { position: sp.position, power, dir, normal: ns };
                 if specular_only { caustic.push(photon) } else { global.push(photon) }
             }
             // Russian roulette over diffuse / mirror / transmission.
-            let pd = m.diffuse.element_sum() / 3.0;
+            let pd = rho.element_sum() / 3.0;
             let pr = m.k_r.element_sum() / 3.0;
             let pt = m.k_t.element_sum() / 3.0;
             let total = pd + pr + pt;
@@ -240,7 +241,7 @@ pub(crate) fn trace_chunk(
             let (pd, pr, pt) = (pd * scale, pr * scale, pt * scale);
             let u: f32 = rng.random();
             if u < pd {
-                power *= m.diffuse / pd;
+                power *= rho / pd;
                 dir = cosine_hemisphere(ns, rng.random(), rng.random());
                 if dir.dot(ng) <= 0.0 {
                     break;

@@ -1,0 +1,246 @@
+//! An MVR file's geometry as the stage (issue 14 item 4): every scene
+//! object, truss, support, video screen and projector with its 3D files from
+//! the archive, placed by its world matrix (layers, group objects and
+//! symdef/symbol instancing already composed by `footlight_mvr::mvr`).
+//!
+//! Units and axes are converted once, here (DIN SPEC 15800, "Geometry3D",
+//! as BlenderDMX reads it too):
+//! * **glTF/GLB** models are glTF's own convention (metres, Y up). MVR's
+//!   world is millimetres, Z up, so in MVR space a model is scaled by 1000 and
+//!   turned Y up → Z up; the MVR → stage conversion (`mvr::stage_matrix`:
+//!   mm → m, Z up → Y up) undoes exactly that, so a GLB vertex goes through
+//!   `stage_matrix(world)` unchanged.
+//! * **3DS** models are in the MVR frame (millimetres, Z up): each vertex is
+//!   converted like a world point, `C · p / 1000` (C: Z up → Y up, −90°
+//!   about X), then placed by `stage_matrix(world)`. The vertices of a 3DS
+//!   file are stored in its world frame (its mesh matrix only records how
+//!   they were placed), so the mesh matrix is not applied again.
+//! * A model the archive does not hold, or cannot be read, becomes a
+//!   primitive stand-in: a 0.5 m grey cube at the object's origin
+//!   (estimated size; MVR gives no dimensions for a scene object), with a
+//!   warning naming the object and the file.
+//!
+//! The whole import shares one triangle budget ([`ImportLimits`]), counted
+//! over every instance of every model.
+
+use super::{ImportLimits, Material, Scene, SceneBuilder, SceneError};
+use footlight_mvr::mvr::{Mvr, ObjectKind, stage_matrix};
+use glam::{DMat4, Mat4, Vec3};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Edge of the stand-in cube for a missing model, metres (estimated: the
+/// size of a flight case; MVR gives no dimensions for a scene object).
+pub const STAND_IN_EDGE: f32 = 0.5;
+
+/// The MVR's scene geometry, and the warnings of its import.
+pub struct MvrScene {
+    /// The stage built from the MVR's 3D files.
+    pub scene: Scene,
+    /// Problems that did not stop the import (missing or unreadable models:
+    /// stand-ins), each naming the MVR entry and the object.
+    pub warnings: Vec<String>,
+    /// Scene objects read, with a model or a stand-in.
+    pub objects: usize,
+}
+
+/// Loads the geometry of the MVR file at `path` under the default limits.
+pub fn load_mvr_scene(path: &Path) -> Result<MvrScene, SceneError> {
+    load_mvr_scene_with(path, &ImportLimits::default())
+}
+
+/// [`load_mvr_scene`] under explicit limits (the triangle budget covers
+/// every instance of every model together).
+pub fn load_mvr_scene_with(path: &Path, limits: &ImportLimits) -> Result<MvrScene, SceneError> {
+    let mvr = Mvr::open(path).map_err(|e| SceneError::Read { path: path.to_path_buf(), what: e.to_string() })?;
+    let mut builder = SceneBuilder::new();
+    let stand_in = builder.add_material(Material::lambert("MVR stand-in (missing model)", Vec3::splat(0.5)));
+    // The scene description's own warnings (bad matrices…) come with the patch (`load_mvr`).
+    let mut warnings: Vec<String> = Vec::new();
+    // 3DS files are parsed once, however often they are instanced.
+    let mut parsed_3ds: BTreeMap<String, Result<ds3::Scene3ds, String>> = BTreeMap::new();
+    let mut material_3ds: BTreeMap<String, u32> = BTreeMap::new();
+    let mut non_finite_normals = 0usize;
+    let mut objects = 0usize;
+    for object in &mvr.scene.objects {
+        objects += 1;
+        let what = format!("{} {:?}", kind_name(object.kind), object.name);
+        if object.geometries.is_empty() {
+            warnings.push(format!("{}: {what} has no Geometry3D or Symbol; a stand-in cube", path.display()));
+            add_stand_in(&mut builder, object.world, stand_in);
+            continue;
+        }
+        for (file, world) in &object.geometries {
+            let label = mvr.archive.label(file);
+            let budget =
+                ImportLimits { max_triangles: limits.max_triangles.saturating_sub(builder.triangle_count() as u64) };
+            let Some(bytes) = mvr.archive.get(file) else {
+                warnings.push(format!(
+                    "{}: {what} names the model {file:?}, which the archive does not contain; a stand-in cube",
+                    path.display()
+                ));
+                add_stand_in(&mut builder, *world, stand_in);
+                continue;
+            };
+            let lower = file.to_ascii_lowercase();
+            let result = if lower.ends_with(".glb") || lower.ends_with(".gltf") {
+                let placement = stage_matrix(*world).as_mat4();
+                super::gltf_import::import_bytes_into(&label, bytes, &mut builder, placement, &budget)
+                    .map(|n| non_finite_normals += n)
+                    .map_err(|e| match e {
+                        // Over budget stops the whole import: a stand-in would hide it.
+                        e @ (SceneError::Budget { .. } | SceneError::VertexBudget { .. }) => Err(e),
+                        e => Ok(e.to_string()),
+                    })
+            } else if lower.ends_with(".3ds") {
+                let parsed = parsed_3ds.entry(file.clone()).or_insert_with(|| parse_3ds(&label, bytes));
+                match parsed {
+                    Ok(model) => {
+                        let material = *material_3ds.entry(file.clone()).or_insert_with(|| {
+                            builder.add_material(Material::lambert(
+                                &format!("{file} (3DS, no colour read)"),
+                                Vec3::splat(0.6),
+                            ))
+                        });
+                        add_3ds(&label, model, *world, material, &mut builder, &budget).map_err(|e| match e {
+                            e @ SceneError::Budget { .. } => Err(e),
+                            e => Ok(e.to_string()),
+                        })
+                    }
+                    Err(e) => Err(Ok(e.clone())),
+                }
+            } else {
+                Err(Ok(format!("{}: not a glTF/GLB or 3DS model (by its extension)", label.display())))
+            };
+            match result {
+                Ok(()) => {}
+                Err(Err(fatal)) => return Err(fatal),
+                Err(Ok(why)) => {
+                    warnings.push(format!("{why}; {what} gets a stand-in cube"));
+                    add_stand_in(&mut builder, *world, stand_in);
+                }
+            }
+        }
+    }
+    let mut scene = builder.build();
+    scene.report.non_finite_normals = non_finite_normals;
+    if scene.triangle_count() == 0 {
+        warnings.push(format!("{}: the MVR has no scene geometry; renders will be black", path.display()));
+    }
+    Ok(MvrScene { scene, warnings, objects })
+}
+
+fn kind_name(kind: ObjectKind) -> &'static str {
+    match kind {
+        ObjectKind::SceneObject => "SceneObject",
+        ObjectKind::Truss => "Truss",
+        ObjectKind::Support => "Support",
+        ObjectKind::VideoScreen => "VideoScreen",
+        ObjectKind::Projector => "Projector",
+    }
+}
+
+/// MVR space (Z up) → stage space (Y up), as a rotation only: −90° about X.
+fn z_up_to_y_up() -> Mat4 {
+    Mat4::from_rotation_x(-std::f32::consts::FRAC_PI_2)
+}
+
+/// Parses a 3DS file (`label` names it in the message) with the `ds3` crate.
+pub fn parse_3ds(label: &Path, bytes: &[u8]) -> Result<ds3::Scene3ds, String> {
+    ds3::parse(bytes).map_err(|e| format!("{}: not a readable 3DS file: {e}", label.display()))
+}
+
+/// A 3DS model's triangles (MVR frame: millimetres, Z up) placed by the MVR
+/// world matrix `world` (millimetres); face indices are checked here (an
+/// index past the vertices is an error naming the mesh and face).
+pub fn add_3ds(
+    label: &Path,
+    model: &ds3::Scene3ds,
+    world: DMat4,
+    material: u32,
+    builder: &mut SceneBuilder,
+    budget: &ImportLimits,
+) -> Result<(), SceneError> {
+    let triangles: u64 = model.meshes.iter().map(|m| m.faces.len() as u64).sum();
+    if triangles > budget.max_triangles {
+        return Err(SceneError::Budget { path: label.to_path_buf(), triangles, limit: budget.max_triangles });
+    }
+    let placement = stage_matrix(world).as_mat4() * z_up_to_y_up() * Mat4::from_scale(Vec3::splat(1e-3));
+    let flip = glam::Mat3::from_mat4(placement).determinant() < 0.0;
+    for mesh in &model.meshes {
+        let vertices: Vec<Vec3> = mesh.vertices.iter().map(|&v| placement.transform_point3(Vec3::from(v))).collect();
+        for (fi, face) in mesh.faces.iter().enumerate() {
+            let [a, b, c] = face.map(usize::from);
+            let (Some(&pa), Some(&pb), Some(&pc)) = (vertices.get(a), vertices.get(b), vertices.get(c)) else {
+                return Err(SceneError::Invalid {
+                    path: label.to_path_buf(),
+                    what: format!(
+                        "mesh {:?} face {fi}: an index past its {} vertices",
+                        mesh.name.chars().take(60).collect::<String>(),
+                        vertices.len()
+                    ),
+                });
+            };
+            let t = if flip { [pa, pc, pb] } else { [pa, pb, pc] };
+            builder.add_triangle(t, None, material);
+        }
+    }
+    Ok(())
+}
+
+/// The stand-in cube ([`STAND_IN_EDGE`]) sitting on the object's origin.
+fn add_stand_in(builder: &mut SceneBuilder, world: DMat4, material: u32) {
+    let m = stage_matrix(world).as_mat4();
+    let h = STAND_IN_EDGE / 2.0;
+    let p = |x: f32, y: f32, z: f32| m.transform_point3(Vec3::new(x * h, (y + 1.0) * h, z * h));
+    add_box(builder, p, material);
+}
+
+/// The 12 triangles of the box with corners `p(±1, ±1, ±1)`, wound outward
+/// when `p` keeps handedness.
+pub(crate) fn add_box(builder: &mut SceneBuilder, p: impl Fn(f32, f32, f32) -> Vec3, material: u32) {
+    let faces: [[(f32, f32, f32); 4]; 6] = [
+        [(1., -1., -1.), (1., 1., -1.), (1., 1., 1.), (1., -1., 1.)],
+        [(-1., -1., 1.), (-1., 1., 1.), (-1., 1., -1.), (-1., -1., -1.)],
+        [(-1., 1., -1.), (-1., 1., 1.), (1., 1., 1.), (1., 1., -1.)],
+        [(-1., -1., 1.), (-1., -1., -1.), (1., -1., -1.), (1., -1., 1.)],
+        [(-1., -1., 1.), (1., -1., 1.), (1., 1., 1.), (-1., 1., 1.)],
+        [(1., -1., -1.), (-1., -1., -1.), (-1., 1., -1.), (1., 1., -1.)],
+    ];
+    for f in faces {
+        let [a, b, c, d] = f.map(|(x, y, z)| p(x, y, z));
+        builder.add_quad(a, b, c, d, material);
+    }
+}
+
+/// Where the scene of a show comes from: `--scene` when given, else the
+/// MVR's geometry when the patch is an `.mvr`, else the bundled stage.
+pub fn scene_source(scene_flag: Option<&Path>, patch: &Path, default_scene: &Path) -> SceneSource {
+    match scene_flag {
+        Some(s) => SceneSource::Gltf(s.to_path_buf()),
+        None if footlight_mvr::is_mvr(patch) => SceneSource::Mvr(patch.to_path_buf()),
+        None => SceneSource::Gltf(default_scene.to_path_buf()),
+    }
+}
+
+/// A scene file to load ([`scene_source`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum SceneSource {
+    /// A glTF/GLB file.
+    Gltf(PathBuf),
+    /// The 3D files of an MVR show.
+    Mvr(PathBuf),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_scene_comes_from_the_flag_then_the_mvr_then_the_default() {
+        let d = Path::new("scenes/stage.glb");
+        assert_eq!(scene_source(Some(Path::new("a.glb")), Path::new("show.mvr"), d), SceneSource::Gltf("a.glb".into()));
+        assert_eq!(scene_source(None, Path::new("show.MVR"), d), SceneSource::Mvr("show.MVR".into()));
+        assert_eq!(scene_source(None, Path::new("rig.toml"), d), SceneSource::Gltf(d.into()));
+    }
+}
