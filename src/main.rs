@@ -410,7 +410,7 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         let (size, repeats) = if args.quick { ((200, 125), 1) } else { ((800, 500), 3) };
         let report = bench::accuracy::run(
             &scene,
-            &resolve(&args.input.scene),
+            &resolve(args.input.scene.as_deref().unwrap_or(Path::new(footlight::DEFAULT_SCENE))),
             &patch,
             camera,
             size,
