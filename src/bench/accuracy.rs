@@ -200,20 +200,7 @@ impl AccuracyReport {
         );
         s += &sweeps::aa_cost_markdown(&self.aa);
         for (label, b) in &self.breakdowns {
-            s += &format!(
-                "\nWhere the adaptive cost goes, {label} (% of 1-sample expansion + shading = {:.1} ms): expansion {:.0} %, \
-                 shading {:.0} %, gradient decision {:.0} %, 9-sample re-shading {:.0} %. Vertices: {} (1 sample) vs {} \
-                 (bins); {:.1} % of pixels hold more than one bin, {:.2} % re-shaded.\n",
-                b.one_sample_ms,
-                b.expand_percent,
-                b.shade_percent,
-                b.decide_percent,
-                b.reshade_percent,
-                b.one_sample_vertices,
-                b.base_vertices,
-                b.multi_bin_share * 100.0,
-                b.reshaded_share * 100.0
-            );
+            s += &b.sentence(label);
         }
         s += &format!(
             "\n## Moved light: time to the converged picture (issue 13)\n\n{}×{}, paper's settings (50,000 photons, 150 \

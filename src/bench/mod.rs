@@ -255,21 +255,7 @@ impl Report {
             );
         }
         s += "| paper (adaptive) | 119 | 0.006 | 0.004 | 0.0004 | |\n";
-        let b = &self.aa_breakdown;
-        s += &format!(
-            "\nWhere the adaptive cost goes (fresh view, % of 1-sample expansion + shading = {:.1} ms): binned \
-             expansion {:.0} %, shading the bins {:.0} %, gradient decision {:.0} %, 9-sample re-shading {:.0} %. \
-             Vertices: {} (1 sample) vs {} (bins); {:.1} % of pixels hold more than one bin, {:.1} % re-shaded.\n",
-            b.one_sample_ms,
-            b.expand_percent,
-            b.shade_percent,
-            b.decide_percent,
-            b.reshade_percent,
-            b.one_sample_vertices,
-            b.base_vertices,
-            b.multi_bin_share * 100.0,
-            b.reshaded_share * 100.0
-        );
+        s += &self.aa_breakdown.sentence("fresh view");
         s += "\n## Indirect term at the paper's settings vs path tracing (issue 13)\n\n";
         s += &indirect::markdown(&self.indirect);
         let p = &self.photons;

@@ -345,6 +345,26 @@ pub struct AaBreakdown {
     pub reshaded_share: f64,
 }
 
+impl AaBreakdown {
+    /// One Markdown sentence: where the cost goes, for the run named `label`.
+    pub fn sentence(&self, label: &str) -> String {
+        format!(
+            "\nWhere the adaptive cost goes, {label} (% of 1-sample expansion + shading = {:.1} ms): expansion {:.0} %, \
+             shading {:.0} %, gradient decision {:.0} %, 9-sample re-shading {:.0} %. Vertices: {} (1 sample) vs {} \
+             (bins); {:.1} % of pixels hold more than one bin, {:.2} % re-shaded.\n",
+            self.one_sample_ms,
+            self.expand_percent,
+            self.shade_percent,
+            self.decide_percent,
+            self.reshade_percent,
+            self.one_sample_vertices,
+            self.base_vertices,
+            self.multi_bin_share * 100.0,
+            self.reshaded_share * 100.0
+        )
+    }
+}
+
 /// Times each step of adaptive anti-aliasing for `light` over `gbuffer`.
 pub fn aa_breakdown(
     scene: &Scene,

@@ -77,21 +77,10 @@ pub fn gate_functions(c: &ChannelInfo, attribute: Attribute, raw16: &dyn Fn(u64)
             out.push(Function { from, to, action: Action::Gate(t), range });
             continue;
         }
-        let slots: Vec<_> = if matches!(attribute, Attribute::Gobo | Attribute::Prism) && f.wheel.is_some() {
-            f.sets.iter().filter_map(|s| s.wheel_slot.filter(|i| *i >= 1).map(|i| (s, i))).collect()
+        if matches!(attribute, Attribute::Gobo | Attribute::Prism) {
+            out.extend(crate::show::wheel_slot_functions(f, range, raw16));
         } else {
-            Vec::new()
-        };
-        if slots.is_empty() {
             out.push(Function { from, to, action: Action::Hold, range });
-        }
-        for (s, i) in slots {
-            out.push(Function {
-                from: raw16(s.dmx_from),
-                to: raw16(s.dmx_to),
-                action: Action::Slot((i - 1) as u16),
-                range,
-            });
         }
     }
     out.sort_by_key(|f| f.from);

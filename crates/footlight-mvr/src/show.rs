@@ -284,6 +284,34 @@ fn is_shutter(a: &str) -> bool {
 
 /// A raw DMX value at `bytes` of resolution as Footlight reads the channel
 /// (8-bit, or 16-bit from coarse and fine: a 24-bit value loses its last byte).
+/// A wheel channel function as Footlight functions: one `Slot` per channel
+/// set naming a wheel slot (GDTF slots count from 1), else the whole
+/// function as `Hold`. Shared by colour, gobo and prism wheels.
+pub(crate) fn wheel_slot_functions(
+    f: &crate::gdtf::FunctionInfo,
+    range: [f32; 2],
+    raw16: &dyn Fn(u64) -> u16,
+) -> Vec<Function> {
+    let slots: Vec<Function> = if f.wheel.is_some() {
+        f.sets
+            .iter()
+            .filter_map(|s| s.wheel_slot.filter(|i| *i >= 1).map(|i| (s, i)))
+            .map(|(s, i)| Function {
+                from: raw16(s.dmx_from),
+                to: raw16(s.dmx_to),
+                action: Action::Slot((i - 1) as u16),
+                range,
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    if slots.is_empty() {
+        return vec![Function { from: raw16(f.dmx_from), to: raw16(f.dmx_to), action: Action::Hold, range }];
+    }
+    slots
+}
+
 fn raw16(v: u64, bytes: u8) -> u16 {
     let v = if bytes > 2 { v >> (8 * u32::from(bytes - 2).min(6)) } else { v };
     v.min(u64::from(u16::MAX)) as u16
@@ -320,20 +348,7 @@ fn channel_functions(c: &ChannelInfo, attribute: Attribute) -> Vec<Function> {
                 };
                 out.push(Function { from, to, action, range });
             }
-            Attribute::ColourWheel => {
-                let slots: Vec<_> = if f.wheel.is_some() {
-                    f.sets.iter().filter_map(|s| s.wheel_slot.filter(|i| *i >= 1).map(|i| (s, i))).collect()
-                } else {
-                    Vec::new()
-                };
-                if slots.is_empty() {
-                    out.push(Function { from, to, action: Action::Hold, range });
-                }
-                for (s, i) in slots {
-                    let (sf, st) = (raw16(s.dmx_from, bytes), raw16(s.dmx_to, bytes));
-                    out.push(Function { from: sf, to: st, action: Action::Slot((i - 1) as u16), range });
-                }
-            }
+            Attribute::ColourWheel => out.extend(wheel_slot_functions(f, range, &|v| raw16(v, bytes))),
             Attribute::Gobo | Attribute::Prism | Attribute::Gate => {
                 return crate::gate::gate_functions(c, attribute, &|v| raw16(v, bytes));
             }

@@ -602,17 +602,22 @@ mod tests {
     /// A uniform (binomial, i.e. Poisson-like) photon field: `n` photons at
     /// seeded random spots on the unit square, arriving straight down.
     fn random_field(n: usize, power: f32, seed: u64) -> PhotonMap {
-        use rand::{Rng, SeedableRng};
+        use rand::SeedableRng;
         let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
-        let v = (0..n)
+        PhotonMap::new(floor_photons(&mut rng, n, power))
+    }
+
+    /// `n` photons of `power` at random spots on the unit square of the
+    /// floor z = 0, arriving straight down, drawn from `rng`.
+    fn floor_photons(rng: &mut impl rand::Rng, n: usize, power: f32) -> Vec<Photon> {
+        (0..n)
             .map(|_| Photon {
                 position: Vec3::new(rng.random(), rng.random(), 0.0),
                 power: Vec3::splat(power),
                 dir: Vec3::NEG_Z,
                 normal: Vec3::Z,
             })
-            .collect();
-        PhotonMap::new(v)
+            .collect()
     }
 
     /// Mean of `f` over a 80×80 grid in the square [0.2, 0.8]², and the
@@ -713,14 +718,7 @@ mod tests {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
         let n = 200_000;
-        let mut v: Vec<Photon> = (0..n)
-            .map(|_| Photon {
-                position: Vec3::new(rng.random(), rng.random(), 0.0),
-                power: Vec3::splat(1.0 / n as f32),
-                dir: Vec3::NEG_Z,
-                normal: Vec3::Z,
-            })
-            .collect();
+        let mut v = floor_photons(&mut rng, n, 1.0 / n as f32);
         v.extend((0..n).map(|_| Photon {
             position: Vec3::new(1.0, rng.random(), rng.random()),
             power: Vec3::splat(1.0 / n as f32),
@@ -853,14 +851,7 @@ mod tests {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
         let n = 200_000;
-        let mut v: Vec<Photon> = (0..n)
-            .map(|_| Photon {
-                position: Vec3::new(rng.random(), rng.random(), 0.0),
-                power: Vec3::splat(1.0 / n as f32),
-                dir: Vec3::NEG_Z,
-                normal: Vec3::Z,
-            })
-            .collect();
+        let mut v = floor_photons(&mut rng, n, 1.0 / n as f32);
         // The post's face x = 0.5, y in [0.498, 0.502], facing −X, densely lit.
         v.extend((0..100).map(|_| Photon {
             position: Vec3::new(0.5, 0.498 + 0.004 * rng.random::<f32>(), 0.01 * rng.random::<f32>()),
