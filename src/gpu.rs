@@ -32,6 +32,16 @@ fn gpu_device_node_present() -> bool {
     render || std::path::Path::new("/dev/nvidia0").exists()
 }
 
+/// The shader's display uniforms from the CPU reference's settings: the
+/// same scale and the same roll-off constants (display.rs owns the curve).
+pub fn display_params(display: &Display) -> DisplayParams {
+    DisplayParams {
+        exposure: display.exposure,
+        white_balance: display.white_balance.to_array(),
+        rolloff: display.rolloff.map(|r| r.uniforms()),
+    }
+}
+
 /// GPU compositor plus the generations of the buffers it holds.
 pub struct GpuFrames {
     context: GpuContext,
@@ -72,8 +82,13 @@ impl GpuFrames {
         let compositor =
             GpuCompositor::new(context.device(), context.queue(), width, height, CompositorOptions::default())?;
         tracing::info!("compositing on the GPU: {}", context.adapter_info().name);
-        let display = DisplayParams { exposure: display.exposure, white_balance: display.white_balance.to_array() };
-        Ok(Some(Self { context, compositor, generations: Vec::new(), display }))
+        Ok(Some(Self { context, compositor, generations: Vec::new(), display: display_params(&display) }))
+    }
+
+    /// Changes exposure, white balance and roll-off from the next frame on
+    /// (uniforms only: nothing is rebuilt or re-uploaded).
+    pub fn set_display(&mut self, display: &Display) {
+        self.display = display_params(display);
     }
 
     /// Adapter name, for the status page.

@@ -51,6 +51,15 @@ mod flags {
         if x > 0.0 { Ok(x as f32) } else { Err("must be above 0 lx (the illuminance shown as display white)".into()) }
     }
 
+    /// `--rolloff`: off, on, or the display-linear level shown as white.
+    pub fn rolloff(v: &str) -> Result<Rolloff, String> {
+        footlight::render::display::parse_rolloff(v).map(Rolloff)
+    }
+
+    /// A parsed `--rolloff` (`None`: clip at display white).
+    #[derive(Clone, Copy, Debug)]
+    pub struct Rolloff(pub Option<footlight::render::display::HighlightRolloff>);
+
     /// `--aa-threshold`: 0-255 display steps.
     pub fn aa_threshold(v: &str) -> Result<f32, String> {
         number(v, 0.0, 255.0, " (0-255 display steps)").map(|x| x as f32)
@@ -236,6 +245,11 @@ struct RunArgs {
     /// Illuminance (lx) on a white Lambert surface shown as display white.
     #[arg(long, default_value_t = footlight::render::display::DEFAULT_WHITE_LUX, value_parser = flags::white_lux)]
     white_lux: f32,
+    /// Highlight roll-off of the live picture (every compositor): on (the
+    /// default: beams over display white keep their gradation), off (clip at
+    /// white) or the level shown as white, e.g. 8 (docs/rendering.md).
+    #[arg(long, value_name = "off|on|WHITE", value_parser = flags::rolloff)]
+    rolloff: Option<flags::Rolloff>,
     /// Compositor: auto (GPU if a hardware adapter exists), cpu, or gpu.
     #[arg(long, value_enum, default_value_t = footlight::gpu::CompositorChoice::Auto)]
     compositor: footlight::gpu::CompositorChoice,
@@ -298,9 +312,11 @@ struct RenderArgs {
     #[arg(long, default_value_t = 0, value_parser = flags::refine)]
     refine: u32,
     /// Roll highlights over display white off smoothly (beams in haze) instead
-    /// of clipping them in a PNG; linear outputs are never rolled off (docs/rendering.md).
-    #[arg(long)]
-    rolloff: bool,
+    /// of clipping them in a PNG: `--rolloff` (on), `--rolloff 8` (8× white
+    /// shown as white) or `--rolloff off` (the default); linear outputs are
+    /// never rolled off (docs/rendering.md).
+    #[arg(long, value_name = "off|on|WHITE", num_args = 0..=1, default_missing_value = "on", value_parser = flags::rolloff)]
+    rolloff: Option<flags::Rolloff>,
     /// Output file: `.png` (8-bit sRGB, exposure and clipping as on screen), or
     /// `.exr` / `.pfm` (linear cd/m² times the white balance, float, unclipped).
     /// An existing file is never replaced without --force.
@@ -602,9 +618,10 @@ fn run_daemon(
         let camera = choose_camera(&scene, &patch);
         let named = footlight::live::views::named_views(&camera, &scene, Some(&patch));
         let show = Arc::new(Show::new(patch));
-        let display = Display::for_white_lux(args.white_lux);
-        let photons = (args.photons > 0).then(|| PhotonSettings { stored: args.photons, ..PhotonSettings::default() });
         let defaults = DaemonConfig::default();
+        let rolloff = args.rolloff.map_or(defaults.display.rolloff, |r| r.0);
+        let display = Display::for_white_lux(args.white_lux).with_rolloff(rolloff);
+        let photons = (args.photons > 0).then(|| PhotonSettings { stored: args.photons, ..PhotonSettings::default() });
         let config = DaemonConfig {
             width: args.width,
             height: args.height,
@@ -840,13 +857,8 @@ fn render(args: RenderArgs) -> Result<()> {
         "pfm" => write_pfm(&args.out, w, h, &balanced(&still.linear, gains))
             .with_context(|| format!("writing {}", args.out.display()))?,
         _ => {
-            let rgb8 = if args.rolloff {
-                settings
-                    .display
-                    .to_srgb8_rolloff(&still.linear, footlight::render::display::HighlightRolloff::default())
-            } else {
-                settings.display.to_srgb8(&still.linear)
-            };
+            let rolloff = args.rolloff.and_then(|r| r.0);
+            let rgb8 = settings.display.with_rolloff(rolloff).to_srgb8(&still.linear);
             write_png(&args.out, w, h, rgb8).with_context(|| format!("writing {}", args.out.display()))?
         }
     }

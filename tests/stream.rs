@@ -474,7 +474,7 @@ fn malformed_and_oversized_client_messages_close_that_connection_only() {
     server.frames.send_replace(frame(1, w, h, buffer, 0));
     let k = binary(&mut good);
     assert_eq!(k[0], MSG_FRAME);
-    assert_eq!(f32::from_le_bytes([k[32], k[33], k[34], k[35]]), 1.0);
+    assert_eq!(f32::from_le_bytes([k[40], k[41], k[42], k[43]]), 1.0);
     // A page of another site may not open the stream (cross-site WebSocket).
     let mut req =
         tungstenite::client::IntoClientRequest::into_client_request(format!("ws://{}/api/stream", server.addr))

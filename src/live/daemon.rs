@@ -54,7 +54,7 @@ pub struct DaemonConfig {
     pub height: u32,
     /// Display frame rate in Hz (1-240).
     pub fps: f64,
-    /// Exposure and white balance.
+    /// Exposure, white balance and highlight roll-off (on by default: beams over white read as beams).
     pub display: Display,
     /// Recursion limits (paper: depth 5).
     pub limits: RecursionLimits,
@@ -77,7 +77,9 @@ impl Default for DaemonConfig {
             width: 800,
             height: 500,
             fps: 60.0,
-            display: Display::default(),
+            // Beams in haze over display white must read as beams (issue 15):
+            // the live picture rolls highlights off; `render` PNGs clip unless asked.
+            display: Display::default().with_rolloff(Some(crate::render::display::HighlightRolloff::default())),
             limits: RecursionLimits::default(),
             tracer: TracerSettings::default(),
             compositor: crate::gpu::CompositorChoice::Auto,

@@ -5,9 +5,13 @@
 //! White balance is a camera's: by default a 3200 K tungsten lamp at full
 //! is neutral (Vierjahn 2010, section 3.3; gains from footlight-photometry,
 //! luminance-preserving).
-//! Values above white clip at the display, like an overexposed camera; a
-//! non-finite value is an error found before this step ([`check_finite`]),
-//! never clamped away here. Stills can also be written linear and unclipped
+//! Values above white clip at the display, like an overexposed camera,
+//! unless the display has a highlight roll-off ([`HighlightRolloff`], on by
+//! default in the live daemon): then beams brighter than white keep their
+//! gradation. The roll-off is the one tone curve of every compositor (CPU
+//! here, the GPU's WGSL and the browser's GLSL in `shaders/`, which get
+//! its two constants as uniforms). A non-finite value is an error found
+//! before this step ([`check_finite`]), never clamped away here. Stills can also be written linear and unclipped
 //! ([`write_exr`], [`write_pfm`]): cd/m² times the white-balance gains only.
 
 use glam::Vec3;
@@ -22,6 +26,9 @@ pub struct Display {
     pub exposure: f32,
     /// Per-channel white-balance gains (1 = none).
     pub white_balance: Vec3,
+    /// Highlight roll-off applied to display-linear colour before the
+    /// transfer function; `None` clips at white.
+    pub rolloff: Option<HighlightRolloff>,
 }
 
 impl Default for Display {
@@ -41,7 +48,7 @@ impl Display {
     /// RGB goes to the display unchanged (analytic tests, RGB stand-in lights).
     pub fn neutral(lux: f32) -> Self {
         let lux = if lux.is_finite() && lux > 0.0 { lux } else { DEFAULT_WHITE_LUX };
-        Self { exposure: std::f32::consts::PI / lux, white_balance: Vec3::ONE }
+        Self { exposure: std::f32::consts::PI / lux, white_balance: Vec3::ONE, rolloff: None }
     }
 
     /// White balance for a lamp at dimmer `v` (that lamp's light shows neutral).
@@ -50,9 +57,25 @@ impl Display {
         self
     }
 
+    /// The same display with highlight roll-off `rolloff` (`None`: clip at white).
+    pub fn with_rolloff(mut self, rolloff: Option<HighlightRolloff>) -> Self {
+        self.rolloff = rolloff;
+        self
+    }
+
     /// Linear cd/m² to display-linear RGB (before the transfer function).
     pub fn scale(&self) -> Vec3 {
         self.white_balance * self.exposure
+    }
+
+    /// Display-linear colour (1 = white) of a linear cd/m² value: white
+    /// balance, exposure and the roll-off if any, before clipping and the
+    /// transfer function.
+    pub fn display_linear(&self, linear: Vec3) -> Vec3 {
+        match self.rolloff {
+            None => linear * self.scale(),
+            Some(r) => r.apply(linear * self.scale()),
+        }
     }
 
     /// Encodes a linear image to 8-bit sRGB, row-major RGB triplets. Runs
@@ -68,11 +91,19 @@ impl Display {
     pub fn to_srgb8_into(&self, linear: &[Vec3], out: &mut [u8]) {
         use rayon::prelude::*;
         assert_eq!(out.len(), linear.len() * 3, "output size");
-        let s = self.scale() * (SRGB_LUT_SIZE - 1) as f32;
+        let max = (SRGB_LUT_SIZE - 1) as f32;
+        let s = self.scale() * max;
+        let (scale, rolloff) = (self.scale(), self.rolloff);
         let lut = srgb_lut();
         out.par_chunks_mut(3 * 4096).zip(linear.par_chunks(4096)).for_each(|(o, l)| {
             for (px, v) in o.chunks_exact_mut(3).zip(l) {
-                let idx = (*v * s).clamp(Vec3::ZERO, Vec3::splat((SRGB_LUT_SIZE - 1) as f32)) + 0.5;
+                // Without a roll-off: one multiply into the table's index
+                // (the bits the GPU and browser shaders reproduce).
+                let x = match rolloff {
+                    None => *v * s,
+                    Some(r) => r.apply(*v * scale) * max,
+                };
+                let idx = x.clamp(Vec3::ZERO, Vec3::splat(max)) + 0.5;
                 // NaN casts to 0: never reached for checked buffers, and never a panic.
                 px[0] = lut[idx.x as usize];
                 px[1] = lut[idx.y as usize];
@@ -115,8 +146,7 @@ impl HighlightRolloff {
             return Vec3::ZERO;
         }
         let m = c.max_element();
-        let knee = self.knee.clamp(0.0, 0.99);
-        let white = self.white.max(1.0 + 1e-3);
+        let [knee, white] = self.uniforms();
         if m <= knee {
             return c;
         }
@@ -128,15 +158,41 @@ impl HighlightRolloff {
         };
         c * (f / m)
     }
+
+    /// The curve's two constants as every compositor uses them, `[knee,
+    /// white]`, knee clamped to [0, 0.99] and white to at least 1.001: what
+    /// [`HighlightRolloff::apply`] computes with and what the GPU (WGSL) and
+    /// browser (GLSL) shaders receive as uniforms.
+    pub fn uniforms(&self) -> [f32; 2] {
+        let knee = if self.knee.is_finite() { self.knee.clamp(0.0, 0.99) } else { 0.6 };
+        let white = if self.white.is_finite() { self.white.max(1.0 + 1e-3) } else { 16.0 };
+        [knee, white]
+    }
+}
+
+/// A roll-off from a command-line value: `off` (clip at white), `on` (the
+/// default curve) or the display-linear level shown as white (a number > 1,
+/// e.g. `16` = four stops over white; the knee stays at its default).
+pub fn parse_rolloff(value: &str) -> Result<Option<HighlightRolloff>, String> {
+    let v = value.trim();
+    if v.eq_ignore_ascii_case("off") || v.eq_ignore_ascii_case("clip") {
+        return Ok(None);
+    }
+    if v.eq_ignore_ascii_case("on") {
+        return Ok(Some(HighlightRolloff::default()));
+    }
+    match v.parse::<f32>() {
+        Ok(white) if white.is_finite() && white > 1.0 && white <= 65_536.0 => {
+            Ok(Some(HighlightRolloff { white, ..HighlightRolloff::default() }))
+        }
+        _ => Err(format!("{value:?}: expected off, on or the level shown as white (a number over 1, at most 65536)")),
+    }
 }
 
 impl Display {
-    /// As [`Display::to_srgb8`] with `rolloff` applied to the display-linear
-    /// colour before the transfer function (exposure and white balance first).
+    /// As [`Display::to_srgb8`] with `rolloff` instead of this display's own.
     pub fn to_srgb8_rolloff(&self, linear: &[Vec3], rolloff: HighlightRolloff) -> Vec<u8> {
-        let s = self.scale();
-        let shaped: Vec<Vec3> = linear.iter().map(|v| rolloff.apply(*v * s)).collect();
-        Display { exposure: 1.0, white_balance: Vec3::ONE }.to_srgb8(&shaped)
+        self.with_rolloff(Some(rolloff)).to_srgb8(linear)
     }
 }
 
@@ -268,7 +324,7 @@ mod tests {
 
     #[test]
     fn table_matches_the_exact_curve() {
-        let d = Display { exposure: 1.0, white_balance: Vec3::ONE };
+        let d = Display { exposure: 1.0, white_balance: Vec3::ONE, rolloff: None };
         // Tungsten at full is neutral under the default white balance.
         let wb = Display::default();
         let tungsten = footlight_photometry::Lamp::tungsten().colour(1.0);
@@ -295,7 +351,7 @@ mod tests {
         assert!((r.apply(Vec3::splat(16.0)).x - 1.0).abs() < 1e-6);
         assert_eq!(r.apply(Vec3::splat(100.0)), Vec3::ONE);
         // 1x, 2x, 4x, 8x white stay distinct 8-bit codes (they all clip to 255 without it).
-        let d = Display { exposure: 1.0, white_balance: Vec3::ONE };
+        let d = Display { exposure: 1.0, white_balance: Vec3::ONE, rolloff: None };
         let codes: Vec<u8> =
             [1.0f32, 2.0, 4.0, 8.0].iter().map(|&x| d.to_srgb8_rolloff(&[Vec3::new(x, 0.0, 0.0)], r)[0]).collect();
         assert!(codes.windows(2).all(|w| w[0] < w[1]), "{codes:?}");
@@ -304,6 +360,59 @@ mod tests {
         let c = r.apply(Vec3::new(4.0, 1.0, 0.0));
         assert!((c.y / c.x - 0.25).abs() < 1e-6 && c.z == 0.0);
         assert_eq!(r.apply(Vec3::new(f32::NAN, 1.0, 1.0)), Vec3::ZERO);
+    }
+
+    /// The curve against its closed form, evaluated here in f64 from the
+    /// formula (not through `apply`), for values up to 4× past white, and
+    /// the display encoding with the roll-off against the exact sRGB curve.
+    #[test]
+    fn rolloff_matches_its_closed_form_and_encodes_within_one_level() {
+        let closed = |m: f64, knee: f64, white: f64| -> f64 {
+            if m <= knee {
+                return m;
+            }
+            if m >= white {
+                return 1.0;
+            }
+            let (u, uw) = ((m - knee) / (1.0 - knee), (white - knee) / (1.0 - knee));
+            knee + (1.0 - knee) * u * (1.0 + u / (uw * uw)) / (1.0 + u)
+        };
+        for r in [HighlightRolloff::default(), HighlightRolloff { knee: 0.3, white: 4.0 }] {
+            let (knee, white) = (r.knee as f64, r.white as f64);
+            let mut worst = 0.0f64;
+            for i in 0..=4000 {
+                let m = i as f64 / 4000.0 * 4.0 * white;
+                // A saturated colour whose largest channel is m.
+                let c = r.apply(Vec3::new(m as f32, 0.5 * m as f32, 0.0));
+                let want = closed(m, knee, white);
+                worst = worst.max((c.x as f64 - want).abs()).max((c.y as f64 - 0.5 * want).abs());
+            }
+            assert!(worst < 2e-6, "{r:?}: worst {worst}");
+            // Monotonic and ≤ 1 past the knee (a brighter beam is never darker).
+            let f: Vec<f32> = (0..1000).map(|i| r.apply(Vec3::splat(1.0 + i as f32 * 0.02)).x).collect();
+            assert!(f.windows(2).all(|w| w[0] <= w[1] + 1e-6 && w[1] <= 1.0 + 1e-6), "{f:?}");
+        }
+        // to_srgb8 with the roll-off: exposure first, then the curve, then sRGB.
+        let d = Display { exposure: 0.5, white_balance: Vec3::new(1.0, 0.9, 0.8), rolloff: Some(Default::default()) };
+        let mut worst = 0;
+        for i in 0..2000 {
+            let v = Vec3::new(i as f32 * 0.03, i as f32 * 0.011, 0.2);
+            let c = v * d.scale();
+            let m = c.max_element() as f64;
+            let s = if m > 0.6 { closed(m, 0.6, 16.0) / m } else { 1.0 };
+            let want = srgb_encode(c * s as f32) * 255.0 + 0.5;
+            let got = d.to_srgb8(&[v]);
+            for ch in 0..3 {
+                worst = worst.max((want[ch] as i32 - got[ch] as i32).abs());
+            }
+        }
+        assert!(worst <= 1, "worst {worst} levels");
+        assert_eq!(parse_rolloff("off"), Ok(None));
+        assert_eq!(parse_rolloff("on"), Ok(Some(HighlightRolloff::default())));
+        assert_eq!(parse_rolloff("8").unwrap().unwrap().white, 8.0);
+        for bad in ["1", "0.5", "nan", "inf", "bright"] {
+            assert!(parse_rolloff(bad).is_err(), "{bad}");
+        }
     }
 
     #[test]

@@ -60,7 +60,7 @@ class Compositor {
     if (!gl.getProgramParameter(p, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(p));
     this.program = p;
     this.u = {};
-    for (const n of ['u_buffers', 'u_k', 'u_lights', 'u_scale', 'u_height']) this.u[n] = gl.getUniformLocation(p, n);
+    for (const n of ['u_buffers', 'u_k', 'u_lights', 'u_scale', 'u_display_scale', 'u_rolloff', 'u_height']) this.u[n] = gl.getUniformLocation(p, n);
     this.vao = gl.createVertexArray();
     this.buffers = null;
     this.kTex = null;
@@ -143,6 +143,10 @@ class Compositor {
     // As the reference: (white balance * exposure) * 65535 in f32.
     const f = Math.fround;
     gl.uniform3f(this.u.u_scale, ...[1, 2, 3].map(c => f(f(display[c] * display[0]) * 65535)));
+    // The roll-off path: white balance * exposure, then display.rs
+    // HighlightRolloff with the server's knee and white (white 0: clip).
+    gl.uniform3f(this.u.u_display_scale, ...[1, 2, 3].map(c => f(display[c] * display[0])));
+    gl.uniform3f(this.u.u_rolloff, display[4], display[5], display[5] > 0 ? 1 : 0);
     gl.bindVertexArray(this.vao);
     gl.drawArrays(gl.TRIANGLES, 0, 3);
   }
@@ -223,8 +227,8 @@ export function start(canvas, img) {
       if (gl) show(true); // back from a moving-camera picture to the composite
       const n = v.getUint32(4, true);
       probe.frame = Number(v.getBigUint64(8, true));
-      display = [16, 20, 24, 28].map(o => v.getFloat32(o, true));
-      const next = new Float32Array(data.slice(32, 32 + 16 * n));
+      display = [16, 20, 24, 28, 32, 36].map(o => v.getFloat32(o, true));
+      const next = new Float32Array(data.slice(40, 40 + 16 * n));
       if (!k || k.length !== next.length || next.some((x, i) => x !== k[i]) || probe.composited < 0) dirty = true;
       k = next;
     } else if (type === MSG_PICTURE) {

@@ -49,7 +49,7 @@ use std::time::Duration;
 use tokio::sync::watch;
 
 /// Protocol version carried in the hello message.
-pub const VERSION: u8 = 1;
+pub const VERSION: u8 = 2;
 /// Message type: hello (first message of every stream).
 pub const MSG_HELLO: u8 = 1;
 /// Message type: one light's buffer.
@@ -450,9 +450,10 @@ impl Client {
 }
 
 /// Hello: `[1, VERSION, mode, 0, width u32, height u32, lights u32, tile u32,
-/// exposure f32, wb r g b f32]`, little-endian (36 bytes).
+/// exposure f32, wb r g b f32, knee f32, white f32]`, little-endian (44
+/// bytes); the display block is [`push_display`]'s.
 pub fn encode_hello(frame: &Frame, mode: Mode) -> Bytes {
-    let mut b = Vec::with_capacity(36);
+    let mut b = Vec::with_capacity(44);
     b.extend_from_slice(&[MSG_HELLO, VERSION, mode.code(), 0]);
     for v in [frame.width, frame.height, frame.buffers.len() as u32, TILE as u32] {
         b.extend_from_slice(&v.to_le_bytes());
@@ -461,8 +462,12 @@ pub fn encode_hello(frame: &Frame, mode: Mode) -> Bytes {
     Bytes::from(b)
 }
 
+/// The display block (24 bytes): exposure, white-balance gains R G B, and
+/// the highlight roll-off's knee and white (display.rs
+/// `HighlightRolloff::uniforms`), both 0 when the display clips at white.
 fn push_display(b: &mut Vec<u8>, d: &Display) {
-    for v in [d.exposure, d.white_balance.x, d.white_balance.y, d.white_balance.z] {
+    let [knee, white] = d.rolloff.map_or([0.0; 2], |r| r.uniforms());
+    for v in [d.exposure, d.white_balance.x, d.white_balance.y, d.white_balance.z, knee, white] {
         b.extend_from_slice(&v.to_le_bytes());
     }
 }
@@ -523,11 +528,11 @@ pub fn encode_cleared(light: u32, generation: u64) -> Bytes {
     Bytes::from(b)
 }
 
-/// Frame: `[3, 0, 0, 0, lights u32, frame u64, exposure f32, wb r g b f32]`
-/// (32 bytes), then per light k_i R, G, B and a time factor (strobe phase
+/// Frame: `[3, 0, 0, 0, lights u32, frame u64, exposure f32, wb r g b f32,
+/// knee f32, white f32]` (40 bytes), then per light k_i R, G, B and a time factor (strobe phase
 /// placeholder, always 1), f32 each (16 bytes per light).
 pub fn encode_frame(frame: &Frame) -> Bytes {
-    let mut b = Vec::with_capacity(32 + 16 * frame.k.len());
+    let mut b = Vec::with_capacity(40 + 16 * frame.k.len());
     b.extend_from_slice(&[MSG_FRAME, 0, 0, 0]);
     b.extend_from_slice(&(frame.k.len() as u32).to_le_bytes());
     b.extend_from_slice(&frame.number.to_le_bytes());
@@ -697,13 +702,18 @@ mod tests {
             haze_density: None,
         };
         let m = encode_frame(&frame);
-        assert_eq!(m.len(), 32 + 2 * 16);
+        assert_eq!(m.len(), 40 + 2 * 16);
         assert_eq!((m[0], u32_at(&m, 4).unwrap(), u64_at(&m, 8).unwrap()), (MSG_FRAME, 2, 7));
         assert_eq!(f32::from_bits(u32_at(&m, 16).unwrap()), display.exposure);
         assert_eq!(f32::from_bits(u32_at(&m, 28).unwrap()), display.white_balance.z);
-        let f = |i: usize| f32::from_bits(u32_at(&m, 32 + 4 * i).unwrap());
+        assert_eq!([u32_at(&m, 32).unwrap(), u32_at(&m, 36).unwrap()], [0, 0], "no roll-off: clip");
+        let f = |i: usize| f32::from_bits(u32_at(&m, 40 + 4 * i).unwrap());
         assert_eq!([f(0), f(1), f(2), f(3), f(4)], [1.0, 2.0, 3.0, 1.0, 0.5]);
         let h = encode_hello(&frame, Mode::Pictures);
-        assert_eq!((h.len(), h[0], h[1], h[2], u32_at(&h, 4).unwrap()), (36, MSG_HELLO, VERSION, 1, 4));
+        assert_eq!((h.len(), h[0], h[1], h[2], u32_at(&h, 4).unwrap()), (44, MSG_HELLO, VERSION, 1, 4));
+        let rolled = Frame { display: display.with_rolloff(Some(Default::default())), ..frame };
+        let m = encode_frame(&rolled);
+        let f = |i: usize| f32::from_bits(u32_at(&m, 32 + 4 * i).unwrap());
+        assert_eq!([f(0), f(1)], crate::render::display::HighlightRolloff::default().uniforms());
     }
 }

@@ -1,6 +1,6 @@
 //! The real-time update of Vierjahn 2010, section 3.3, on the GPU:
 //! I = Σ_i k_i ⊙ buffer_i (eq. 5), then white balance, exposure, clipping and
-//! sRGB, in one compute pipeline (`shaders/composite.wgsl`).
+//! sRGB, in one compute pipeline (the top-level `shaders/composite.wgsl`).
 //!
 //! # Where the data lives
 //! * **Tile pool** (one or more storage buffers, "pages", each within
@@ -58,10 +58,12 @@ pub(crate) struct Params {
     height: u32,
     tiles_x: u32,
     flags: u32,
+    /// Highlight roll-off: knee, white, 1 = on / 0 = off, unused.
+    rolloff: [f32; 4],
 }
 
-// The WGSL struct is vec4<f32> + 4 × u32 = 32 bytes, no padding.
-const _: () = assert!(std::mem::size_of::<Params>() == 32);
+// The WGSL struct is vec4<f32> + 4 × u32 + vec4<f32> = 48 bytes, no padding.
+const _: () = assert!(std::mem::size_of::<Params>() == 48);
 
 /// Where one tile of a light sits.
 #[derive(Clone, Copy, Debug)]
@@ -365,7 +367,7 @@ impl GpuCompositor {
         self.check_weights(k)?;
         let scope = ErrorScopes::push(&self.device);
         let slot = self.readback.acquire(&self.device)?;
-        let mut encoder = self.encode(k, display.scale(), WRITE_DISPLAY)?;
+        let mut encoder = self.encode(k, display.scale(), display.rolloff_uniform(), WRITE_DISPLAY)?;
         encoder.copy_buffer_to_buffer(&self.rgba8, 0, self.readback.buffer(slot), 0, self.readback.bytes());
         let submission = self.queue.submit([encoder.finish()]);
         let id = FrameId(self.next_frame);
@@ -400,7 +402,7 @@ impl GpuCompositor {
             )
         });
         let staging = staging.clone();
-        let mut encoder = self.encode(k, [1.0; 3], WRITE_ACC)?;
+        let mut encoder = self.encode(k, [1.0; 3], [0.0; 4], WRITE_ACC)?;
         encoder.copy_buffer_to_buffer(&self.linear, 0, &staging, 0, bytes);
         let submission = self.queue.submit([encoder.finish()]);
         let status = std::sync::Arc::new(std::sync::Mutex::new(None));
@@ -576,7 +578,13 @@ impl GpuCompositor {
 
     /// Validates `k`, uploads weights and per-page params, and records the
     /// composite passes; the last pass gets `last_flags`.
-    fn encode(&mut self, k: &[[f32; 3]], scale: [f32; 3], last_flags: u32) -> Result<wgpu::CommandEncoder, GpuError> {
+    fn encode(
+        &mut self,
+        k: &[[f32; 3]],
+        scale: [f32; 3],
+        rolloff: [f32; 4],
+        last_flags: u32,
+    ) -> Result<wgpu::CommandEncoder, GpuError> {
         self.check_weights(k)?;
         if self.index_dirty {
             self.rebuild_index();
@@ -618,6 +626,7 @@ impl GpuCompositor {
                 height: self.height,
                 tiles_x: self.tiles_x,
                 flags: *flags,
+                rolloff,
             };
             self.queue.write_buffer(&self.pages[*p].params, 0, bytemuck::bytes_of(&params));
         }
@@ -684,7 +693,7 @@ fn check_limit(what: &str, need: u32, have: u32) -> Result<(), GpuError> {
 
 /// The compute pipeline and its bind group layout (bindings as in composite.wgsl).
 fn create_pipeline(device: &wgpu::Device, format: TileFormat) -> (wgpu::ComputePipeline, wgpu::BindGroupLayout) {
-    let module = device.create_shader_module(wgpu::include_wgsl!("../shaders/composite.wgsl"));
+    let module = device.create_shader_module(wgpu::include_wgsl!("../../../shaders/composite.wgsl"));
     let storage = |read_only| wgpu::BindingType::Buffer {
         ty: wgpu::BufferBindingType::Storage { read_only },
         has_dynamic_offset: false,

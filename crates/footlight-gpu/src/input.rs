@@ -43,6 +43,9 @@ pub struct DisplayParams {
     pub exposure: f32,
     /// Per-channel white-balance gains (1 = none).
     pub white_balance: [f32; 3],
+    /// Highlight roll-off `[knee, white]` in display-linear units (display.rs
+    /// `HighlightRolloff::uniforms`: 0 ≤ knee < 1 < white); `None` clips at white.
+    pub rolloff: Option<[f32; 2]>,
 }
 
 impl DisplayParams {
@@ -50,7 +53,7 @@ impl DisplayParams {
     /// white, no white balance (display.rs `Display::for_white_lux`).
     pub fn for_white_lux(lux: f32) -> Self {
         let lux = if lux.is_finite() && lux > 0.0 { lux } else { 1000.0 };
-        Self { exposure: std::f32::consts::PI / lux, white_balance: [1.0; 3] }
+        Self { exposure: std::f32::consts::PI / lux, white_balance: [1.0; 3], rolloff: None }
     }
 
     /// white_balance × exposure: linear cd/m² to display-linear RGB.
@@ -58,10 +61,16 @@ impl DisplayParams {
         self.white_balance.map(|w| w * self.exposure)
     }
 
+    /// The shader's `rolloff` uniform: knee, white, 1 (on) or all 0 (off).
+    pub(crate) fn rolloff_uniform(&self) -> [f32; 4] {
+        self.rolloff.map_or([0.0; 4], |[knee, white]| [knee, white, 1.0, 0.0])
+    }
+
     pub(crate) fn is_valid(&self) -> bool {
         self.exposure.is_finite()
             && self.exposure >= 0.0
             && self.white_balance.iter().all(|w| w.is_finite() && *w >= 0.0)
+            && self.rolloff.is_none_or(|[knee, white]| (0.0..1.0).contains(&knee) && white.is_finite() && white > 1.0)
     }
 }
 

@@ -21,7 +21,7 @@ fn half_tiles_stay_within_one_code_value_and_2e_minus_11() {
         let mut rng = support::rng(100 + seed as u64);
         let lights: Vec<TestLight> = (0..n).map(|_| support::random_light(&mut rng, w, h, 0.6, 1.0)).collect();
         let k = support::random_k(&mut rng, n, 3.0 / (n as f32).sqrt(), 0.2);
-        let display = DisplayParams { exposure: 0.9, white_balance: [1.0, 0.95, 1.1] };
+        let display = DisplayParams { exposure: 0.9, white_balance: [1.0, 0.95, 1.1], rolloff: None };
         let mut gpu = GpuCompositor::new(ctx.device(), ctx.queue(), w, h, half_options()).unwrap();
         for (i, l) in lights.iter().enumerate() {
             gpu.set_light(i, l.view()).unwrap();

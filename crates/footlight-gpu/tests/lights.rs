@@ -18,7 +18,7 @@ fn a_dark_light_adds_exactly_nothing() {
     let mut rng = support::rng(5);
     let a = support::random_light(&mut rng, W, H, 0.7, 1.0);
     let b = support::random_light(&mut rng, W, H, 0.7, 1.0);
-    let display = DisplayParams { exposure: 0.5, white_balance: [1.0; 3] };
+    let display = DisplayParams { exposure: 0.5, white_balance: [1.0; 3], rolloff: None };
     let mut only_a = compositor(ctx);
     only_a.set_light(0, a.view()).unwrap();
     let mut both = compositor(ctx);
@@ -85,7 +85,7 @@ fn the_pool_grows_and_keeps_earlier_lights() {
     assert!(stats.capacity_tiles > initial, "{stats:?}");
     assert_eq!(stats.pages, 1, "grown in place, not split: {stats:?}");
     let k = support::random_k(&mut rng, lights.len(), 0.2, 0.1);
-    let display = DisplayParams { exposure: 1.0, white_balance: [1.0; 3] };
+    let display = DisplayParams { exposure: 1.0, white_balance: [1.0; 3], rolloff: None };
     let frame = gpu.composite(&k, &display).unwrap();
     assert!(max_code_diff(&frame.rgba8, &cpu_srgb8(&cpu_composite(&lights, &k, w, h), &display)) <= 1);
 }
@@ -159,9 +159,9 @@ fn bad_input_is_an_error_that_changes_nothing() {
 
     assert!(matches!(gpu.composite(&[[f32::NAN, 0.0, 0.0]], &display), Err(GpuError::BadWeight { light: 0, .. })));
     assert!(matches!(gpu.composite(&[[-1.0, 0.0, 0.0]], &display), Err(GpuError::BadWeight { light: 0, .. })));
-    let nan_display = DisplayParams { exposure: f32::NAN, white_balance: [1.0; 3] };
+    let nan_display = DisplayParams { exposure: f32::NAN, white_balance: [1.0; 3], rolloff: None };
     assert!(matches!(gpu.composite(&k, &nan_display), Err(GpuError::BadDisplay(_))));
-    let negative_wb = DisplayParams { exposure: 1.0, white_balance: [1.0, -1.0, 1.0] };
+    let negative_wb = DisplayParams { exposure: 1.0, white_balance: [1.0, -1.0, 1.0], rolloff: None };
     assert!(matches!(gpu.composite(&k, &negative_wb), Err(GpuError::BadDisplay(_))));
 
     // None of it touched light 0.

@@ -50,7 +50,7 @@ pub fn check(
 #[test]
 fn matches_cpu_for_light_counts_and_odd_sizes() {
     let ctx = device_or_skip!();
-    let display = DisplayParams { exposure: 0.8, white_balance: [1.1, 1.0, 0.85] };
+    let display = DisplayParams { exposure: 0.8, white_balance: [1.1, 1.0, 0.85], rolloff: None };
     let mut seed = 1;
     for (w, h) in [(1, 1), (17, 9), (35, 19), (64, 32), (129, 70)] {
         for n in [0usize, 1, 2, 7, 33] {
@@ -73,7 +73,7 @@ fn edge_tiles_cover_the_last_row_and_column() {
     // Only the bottom-right tile, pixel value = its position (distinct everywhere).
     light.slots[(tiles_x + 2) as usize] = 0;
     light.tiles = (0..256u32).map(|p| [(p % 16) as f32 * 0.01 + 0.001, (p / 16) as f32 * 0.01, 0.5]).collect();
-    let display = DisplayParams { exposure: 1.0, white_balance: [1.0; 3] };
+    let display = DisplayParams { exposure: 1.0, white_balance: [1.0; 3], rolloff: None };
     let gpu = check(ctx, w, h, &[light], &[[1.0, 2.0, 0.5]], &display, CompositorOptions::default());
     assert_eq!(gpu.pool_stats().used_tiles, 1);
 }

@@ -17,7 +17,7 @@ fn frames_submitted_ahead_come_back_newest_first() {
     for (i, l) in lights.iter().enumerate() {
         gpu.set_light(i, l.view()).unwrap();
     }
-    let display = DisplayParams { exposure: 1.0, white_balance: [1.0; 3] };
+    let display = DisplayParams { exposure: 1.0, white_balance: [1.0; 3], rolloff: None };
     let k_at = |step: usize| vec![[0.1 * step as f32, 0.2, 0.3]; 4];
     for step in 0..5 {
         assert_eq!(gpu.submit(&k_at(step), &display).unwrap(), FrameId(step as u64));
@@ -39,7 +39,7 @@ fn try_frame_does_not_block_and_delivers() {
     let light = support::random_light(&mut rng, w, h, 1.0, 1.0);
     let mut gpu = GpuCompositor::new(ctx.device(), ctx.queue(), w, h, CompositorOptions::default()).unwrap();
     gpu.set_light(0, light.view()).unwrap();
-    let display = DisplayParams { exposure: 1.0, white_balance: [1.0; 3] };
+    let display = DisplayParams { exposure: 1.0, white_balance: [1.0; 3], rolloff: None };
     let id = gpu.submit(&[[0.5; 3]], &display).unwrap();
     let start = Instant::now();
     let frame = loop {

@@ -1,7 +1,12 @@
 // Footlight GPU compositor: Vierjahn 2010, section 3.3 and eq. (5),
 //     I = Σ_i k_i ⊙ buffer_i,
-// then white balance and exposure (a per-channel scale), clipping to [0, 1]
-// and the sRGB transfer function (IEC 61966-2-1) to RGBA8.
+// then white balance and exposure (a per-channel scale), the highlight
+// roll-off when on (footlight src/render/display.rs HighlightRolloff, its
+// constants in `params.rolloff`), clipping to [0, 1] and the sRGB transfer
+// function (IEC 61966-2-1) to RGBA8.
+//
+// Lives in the top-level shaders/ with the browser's GLSL; the
+// footlight-gpu crate includes it from here.
 //
 // One workgroup per 16×16 screen tile, one invocation per pixel. Each screen
 // tile has a list of (light, pool slot) entries, sorted by light index (the
@@ -39,6 +44,8 @@ struct Params {
     height: u32,
     tiles_x: u32,
     flags: u32,
+    // Highlight roll-off: knee, white (display-linear), on (1) or off (0), unused.
+    rolloff: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -80,6 +87,27 @@ fn srgb_encode(linear_rgb: vec3<f32>) -> vec3<f32> {
     return select(hi, lo, c <= vec3<f32>(0.0031308));
 }
 
+// Highlight roll-off of a display-linear colour (1 = white), display.rs
+// HighlightRolloff::apply: on the largest channel m, identity up to the
+// knee, then u = (m - knee) / (1 - knee), U = (white - knee) / (1 - knee),
+// f = knee + (1 - knee) u (1 + u / U²) / (1 + u), 1 from white on; all
+// three channels scaled by f / m (hue kept).
+fn rolloff(c: vec3<f32>) -> vec3<f32> {
+    let knee = params.rolloff.x;
+    let white = params.rolloff.y;
+    let m = max(c.x, max(c.y, c.z));
+    if (params.rolloff.z == 0.0 || m <= knee) {
+        return c;
+    }
+    var f = 1.0;
+    if (m < white) {
+        let u = (m - knee) / (1.0 - knee);
+        let big_u = (white - knee) / (1.0 - knee);
+        f = knee + (1.0 - knee) * u * (1.0 + u / (big_u * big_u)) / (1.0 + u);
+    }
+    return c * (f / m);
+}
+
 @compute @workgroup_size(16, 16, 1)
 fn composite(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
     let x = wg.x * TILE + lid.x;
@@ -116,9 +144,9 @@ fn composite(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id)
         linear[3u * pixel + 2u] = acc.z;
     }
     if ((params.flags & WRITE_DISPLAY) != 0u) {
-        // White balance and exposure, clip, transfer function; pack4x8unorm
-        // rounds as floor(0.5 + 255 c), like the CPU path.
-        let srgb = srgb_encode(acc * params.scale.xyz);
+        // White balance and exposure, roll-off, clip, transfer function;
+        // pack4x8unorm rounds as floor(0.5 + 255 c), like the CPU path.
+        let srgb = srgb_encode(rolloff(acc * params.scale.xyz));
         rgba8[pixel] = pack4x8unorm(vec4<f32>(srgb, 1.0));
     }
 }
