@@ -95,3 +95,47 @@ fn gpu_composite_of_hazy_knots_matches_cpu() {
     assert!(worst <= 1, "GPU and CPU differ by {worst} code values");
     assert!(g.iter().any(|&c| c > 50), "lit");
 }
+
+/// The highlight roll-off on the GPU (WGSL, its constants as uniforms) as on
+/// the CPU (display.rs), with beams up to 16× over display white: within one
+/// code value, the over-white pixels graded (not all 255), and a live
+/// display change (`set_display`) reaching the next frame without a rebuild.
+#[test]
+fn gpu_rolloff_matches_cpu_over_white() {
+    use footlight::render::display::HighlightRolloff;
+    let (w, h) = (160, 100);
+    let clip = Display::for_white_lux(300.0);
+    let display = clip.with_rolloff(Some(HighlightRolloff { knee: 0.5, white: 12.0 }));
+    let Ok(Some(mut gpu)) = GpuFrames::open(CompositorChoice::Gpu, w, h, clip) else {
+        assert!(std::env::var_os("FOOTLIGHT_REQUIRE_GPU").is_none(), "GPU required but unavailable");
+        eprintln!("skipping: no GPU adapter");
+        return;
+    };
+    let scene = stage();
+    let patch = default_patch();
+    let v = view(&scene, scene.camera.unwrap(), w, h, Sampling::Geometry, 5);
+    let buffers: Vec<LightBuffer> = patch.fixtures.iter().map(|f| v.render_light(&scene, &f.light, None).0).collect();
+    // Bright enough that most lit pixels are over white.
+    let k = vec![Vec3::new(1.0, 0.8, 0.6) * 2e6; buffers.len()];
+    let inputs: Vec<CompositeInput> =
+        buffers.iter().zip(&k).map(|(b, k)| CompositeInput { buffer: b, generation: 0, k: *k }).collect();
+    let clipped = gpu.frame(&inputs).expect("GPU frame");
+    gpu.set_display(&display);
+    let g = gpu.frame(&inputs).expect("GPU frame");
+    let mut cpu = Compositor::new(w, h, display);
+    cpu.update(&inputs);
+    let worst = g.iter().zip(cpu.srgb8()).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
+    assert!(worst <= 1, "GPU and CPU roll-off differ by {worst} code values");
+    let linear = cpu.linear();
+    let over: Vec<usize> = (0..linear.len()).filter(|&i| (linear[i] * display.scale()).max_element() > 2.0).collect();
+    assert!(over.len() > 200, "{} pixels over 2× white", over.len());
+    // Clipped, they are all 255 in their brightest channel; rolled off, they keep gradation.
+    let levels = |rgb: &[u8]| {
+        let mut l: Vec<u8> = over.iter().map(|&i| *rgb[3 * i..3 * i + 3].iter().max().unwrap()).collect();
+        l.sort_unstable();
+        l.dedup();
+        l
+    };
+    assert_eq!(levels(&clipped), vec![255], "clipped at white");
+    assert!(levels(&g).len() > 10, "rolled off: {:?}", levels(&g));
+}
