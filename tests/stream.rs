@@ -547,3 +547,40 @@ fn measure_stream_against_pictures_and_polling() {
     assert_eq!(rows.len(), levels.len());
     assert!(rows.iter().all(|r| r.clients_served == r.clients), "every viewer was served");
 }
+
+/// The browser's GLSL roll-off (shaders/composite.frag, constants from the
+/// stream's display block) against the CPU reference (display.rs) on a ramp
+/// from black to 20× display white: within 2 code values (the stream's f16
+/// buffers), and the over-white part graded instead of clipped.
+#[test]
+fn chromium_rolls_highlights_off_like_the_cpu() {
+    use footlight::render::display::HighlightRolloff;
+    let Some(chromium) = chromium() else { return };
+    let ramp: Vec<Vec3> =
+        (0..W * H).map(|i| Vec3::new(1.0, 0.7, 0.4) * ((i % W) as f32 / (W - 1) as f32).powi(2)).collect();
+    let buffer = Arc::new(LightBuffer::from_dense(W, H, &ramp));
+    let display = Display { white_balance: Vec3::new(1.0, 0.95, 0.9), ..Display::default() }
+        .with_rolloff(Some(HighlightRolloff { knee: 0.55, white: 10.0 }));
+    let k = Vec3::splat(20.0 / display.exposure);
+    let first = Arc::new(Frame { k: Arc::new(vec![k]), display, ..(*frame(1, W, H, buffer.clone(), 1)).clone() });
+    let server = serve(first);
+    let mut browser = Browser::open(chromium, &format!("http://{}/", server.addr));
+    let page = browser.settled(1);
+    assert_eq!(page["mode"], "buffers", "{page}");
+    let got = canvas(&page);
+    let linear = footlight::render::composite::composite(&[&buffer], &[k], W, H);
+    let want = display.to_srgb8(&linear);
+    let worst = got.iter().zip(&want).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
+    assert!(worst <= 2, "browser and CPU roll-off differ by {worst} code values");
+    // Over white: most of the ramp is past display white, and it still
+    // grades where the clipping display shows one flat 255.
+    let over: Vec<usize> =
+        (0..(W * H) as usize).filter(|&i| (linear[i] * display.scale()).max_element() > 1.0).collect();
+    assert!(over.len() as u32 > W * H / 2, "{} pixels over white", over.len());
+    let mut levels: Vec<u8> = over.iter().map(|&i| got[3 * i]).collect();
+    levels.sort_unstable();
+    levels.dedup();
+    assert!(levels.len() > 20 && levels[0] < 240, "over white: {levels:?}");
+    let clipped = Display { rolloff: None, ..display }.to_srgb8(&linear);
+    assert!(over.iter().all(|&i| clipped[3 * i] == 255), "without the roll-off these clip");
+}
