@@ -584,3 +584,54 @@ fn chromium_rolls_highlights_off_like_the_cpu() {
     let clipped = Display { rolloff: None, ..display }.to_srgb8(&linear);
     assert!(over.iter().all(|&i| clipped[3 * i] == 255), "without the roll-off these clip");
 }
+
+/// `POST /api/display` changes the live picture without a rebuild: the
+/// daemon starts with the roll-off (beams over white graded); switching it
+/// off clips them (every channel value at least as high, more at 255, and
+/// equal wherever the picture was below the knee), a higher white_lux
+/// darkens, and bad input is a 400 that changes nothing.
+#[test]
+fn the_display_changes_live_over_http() {
+    use crate::views::http_post;
+    let daemon = Daemon::start();
+    let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    daemon.set(&sock, [255; 6]);
+    let display = || -> serde_json::Value { serde_json::from_slice(&http_get(daemon.http, "/api/display").1).unwrap() };
+    let png = || image::load_from_memory(&http_get(daemon.http, "/api/frame.png").1).unwrap().to_rgb8().into_raw();
+    let settle = |pred: &dyn Fn(&serde_json::Value) -> bool| {
+        let t = Instant::now();
+        while !pred(&display()) {
+            assert!(t.elapsed() < Duration::from_secs(30), "never applied: {}", display());
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    assert_eq!(display()["rolloff"]["white"], 16.0, "on by default in the daemon");
+    let builds = daemon.status()["lights"].clone();
+    let rolled = png();
+    assert_eq!(http_post(daemon.http, "/api/display", r#"{"rolloff": "off"}"#, None), 200);
+    settle(&|d| d["rolloff"].is_null());
+    let clipped = png();
+    assert!(clipped.iter().zip(&rolled).all(|(c, r)| c >= r), "clipping never darkens");
+    let at_255 = |p: &[u8]| p.iter().filter(|&&c| c == 255).count();
+    assert!(at_255(&clipped) > at_255(&rolled) + 100, "{} vs {}", at_255(&clipped), at_255(&rolled));
+    // Below the knee (0.6 display-linear, sRGB code 203) the curve is the identity.
+    let knee_code = 200;
+    assert!(
+        rolled.chunks(3).zip(clipped.chunks(3)).filter(|(r, _)| r.iter().all(|&c| c < knee_code)).all(|(r, c)| r == c)
+    );
+    let bad = [r#"{"rolloff": 0.5}"#, r#"{"white_lux": -3}"#, r#"{"white_balance": "blue"}"#, r#"{"gamma": 2}"#];
+    for body in bad {
+        assert_eq!(http_post(daemon.http, "/api/display", body, None), 400, "{body}");
+    }
+    assert!(display()["rolloff"].is_null() && display()["white_lux"].as_f64().unwrap() > 999.0);
+    assert_eq!(http_post(daemon.http, "/api/display", r#"{"white_lux": 4000, "rolloff": 8}"#, None), 200);
+    settle(&|d| d["rolloff"]["white"] == 8.0);
+    let dark = png();
+    assert!(dark.iter().map(|&c| u64::from(c)).sum::<u64>() < rolled.iter().map(|&c| u64::from(c)).sum::<u64>() / 2);
+    // Nothing was rebuilt for any of it.
+    let after = daemon.status()["lights"].clone();
+    let gens = |l: &serde_json::Value| l.as_array().unwrap().iter().map(|x| x["direct_updates"].clone()).collect::<Vec<_>>();
+    assert!(gens(&after).iter().all(|g| g.as_u64().is_some_and(|n| n > 0)), "{after}");
+    assert_eq!(gens(&builds), gens(&after));
+}

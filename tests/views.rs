@@ -312,7 +312,7 @@ async fn orbit_through_a_recorded_camera_path_with_dmx_ends_on_the_render_and_re
 }
 
 /// A raw HTTP/1.1 POST on loopback; returns the status code.
-fn http_post(addr: std::net::SocketAddr, path: &str, body: &str, token: Option<&str>) -> u16 {
+pub(crate) fn http_post(addr: std::net::SocketAddr, path: &str, body: &str, token: Option<&str>) -> u16 {
     use std::io::{Read, Write};
     let mut s = std::net::TcpStream::connect(addr).unwrap();
     s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();

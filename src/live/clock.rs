@@ -224,6 +224,21 @@ impl FrameClock {
         rgb
     }
 
+    /// Applies display settings written over HTTP (`POST /api/display`) to
+    /// the CPU and GPU compositors and the moving preview: uniforms and a
+    /// re-encode, never a rebuild.
+    fn take_display_change(&mut self) {
+        let Some((views, display)) = &mut self.views else { return };
+        let Some(d) = views.take_display() else { return };
+        *display = d;
+        self.compositor.set_display(d);
+        if let Some(gpu) = &mut self.gpu {
+            gpu.set_display(&d);
+        }
+        self.last_rgb = None;
+        self.last_preview = None;
+    }
+
     /// One frame at the current frame time (seconds since the clock was made).
     pub fn tick(&mut self, universes: &dyn DmxSlots) -> Frame {
         let t = self.epoch.elapsed().as_secs_f64();
@@ -235,6 +250,7 @@ impl FrameClock {
     /// `t_seconds` (strobe: a composite per frame, never a rebuild), publish.
     pub fn tick_at(&mut self, universes: &dyn DmxSlots, t_seconds: f64) -> Frame {
         let t0 = Instant::now();
+        self.take_display_change();
         let mut inputs = self.decoder.decode_at(universes, t_seconds);
         // Haze: the density is a set of weights of this frame (no rebuild).
         let density = self.decoder.haze_density(universes).filter(|_| self.tracer.has_haze());

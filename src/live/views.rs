@@ -533,6 +533,9 @@ pub struct Views {
     settings: ViewSettings,
     state: Mutex<State>,
     wake: Notify,
+    /// Display settings written over HTTP (`POST /api/display`), taken by
+    /// the frame clock on its next tick ([`Views::take_display`]).
+    display: Mutex<Option<Display>>,
 }
 
 impl Views {
@@ -570,6 +573,7 @@ impl Views {
                 last_restored: 0,
             }),
             wake: Notify::new(),
+            display: Mutex::new(None),
         }
     }
 
@@ -659,6 +663,17 @@ impl Views {
             Phase::Moving | Phase::Building => Some(st.target),
             Phase::Still => (self.tracer.view_generation() > 0 && self.tracer.any_queued()).then_some(st.active),
         }
+    }
+
+    /// Asks the frame clock to show from its next frame on with `display`
+    /// (exposure, white balance, roll-off): uniforms only, no rebuild.
+    pub fn set_display(&self, display: Display) {
+        *self.display.lock().unwrap_or_else(|e| e.into_inner()) = Some(display);
+    }
+
+    /// The display settings written since the last call, if any (the frame clock).
+    pub fn take_display(&self) -> Option<Display> {
+        self.display.lock().unwrap_or_else(|e| e.into_inner()).take()
     }
 
     /// The moving preview for `camera` with `lights` (geometry and k_i).

@@ -6,6 +6,11 @@
 //!   or `{"view": "name"}` moves the camera (204).
 //! * `POST /api/views`: `{"name": "…"}` saves the current camera under that
 //!   name, in memory only (201 with the view).
+//! * `GET /api/display`: the display settings of the latest frame.
+//! * `POST /api/display`: `{"white_lux": 500, "white_balance": "5600K",
+//!   "rolloff": "on" | "off" | 8}` (each optional) changes exposure, white
+//!   balance and highlight roll-off from the next frame on, in every
+//!   compositor (uniforms, no rebuild); answers 200 with the new settings.
 //!
 //! **Who may write** ([`write_allowed`]): a client on a loopback address
 //! always may. Any other client must send the token the daemon prints at
@@ -159,6 +164,69 @@ pub(super) async fn post_view(State(app): State<App>, req: Request) -> Response 
         Ok(v) => (StatusCode::CREATED, axum::Json(v)).into_response(),
         Err(e) => error(StatusCode::BAD_REQUEST, e),
     }
+}
+
+/// A display write: each field optional, the rest kept.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DisplayWrite {
+    /// Illuminance on a white Lambert surface shown as white (lx).
+    white_lux: Option<f32>,
+    /// `none`, `tungsten` or a colour temperature (`5600K`).
+    white_balance: Option<String>,
+    /// `on`, `off`, or the level shown as white (a number over 1).
+    rolloff: Option<serde_json::Value>,
+}
+
+/// The display settings as JSON (what `GET /api/display` answers).
+fn display_json(d: &crate::render::Display) -> serde_json::Value {
+    serde_json::json!({
+        "exposure": d.exposure,
+        "white_lux": std::f32::consts::PI / d.exposure,
+        "white_balance": d.white_balance.to_array(),
+        "rolloff": d.rolloff.map(|r| serde_json::json!({ "knee": r.knee, "white": r.white })),
+    })
+}
+
+/// `GET /api/display`.
+pub(super) async fn get_display(State(app): State<App>) -> Response {
+    let display = app.state.frames.borrow().display;
+    axum::Json(display_json(&display)).into_response()
+}
+
+/// `POST /api/display`.
+pub(super) async fn post_display(State(app): State<App>, req: Request) -> Response {
+    use crate::render::display::{parse_rolloff, parse_white_balance};
+    let (views, write) = match authorized_json::<DisplayWrite>(&app, req).await {
+        Ok(x) => x,
+        Err(r) => return r,
+    };
+    let mut d = app.state.frames.borrow().display;
+    if let Some(lux) = write.white_lux {
+        if !(lux.is_finite() && lux > 0.0 && lux <= 1e7) {
+            return error(StatusCode::BAD_REQUEST, format!("white_lux {lux}: must be above 0 and at most 1e7 lx"));
+        }
+        d.exposure = std::f32::consts::PI / lux;
+    }
+    if let Some(wb) = &write.white_balance {
+        match parse_white_balance(wb) {
+            Ok(g) => d.white_balance = g,
+            Err(e) => return error(StatusCode::BAD_REQUEST, format!("white_balance {e}")),
+        }
+    }
+    if let Some(r) = &write.rolloff {
+        let text = match r {
+            serde_json::Value::String(s) => s.clone(),
+            serde_json::Value::Number(n) => n.to_string(),
+            other => return error(StatusCode::BAD_REQUEST, format!("rolloff {other}: expected \"on\", \"off\" or a number")),
+        };
+        match parse_rolloff(&text) {
+            Ok(r) => d.rolloff = r,
+            Err(e) => return error(StatusCode::BAD_REQUEST, format!("rolloff {e}")),
+        }
+    }
+    views.set_display(d);
+    axum::Json(display_json(&d)).into_response()
 }
 
 /// `GET /api/views`.

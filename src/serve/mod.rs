@@ -10,7 +10,7 @@
 //! * `/api/stream`: the browser stream (WebSocket, [`stream`], issue 17):
 //!   per-light buffers once, then k_i per frame; the page composites eq. 5
 //!   with WebGL2 (`/stream.js`, shaders in `shaders/`).
-//! * `/api/camera`, `/api/views`, `/camera.js`: the camera controls
+//! * `/api/camera`, `/api/views`, `/api/display`, `/camera.js`: the camera and display controls
 //!   ([`control`]); the only writes, allowed from loopback or with the token.
 //!
 //! Frames come from the frame clock's `watch` channel ([`ServeState::frames`]);
@@ -85,6 +85,7 @@ fn routes(state: ServeState, stats: Arc<ServeStats>) -> Router {
         .route("/api/frame.png", get(frame_png))
         .route("/api/camera", post(control::post_camera))
         .route("/api/views", get(control::get_views).post(control::post_view))
+        .route("/api/display", get(control::get_display).post(control::post_display))
         .route("/camera.js", get(control::camera_js))
         .with_state(app)
         .merge(Router::new().route("/api/stream", get(stream::handler)).with_state(stream))
