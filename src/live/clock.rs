@@ -132,7 +132,7 @@ pub struct FrameClock {
 }
 
 /// The last moving preview: its camera, every light with its k_i, its pixels.
-type LastPreview = (crate::scene::Camera, Vec<(Light, Vec3)>, Arc<Vec<u8>>);
+type LastPreview = (crate::scene::Camera, (Vec<(Light, Vec3)>, Option<f32>), Arc<Vec<u8>>);
 
 /// The eq. 5 entries of a frame: every light's buffer with k_i; in haze
 /// (`density` given) every light's buffer at each density knot with
@@ -278,12 +278,13 @@ impl FrameClock {
         {
             // The camera moves: one cheap pass with this frame's k_i, so DMX
             // shows on whatever is on screen (docs/live.md "Walking the stage").
-            let key: Vec<(Light, Vec3)> = inputs.iter().map(|i| (i.light.clone(), i.k)).collect();
+            let key: (Vec<(Light, Vec3)>, Option<f32>) =
+                (inputs.iter().map(|i| (i.light.clone(), i.k)).collect(), density);
             let rgb = match &self.last_preview {
                 Some((c, k, rgb)) if *c == camera && *k == key => rgb.clone(),
                 _ => {
                     let lights: Vec<(&Light, Vec3)> = inputs.iter().map(|i| (&i.light, i.k)).collect();
-                    let rgb = Arc::new(views.preview(&camera, &lights, display));
+                    let rgb = Arc::new(views.preview(&camera, &lights, display, density));
                     self.last_preview = Some((camera, key, rgb.clone()));
                     rgb
                 }

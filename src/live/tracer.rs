@@ -409,6 +409,11 @@ impl Tracer {
         self.shared.haze.is_some()
     }
 
+    /// The haze at 100 % (the patch's `[haze]`), if the lights are built in it.
+    pub fn medium(&self) -> Option<crate::render::media::Medium> {
+        self.shared.haze
+    }
+
     /// Light builds started since start (one per direct stage run).
     pub fn builds(&self) -> u64 {
         self.shared.builds.load(Ordering::SeqCst)

@@ -676,9 +676,18 @@ impl Views {
         self.display.lock().unwrap_or_else(|e| e.into_inner()).take()
     }
 
-    /// The moving preview for `camera` with `lights` (geometry and k_i).
-    pub fn preview(&self, camera: &Camera, lights: &[(&Light, Vec3)], display: &Display) -> Vec<u8> {
-        let linear = preview(&self.scene, camera, self.width, self.height, self.settings.preview_scale, lights);
+    /// The moving preview for `camera` with `lights` (geometry and k_i), in
+    /// the tracer's haze at `density` (0-1 of the patch's; `None` or 0: clear).
+    pub fn preview(
+        &self,
+        camera: &Camera,
+        lights: &[(&Light, Vec3)],
+        display: &Display,
+        density: Option<f32>,
+    ) -> Vec<u8> {
+        let haze = self.tracer.medium().zip(density);
+        let (w, h, scale) = (self.width, self.height, self.settings.preview_scale);
+        let linear = preview_in_haze(&self.scene, camera, w, h, scale, lights, haze.as_ref().map(|(m, d)| (m, *d)));
         if let Err((i, v)) = crate::render::display::check_finite(&linear) {
             tracing::error!("moving preview: pixel {i} is {v} (a bug)");
         }
@@ -831,6 +840,128 @@ pub fn preview(
     scale: u32,
     lights: &[(&Light, Vec3)],
 ) -> Vec<Vec3> {
+    preview_in_haze(scene, camera, width, height, scale, lights, None)
+}
+
+/// Samples per ray of the preview's beams (the live tracer's coarse stage,
+/// [`HazeQuality::COARSE`](crate::render::media::HazeQuality::COARSE)).
+pub const PREVIEW_HAZE_SAMPLES: u32 = crate::render::media::HazeQuality::COARSE.samples;
+
+/// As [`preview`], in `haze` = (the medium at 100 %, density 0-1): each
+/// surface term dimmed by e^(−d κ_s) (camera and light paths through the
+/// box, as `render::media::resolve`), plus each light's single scattering
+/// d σ_s a0 e^(−d κ) along the ray ([`integrate_ray`](crate::render::media::integrate_ray),
+/// equiangular, [`PREVIEW_HAZE_SAMPLES`] samples), traced only inside the
+/// beam's screen bounds (`single::beam_screen_bounds`) on every second
+/// pixel of the reduced image in x and y (the coarse stage's grid at the
+/// default preview scale 2) and replicated. A clear medium or d = 0 is
+/// exactly [`preview`].
+pub fn preview_in_haze(
+    scene: &Scene,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    scale: u32,
+    lights: &[(&Light, Vec3)],
+    haze: Option<(&crate::render::media::Medium, f32)>,
+) -> Vec<Vec3> {
+    let haze = haze
+        .map(|(m, d)| (m, crate::render::media::medium::clean_density(d)))
+        .filter(|(m, d)| *d > 0.0 && !m.is_clear());
+    let Some((medium, d)) = haze else { return preview_clear(scene, camera, width, height, scale, lights) };
+    use crate::render::media::single::{HazeView, beam_screen_bounds, integrate_ray};
+    let scale = scale.max(1);
+    let (sw, sh) = (width.div_ceil(scale).max(1), height.div_ceil(scale).max(1));
+    let lit: Vec<(&Light, Vec3)> = lights.iter().copied().filter(|(_, k)| k.max_element() > 0.0).collect();
+    let primary = RecursionLimits { max_depth: 0, ..RecursionLimits::default() };
+    let n = (sw * sh) as usize;
+    let dirs: Vec<Vec3> =
+        (0..n).map(|i| camera.direction((i % sw as usize) as f32 + 0.5, (i / sw as usize) as f32 + 0.5, sw, sh)).collect();
+    let hits: Vec<_> = dirs.par_iter().map(|dir| scene.accel.intersect(camera.position, *dir, f32::INFINITY)).collect();
+    let t_hit: Vec<f32> = hits.iter().map(|h| h.as_ref().map_or(f32::INFINITY, |h| h.t)).collect();
+    let (sigma_t, sigma_tl, sigma_s) = (medium.sigma_t(), medium.sigma_t_light(), medium.sigma_s);
+    let cam = camera.position;
+    // Surfaces, each light's term dimmed along its camera and light paths.
+    let mut small = vec![Vec3::ZERO; n];
+    small.par_chunks_mut(sw as usize).enumerate().for_each(|(y, row)| {
+        let mut vertices = Vec::new();
+        for (x, out) in row.iter_mut().enumerate() {
+            let i = y * sw as usize + x;
+            let Some(hit) = &hits[i] else { continue };
+            let p = cam + dirs[i] * hit.t;
+            let cam_path = sigma_t * medium.length_inside(cam, p);
+            vertices.clear();
+            expand(scene, scene.surface(hit), dirs[i], Vec3::ONE, primary, &mut vertices);
+            *out = vertices
+                .iter()
+                .map(|v| {
+                    lit.iter()
+                        .map(|(light, k)| {
+                            let kappa_s = cam_path + sigma_tl * medium.length_inside(p, light.position);
+                            *k * v.weight * crate::render::whitted::direct(scene, light, v) * (-d * kappa_s).exp()
+                        })
+                        .sum::<Vec3>()
+                })
+                .sum();
+        }
+    });
+    // Beams: on the half-resolution grid of the reduced image, inside each beam's bounds.
+    let hv = HazeView::from_rays(*camera, sw, sh, dirs, t_hit);
+    let bounds: Vec<Option<(usize, usize, usize, usize)>> =
+        lit.iter().map(|(light, _)| beam_screen_bounds(&hv, light, medium)).collect();
+    let (gw, gh) = (sw.div_ceil(2) as usize, sh.div_ceil(2) as usize);
+    let mut grid = vec![Vec3::ZERO; gw * gh];
+    grid.par_chunks_mut(gw).enumerate().for_each(|(gy, row)| {
+        let y = 2 * gy;
+        for (gx, out) in row.iter_mut().enumerate() {
+            let x = 2 * gx;
+            // The ray through the centre of the 2×2 block this grid point stands for.
+            let mut ray = None;
+            for ((light, k), b) in lit.iter().zip(&bounds) {
+                // The bounds hold the whole beam; a block touching them is traced.
+                let Some((x0, y0, x1, y1)) = *b else { continue };
+                if x + 2 <= x0 || x >= x1 || y + 2 <= y0 || y >= y1 {
+                    continue;
+                }
+                let (dir, t) = *ray.get_or_insert_with(|| {
+                    let dir = camera.direction(x as f32 + 1.0, y as f32 + 1.0, sw, sh);
+                    (dir, scene.accel.intersect(cam, dir, f32::INFINITY).map_or(f32::INFINITY, |h| h.t))
+                });
+                let a = integrate_ray(scene, medium, light, cam, dir, t, PREVIEW_HAZE_SAMPLES);
+                if a.a0 > 0.0 && a.a0.is_finite() {
+                    *out += *k * (d * sigma_s * a.a0 * (-d * a.kappa()).exp());
+                }
+            }
+        }
+    });
+    for (i, v) in small.iter_mut().enumerate() {
+        let (x, y) = (i % sw as usize, i / sw as usize);
+        *v += grid[(y / 2) * gw + x / 2];
+    }
+    upscale(&small, sw, sh, width, height, scale)
+}
+
+/// Replicates the reduced `sw`×`sh` picture to `width`×`height`.
+fn upscale(small: &[Vec3], sw: u32, sh: u32, width: u32, height: u32, scale: u32) -> Vec<Vec3> {
+    let mut full = vec![Vec3::ZERO; (width * height) as usize];
+    full.par_chunks_mut(width.max(1) as usize).enumerate().for_each(|(y, row)| {
+        let sy = (y as u32 / scale).min(sh - 1);
+        for (x, out) in row.iter_mut().enumerate() {
+            *out = small[(sy * sw + (x as u32 / scale).min(sw - 1)) as usize];
+        }
+    });
+    full
+}
+
+/// [`preview`] without haze.
+fn preview_clear(
+    scene: &Scene,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    scale: u32,
+    lights: &[(&Light, Vec3)],
+) -> Vec<Vec3> {
     let scale = scale.max(1);
     let (sw, sh) = (width.div_ceil(scale).max(1), height.div_ceil(scale).max(1));
     let lit: Vec<(&Light, Vec3)> = lights.iter().copied().filter(|(_, k)| k.max_element() > 0.0).collect();
@@ -853,14 +984,7 @@ pub fn preview(
                 .sum();
         }
     });
-    let mut full = vec![Vec3::ZERO; (width * height) as usize];
-    full.par_chunks_mut(width.max(1) as usize).enumerate().for_each(|(y, row)| {
-        let sy = (y as u32 / scale).min(sh - 1);
-        for (x, out) in row.iter_mut().enumerate() {
-            *out = small[(sy * sw + (x as u32 / scale).min(sw - 1)) as usize];
-        }
-    });
-    full
+    upscale(&small, sw, sh, width, height, scale)
 }
 
 #[cfg(test)]

@@ -105,6 +105,14 @@ impl HazeView {
         Self { width: w, height: h, camera, dirs, t_hit }
     }
 
+    /// A view from rays already traced (`dirs` unit, `t_hit` ∞ for a miss,
+    /// both row-major over `width`×`height`): the moving-camera preview's
+    /// reduced picture (src/live/views.rs), which has no G-buffer.
+    pub fn from_rays(camera: Camera, width: u32, height: u32, dirs: Vec<Vec3>, t_hit: Vec<f32>) -> Self {
+        assert_eq!((dirs.len(), t_hit.len()), ((width * height) as usize, (width * height) as usize), "rays");
+        Self { width, height, camera, dirs, t_hit }
+    }
+
     /// Centre-ray direction of pixel `i` (row-major).
     pub fn dir(&self, i: usize) -> Vec3 {
         self.dirs[i]
