@@ -831,16 +831,16 @@ fn a_light_dropped_from_refinement_ends_on_the_exact_estimate() {
 
 /// The moving preview in haze against the built light in haze: the
 /// preview's change from the clear preview (dimmed surfaces plus the beam,
-/// primary rays on a 1/2 image, beams on a 1/4 grid with 8 samples) against
+/// primary rays on a 1/2 image, beams on a 1/8 grid with 8 samples) against
 /// the change the live path composites (`render_inscatter` at every pixel
 /// with 64 samples, resolved at the same density by `media::resolve`).
-/// On a black stage (only the air scatters): totals within 15 %, 8×8-pixel
-/// blocks within 20 % relative L1; density 0 is the clear preview exactly.
+/// On a black stage (only the air scatters): totals within 18 %, 8×8-pixel
+/// blocks within 30 % relative L1; density 0 is the clear preview exactly.
 #[test]
 fn the_moving_preview_shows_the_beams_in_haze_like_the_built_light() {
     use footlight::live::views::preview_in_haze;
     use footlight::render::media::{HazeQuality, HazeView, Medium, render_inscatter, resolve};
-    let (w, h) = (192, 128);
+    let (w, h) = (384, 256);
     // A black floor and cube: what haze adds is the beam in the air alone
     // (the surface dimming is the same e^(−d κ_s) as `resolve`'s).
     let scene = {
@@ -883,10 +883,11 @@ fn the_moving_preview_shows_the_beams_in_haze_like_the_built_light() {
     };
     let l1 = blocks(&got).iter().zip(&blocks(&want)).map(|(a, b)| (a - b).abs()).sum::<f32>() / scale;
     eprintln!("preview in haze vs the built light: total {:.2} %, rel. L1 {:.1} %", 100.0 * total, 100.0 * l1);
-    // Measured: total 11.0 % low, rel. L1 14.5 % (the 1/4 grid undersamples
-    // the bright, thin cone near the lamp; 8 vs 64 samples changes < 1 %).
-    assert!(total < 0.15, "total off by {:.1} %", 100.0 * total);
-    assert!(l1 < 0.20, "rel. L1 {:.1} %", 100.0 * l1);
+    // Measured: total 12.7 % low, rel. L1 22.1 %. The 1/8 grid undersamples
+    // the in-scatter's 1/b peak around the lamp (b: the ray's distance from
+    // it), so a coarse grid reads low there; 8 vs 64 samples changes < 1 %.
+    assert!(total < 0.18, "total off by {:.1} %", 100.0 * total);
+    assert!(l1 < 0.30, "rel. L1 {:.1} %", 100.0 * l1);
     // The beam reads in the preview: a visible share of the picture gains light.
     assert!(got.iter().filter(|&&x| x > 0.0).count() > (w * h / 20) as usize);
 }

@@ -184,10 +184,12 @@ pub fn run(
             if frames.has_changed().unwrap_or(false) {
                 let f = frames.borrow_and_update().clone();
                 if last_rgb.as_ref().is_none_or(|l| !Arc::ptr_eq(l, &f.rgb)) {
-                    // Only a moving preview's time is the preview's: a
-                    // composite frame in between (before the first write
-                    // lands, or a GPU submit) takes microseconds and once
-                    // made the median read 0.0 ms.
+                    // Only a moving preview's time is the preview's (a
+                    // composite frame takes microseconds). A frame showing
+                    // the last preview again carries that preview's time
+                    // (clock.rs): after a slow tick the clock catches up at
+                    // once and this loop sees only the reused frame, which
+                    // made the median read 0.0 ms before.
                     if f.preview {
                         preview.push(f.composite_time.as_secs_f64() * 1e3);
                         haze_density = f.haze_density;

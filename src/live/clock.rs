@@ -85,7 +85,7 @@ pub struct Frame {
     pub rgb: Arc<Vec<u8>>,
     /// Luminance of each light's k_i (cd) in this frame, 0 when dark.
     pub intensity: Arc<Vec<f32>>,
-    /// Composite time of this frame.
+    /// Composite time of this frame; for a moving preview, the time its picture took (also when reused).
     pub composite_time: Duration,
     /// What the incremental composite did.
     pub update: UpdateStats,
@@ -131,8 +131,9 @@ pub struct FrameClock {
     last_preview: Option<LastPreview>,
 }
 
-/// The last moving preview: its camera, every light with its k_i, its pixels.
-type LastPreview = (crate::scene::Camera, (Vec<(Light, Vec3)>, Option<f32>), Arc<Vec<u8>>);
+/// The last moving preview: its camera, every light with its k_i and the
+/// haze density, its pixels, and how long it took to make.
+type LastPreview = (crate::scene::Camera, (Vec<(Light, Vec3)>, Option<f32>), Arc<Vec<u8>>, Duration);
 
 /// The eq. 5 entries of a frame: every light's buffer with k_i; in haze
 /// (`density` given) every light's buffer at each density knot with
@@ -280,13 +281,17 @@ impl FrameClock {
             // shows on whatever is on screen (docs/live.md "Walking the stage").
             let key: (Vec<(Light, Vec3)>, Option<f32>) =
                 (inputs.iter().map(|i| (i.light.clone(), i.k)).collect(), density);
-            let rgb = match &self.last_preview {
-                Some((c, k, rgb)) if *c == camera && *k == key => rgb.clone(),
+            // A frame that shows the last preview again reports the time that
+            // preview took: after a slow tick the clock catches up at once, and
+            // a reader that only sees the newest frame would else read ~0 ms.
+            let (rgb, made_in) = match &self.last_preview {
+                Some((c, k, rgb, made_in)) if *c == camera && *k == key => (rgb.clone(), *made_in),
                 _ => {
                     let lights: Vec<(&Light, Vec3)> = inputs.iter().map(|i| (&i.light, i.k)).collect();
                     let rgb = Arc::new(views.preview(&camera, &lights, display, density));
-                    self.last_preview = Some((camera, key, rgb.clone()));
-                    rgb
+                    let made_in = t0.elapsed();
+                    self.last_preview = Some((camera, key, rgb.clone(), made_in));
+                    (rgb, made_in)
                 }
             };
             // The composite's own picture is stale now; recompose on return.
@@ -297,7 +302,7 @@ impl FrameClock {
                 height: self.compositor.height(),
                 rgb,
                 intensity: Arc::new(inputs.iter().map(|input| luminance(input.k)).collect()),
-                composite_time: t0.elapsed(),
+                composite_time: made_in,
                 update: UpdateStats::default(),
                 // The buffer stream keeps the last full view while the camera
                 // moves (its clients composite those buffers with this k).

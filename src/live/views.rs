@@ -847,15 +847,20 @@ pub fn preview(
 /// [`HazeQuality::COARSE`](crate::render::media::HazeQuality::COARSE)).
 pub const PREVIEW_HAZE_SAMPLES: u32 = crate::render::media::HazeQuality::COARSE.samples;
 
+/// The preview's beam grid: every 4th pixel of the reduced image in x and
+/// y (1/8 of the picture at the default preview scale 2), chosen so that
+/// six beams cost about what the surfaces cost (`footlight bench
+/// --walk-only --patch patch/haze-rig.toml`; docs/live.md).
+pub const PREVIEW_HAZE_STEP: u32 = 4;
+
 /// As [`preview`], in `haze` = (the medium at 100 %, density 0-1): each
 /// surface term dimmed by e^(−d κ_s) (camera and light paths through the
 /// box, as `render::media::resolve`), plus each light's single scattering
 /// d σ_s a0 e^(−d κ) along the ray ([`integrate_ray`](crate::render::media::integrate_ray),
 /// equiangular, [`PREVIEW_HAZE_SAMPLES`] samples), traced only inside the
-/// beam's screen bounds (`single::beam_screen_bounds`) on every second
-/// pixel of the reduced image in x and y (the coarse stage's grid at the
-/// default preview scale 2) and replicated. A clear medium or d = 0 is
-/// exactly [`preview`].
+/// beam's screen bounds (`single::beam_screen_bounds`) on every
+/// [`PREVIEW_HAZE_STEP`]-th pixel of the reduced image in x and y, and
+/// interpolated bilinearly. A clear medium or d = 0 is exactly [`preview`].
 pub fn preview_in_haze(
     scene: &Scene,
     camera: &Camera,
@@ -905,26 +910,29 @@ pub fn preview_in_haze(
                 .sum();
         }
     });
-    // Beams: on the half-resolution grid of the reduced image, inside each beam's bounds.
+    // Beams: on a grid of every PREVIEW_HAZE_STEP-th pixel of the reduced
+    // image (the ray through each block's centre), inside each beam's
+    // bounds, interpolated bilinearly back.
     let hv = HazeView::from_rays(*camera, sw, sh, dirs, t_hit);
     let bounds: Vec<Option<(usize, usize, usize, usize)>> =
         lit.iter().map(|(light, _)| beam_screen_bounds(&hv, light, medium)).collect();
-    let (gw, gh) = (sw.div_ceil(2) as usize, sh.div_ceil(2) as usize);
+    let step = PREVIEW_HAZE_STEP as usize;
+    let (gw, gh) = ((sw as usize).div_ceil(step), (sh as usize).div_ceil(step));
     let mut grid = vec![Vec3::ZERO; gw * gh];
     grid.par_chunks_mut(gw).enumerate().for_each(|(gy, row)| {
-        let y = 2 * gy;
         for (gx, out) in row.iter_mut().enumerate() {
-            let x = 2 * gx;
-            // The ray through the centre of the 2×2 block this grid point stands for.
+            let (x, y) = (gx * step, gy * step);
             let mut ray = None;
             for ((light, k), b) in lit.iter().zip(&bounds) {
-                // The bounds hold the whole beam; a block touching them is traced.
+                // The bounds hold the whole beam; a block whose interpolation
+                // reaches into them (one block either side) is traced.
                 let Some((x0, y0, x1, y1)) = *b else { continue };
-                if x + 2 <= x0 || x >= x1 || y + 2 <= y0 || y >= y1 {
+                if x + 2 * step <= x0 || x >= x1 + step || y + 2 * step <= y0 || y >= y1 + step {
                     continue;
                 }
                 let (dir, t) = *ray.get_or_insert_with(|| {
-                    let dir = camera.direction(x as f32 + 1.0, y as f32 + 1.0, sw, sh);
+                    let c = step as f32 / 2.0;
+                    let dir = camera.direction(x as f32 + c, y as f32 + c, sw, sh);
                     (dir, scene.accel.intersect(cam, dir, f32::INFINITY).map_or(f32::INFINITY, |h| h.t))
                 });
                 let a = integrate_ray(scene, medium, light, cam, dir, t, PREVIEW_HAZE_SAMPLES);
@@ -934,10 +942,20 @@ pub fn preview_in_haze(
             }
         }
     });
-    for (i, v) in small.iter_mut().enumerate() {
-        let (x, y) = (i % sw as usize, i / sw as usize);
-        *v += grid[(y / 2) * gw + x / 2];
-    }
+    let axis = |p: usize, n: usize| {
+        let f = ((p as f32 + 0.5) / step as f32 - 0.5).max(0.0);
+        let a = (f as usize).min(n - 1);
+        (a, (a + 1).min(n - 1), f - a as f32)
+    };
+    small.par_chunks_mut(sw as usize).enumerate().for_each(|(y, row)| {
+        let (ya, yb, fy) = axis(y, gh);
+        for (x, v) in row.iter_mut().enumerate() {
+            let (xa, xb, fx) = axis(x, gw);
+            let top = grid[ya * gw + xa] * (1.0 - fx) + grid[ya * gw + xb] * fx;
+            let bottom = grid[yb * gw + xa] * (1.0 - fx) + grid[yb * gw + xb] * fx;
+            *v += top * (1.0 - fy) + bottom * fy;
+        }
+    });
     upscale(&small, sw, sh, width, height, scale)
 }
 
