@@ -631,7 +631,8 @@ fn the_display_changes_live_over_http() {
     assert!(dark.iter().map(|&c| u64::from(c)).sum::<u64>() < rolled.iter().map(|&c| u64::from(c)).sum::<u64>() / 2);
     // Nothing was rebuilt for any of it.
     let after = daemon.status()["lights"].clone();
-    let gens = |l: &serde_json::Value| l.as_array().unwrap().iter().map(|x| x["direct_updates"].clone()).collect::<Vec<_>>();
+    let gens =
+        |l: &serde_json::Value| l.as_array().unwrap().iter().map(|x| x["direct_updates"].clone()).collect::<Vec<_>>();
     assert!(gens(&after).iter().all(|g| g.as_u64().is_some_and(|n| n > 0)), "{after}");
     assert_eq!(gens(&builds), gens(&after));
 }

@@ -57,6 +57,70 @@ pub struct WalkReport {
     pub full_quality_error: PictureError,
     /// One view change stage by stage ([`profile`]).
     pub profile: Option<ViewProfile>,
+    /// With a `[haze]` patch: the moving preview alone on the start view,
+    /// clear and in the haze ([`preview_cost`]).
+    pub haze_preview: Option<PreviewCost>,
+}
+
+/// The moving preview's own cost, without and with haze (same view, same
+/// lights, every light at k = 1000 cd, the daemon stopped).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct PreviewCost {
+    /// Runs of each.
+    pub runs: usize,
+    /// Clear preview: median, min and max, ms.
+    pub clear_ms: [f64; 3],
+    /// In the patch's haze at its density: median, min and max, ms.
+    pub haze_ms: [f64; 3],
+    /// The density.
+    pub density: f32,
+}
+
+/// Times [`crate::live::views::preview_in_haze`] `runs` times without and
+/// with `patch`'s haze on `camera` (`None` without a `[haze]`).
+pub fn preview_cost(
+    scene: &Scene,
+    patch: &crate::Patch,
+    camera: &Camera,
+    (width, height): (u32, u32),
+    runs: usize,
+) -> Option<PreviewCost> {
+    use crate::live::views::preview_in_haze;
+    let spec = patch.haze.as_ref()?;
+    let medium = crate::render::media::Medium::from_spec(spec, scene)?;
+    let lights: Vec<(&crate::Light, glam::Vec3)> =
+        patch.fixtures.iter().map(|f| (&f.light, glam::Vec3::splat(1000.0))).collect();
+    let scale = crate::live::views::ViewSettings::default().preview_scale;
+    let time = |haze: Option<(&crate::render::media::Medium, f32)>| {
+        let mut t: Vec<f64> = (0..runs.max(1))
+            .map(|_| {
+                let t0 = Instant::now();
+                std::hint::black_box(preview_in_haze(scene, camera, width, height, scale, &lights, haze));
+                t0.elapsed().as_secs_f64() * 1e3
+            })
+            .collect();
+        t.sort_by(f64::total_cmp);
+        [t[t.len() / 2], t[0], t[t.len() - 1]]
+    };
+    let clear_ms = time(None);
+    let haze_ms = time(Some((&medium, spec.density)));
+    Some(PreviewCost { runs: runs.max(1), clear_ms, haze_ms, density: spec.density })
+}
+
+impl PreviewCost {
+    /// One Markdown sentence.
+    pub fn markdown(&self) -> String {
+        let [c, c0, c1] = self.clear_ms;
+        let [h, h0, h1] = self.haze_ms;
+        format!(
+            "\nThe moving preview alone on the start view ({} runs, median [min-max]): clear {c:.1} ms [{c0:.1}-{c1:.1}], \
+             **in haze at density {:.2}: {h:.1} ms [{h0:.1}-{h1:.1}]** (+{:.0} %; beams on a 1/8 grid, {} samples).\n",
+            self.runs,
+            self.density,
+            100.0 * (h / c - 1.0),
+            crate::live::views::PREVIEW_HAZE_SAMPLES,
+        )
+    }
 }
 
 /// How far one displayed picture is from another (8-bit sRGB, all channels).
@@ -114,7 +178,7 @@ impl WalkReport {
             self.full_quality_error.over_8 * 100.0,
             self.full_quality_error.max,
             self.profile.as_ref().map(ViewProfile::markdown).unwrap_or_default()
-        )
+        ) + &self.haze_preview.map(|p| p.markdown()).unwrap_or_default()
     }
 }
 
@@ -231,6 +295,7 @@ pub fn run(
     let cached_restored = (handle.status)().view.last_restored;
 
     running.stop()?;
+    let haze_preview = preview_cost(scene, patch, &camera, (width, height), 7);
     preview.sort_by(f64::total_cmp);
     Ok(WalkReport {
         width,
@@ -248,6 +313,7 @@ pub fn run(
         frame_ms,
         full_quality_error,
         profile: Some(profile),
+        haze_preview,
     })
 }
 

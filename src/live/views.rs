@@ -880,8 +880,9 @@ pub fn preview_in_haze(
     let lit: Vec<(&Light, Vec3)> = lights.iter().copied().filter(|(_, k)| k.max_element() > 0.0).collect();
     let primary = RecursionLimits { max_depth: 0, ..RecursionLimits::default() };
     let n = (sw * sh) as usize;
-    let dirs: Vec<Vec3> =
-        (0..n).map(|i| camera.direction((i % sw as usize) as f32 + 0.5, (i / sw as usize) as f32 + 0.5, sw, sh)).collect();
+    let dirs: Vec<Vec3> = (0..n)
+        .map(|i| camera.direction((i % sw as usize) as f32 + 0.5, (i / sw as usize) as f32 + 0.5, sw, sh))
+        .collect();
     let hits: Vec<_> = dirs.par_iter().map(|dir| scene.accel.intersect(camera.position, *dir, f32::INFINITY)).collect();
     let t_hit: Vec<f32> = hits.iter().map(|h| h.as_ref().map_or(f32::INFINITY, |h| h.t)).collect();
     let (sigma_t, sigma_tl, sigma_s) = (medium.sigma_t(), medium.sigma_t_light(), medium.sigma_s);

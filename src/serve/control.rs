@@ -218,7 +218,9 @@ pub(super) async fn post_display(State(app): State<App>, req: Request) -> Respon
         let text = match r {
             serde_json::Value::String(s) => s.clone(),
             serde_json::Value::Number(n) => n.to_string(),
-            other => return error(StatusCode::BAD_REQUEST, format!("rolloff {other}: expected \"on\", \"off\" or a number")),
+            other => {
+                return error(StatusCode::BAD_REQUEST, format!("rolloff {other}: expected \"on\", \"off\" or a number"));
+            }
         };
         match parse_rolloff(&text) {
             Ok(r) => d.rolloff = r,
