@@ -219,7 +219,10 @@ pub(super) async fn post_display(State(app): State<App>, req: Request) -> Respon
             serde_json::Value::String(s) => s.clone(),
             serde_json::Value::Number(n) => n.to_string(),
             other => {
-                return error(StatusCode::BAD_REQUEST, format!("rolloff {other}: expected \"on\", \"off\" or a number"));
+                return error(
+                    StatusCode::BAD_REQUEST,
+                    format!("rolloff {other}: expected \"on\", \"off\" or a number"),
+                );
             }
         };
         match parse_rolloff(&text) {

@@ -114,8 +114,11 @@ pub enum GpuError {
         /// The weight.
         value: [f32; 3],
     },
-    /// Exposure or white balance is NaN, infinite or negative.
-    #[error("display settings {0:?} are not finite and non-negative")]
+    /// Exposure or white balance is NaN, infinite or negative, or the
+    /// roll-off is not 0 ≤ knee < 1 < white (finite).
+    #[error(
+        "display settings {0:?}: exposure and white balance must be finite and non-negative, a roll-off 0 <= knee < 1 < white"
+    )]
     BadDisplay(crate::DisplayParams),
     /// The image size is zero or too large for one dispatch.
     #[error("image size {width}x{height} is not supported: {why}")]

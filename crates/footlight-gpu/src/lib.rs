@@ -3,7 +3,7 @@
 //!
 //! Each light's unit-intensity buffer lives on the GPU as sparse 16×16 tiles
 //! and is uploaded only when the light is rebuilt; each display frame
-//! computes I = Σ_i k_i ⊙ buffer_i (eq. 5), white balance, exposure, clipping
+//! computes I = Σ_i k_i ⊙ buffer_i (eq. 5), white balance, exposure, the highlight roll-off, clipping
 //! and the sRGB transfer function on the GPU and reads back RGBA8 for the
 //! preview. It matches the CPU reference (`footlight::render::composite` +
 //! `display`) to within one 8-bit code value.
@@ -30,7 +30,7 @@
 //! - [`context`]: the device, [`GpuContext`], created once (or injected).
 //! - `pool`: free-slot book-keeping of the GPU tile pool (pages within the binding limit).
 //! - [`composite`]: the compositor, [`GpuCompositor`] (uploads, the per-screen-tile index, the
-//!   passes); its shader is `shaders/composite.wgsl`.
+//!   passes); its shader is the workspace's top-level `shaders/composite.wgsl`.
 //! - [`readback`]: the staging ring that brings [`Frame`]s back without stalling.
 //! - [`error`]: the crate's error, [`GpuError`].
 #![deny(missing_docs)]

@@ -163,6 +163,11 @@ fn bad_input_is_an_error_that_changes_nothing() {
     assert!(matches!(gpu.composite(&k, &nan_display), Err(GpuError::BadDisplay(_))));
     let negative_wb = DisplayParams { exposure: 1.0, white_balance: [1.0, -1.0, 1.0], rolloff: None };
     assert!(matches!(gpu.composite(&k, &negative_wb), Err(GpuError::BadDisplay(_))));
+    // A roll-off whose knee is not below white (or not finite) is refused too.
+    for rolloff in [[1.0, 16.0], [0.6, 1.0], [f32::NAN, 16.0], [0.6, f32::INFINITY], [-0.1, 4.0]] {
+        let bad = DisplayParams { rolloff: Some(rolloff), ..display };
+        assert!(matches!(gpu.composite(&k, &bad), Err(GpuError::BadDisplay(_))), "{rolloff:?}");
+    }
 
     // None of it touched light 0.
     assert_eq!(gpu.composite(&k, &display).unwrap().rgba8, before);
