@@ -131,7 +131,8 @@ impl Compositor {
         &self.srgb
     }
 
-    /// Changes exposure/white balance (re-encodes every pixel).
+    /// Changes exposure, white balance and roll-off (re-encodes every pixel,
+    /// recomposes nothing).
     pub fn set_display(&mut self, display: Display) {
         self.display = display;
         self.display.to_srgb8_into(&self.linear, &mut self.srgb);
