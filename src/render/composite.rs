@@ -237,6 +237,37 @@ mod tests {
         assert!(out2.iter().all(|v| *v == Vec3::ZERO));
     }
 
+    /// The tile-by-tile path encodes with the display's roll-off like a full
+    /// encode, and a live `set_display` re-encodes without recomposing.
+    #[test]
+    fn incremental_updates_roll_off_like_a_full_encode() {
+        let (w, h) = (50u32, 40u32);
+        let (ba, bb) = buffers(w, h);
+        let display = Display::for_white_lux(50.0).with_rolloff(Some(Default::default()));
+        let mut c = Compositor::new(w, h, display);
+        let inputs = |kb: f32| {
+            [
+                CompositeInput { buffer: &ba, generation: 0, k: Vec3::splat(0.05) },
+                CompositeInput { buffer: &bb, generation: 0, k: Vec3::splat(kb) },
+            ]
+        };
+        c.update(&inputs(2.0));
+        // One tile, far over white.
+        let s = c.update(&inputs(4000.0));
+        assert_eq!(s.tiles, 1);
+        let full = composite(&[&ba, &bb], &[Vec3::splat(0.05), Vec3::splat(4000.0)], w, h);
+        assert_eq!(c.srgb8(), &display.to_srgb8(&full)[..]);
+        // 250× white: the brightest channel (blue, after the tungsten white
+        // balance) at white, the others keep their ratio to it (hue kept) ...
+        assert!(c.srgb8()[300] < 200 && c.srgb8()[302] == 255, "{:?}", &c.srgb8()[300..303]);
+        let clip = Display { rolloff: None, ..display };
+        c.set_display(clip);
+        assert_eq!(c.srgb8(), &clip.to_srgb8(&full)[..]);
+        // ... where clipping shows white in all three.
+        assert_eq!(&c.srgb8()[300..303], &[255, 255, 255]);
+        assert_eq!(c.linear(), &full[..]);
+    }
+
     #[test]
     fn incremental_updates_match_full_composites_and_touch_only_changed_tiles() {
         let (w, h) = (50u32, 40u32);
