@@ -641,9 +641,8 @@ fn haze_presets_and_views_come_back_from_the_cache_with_their_beams() {
             std::thread::sleep(Duration::from_millis(5));
         }
     };
-    let dense = |p: &footlight::live::tracer::Published| {
-        [p.buffer.to_dense(), p.hazy[0].to_dense(), p.hazy[1].to_dense()]
-    };
+    let dense =
+        |p: &footlight::live::tracer::Published| [p.buffer.to_dense(), p.hazy[0].to_dense(), p.hazy[1].to_dense()];
     let (here, there) = (spot(Vec3::new(0.0, 4.0, 0.0)), spot(Vec3::new(1.5, 4.0, -1.0)));
     tracer.request(0, here.clone(), 1.0);
     wait(0);
@@ -661,10 +660,9 @@ fn haze_presets_and_views_come_back_from_the_cache_with_their_beams() {
     let hv = HazeView::new(&scene, &va.gbuffer);
     let beam = render_inscatter(&scene, &hv, &here, &medium, HazeQuality::REFINED);
     let exact = resolve(&hv, &medium, here.position, &surface, Some(&beam), 1.0).to_dense();
-    let (num, den) = a_here[2]
-        .iter()
-        .zip(&exact)
-        .fold((0.0f64, 0.0f64), |(n, d), (a, b)| (n + f64::from((*a - *b).abs().element_sum()), d + f64::from(b.element_sum())));
+    let (num, den) = a_here[2].iter().zip(&exact).fold((0.0f64, 0.0f64), |(n, d), (a, b)| {
+        (n + f64::from((*a - *b).abs().element_sum()), d + f64::from(b.element_sum()))
+    });
     assert!(den > 0.0 && num / den < 1e-5, "knot 1 vs exact: rel. L1 {:.2e}", num / den);
 
     // A second position, then back: from the cache within the request.

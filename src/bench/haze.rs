@@ -462,7 +462,8 @@ fn run_rig(scene: &Scene, camera: Camera, lights: &[Light], medium: &Medium) -> 
     }
     let grey = |v: &[Vec3]| v.iter().map(|p| p.x).collect::<Vec<f32>>();
     let wj = crate::render::media::knot_weights(RIG_DENSITY);
-    let live = |k: &[Vec<Vec3>; 2]| k[0].iter().zip(&k[1]).map(|(a, b)| wj[1] * a.x + wj[2] * b.x).collect::<Vec<f32>>();
+    let live =
+        |k: &[Vec<Vec3>; 2]| k[0].iter().zip(&k[1]).map(|(a, b)| wj[1] * a.x + wj[2] * b.x).collect::<Vec<f32>>();
     let rebuilt = grey(&rebuilt);
     let reweighting_error = errors(&live(&sum), &rebuilt);
     let full = grey(&sum[1]);

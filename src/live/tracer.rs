@@ -72,9 +72,9 @@
 
 use super::cache::{GeometryCache, Knots};
 use crate::Light;
+use crate::render::buffer::HazeBuffer;
 use crate::render::build::{BuildError, BuildSettings, Cancel, LightBuild, Refinement};
 use crate::render::footprint::DirectQuality;
-use crate::render::buffer::HazeBuffer;
 use crate::render::media::{HazeQuality, HazeView, Medium, knot_buffers, update_knots};
 use crate::render::photon::PhotonMaps;
 use crate::render::{LightBuffer, View};
