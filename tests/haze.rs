@@ -431,6 +431,16 @@ fn beam_screen_bounds_cull_nothing_the_beam_lights() {
     for light in [spot(Vec3::new(0.0, 4.0, 0.0)), narrow.clone(), behind] {
         let q = HazeQuality { scale: 1, samples: 12, refine_edges: false };
         let got = render_inscatter(&scene, &hv, &light, &medium, q);
+        // The coarse stage skips tiles whose coarse samples all miss the
+        // beam: it never drops a tile the beam lights visibly (1 % of peak).
+        let coarse = render_inscatter(&scene, &hv, &light, &medium, HazeQuality::COARSE);
+        let peak = got.as_light_buffer().to_dense().iter().fold(0.0f32, |m, v| m.max(v.x));
+        for (tx, ty) in got.as_light_buffer().occupied() {
+            let tile = got.as_light_buffer().tile(tx, ty).unwrap();
+            if tile.iter().any(|v| v.x > 0.01 * peak) {
+                assert!(coarse.as_light_buffer().tile(tx, ty).is_some(), "lit tile ({tx}, {ty}) dropped");
+            }
+        }
         let mut lit = 0;
         for y in 0..h {
             for x in 0..w {
