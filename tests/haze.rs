@@ -431,6 +431,16 @@ fn beam_screen_bounds_cull_nothing_the_beam_lights() {
     for light in [spot(Vec3::new(0.0, 4.0, 0.0)), narrow.clone(), behind] {
         let q = HazeQuality { scale: 1, samples: 12, refine_edges: false };
         let got = render_inscatter(&scene, &hv, &light, &medium, q);
+        // The coarse stage skips tiles whose coarse samples all miss the
+        // beam: it never drops a tile the beam lights visibly (1 % of peak).
+        let coarse = render_inscatter(&scene, &hv, &light, &medium, HazeQuality::COARSE);
+        let peak = got.as_light_buffer().to_dense().iter().fold(0.0f32, |m, v| m.max(v.x));
+        for (tx, ty) in got.as_light_buffer().occupied() {
+            let tile = got.as_light_buffer().tile(tx, ty).unwrap();
+            if tile.iter().any(|v| v.x > 0.01 * peak) {
+                assert!(coarse.as_light_buffer().tile(tx, ty).is_some(), "lit tile ({tx}, {ty}) dropped");
+            }
+        }
         let mut lit = 0;
         for y in 0..h {
             for x in 0..w {
@@ -607,4 +617,140 @@ async fn hazer_change_is_a_composite_weight_in_the_next_frame() {
     assert_eq!(next.haze_density, Some(1.0));
     assert_eq!(next.rgb, before.rgb, "back at 100 %: the picture of before");
     assert_eq!((tracer.builds(), tracer.haze_stages()), (builds, haze_stages), "no light rebuilt");
+}
+
+/// Issue 15 at rig scale: the geometry cache and the per-view cache work in
+/// haze. A light moved back to a finished position, and a view switched
+/// back to, are published at once with their knot buffers (no build: the
+/// tracer's build and haze-stage counters do not move), bit for bit what
+/// was published when the light finished there, and that knot at density 1
+/// matches an exact resolve of the light's Whitted buffer with its refined
+/// beam within 1e-5.
+#[test]
+fn haze_presets_and_views_come_back_from_the_cache_with_their_beams() {
+    use footlight::live::{Stage, Tracer, TracerSettings};
+    use footlight::render::View;
+    use std::sync::Arc;
+    use std::time::{Duration, Instant};
+
+    let scene = Arc::new(floor_scene());
+    let medium = Medium::new(0.08, 0.01, 0.6, Vec3::new(-6.0, 0.0, -6.0), Vec3::new(6.0, 5.0, 6.0)).unwrap();
+    let (w, h) = (48u32, 32u32);
+    let cam_a = Camera::look_at(Vec3::new(0.5, 2.0, 9.0), Vec3::new(0.0, 1.5, 0.0), 60f32.to_radians());
+    let cam_b = Camera::look_at(Vec3::new(-6.0, 3.0, 6.0), Vec3::new(0.0, 1.0, 0.0), 55f32.to_radians());
+    let limits = RecursionLimits::default();
+    let va = Arc::new(View::build(&scene, cam_a, w, h, Sampling::Adaptive, limits));
+    let vb = Arc::new(View::build(&scene, cam_b, w, h, Sampling::Adaptive, limits));
+    let mut settings = TracerSettings { threads: 1, ..TracerSettings::default() };
+    settings.build.photons = None;
+    let tracer = Tracer::with_haze(scene.clone(), va.clone(), 1, settings, Some(medium));
+    let wait = |before: u64| {
+        let t = Instant::now();
+        while tracer.published(0).generation == before || !tracer.idle() || tracer.published(0).stage != Stage::Ready {
+            assert!(t.elapsed() < Duration::from_secs(60), "tracer stuck at {:?}", tracer.published(0).stage);
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    };
+    let dense =
+        |p: &footlight::live::tracer::Published| [p.buffer.to_dense(), p.hazy[0].to_dense(), p.hazy[1].to_dense()];
+    let (here, there) = (spot(Vec3::new(0.0, 4.0, 0.0)), spot(Vec3::new(1.5, 4.0, -1.0)));
+    tracer.request(0, here.clone(), 1.0);
+    wait(0);
+    let a_here = dense(&tracer.published(0));
+    assert!(a_here[2].iter().any(|v| v.x > 0.0), "the beam is in the knot buffers");
+
+    // The knot at 1 against an exact resolve with the f32 refined beam.
+    let mut plain = footlight::render::build::LightBuild::new(
+        here.clone(),
+        0,
+        settings.build,
+        footlight::render::build::Cancel::never(),
+    );
+    let surface = plain.whitted(&scene, &va).unwrap();
+    let hv = HazeView::new(&scene, &va.gbuffer);
+    let beam = render_inscatter(&scene, &hv, &here, &medium, HazeQuality::REFINED);
+    let exact = resolve(&hv, &medium, here.position, &surface, Some(&beam), 1.0).to_dense();
+    let (num, den) = a_here[2].iter().zip(&exact).fold((0.0f64, 0.0f64), |(n, d), (a, b)| {
+        (n + f64::from((*a - *b).abs().element_sum()), d + f64::from(b.element_sum()))
+    });
+    assert!(den > 0.0 && num / den < 1e-5, "knot 1 vs exact: rel. L1 {:.2e}", num / den);
+
+    // A second position, then back: from the cache within the request.
+    let g = tracer.published(0).generation;
+    tracer.request(0, there.clone(), 1.0);
+    wait(g);
+    let a_there = dense(&tracer.published(0));
+    let (builds, stages) = (tracer.builds(), tracer.haze_stages());
+    assert_eq!((builds, stages), (2, 4), "two builds, each a coarse and a refined beam");
+    let g = tracer.published(0).generation;
+    tracer.request(0, here.clone(), 1.0);
+    let p = tracer.published(0);
+    assert_eq!((p.stage, p.generation), (Stage::Ready, g + 1), "one publish: the cached buffers");
+    assert!(dense(&p) == a_here, "buffer and knots as published when the light finished there");
+    assert!(tracer.idle());
+
+    // Another view: rebuilt there. Back to A: restored from A's cache.
+    let (_, restored) = tracer.set_view(vb.clone(), &[]);
+    assert_eq!(restored, 0, "B was never shown");
+    wait(p.generation);
+    let (builds_b, stages_b) = (tracer.builds(), tracer.haze_stages());
+    assert_eq!((builds_b, stages_b), (builds + 1, stages + 2), "one build in B");
+    assert!(dense(&tracer.published(0)) != a_here, "B shows its own beam");
+    let (_, restored) = tracer.set_view(va.clone(), &[]);
+    assert_eq!(restored, 1, "A's geometry cache came back with A");
+    assert!(dense(&tracer.published(0)) == a_here && tracer.idle(), "A's buffers at once");
+    tracer.request(0, there.clone(), 1.0);
+    assert!(dense(&tracer.published(0)) == a_there, "A's other position too");
+    assert_eq!((tracer.builds(), tracer.haze_stages()), (builds_b, stages_b), "nothing built in A again");
+    assert!(tracer.shutdown(Duration::from_secs(5)));
+}
+
+/// A later stage changes only a light's surface buffer: the tracer updates
+/// the knot buffers from the previous ones without the beam
+/// (`update_knots`, b_j + (S' − S) e^(−d_j κ_s)). Against resolving the new
+/// surface buffer with the beam from scratch: equal within f32 rounding,
+/// and an unchanged surface gives the knots back bit for bit.
+#[test]
+fn knots_follow_a_new_surface_buffer_without_the_beam() {
+    use footlight::render::footprint::DirectQuality;
+    use footlight::render::media::{knot_buffers, update_knots};
+    let scene = floor_scene();
+    let medium = Medium::new(0.08, 0.01, 0.6, Vec3::new(-6.0, 0.0, -6.0), Vec3::new(6.0, 5.0, 6.0)).unwrap();
+    let camera = Camera::look_at(Vec3::new(0.5, 2.0, 9.0), Vec3::new(0.0, 1.5, 0.0), 60f32.to_radians());
+    let view = footlight::render::View::build(&scene, camera, 48, 32, Sampling::Adaptive, RecursionLimits::default());
+    let light = spot(Vec3::new(0.3, 4.0, 0.5));
+    let mut build = footlight::render::build::LightBuild::new(
+        light.clone(),
+        0,
+        Default::default(),
+        footlight::render::build::Cancel::never(),
+    );
+    let (moving, _) = build.direct(&scene, &view, DirectQuality::Moving).unwrap();
+    let whitted = build.whitted(&scene, &view).unwrap();
+    assert_ne!(moving, whitted, "two different surface buffers");
+    let hv = HazeView::new(&scene, &view.gbuffer);
+    let beam = render_inscatter(&scene, &hv, &light, &medium, HazeQuality::REFINED);
+    let before = knot_buffers(&hv, &medium, light.position, &moving, Some(&beam));
+    let same = update_knots(&hv, &medium, light.position, &moving, &moving, [&before[0], &before[1]]);
+    assert_eq!(same, before, "an unchanged surface keeps the knots exactly");
+    let updated = update_knots(&hv, &medium, light.position, &moving, &whitted, [&before[0], &before[1]]);
+    let fresh = knot_buffers(&hv, &medium, light.position, &whitted, Some(&beam));
+    for j in 0..2 {
+        let (a, b) = (updated[j].to_dense(), fresh[j].to_dense());
+        let peak = b.iter().fold(0.0f32, |m, v| m.max(v.max_element()));
+        assert!(peak > 0.0);
+        for (i, (x, y)) in a.iter().zip(&b).enumerate() {
+            assert!((*x - *y).abs().max_element() <= 1e-6 * peak, "knot {j} pixel {i}: {x} vs {y}");
+        }
+    }
+    // The surface gone: only the beam is left, never a negative residue.
+    let empty = LightBuffer::empty(48, 32);
+    let gone = update_knots(&hv, &medium, light.position, &whitted, &empty, [&fresh[0], &fresh[1]]);
+    let beam_only = knot_buffers(&hv, &medium, light.position, &empty, Some(&beam));
+    for j in 0..2 {
+        let (a, b) = (gone[j].to_dense(), beam_only[j].to_dense());
+        // f32 rounding of the cancelled surface term: relative to the knot's peak.
+        let peak = fresh[j].to_dense().iter().fold(0.0f32, |m, v| m.max(v.max_element()));
+        assert!(a.iter().zip(&b).all(|(x, y)| (*x - *y).abs().max_element() <= 1e-6 * peak && x.min_element() >= 0.0));
+    }
 }

@@ -83,7 +83,33 @@ pub struct RigHaze {
     pub tiles: usize,
     /// Tiles the beams fill, mean per light.
     pub beam_tiles: f64,
+    /// Where the coarse beams' time goes: all lights at 1 sample per ray
+    /// (cone tests, the bounds, upsampling, tiles), s.
+    pub one_sample_s: f64,
+    /// Tiles inside the screen bounds the beams are computed over (with the
+    /// upsampling margin), mean per light.
+    pub bounds_tiles: f64,
+    /// Coarse rays traced (inside the bounds), mean per light.
+    pub coarse_rays: f64,
+    /// Of those, rays that meet the cone inside the haze box, mean per light.
+    pub cone_rays: f64,
+    /// Tail culling measured: for a threshold τ (share of the light's own
+    /// peak), the knot-buffer MiB left if the haze-only tiles whose largest
+    /// value is below τ · peak were dropped, and the composite's
+    /// (rel. L1, max/peak) error at knot 1 (all lights at k = 1).
+    pub tail: Vec<(f32, f64, f64, f64)>,
+    /// The density between knots the rig is rebuilt at ([`RIG_DENSITY`]).
+    pub density: f32,
+    /// The live composite at that density (knot weights only) against an
+    /// exact rebuild of every beam there, all lights at k = 1: (rel. L1,
+    /// max/peak) with the daemon's knot weights, then with
+    /// [`quadratic_weights`].
+    pub reweighting_error: [(f64, f64); 2],
 }
+
+/// The density the rig is rebuilt at: between the knots 0 and ½, where
+/// the interpolation error is largest in the single-light rows.
+pub const RIG_DENSITY: f32 = 0.25;
 
 /// A moved beam through the live tracer ([`crate::live::Tracer`]).
 #[derive(Clone, Debug, Serialize)]
@@ -130,6 +156,8 @@ pub struct HazeReport {
     /// The live daemon's density knots (0, ½, 1) re-weighted for a hazer
     /// change against an exact rebuild at that density.
     pub density_live: Vec<DensityPoint>,
+    /// The same with [`quadratic_weights`] (not used live: negative weights).
+    pub density_live_quadratic: Vec<DensityPoint>,
     /// A moved beam through the live tracer (`--haze-only` and full runs).
     pub moved: Option<MovedBeam>,
     /// The 600-fixture rig (full runs only).
@@ -159,12 +187,14 @@ impl HazeReport {
             );
         }
         s += &format!("    density change (one light, re-weighting only): {:.2} ms\n", self.density_change_ms);
-        for p in &self.density_live {
+        for (p, quad) in self.density_live.iter().zip(&self.density_live_quadratic) {
             s += &format!(
-                "    live: density {:>4.0} % from knots 0/50/100 % (weights only) vs rebuilt: rel. L1 {:.2e}  max/peak {:.2e}\n",
+                "    live: density {:>4.0} % from knots 0/50/100 % (weights only) vs rebuilt: rel. L1 {:.2e}  max/peak {:.2e} (quadratic weights would give {:.2e}, {:.2e})\n",
                 p.density * 100.0,
                 p.rel_l1,
-                p.max_err_of_peak
+                p.max_err_of_peak,
+                quad.rel_l1,
+                quad.max_err_of_peak
             );
         }
         if let Some(m) = &self.moved {
@@ -198,6 +228,24 @@ impl HazeReport {
                 r.density_change_ms,
                 r.knot_mib
             );
+            s += "    600-fixture rig live memory: beams are resolved into the knots as they are made and not kept (before: all beams kept, the MiB above); per light its surface buffer and the two knot buffers\n";
+            s += &format!(
+                "    600-fixture rig beam time: {:.1} s at 8 samples, {:.1} s at 1 sample per ray; per beam {:.0} tiles in its bounds, {:.0} coarse rays, {:.0} meeting the cone\n",
+                r.coarse_all_s, r.one_sample_s, r.bounds_tiles, r.coarse_rays, r.cone_rays
+            );
+            s += &format!(
+                "    600-fixture rig density {:.0} % from the knots (weights only) vs every beam rebuilt, all lights at k = 1 (beams only): rel. L1 {:.2e} max/peak {:.2e} (quadratic weights would give {:.2e}, {:.2e})\n",
+                r.density * 100.0,
+                r.reweighting_error[0].0,
+                r.reweighting_error[0].1,
+                r.reweighting_error[1].0,
+                r.reweighting_error[1].1
+            );
+            for (tau, mib, rel, max) in &r.tail {
+                s += &format!(
+                    "    600-fixture rig knot tails below {tau:.0e} of each light's peak dropped: {mib:.0} MiB of knots, knot 1 composite rel. L1 {rel:.2e} max/peak {max:.2e}\n"
+                );
+            }
         }
         s
     }
@@ -303,16 +351,19 @@ pub fn run(
     // The live daemon's knots: weights only, against a rebuild at d.
     let knots = crate::render::media::knot_buffers(&hv, &medium, light.position, &surface, Some(&haze));
     let knot_dense: Vec<Vec<Vec3>> = [surface.to_dense(), knots[0].to_dense(), knots[1].to_dense()].into();
-    let mut density_live = Vec::new();
+    let (mut density_live, mut density_live_quadratic) = (Vec::new(), Vec::new());
     for d in [0.1f32, 0.25, 0.4, 0.6, 0.75, 0.9] {
-        let wj = crate::render::media::knot_weights(d);
-        let live: Vec<f32> =
-            (0..knot_dense[0].len()).map(|i| (0..3).map(|j| wj[j] * knot_dense[j][i].x).sum::<f32>()).collect();
         let thin = medium.at_density(d);
         let rebuilt =
             resolve(&hv, &thin, light.position, &surface, Some(&render_inscatter(scene, &hv, light, &thin, q)), 1.0);
-        let (rel_l1, max_err_of_peak) = errors(&live, &luminance(&rebuilt));
-        density_live.push(DensityPoint { density: d, rel_l1, max_err_of_peak });
+        let rebuilt = luminance(&rebuilt);
+        let weights = [crate::render::media::knot_weights(d), quadratic_weights(d)];
+        for (wj, into) in weights.iter().zip([&mut density_live, &mut density_live_quadratic]) {
+            let live: Vec<f32> =
+                (0..knot_dense[0].len()).map(|i| (0..3).map(|j| wj[j] * knot_dense[j][i].x).sum::<f32>()).collect();
+            let (rel_l1, max_err_of_peak) = errors(&live, &rebuilt);
+            into.push(DensityPoint { density: d, rel_l1, max_err_of_peak });
+        }
     }
     let rig = rig.map(|lights| run_rig(scene, camera, lights, &medium));
     Some(HazeReport {
@@ -326,28 +377,130 @@ pub fn run(
         density_change_ms,
         multiple,
         density_live,
+        density_live_quadratic,
         moved: None,
         rig,
     })
 }
 
+/// Quadratic Lagrange weights of the knots 0, ½, 1 for density `d`: an
+/// alternative to the daemon's hat weights measured by the bench. They
+/// match the surface term e^(−d κ) to second order in κ and the haze term
+/// d e^(−d κ) to first (hats: first and zeroth), but go negative (down to
+/// −⅛), which the GPU compositor refuses as a bad weight; non-negative
+/// weights exact at κ = 0 cannot do better than hats (Jensen).
+pub fn quadratic_weights(d: f32) -> [f32; 3] {
+    let d = crate::render::media::medium::clean_density(d);
+    [2.0 * (d - 0.5) * (d - 1.0), 4.0 * d * (1.0 - d), d * (2.0 * d - 1.0)]
+}
+
+/// Tail thresholds measured on the rig (share of a light's own peak).
+const TAILS: [f32; 3] = [1e-4, 1e-3, 1e-2];
+
 /// Coarse haze buffers for every light of the rig at 1920×1080, and a
-/// density change (re-weighting all of them; surface buffers stand in as empty).
+/// density change (re-weighting all of them; surface buffers stand in as
+/// empty) and its error against rebuilding every beam at a density between
+/// the knots; where the beam time goes; what dropping knot tails would save
+/// and cost.
 fn run_rig(scene: &Scene, camera: Camera, lights: &[Light], medium: &Medium) -> RigHaze {
+    use crate::render::buffer::TILE;
     let (w, h) = (1920, 1080);
     let hv = HazeView::new(scene, &GBuffer::build(scene, camera, w, h));
     let t = std::time::Instant::now();
     let buffers: Vec<_> = lights.iter().map(|l| render_inscatter(scene, &hv, l, medium, HazeQuality::COARSE)).collect();
     let coarse_all_s = t.elapsed().as_secs_f64();
-    let empty = LightBuffer::empty(w, h);
+    let one = HazeQuality { samples: 1, ..HazeQuality::COARSE };
     let t = std::time::Instant::now();
-    let knots: Vec<[LightBuffer; 2]> = lights
-        .iter()
-        .zip(&buffers)
-        .map(|(l, b)| crate::render::media::knot_buffers(&hv, medium, l.position, &empty, Some(b)))
-        .collect();
-    let density_change_ms = t.elapsed().as_secs_f64() * 1e3;
+    for l in lights {
+        std::hint::black_box(render_inscatter(scene, &hv, l, medium, one));
+    }
+    let one_sample_s = t.elapsed().as_secs_f64();
+    // The rays the coarse stage traces: every 4th pixel inside the bounds.
+    let (mut bounds_tiles, mut coarse_rays, mut cone_rays) = (0usize, 0usize, 0usize);
+    let s = HazeQuality::COARSE.scale as usize;
+    for l in lights {
+        let Some((x0, y0, x1, y1)) = crate::render::media::single::beam_screen_bounds(&hv, l, medium) else { continue };
+        let (ex0, ey0) = (x0.saturating_sub(s) / TILE, y0.saturating_sub(s) / TILE);
+        let (ex1, ey1) = ((x1 + s).min(w as usize).div_ceil(TILE), (y1 + s).min(h as usize).div_ceil(TILE));
+        bounds_tiles += (ex1 - ex0) * (ey1 - ey0);
+        for y in (s / 2..h as usize).step_by(s).filter(|y| (y0..y1).contains(y)) {
+            for x in (s / 2..w as usize).step_by(s).filter(|x| (x0..x1).contains(x)) {
+                coarse_rays += 1;
+                let i = y * w as usize + x;
+                let (o, d) = (hv.camera.position, hv.dir(i));
+                let meets = medium.clip(o, d, hv.t_hit(i)).and_then(|(a, b)| {
+                    crate::render::media::single::cone_interval(l.position, l.axis(), l.beam.cos_cutoff(), o, d, a, b)
+                });
+                cone_rays += usize::from(meets.is_some());
+            }
+        }
+    }
+    let empty = LightBuffer::empty(w, h);
     let mib = |bytes: usize| bytes as f64 / (1 << 20) as f64;
+    let n = (w * h) as usize;
+    // Composites at k = 1 of the knots, of an exact rebuild at RIG_DENSITY, and
+    // of what each tail threshold drops from knot 1.
+    let mut sum = [vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]];
+    let mut dropped = vec![vec![Vec3::ZERO; n]; TAILS.len()];
+    let mut tail_bytes = [0usize; TAILS.len()];
+    let (mut density_change_ms, mut knot_bytes) = (0.0, 0usize);
+    let thin = medium.at_density(RIG_DENSITY);
+    let mut rebuilt = vec![Vec3::ZERO; n];
+    let add = |into: &mut [Vec3], b: &LightBuffer, only: Option<&[(usize, usize)]>| {
+        let tiles = only.map_or_else(|| b.occupied(), <[_]>::to_vec);
+        for (tx, ty) in tiles {
+            let Some(tile) = b.tile(tx, ty) else { continue };
+            for r in 0..TILE.min(h as usize - ty * TILE) {
+                for c in 0..TILE.min(w as usize - tx * TILE) {
+                    into[(ty * TILE + r) * w as usize + tx * TILE + c] += tile[r * TILE + c];
+                }
+            }
+        }
+    };
+    for (l, b) in lights.iter().zip(&buffers) {
+        let t = std::time::Instant::now();
+        let knots = crate::render::media::knot_buffers(&hv, medium, l.position, &empty, Some(b));
+        density_change_ms += t.elapsed().as_secs_f64() * 1e3;
+        knot_bytes += knots.iter().map(LightBuffer::bytes).sum::<usize>();
+        for j in 0..2 {
+            add(&mut sum[j], &knots[j], None);
+        }
+        let beam = render_inscatter(scene, &hv, l, &thin, HazeQuality::COARSE);
+        add(&mut rebuilt, &resolve(&hv, &thin, l.position, &empty, Some(&beam), 1.0), None);
+        // Tails: per-tile largest value of either knot against the light's peak.
+        let tiles = knots[1].occupied();
+        let tile_max = |tx: usize, ty: usize| {
+            knots.iter().filter_map(|k| k.tile(tx, ty)).flatten().map(|v| v.max_element()).fold(0.0f32, f32::max)
+        };
+        let maxes: Vec<f32> = tiles.iter().map(|&(tx, ty)| tile_max(tx, ty)).collect();
+        let peak = maxes.iter().copied().fold(0.0f32, f32::max);
+        let per_tile = knots.iter().map(|k| k.bytes()).sum::<usize>() as f64 / tiles.len().max(1) as f64;
+        for (k, tau) in TAILS.iter().enumerate() {
+            let drop: Vec<(usize, usize)> =
+                tiles.iter().zip(&maxes).filter(|(_, m)| **m < tau * peak).map(|(t, _)| *t).collect();
+            tail_bytes[k] += ((tiles.len() - drop.len()) as f64 * per_tile) as usize;
+            add(&mut dropped[k], &knots[1], Some(&drop));
+        }
+    }
+    let grey = |v: &[Vec3]| v.iter().map(|p| p.x).collect::<Vec<f32>>();
+    // Surfaces are empty: the knot 0 adds nothing, whatever its weight.
+    let live = |wj: [f32; 3]| sum[0].iter().zip(&sum[1]).map(|(a, b)| wj[1] * a.x + wj[2] * b.x).collect::<Vec<f32>>();
+    let rebuilt = grey(&rebuilt);
+    let reweighting_error = [
+        errors(&live(crate::render::media::knot_weights(RIG_DENSITY)), &rebuilt),
+        errors(&live(quadratic_weights(RIG_DENSITY)), &rebuilt),
+    ];
+    let full = grey(&sum[1]);
+    let tail = TAILS
+        .iter()
+        .enumerate()
+        .map(|(k, &tau)| {
+            let kept: Vec<f32> = full.iter().zip(&dropped[k]).map(|(a, d)| a - d.x).collect();
+            let (rel, max) = errors(&kept, &full);
+            (tau, mib(tail_bytes[k]), rel, max)
+        })
+        .collect();
+    let count = lights.len().max(1) as f64;
     RigHaze {
         lights: lights.len(),
         width: w,
@@ -355,9 +508,16 @@ fn run_rig(scene: &Scene, camera: Camera, lights: &[Light], medium: &Medium) -> 
         coarse_all_s,
         density_change_ms,
         haze_mib: mib(buffers.iter().map(|b| b.bytes()).sum()),
-        knot_mib: mib(knots.iter().flatten().map(|b| b.bytes()).sum()),
+        knot_mib: mib(knot_bytes),
         tiles: empty.total_tiles(),
-        beam_tiles: buffers.iter().map(|b| b.occupied_tiles()).sum::<usize>() as f64 / lights.len().max(1) as f64,
+        beam_tiles: buffers.iter().map(|b| b.occupied_tiles()).sum::<usize>() as f64 / count,
+        one_sample_s,
+        bounds_tiles: bounds_tiles as f64 / count,
+        coarse_rays: coarse_rays as f64 / count,
+        cone_rays: cone_rays as f64 / count,
+        tail,
+        density: RIG_DENSITY,
+        reweighting_error,
     }
 }
 

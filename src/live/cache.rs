@@ -3,18 +3,39 @@
 //! position) shows its converged picture at once instead of re-tracing.
 //! Bounded by bytes; the least recently used entry goes first. The key is
 //! the exact geometry state, compared with `==`.
+//!
+//! In haze (issue 15) an entry also holds the light's buffers at the density
+//! knots ½ and 1 ([`crate::render::media::live`]), and its key includes the
+//! haze ([`Medium`]: coefficients, g, box, multiple scattering), so a preset
+//! recalled in haze shows its beam at once and no entry made in other air
+//! is ever served.
 
 use crate::Light;
 use crate::render::LightBuffer;
+use crate::render::media::Medium;
 use std::collections::HashMap;
 use std::sync::Arc;
+
+/// A light's buffers at the haze density knots ½ and 1 (the knot 0 is its
+/// buffer itself).
+pub type Knots = [Arc<LightBuffer>; 2];
 
 struct Entry {
     /// The exact geometry state (the key: compared with `==`, so two
     /// states differing in any field never share a buffer).
     light: Light,
+    /// The haze the entry was built in (part of the key; `None`: clear air).
+    haze: Option<Medium>,
     buffer: Arc<LightBuffer>,
+    /// In haze: the buffers at the density knots ½ and 1.
+    knots: Option<Knots>,
     last_used: u64,
+}
+
+impl Entry {
+    fn bytes(&self) -> usize {
+        self.buffer.bytes() + self.knots.as_ref().map_or(0, |k| k.iter().map(|b| b.bytes()).sum())
+    }
 }
 
 /// LRU map from (light index, exact [`Light`]) to a finished buffer.
@@ -37,27 +58,55 @@ impl GeometryCache {
         Self { entries: HashMap::new(), bytes: 0, budget, clock: 0 }
     }
 
-    /// The finished buffer for this light index and exact geometry, if cached.
+    /// The finished buffer for this light index and exact geometry in clear
+    /// air, if cached.
     pub fn get(&mut self, index: usize, light: &Light) -> Option<Arc<LightBuffer>> {
-        self.clock += 1;
-        let clock = self.clock;
-        let e = self.entries.get_mut(&index)?.iter_mut().find(|e| e.light == *light)?;
-        e.last_used = clock;
-        Some(e.buffer.clone())
+        self.get_in(index, light, None).map(|(buffer, _)| buffer)
     }
 
-    /// Stores a finished buffer, evicting least recently used entries past the budget.
+    /// The finished buffer and, in haze, its knot buffers for this light
+    /// index, exact geometry and exact `haze` (`None`: clear air), if cached.
+    pub fn get_in(
+        &mut self,
+        index: usize,
+        light: &Light,
+        haze: Option<&Medium>,
+    ) -> Option<(Arc<LightBuffer>, Option<Knots>)> {
+        self.clock += 1;
+        let clock = self.clock;
+        let e = self.entries.get_mut(&index)?.iter_mut().find(|e| e.light == *light && e.haze.as_ref() == haze)?;
+        e.last_used = clock;
+        Some((e.buffer.clone(), e.knots.clone()))
+    }
+
+    /// Stores a finished buffer (clear air), evicting least recently used
+    /// entries past the budget.
     pub fn insert(&mut self, index: usize, light: &Light, buffer: Arc<LightBuffer>) {
-        let size = buffer.bytes();
+        self.insert_in(index, light, None, buffer, None);
+    }
+
+    /// Stores a finished buffer built in `haze` with its knot buffers
+    /// (both counted against the budget), evicting least recently used
+    /// entries past the budget.
+    pub fn insert_in(
+        &mut self,
+        index: usize,
+        light: &Light,
+        haze: Option<Medium>,
+        buffer: Arc<LightBuffer>,
+        knots: Option<Knots>,
+    ) {
+        let entry = Entry { light: light.clone(), haze, buffer, knots, last_used: 0 };
+        let size = entry.bytes();
         if size > self.budget {
             return;
         }
         self.clock += 1;
         let list = self.entries.entry(index).or_default();
-        if let Some(pos) = list.iter().position(|e| e.light == *light) {
-            self.bytes -= list.swap_remove(pos).buffer.bytes();
+        if let Some(pos) = list.iter().position(|e| e.light == *light && e.haze == haze) {
+            self.bytes -= list.swap_remove(pos).bytes();
         }
-        list.push(Entry { light: light.clone(), buffer, last_used: self.clock });
+        list.push(Entry { last_used: self.clock, ..entry });
         self.bytes += size;
         while self.bytes > self.budget {
             let oldest = self
@@ -67,7 +116,7 @@ impl GeometryCache {
                 .min();
             let Some((_, i, pos)) = oldest else { break };
             if let Some(list) = self.entries.get_mut(&i) {
-                self.bytes -= list.swap_remove(pos).buffer.bytes();
+                self.bytes -= list.swap_remove(pos).bytes();
             }
         }
     }
@@ -137,5 +186,29 @@ mod tests {
         c.insert(0, &b, buf(2.0));
         assert_eq!(c.get(0, &a).unwrap().get(0, 0), Vec3::ONE);
         assert_eq!(c.get(0, &b).unwrap().get(0, 0), Vec3::splat(2.0));
+    }
+
+    #[test]
+    fn haze_is_part_of_the_key_and_knots_count_against_the_budget() {
+        let one = buf(1.0).bytes();
+        let mut c = GeometryCache::new(6 * one);
+        let haze = Medium::new(0.03, 0.003, 0.7, Vec3::ZERO, Vec3::ONE).unwrap();
+        let thicker = Medium { sigma_s: 0.031, ..haze };
+        let a = light(1.0);
+        c.insert_in(0, &a, Some(haze), buf(1.0), Some([buf(0.5), buf(0.25)]));
+        assert_eq!(c.bytes(), 3 * one, "buffer and both knots");
+        assert!(c.get(0, &a).is_none(), "an entry made in haze is not served in clear air");
+        assert!(c.get_in(0, &a, Some(&thicker)).is_none(), "nor in other haze");
+        let (b, knots) = c.get_in(0, &a, Some(&haze)).expect("same light, same haze");
+        assert_eq!(b.get(0, 0), Vec3::ONE);
+        let knots = knots.expect("knots kept");
+        assert_eq!((knots[0].get(0, 0), knots[1].get(0, 0)), (Vec3::splat(0.5), Vec3::splat(0.25)));
+        // The same light in clear air and in the thicker haze: entries of their own.
+        c.insert(0, &a, buf(2.0));
+        c.insert_in(0, &a, Some(thicker), buf(3.0), Some([buf(3.0), buf(3.0)]));
+        assert_eq!(c.len(), 2, "budget 6 buffers: the least recently used hazy entry went");
+        assert_eq!(c.get(0, &a).unwrap().get(0, 0), Vec3::splat(2.0));
+        assert_eq!(c.get_in(0, &a, Some(&thicker)).unwrap().0.get(0, 0), Vec3::splat(3.0));
+        assert!(c.bytes() <= 6 * one);
     }
 }

@@ -43,8 +43,16 @@
 //! ([`crate::render::media::live`], [`Published::hazy`]), published
 //! together with the surface buffer (the knot 0). A hazer change is a
 //! weight in the frame clock: no light is rebuilt ([`Tracer::builds`] and
-//! [`Tracer::haze_stages`] count the work). In haze the geometry cache and
-//! the view cache are not used (their buffers carry no beam).
+//! [`Tracer::haze_stages`] count the work). No beam is kept between
+//! stages: a beam is resolved into the knots by the publish right after it
+//! is made, and a later stage without a new beam (photons, refinement)
+//! updates the knots from the previous ones
+//! ([`crate::render::media::update_knots`]). The geometry cache keeps a finished light's knot buffers with its buffer,
+//! keyed by the geometry and the haze ([`GeometryCache::get_in`]), so a
+//! position preset recalled in haze, and a view switched back to (its
+//! geometry cache comes back with it), are published with their beams at
+//! once, without a build. Buffers kept by the view cache
+//! ([`Kept`]) carry no knots: in haze only the geometry cache restores.
 //!
 //! # View changes (issue 16)
 //! [`Tracer::set_view`] swaps the camera-dependent [`View`]: every build in
@@ -62,12 +70,12 @@
 //! ([`Tracer::set_paused`]): the frame clock shows the cheap moving preview
 //! and no work is spent on a view about to be replaced.
 
-use super::cache::GeometryCache;
+use super::cache::{GeometryCache, Knots};
 use crate::Light;
 use crate::render::buffer::HazeBuffer;
 use crate::render::build::{BuildError, BuildSettings, Cancel, LightBuild, Refinement};
 use crate::render::footprint::DirectQuality;
-use crate::render::media::{HazeQuality, HazeView, Medium, knot_buffers};
+use crate::render::media::{HazeQuality, HazeView, Medium, knot_buffers, update_knots};
 use crate::render::photon::PhotonMaps;
 use crate::render::{LightBuffer, View};
 use crate::scene::Scene;
@@ -207,8 +215,13 @@ struct SlotState {
     maps: Option<(Light, Arc<PhotonMaps>)>,
     /// Share of the picture the light changes, in [1, 2].
     weight: f32,
-    /// In haze: the light's latest beam and the request it was built for.
-    beam: Option<(u64, Arc<HazeBuffer>)>,
+    /// In haze: a beam just made and the request it was built for, taken
+    /// by the publish that follows it.
+    beam: Option<(u64, HazeBuffer)>,
+    /// In haze: the surface buffer and knot buffers last published and
+    /// their request (a later stage updates these knots; a finished light
+    /// leaves them in the geometry cache).
+    knots: Option<(u64, Arc<LightBuffer>, Knots)>,
     /// Direct-stage publish times in the last second.
     direct_times: VecDeque<Instant>,
     direct_total: u64,
@@ -506,6 +519,9 @@ impl Tracer {
             let mut st = slot.state.lock().expect("slot lock");
             st.build = None;
             st.refine = None;
+            // Nothing of the old view's haze is kept.
+            st.beam = None;
+            st.knots = None;
             // The footprint share is a property of the old view.
             st.weight = 1.0;
             let current = st.pending.take().map(|r| r.light).or_else(|| st.current.clone());
@@ -518,15 +534,16 @@ impl Tracer {
                 p.stage = Stage::Queued;
                 continue;
             };
-            // Kept buffers and cached ones carry no beam: in haze every light is rebuilt.
+            // Kept buffers carry no knot buffers: in haze only the geometry cache restores.
             let hit = kept.get(i).and_then(Option::as_ref).filter(|k| k.light == light && s.haze.is_none());
             // A finished kept buffer first (the very `Arc` the view showed),
             // else this view's geometry cache. Lock order as in `request`:
             // slot state, then the cache.
-            let finished_kept = hit.filter(|k| k.stage == Stage::Ready).map(|k| k.buffer.clone());
-            let cached = finished_kept
-                .or_else(|| if s.haze.is_none() { s.cache.lock().expect("cache lock").get(i, &light) } else { None });
-            if let Some(buffer) = cached {
+            // In haze the cache entry carries the knot buffers and its key the haze.
+            let finished_kept = hit.filter(|k| k.stage == Stage::Ready).map(|k| (k.buffer.clone(), None));
+            let cached =
+                finished_kept.or_else(|| s.cache.lock().expect("cache lock").get_in(i, &light, s.haze.as_ref()));
+            if let Some((buffer, knots)) = cached {
                 // Finished for this very view and geometry before.
                 st.shown = Some(light);
                 st.waiting_since = None;
@@ -536,6 +553,9 @@ impl Tracer {
                 p.buffer = buffer;
                 p.generation += 1;
                 p.stage = Stage::Ready;
+                if let Some(knots) = knots {
+                    p.hazy = knots;
+                }
                 continue;
             }
             if hit.is_some() {
@@ -585,19 +605,24 @@ impl Tracer {
         let mut st = slot.state.lock().expect("slot lock");
         st.build = None;
         st.refine = None;
+        st.beam = None;
         st.priority = priority;
         st.current = Some(light.clone());
         st.previous_move = st.last_move.replace(now);
-        let cached = if s.haze.is_none() { s.cache.lock().expect("cache lock").get(index, &light) } else { None };
-        if let Some(buffer) = cached {
+        let cached = s.cache.lock().expect("cache lock").get_in(index, &light, s.haze.as_ref());
+        if let Some((buffer, knots)) = cached {
             st.pending = None;
             st.waiting_since = None;
             st.shown = Some(light);
+            st.knots = None;
             drop(st);
             let mut p = slot.published.lock().expect("published lock");
             p.buffer = buffer;
             p.generation += 1;
             p.stage = Stage::Ready;
+            if let Some(knots) = knots {
+                p.hazy = knots;
+            }
             tracing::debug!("light {index}: geometry found in cache");
             return;
         }
@@ -712,19 +737,36 @@ impl Shared {
         if slot.latest.load(Ordering::SeqCst) != id {
             return false; // superseded: a newer request owns the slot
         }
-        let beam = slot.state.lock().expect("slot lock").beam.clone().filter(|(bid, _)| *bid == id);
+        let buffer = Arc::new(buffer);
         let hazy = match (&self.haze, self.haze_view()) {
             (Some(m), Some(hv)) => {
-                Some(knot_buffers(&hv, m, light.position, &buffer, beam.as_ref().map(|b| b.1.as_ref())).map(Arc::new))
+                let (beam, previous) = {
+                    let mut st = slot.state.lock().expect("slot lock");
+                    (st.beam.take().filter(|(bid, _)| *bid == id), st.knots.clone().filter(|(kid, ..)| *kid == id))
+                };
+                let knots = match (beam, previous) {
+                    // A new beam: resolved at once, then dropped.
+                    (Some((_, beam)), _) => knot_buffers(&hv, m, light.position, &buffer, Some(&beam)),
+                    // A later stage: the knots follow the surface buffer.
+                    (None, Some((_, before, k))) => {
+                        update_knots(&hv, m, light.position, &before, &buffer, [k[0].as_ref(), k[1].as_ref()])
+                    }
+                    (None, None) => knot_buffers(&hv, m, light.position, &buffer, None),
+                };
+                Some(knots.map(Arc::new))
             }
             _ => None,
         };
-        slot.state.lock().expect("slot lock").shown = Some(light.clone());
+        {
+            let mut st = slot.state.lock().expect("slot lock");
+            st.shown = Some(light.clone());
+            st.knots = hazy.clone().map(|k| (id, buffer.clone(), k));
+        }
         let mut p = slot.published.lock().expect("published lock");
         if let Some(hazy) = hazy {
             p.hazy = hazy;
         }
-        p.buffer = Arc::new(buffer);
+        p.buffer = buffer;
         p.generation += 1;
         p.stage = stage;
         true
@@ -759,7 +801,7 @@ impl Shared {
         let slot = &self.slots[index];
         let mut st = slot.state.lock().expect("slot lock");
         if slot.latest.load(Ordering::SeqCst) == id {
-            st.beam = Some((id, Arc::new(beam)));
+            st.beam = Some((id, beam));
         }
     }
 
@@ -1037,12 +1079,16 @@ fn finished(s: &Shared, index: usize, id: u64, light: &Light, buffer: Arc<LightB
     if s.slots[index].latest.load(Ordering::SeqCst) != id {
         return; // a view change or a newer request superseded it
     }
-    if s.haze.is_none() {
-        // (In haze the cache is not read: its buffers carry no beam.)
-        s.cache.lock().expect("cache lock").insert(index, light, buffer);
+    let mut st = s.slots[index].state.lock().expect("slot lock");
+    // In haze the entry keeps the knot buffers published with `buffer`.
+    let knots = st.knots.clone().filter(|(kid, ..)| *kid == id).map(|(.., k)| k);
+    if s.haze.is_none() || knots.is_some() {
+        // Lock order: slot state, then the cache.
+        s.cache.lock().expect("cache lock").insert_in(index, light, s.haze, buffer, knots);
     }
     let elapsed = at.elapsed();
-    s.slots[index].state.lock().expect("slot lock").last_build = Some(elapsed);
+    st.last_build = Some(elapsed);
+    drop(st);
     tracing::debug!("light {index}: finished {:.0} ms after its last move", elapsed.as_secs_f64() * 1e3);
 }
 

@@ -319,8 +319,8 @@ impl LightBuild {
 
     /// The live haze stage (issue 15): the light's beam at `quality`
     /// ([`super::media::render_inscatter`]) in `medium` (the haze at 100 %),
-    /// kept by the tracer and resolved with every surface buffer it
-    /// publishes ([`super::media::knot_buffers`]).
+    /// resolved by the tracer into the knot buffers with the surface buffer
+    /// it publishes next ([`super::media::knot_buffers`]) and then dropped.
     pub fn haze_beam(
         &self,
         scene: &Scene,

@@ -16,11 +16,25 @@
 //! light is rebuilt, no pixel re-resolved. Exact at the knots; between them
 //! the error is that of linear interpolation of e^(−d κ) (the bench reports
 //! it against an exact rebuild at d).
+//!
+//! # No beam is kept
+//! A light's beam is needed only when it is made (the coarse beam with the
+//! direct stage, the refined one with the Whitted stage): the knots are
+//! resolved from it at once. A later stage of the same light (photons,
+//! refinement passes) changes only the surface buffer S → S', and the
+//! knots follow without the beam ([`update_knots`]):
+//!
+//!   b_j' = b_j + (S' − S) e^(−d_j κ_s)
+//!
+//! (the haze term of b_j is untouched; e^(−d_j κ_s) is computed from the
+//! view as [`resolve`] does, so S' = S gives b_j back exactly). The live
+//! tracer thus holds per light its surface buffer and two knot buffers,
+//! and no beam between stages (the 600-fixture rig held 611 MiB of beams).
 
 use super::medium::{Medium, clean_density};
-use super::resolve::resolve;
+use super::resolve::{resolve, surface_depth};
 use super::single::HazeView;
-use crate::render::buffer::{HazeBuffer, LightBuffer};
+use crate::render::buffer::{HazeBuffer, LightBuffer, TILE};
 use glam::Vec3;
 
 /// Densities at which a light's buffer is published: 0, ½ and 1 of the
@@ -56,6 +70,49 @@ pub fn knot_buffers(
     beam: Option<&HazeBuffer>,
 ) -> [LightBuffer; 2] {
     [KNOTS[1], KNOTS[2]].map(|d| resolve(hv, medium, light_position, surface, beam, d))
+}
+
+/// A light's knot buffers ½ and 1 for its new surface buffer `surface`,
+/// from `knots`, those of its previous surface buffer `previous` (same
+/// light, same beam, same view): b_j + (S' − S) e^(−d_j κ_s) (module doc).
+/// A rounding residue below 0 where the surface term cancels is 0; a NaN
+/// stays NaN (the buffer check reports it).
+pub fn update_knots(
+    hv: &HazeView,
+    medium: &Medium,
+    light_position: Vec3,
+    previous: &LightBuffer,
+    surface: &LightBuffer,
+    knots: [&LightBuffer; 2],
+) -> [LightBuffer; 2] {
+    let (w, h) = (hv.width as usize, hv.height as usize);
+    let zero_tile = [Vec3::ZERO; TILE * TILE];
+    [0, 1].map(|j| {
+        let d = KNOTS[j + 1];
+        let knot = knots[j];
+        let mut candidates = knot.occupied();
+        candidates.extend(surface.occupied());
+        candidates.sort_unstable();
+        candidates.dedup();
+        LightBuffer::from_tiles(hv.width, hv.height, &candidates, |tx, ty, tile| {
+            let old = knot.tile(tx, ty).unwrap_or(&zero_tile);
+            let (s0, s1) = (previous.tile(tx, ty).unwrap_or(&zero_tile), surface.tile(tx, ty).unwrap_or(&zero_tile));
+            for r in 0..TILE.min(h - ty * TILE) {
+                for c in 0..TILE.min(w - tx * TILE) {
+                    let k = r * TILE + c;
+                    let mut v = old[k];
+                    if s1[k] != s0[k] {
+                        let i = (ty * TILE + r) * w + tx * TILE + c;
+                        let t = (-d * surface_depth(hv, medium, light_position, i)).exp();
+                        // As `resolve` forms S e^(−d κ_s): S' = 0 cancels exactly.
+                        v = v - s0[k] * t + s1[k] * t;
+                        v = Vec3::select(v.cmplt(Vec3::ZERO), Vec3::ZERO, v);
+                    }
+                    tile[k] = v;
+                }
+            }
+        })
+    })
 }
 
 #[cfg(test)]

@@ -40,7 +40,7 @@ pub mod reference;
 pub mod resolve;
 pub mod single;
 
-pub use live::{KNOTS, knot_buffers, knot_weights};
+pub use live::{KNOTS, knot_buffers, knot_weights, update_knots};
 pub use medium::{Medium, MediumError};
 pub use resolve::resolve;
 pub use single::{HazeQuality, HazeView, InScatter, integrate_ray, render_inscatter};

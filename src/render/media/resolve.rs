@@ -50,8 +50,7 @@ pub fn resolve(
         candidates.dedup();
     }
     let (w, h) = (hv.width as usize, hv.height as usize);
-    let (sigma_t, sigma_tl, sigma_s) = (medium.sigma_t(), medium.sigma_t_light(), medium.sigma_s);
-    let cam = hv.camera.position;
+    let sigma_s = medium.sigma_s;
     LightBuffer::from_tiles(hv.width, hv.height, &candidates, |tx, ty, tile| {
         let src = surface.tile(tx, ty);
         let hz = haze.and_then(|b| b.as_light_buffer().tile(tx, ty));
@@ -63,13 +62,7 @@ pub fn resolve(
                 if let Some(s) = src
                     && s[k] != Vec3::ZERO
                 {
-                    let kappa_s = match hv.hit_point(i) {
-                        Some(p) => {
-                            sigma_t * medium.length_inside(cam, p) + sigma_tl * medium.length_inside(p, light_position)
-                        }
-                        None => 0.0,
-                    };
-                    v = s[k] * (-d * kappa_s).exp();
+                    v = s[k] * (-d * surface_depth(hv, medium, light_position, i)).exp();
                 }
                 if let Some(hz) = hz {
                     let (a0, kappa) = (hz[k].x, hz[k].y);
@@ -81,6 +74,19 @@ pub fn resolve(
             }
         }
     })
+}
+
+/// The surface optical depth κ_s = σ_t τ_cam + σ_t* τ_light at density 1 of
+/// pixel `i` for a light at `light_position` (0 where the centre ray hits
+/// nothing): [`resolve`] multiplies the surface buffer by e^(−d κ_s).
+pub fn surface_depth(hv: &HazeView, medium: &Medium, light_position: Vec3, i: usize) -> f32 {
+    match hv.hit_point(i) {
+        Some(p) => {
+            medium.sigma_t() * medium.length_inside(hv.camera.position, p)
+                + medium.sigma_t_light() * medium.length_inside(p, light_position)
+        }
+        None => 0.0,
+    }
 }
 
 /// The surface transmittance e^(−κ_s) at density 1 of pixel `i` for a light

@@ -36,7 +36,8 @@
 //! weight). With `refine_edges`, full-resolution pixels whose four coarse
 //! neighbours disagree (a beam or shadow edge, a depth edge) are traced
 //! exactly (Engelhardt and Dachsbacher 2010 refine the same way along
-//! epipolar lines).
+//! epipolar lines). Without `refine_edges` (the coarse stage), tiles whose
+//! coarse samples all miss the beam are skipped, not upsampled.
 
 use super::medium::Medium;
 use crate::fixture::Light;
@@ -403,7 +404,23 @@ pub fn render_inscatter(
     // Upsampled values reach up to one coarse step past the bounds.
     let (ex0, ey0) = (bx0.saturating_sub(s) / TILE, by0.saturating_sub(s) / TILE);
     let (ex1, ey1) = ((bx1 + s).min(w).div_ceil(TILE), (by1 + s).min(h).div_ceil(TILE));
-    let tiles: Vec<(usize, usize)> = (ey0..ey1).flat_map(|ty| (ex0..ex1).map(move |tx| (tx, ty))).collect();
+    let mut tiles: Vec<(usize, usize)> = (ey0..ey1).flat_map(|ty| (ex0..ex1).map(move |tx| (tx, ty))).collect();
+    if !quality.refine_edges {
+        // A tile none of whose coarse samples (the two around every pixel,
+        // per axis) meets the beam is all zero after upsampling; only a
+        // pixel at a depth unlike all four neighbours (a beam seen through
+        // a gap) would be traced on its own. The coarse stage skips such
+        // tiles without upsampling; the refined stage traces depth edges.
+        let live = |tx: usize, ty: usize| {
+            let range = |t: usize, n: usize, full: usize| {
+                let (p0, p1) = (t * TILE, ((t + 1) * TILE).min(full) - 1);
+                (p0.saturating_sub(s / 2) / s, (p1.saturating_sub(s / 2) / s + 1).min(n - 1))
+            };
+            let ((xa, xb), (ya, yb)) = (range(tx, cw, w), range(ty, ch, h));
+            (ya..=yb).any(|cy| (xa..=xb).any(|cx| coarse_at(cx, cy).a0 > 0.0))
+        };
+        tiles.retain(|&(tx, ty)| live(tx, ty));
+    }
     let buffer = LightBuffer::from_tiles(hv.width, hv.height, &tiles, |tx, ty, tile| {
         for r in 0..TILE.min(h - ty * TILE) {
             for c in 0..TILE.min(w - tx * TILE) {
