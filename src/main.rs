@@ -696,6 +696,42 @@ fn still_universes(args: &RenderArgs, show: &Show) -> Result<footlight::fixture:
 }
 
 /// Every fixture's tracer light and k_i for a DMX state (eq. 4).
+/// The body layer of a still: every light's body at its decoded pan/tilt
+/// (GDTF models for an MVR patch, estimated boxes otherwise).
+#[allow(clippy::type_complexity)]
+fn still_bodies(
+    show: &Show,
+    universes: &footlight::fixture::Universes,
+    patch: &Path,
+    scene: &footlight::scene::Scene,
+    camera: &footlight::scene::Camera,
+    settings: &RenderSettings,
+) -> (
+    footlight::render::bodies::BodyLayer,
+    Vec<footlight::render::bodies::Body>,
+    Vec<footlight::Light>,
+    Vec<glam::Vec3>,
+) {
+    use footlight::render::bodies::{BodyLayer, body_models};
+    let inputs = show.decode(universes);
+    let names: Vec<String> = show.patch().fixtures.iter().map(|f| f.name.clone()).collect();
+    let (models, warnings) = body_models(patch, &names, &show.fixture_ids());
+    for w in warnings {
+        tracing::warn!("{w}");
+    }
+    let bodies: Vec<_> = models
+        .iter()
+        .map(|m| {
+            let i = &inputs[m.driver];
+            m.pose(&i.light, i.state.pan, i.state.tilt)
+        })
+        .collect();
+    let layer = BodyLayer::build(scene, camera, settings.width, settings.height, &bodies);
+    let lights = inputs.iter().map(|i| i.light.clone()).collect();
+    let k = inputs.iter().map(|i| i.k).collect();
+    (layer, bodies, lights, k)
+}
+
 fn jobs_for(show: &Show, universes: &footlight::fixture::Universes) -> Vec<LightJob> {
     show.decode(universes).into_iter().map(|i| LightJob { light: i.light, k_full: i.k_full, k: i.k }).collect()
 }
@@ -818,11 +854,9 @@ fn render(args: RenderArgs) -> Result<()> {
     let mut still = render_still_hazy(&scene, camera, &jobs, &settings, haze.as_ref())?;
     if args.bodies {
         // Fixture bodies: a layer over the composite, never in the light buffers (issue 14).
-        use footlight::render::bodies::{Body, BodyLayer};
         let t = std::time::Instant::now();
-        let bodies: Vec<Body> = jobs.iter().map(|j| Body::primitive(j.light.clone(), j.k)).collect();
-        let layer = BodyLayer::build(&scene, &camera, settings.width, settings.height, &bodies);
-        layer.overlay(&camera, &bodies, &mut still.linear);
+        let (layer, bodies, lights, k) = still_bodies(&show, &universes, &args.input.patch, &scene, &camera, &settings);
+        layer.overlay(&camera, &bodies, &lights, &k, &mut still.linear);
         let tested: u64 = (0..bodies.len()).map(|i| layer.footprint_pixels(i)).sum();
         tracing::info!(
             "bodies: {} drawn, {tested} pixel tests ({:.0} per body), {:.1} ms",
