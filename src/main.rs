@@ -206,6 +206,17 @@ struct RecordArgs {
     force: bool,
 }
 
+/// When `footlight run` draws fixture bodies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum BodiesChoice {
+    /// On for an MVR patch, off for a TOML one.
+    Auto,
+    /// Always.
+    On,
+    /// Never.
+    Off,
+}
+
 #[derive(Args)]
 struct RunArgs {
     #[command(flatten)]
@@ -236,6 +247,10 @@ struct RunArgs {
     /// Illuminance (lx) on a white Lambert surface shown as display white.
     #[arg(long, default_value_t = footlight::render::display::DEFAULT_WHITE_LUX, value_parser = flags::white_lux)]
     white_lux: f32,
+    /// Fixture bodies over the picture: auto (on for an MVR patch, from its GDTF models), on (TOML
+    /// fixtures get an estimated box), or off.
+    #[arg(long, value_enum, default_value_t = BodiesChoice::Auto)]
+    bodies: BodiesChoice,
     /// Compositor: auto (GPU if a hardware adapter exists), cpu, or gpu.
     #[arg(long, value_enum, default_value_t = footlight::gpu::CompositorChoice::Auto)]
     compositor: footlight::gpu::CompositorChoice,
@@ -602,6 +617,22 @@ fn run_daemon(
         let camera = choose_camera(&scene, &patch);
         let named = footlight::live::views::named_views(&camera, &scene, Some(&patch));
         let show = Arc::new(Show::new(patch));
+        let bodies = match args.bodies {
+            BodiesChoice::On => true,
+            BodiesChoice::Off => false,
+            BodiesChoice::Auto => footlight_mvr::is_mvr(&args.input.patch),
+        };
+        let bodies = bodies.then(|| {
+            let names: Vec<String> = show.patch().fixtures.iter().map(|f| f.name.clone()).collect();
+            let (models, warnings) =
+                footlight::render::bodies::body_models(&args.input.patch, &names, &show.fixture_ids());
+            for w in warnings {
+                tracing::warn!("{w}");
+            }
+            let from_gdtf = models.iter().filter(|m| !m.is_estimated()).count();
+            tracing::info!("bodies: {} ({from_gdtf} from GDTF models, the rest estimated boxes)", models.len());
+            models
+        });
         let display = Display::for_white_lux(args.white_lux);
         let photons = (args.photons > 0).then(|| PhotonSettings { stored: args.photons, ..PhotonSettings::default() });
         let defaults = DaemonConfig::default();
@@ -633,6 +664,7 @@ fn run_daemon(
             .input(source)
             .serve(listener)
             .named_views(named)
+            .bodies(bodies)
             .on_running(running_tx);
         if let Some(tap) = tap {
             daemon = daemon.frames_tap(tap);
