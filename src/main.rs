@@ -738,12 +738,8 @@ fn still_bodies(
     scene: &footlight::scene::Scene,
     camera: &footlight::scene::Camera,
     settings: &RenderSettings,
-) -> (
-    footlight::render::bodies::BodyLayer,
-    Vec<footlight::render::bodies::Body>,
-    Vec<footlight::Light>,
-    Vec<glam::Vec3>,
-) {
+) -> (footlight::render::bodies::BodyLayer, Vec<footlight::render::bodies::Body>, Vec<footlight::Light>, Vec<glam::Vec3>)
+{
     use footlight::render::bodies::{BodyLayer, body_models};
     let inputs = show.decode(universes);
     let names: Vec<String> = show.patch().fixtures.iter().map(|f| f.name.clone()).collect();

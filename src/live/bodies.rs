@@ -34,6 +34,9 @@ pub struct BodyUpdate {
     pub rebuilt: bool,
 }
 
+/// The last composite in, the k_i it was shaded with, the picture out.
+type LastPicture = (Arc<Vec<u8>>, Vec<Vec3>, Arc<Vec<u8>>);
+
 /// A driver light's pose: what moves a body.
 type PoseKey = (Vec3, Quat, f32, f32);
 
@@ -45,7 +48,7 @@ pub struct LiveBodies {
     keys: Vec<PoseKey>,
     layer: Option<(u64, Camera, BodyLayer)>,
     /// The last composite in, the k_i shaded with, and the picture out.
-    last: Option<(Arc<Vec<u8>>, Vec<Vec3>, Arc<Vec<u8>>)>,
+    last: Option<LastPicture>,
     /// Totals since start: bodies redrawn, pixels tested.
     pub totals: BodyUpdate,
 }
@@ -53,7 +56,15 @@ pub struct LiveBodies {
 impl LiveBodies {
     /// Bodies of `models` (one per fixture, [`crate::render::bodies::body_models`]) on `scene`.
     pub fn new(models: Vec<BodyModel>, scene: Arc<Scene>) -> Self {
-        Self { models, scene, bodies: Vec::new(), keys: Vec::new(), layer: None, last: None, totals: BodyUpdate::default() }
+        Self {
+            models,
+            scene,
+            bodies: Vec::new(),
+            keys: Vec::new(),
+            layer: None,
+            last: None,
+            totals: BodyUpdate::default(),
+        }
     }
 
     /// Number of bodies.
@@ -98,7 +109,8 @@ impl LiveBodies {
         if inputs.is_empty() || self.models.iter().any(|m| m.driver >= inputs.len()) {
             return (composite, update);
         }
-        let stale = !matches!(&self.layer, Some((g, _, l)) if *g == generation && l.width == width && l.height == height);
+        let stale =
+            !matches!(&self.layer, Some((g, _, l)) if *g == generation && l.width == width && l.height == height);
         if stale {
             (self.keys, self.bodies) = self.models.iter().map(pose).unzip();
             let layer = BodyLayer::build(&self.scene, camera, width, height, &self.bodies);

@@ -297,7 +297,8 @@ pub fn body_models(patch: &Path, names: &[String], ids: &[u32]) -> (Vec<BodyMode
                     let mut shapes = Vec::new();
                     let mut glow = Vec::new();
                     for p in &spec.parts {
-                        let key = (spec.type_name.clone(), p.geometry.clone() + "/" + &p.model, p.dimensions.x.to_bits());
+                        let key =
+                            (spec.type_name.clone(), p.geometry.clone() + "/" + &p.model, p.dimensions.x.to_bits());
                         let shape = match cache.get(&key) {
                             Some(s) => s.clone(),
                             None => {
@@ -323,7 +324,11 @@ pub fn body_models(patch: &Path, names: &[String], ids: &[u32]) -> (Vec<BodyMode
                     for &j in &lights {
                         covered[j] = true;
                     }
-                    models.push(BodyModel { name: spec.name.clone(), driver, kind: ModelKind::Gdtf { spec, shapes, glow } });
+                    models.push(BodyModel {
+                        name: spec.name.clone(),
+                        driver,
+                        kind: ModelKind::Gdtf { spec, shapes, glow },
+                    });
                 }
             }
         }
@@ -434,7 +439,14 @@ impl BodyLayer {
     /// Radiance of body pixel `index` (cd/m², linear RGB), `None` where the
     /// stage shows: housing work light plus the lens glow with its light's
     /// k_i (`lights[i]`, `k[i]` in light order).
-    pub fn radiance(&self, index: usize, camera: &Camera, bodies: &[Body], lights: &[Light], k: &[Vec3]) -> Option<Vec3> {
+    pub fn radiance(
+        &self,
+        index: usize,
+        camera: &Camera,
+        bodies: &[Body],
+        lights: &[Light],
+        k: &[Vec3],
+    ) -> Option<Vec3> {
         let h = self.hits.get(index).copied().flatten()?;
         let mut l = Vec3::splat(BODY_ALBEDO * std::f32::consts::FRAC_1_PI * WORK_LIGHT_LUX);
         if let Some((light, radius)) = bodies.get(h.body as usize).and_then(|b| b.parts.get(h.part as usize)?.glow)

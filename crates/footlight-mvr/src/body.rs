@@ -211,7 +211,8 @@ impl Walk<'_> {
         let model = n.model.as_deref().and_then(|name| self.g.model(name));
         match model {
             Some(model) => {
-                let dims = Vec3::new(model.dimensions[0] as f32, model.dimensions[1] as f32, model.dimensions[2] as f32);
+                let dims =
+                    Vec3::new(model.dimensions[0] as f32, model.dimensions[1] as f32, model.dimensions[2] as f32);
                 let (shape, estimated) = self.shape(&model.primitive, model.file.as_deref());
                 let lens = beam.map(|r| if r > 0.0 { r } else { 0.5 * dims.x.min(dims.y).max(1e-3) });
                 self.spec.parts.push(PartSpec {

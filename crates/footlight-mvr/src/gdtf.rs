@@ -331,7 +331,10 @@ impl Gdtf {
     /// `models/3ds/<file>.3ds` (GDTF 1.2 "Model"; exact name, then ignoring
     /// ASCII case). `None` when the archive holds neither.
     pub fn model_mesh(&self, file: &str) -> Option<(MeshFormat, &str, &[u8])> {
-        let candidates = [(MeshFormat::Glb, format!("models/gltf/{file}.glb")), (MeshFormat::Max3ds, format!("models/3ds/{file}.3ds"))];
+        let candidates = [
+            (MeshFormat::Glb, format!("models/gltf/{file}.glb")),
+            (MeshFormat::Max3ds, format!("models/3ds/{file}.3ds")),
+        ];
         candidates.iter().find_map(|(format, c)| {
             self.model_files
                 .get_key_value(c.as_str())
