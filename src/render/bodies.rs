@@ -574,3 +574,72 @@ fn sphere_rect(camera: &Camera, width: u32, height: u32, centre: Vec3, radius: f
     let r = (cl(cx - pr, width), cl(cy - pr, height), cl(cx + pr + 1.0, width), cl(cy + pr + 1.0, height));
     if r.0 >= r.2 || r.1 >= r.3 { (0, 0, 0, 0) } else { r }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fixture::{Beam, SpotBeam};
+    use crate::scene::{Material, SceneBuilder};
+
+    fn floor_scene() -> Scene {
+        let mut b = SceneBuilder::new();
+        let m = b.add_material(Material::lambert("floor", Vec3::splat(0.5)));
+        b.add_quad(
+            Vec3::new(-20.0, 0.0, 20.0),
+            Vec3::new(20.0, 0.0, 20.0),
+            Vec3::new(20.0, 0.0, -20.0),
+            Vec3::new(-20.0, 0.0, -20.0),
+            m,
+        );
+        b.build()
+    }
+
+    #[test]
+    fn an_estimated_head_facing_the_camera_glows_with_its_k() {
+        let scene = floor_scene();
+        let cam = Camera::look_at(Vec3::new(0.0, 3.0, 6.0), Vec3::new(0.0, 3.0, 0.0), 30f32.to_radians());
+        let light =
+            Light::aimed(Vec3::new(0.0, 3.0, 0.0), cam.position, Beam::Spot(SpotBeam::from_beam_field(20.0, 30.0)));
+        let k = [Vec3::new(100.0, 50.0, 25.0)];
+        let body = BodyModel::estimated("head", 0).pose(&light, 0.0, 0.0);
+        let (w, h) = (101, 101);
+        let layer = BodyLayer::build(&scene, &cam, w, h, std::slice::from_ref(&body));
+        let centre = layer.hits[(50 * w + 50) as usize].expect("the lens at the image centre");
+        // The lens disc's front face is 1 mm in front of the light's position.
+        assert!(centre.lens && (centre.depth - 5.999).abs() < 1e-4, "{centre:?}");
+        // On axis: L = k / (π r²) plus the housing term, per channel.
+        let shaded = layer.radiance((50 * w + 50) as usize, &cam, &[body], &[light], &k).unwrap();
+        let housing = BODY_ALBEDO / std::f32::consts::PI * WORK_LIGHT_LUX;
+        let want = k[0] / (std::f32::consts::PI * LENS_RADIUS * LENS_RADIUS) + Vec3::splat(housing);
+        assert!((shaded - want).abs().max_element() <= 1e-3 * want.max_element(), "{shaded} vs {want}");
+        // The box's apparent half width: 0.175 m at 6 m with a 30° field over 101 px.
+        let px_per_m = 101.0 / (2.0 * 6.0 * (15f32.to_radians()).tan());
+        let half = (0.175 * px_per_m) as u32;
+        assert!(layer.hits[(50 * w + 50 + half - 1) as usize].is_some_and(|h| !h.lens));
+        assert!(layer.hits[(50 * w + 50 + half + 2) as usize].is_none());
+        assert!(layer.footprint_pixels(0) < u64::from(w * h) / 4, "{}", layer.footprint_pixels(0));
+    }
+
+    #[test]
+    fn bodies_behind_the_stage_are_hidden_and_a_redraw_equals_a_rebuild() {
+        let scene = floor_scene();
+        let cam = Camera::look_at(Vec3::new(0.0, 5.0, 8.0), Vec3::ZERO, 40f32.to_radians());
+        let beam = Beam::Spot(SpotBeam::from_beam_field(20.0, 30.0));
+        let under = Light::aimed(Vec3::new(0.0, -1.0, 0.0), Vec3::ZERO, beam.clone());
+        let above = Light::aimed(Vec3::new(2.0, 1.0, 0.0), Vec3::new(2.0, 0.0, 0.0), beam);
+        let models = [BodyModel::estimated("under", 0), BodyModel::estimated("above", 1)];
+        let mut bodies = vec![models[0].pose(&under, 0.0, 0.0), models[1].pose(&above, 0.0, 0.0)];
+        let (w, h) = (120, 80);
+        let mut layer = BodyLayer::build(&scene, &cam, w, h, &bodies);
+        assert!(layer.hits.iter().flatten().all(|h| h.body == 1));
+        let count = |l: &BodyLayer| l.hits.iter().flatten().count();
+        assert!(count(&layer) > 10, "{}", count(&layer));
+        let mut moved = above.clone();
+        moved.position = Vec3::new(-2.0, 1.0, 1.0);
+        bodies[1] = models[1].pose(&moved, 0.0, 0.0);
+        layer.redraw(&scene, &cam, &bodies, 1);
+        let fresh = BodyLayer::build(&scene, &cam, w, h, &bodies);
+        assert_eq!(layer.hits, fresh.hits);
+        assert!(count(&layer) > 10);
+    }
+}
