@@ -215,6 +215,17 @@ struct RecordArgs {
     force: bool,
 }
 
+/// When `footlight run` draws fixture bodies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum BodiesChoice {
+    /// On for an MVR patch, off for a TOML one.
+    Auto,
+    /// Always.
+    On,
+    /// Never.
+    Off,
+}
+
 #[derive(Args)]
 struct RunArgs {
     #[command(flatten)]
@@ -250,6 +261,10 @@ struct RunArgs {
     /// white) or the level shown as white, e.g. 8 (docs/rendering.md).
     #[arg(long, value_name = "off|on|WHITE", value_parser = flags::rolloff)]
     rolloff: Option<flags::Rolloff>,
+    /// Fixture bodies over the picture: auto (on for an MVR patch, from its GDTF models), on (TOML
+    /// fixtures get an estimated box), or off.
+    #[arg(long, value_enum, default_value_t = BodiesChoice::Auto)]
+    bodies: BodiesChoice,
     /// Compositor: auto (GPU if a hardware adapter exists), cpu, or gpu.
     #[arg(long, value_enum, default_value_t = footlight::gpu::CompositorChoice::Auto)]
     compositor: footlight::gpu::CompositorChoice,
@@ -618,6 +633,22 @@ fn run_daemon(
         let camera = choose_camera(&scene, &patch);
         let named = footlight::live::views::named_views(&camera, &scene, Some(&patch));
         let show = Arc::new(Show::new(patch));
+        let bodies = match args.bodies {
+            BodiesChoice::On => true,
+            BodiesChoice::Off => false,
+            BodiesChoice::Auto => footlight_mvr::is_mvr(&args.input.patch),
+        };
+        let bodies = bodies.then(|| {
+            let names: Vec<String> = show.patch().fixtures.iter().map(|f| f.name.clone()).collect();
+            let (models, warnings) =
+                footlight::render::bodies::body_models(&args.input.patch, &names, &show.fixture_ids());
+            for w in warnings {
+                tracing::warn!("{w}");
+            }
+            let from_gdtf = models.iter().filter(|m| !m.is_estimated()).count();
+            tracing::info!("bodies: {} ({from_gdtf} from GDTF models, the rest estimated boxes)", models.len());
+            models
+        });
         let defaults = DaemonConfig::default();
         let rolloff = args.rolloff.map_or(defaults.display.rolloff, |r| r.0);
         let display = Display::for_white_lux(args.white_lux).with_rolloff(rolloff);
@@ -650,6 +681,7 @@ fn run_daemon(
             .input(source)
             .serve(listener)
             .named_views(named)
+            .bodies(bodies)
             .on_running(running_tx);
         if let Some(tap) = tap {
             daemon = daemon.frames_tap(tap);
@@ -713,6 +745,38 @@ fn still_universes(args: &RenderArgs, show: &Show) -> Result<footlight::fixture:
 }
 
 /// Every fixture's tracer light and k_i for a DMX state (eq. 4).
+/// The body layer of a still: every light's body at its decoded pan/tilt
+/// (GDTF models for an MVR patch, estimated boxes otherwise).
+#[allow(clippy::type_complexity)]
+fn still_bodies(
+    show: &Show,
+    universes: &footlight::fixture::Universes,
+    patch: &Path,
+    scene: &footlight::scene::Scene,
+    camera: &footlight::scene::Camera,
+    settings: &RenderSettings,
+) -> (footlight::render::bodies::BodyLayer, Vec<footlight::render::bodies::Body>, Vec<footlight::Light>, Vec<glam::Vec3>)
+{
+    use footlight::render::bodies::{BodyLayer, body_models};
+    let inputs = show.decode(universes);
+    let names: Vec<String> = show.patch().fixtures.iter().map(|f| f.name.clone()).collect();
+    let (models, warnings) = body_models(patch, &names, &show.fixture_ids());
+    for w in warnings {
+        tracing::warn!("{w}");
+    }
+    let bodies: Vec<_> = models
+        .iter()
+        .map(|m| {
+            let i = &inputs[m.driver];
+            m.pose(&i.light, i.state.pan, i.state.tilt)
+        })
+        .collect();
+    let layer = BodyLayer::build(scene, camera, settings.width, settings.height, &bodies);
+    let lights = inputs.iter().map(|i| i.light.clone()).collect();
+    let k = inputs.iter().map(|i| i.k).collect();
+    (layer, bodies, lights, k)
+}
+
 fn jobs_for(show: &Show, universes: &footlight::fixture::Universes) -> Vec<LightJob> {
     show.decode(universes).into_iter().map(|i| LightJob { light: i.light, k_full: i.k_full, k: i.k }).collect()
 }
@@ -835,11 +899,9 @@ fn render(args: RenderArgs) -> Result<()> {
     let mut still = render_still_hazy(&scene, camera, &jobs, &settings, haze.as_ref())?;
     if args.bodies {
         // Fixture bodies: a layer over the composite, never in the light buffers (issue 14).
-        use footlight::render::bodies::{Body, BodyLayer};
         let t = std::time::Instant::now();
-        let bodies: Vec<Body> = jobs.iter().map(|j| Body::primitive(j.light.clone(), j.k)).collect();
-        let layer = BodyLayer::build(&scene, &camera, settings.width, settings.height, &bodies);
-        layer.overlay(&camera, &bodies, &mut still.linear);
+        let (layer, bodies, lights, k) = still_bodies(&show, &universes, &args.input.patch, &scene, &camera, &settings);
+        layer.overlay(&camera, &bodies, &lights, &k, &mut still.linear);
         let tested: u64 = (0..bodies.len()).map(|i| layer.footprint_pixels(i)).sum();
         tracing::info!(
             "bodies: {} drawn, {tested} pixel tests ({:.0} per body), {:.1} ms",

@@ -38,6 +38,8 @@ mod fuzz_import;
 mod serve;
 // The browser stream: Chromium composites like the server; slow, malformed and picture clients.
 mod stream;
+// Fixture bodies from the GDTF model: silhouettes against the projected model dimensions.
+mod bodies;
 // Walking the stage: camera moves keep photon maps, cached views, orbit with DMX, write policy.
 mod views;
 // Gobos, framing shutters, prism and frost: floor cut vs its projection, golden image, spin rate.

@@ -39,6 +39,8 @@ MVR files (tests/data/mvr/):
   gate.mvr       5 Spots in the Extended mode (gobos, blades, prism, frost: golden image)
   venue.mvr      the MVR's geometry as the scene: a GLB floor, a GLB truss instanced
                  3x by a Symdef, a 3DS 1000 mm cube in a GroupObject, a missing model
+  bodies.mvr     fixture bodies: a glb head model on a moving head, a 3ds can, a
+                 primitives-only par (known dimensions; tests/bodies.rs)
   bad-*.mvr      refused archives: a `..` path, an absolute path, a >100:1 entry,
                  a header claiming > 1 GiB; and malformed XML (line/column test)
 """
@@ -958,6 +960,78 @@ def bad_files():
     return out
 
 
+# --- fixture bodies (issue 14 item 5): a glb model, a 3ds model, primitives only ---
+
+
+def body_types():
+    """The three GDTF types of bodies.mvr (known answers in tests/bodies.rs).
+
+    * BodyGlb: a moving head. Foot (model Foot: Cube 0.4 x 0.4 x 0.2 m) > Arm
+      (Axis, Pan, no model) > Lantern (Axis, Tilt, at z = -0.3 m; model Head
+      0.3 x 0.2 x 0.5 m, File "head" = models/gltf/head.glb: a glTF box
+      x in [0, 2], y in [0, 1], z in [0, 4] (Y up) -> GDTF X in [0, 2],
+      Y in [-4, 0], Z in [0, 1] -> scaled to X in [0, 0.3], Y in [-0.2, 0],
+      Z in [0, 0.5]) > Lens (Beam at z = -0.1 m, no model, BeamRadius 0.08:
+      a lens disc). Pan -180..180, tilt -90..90 (16-bit).
+    * Body3ds: a fixed can. Can (model Can 0.25 x 0.25 x 0.4 m, File "can" =
+      models/3ds/can.3ds: a box x, y in [-100, 100], z in [0, 300] mm ->
+      X, Y in [-0.125, 0.125], Z in [0, 0.4] m) > Lens (Beam at the origin,
+      no model, BeamRadius 0.1).
+    * BodyPrim: a fixed par, primitives only. Shell (model Shell: Cylinder
+      0.3 x 0.3 x 0.4 m, Z in [-0.2, 0.2]) > Lens (Beam at z = -0.2 m, model
+      Lens: Cylinder 0.24 x 0.24 x 0.01 m).
+    """
+    physical = [el("Emitters"), el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
+    head_v, head_t = box_mesh((0.0, 0.0, 0.0), (2.0, 1.0, 4.0))
+    lamp = dict(LampType="LED", PowerConsumption="300", LuminousFlux="10000", ColorTemperature="6500", BeamAngle="20", FieldAngle="30", BeamType="Spot")
+    glb_tree = el(
+        "Geometry",
+        [el("Axis", [el("Axis", [beam("Lens", None, m4(0, 0, -0.1), BeamRadius="0.08", **lamp)], Name="Lantern", Model="Head", Position=m4(0, 0, -0.3))], Name="Arm", Position=m4())],
+        Name="Foot",
+        Model="Foot",
+        Position=m4(),
+    )
+    glb_mode = [simple("Arm", [1, 2], "Pan", -180, 180, default=32768), simple("Lantern", [3, 4], "Tilt", -90, 90, default=32768), simple("Lens", [5], "Dimmer", 0, 1)]
+    glb = fixture_type(
+        "BodyGlb", "BodyGlb", ["Dimmer", "Pan", "Tilt"], [], physical,
+        [model("Foot", 0.4, 0.4, 0.2, "Cube"), model("Head", 0.3, 0.2, 0.5, "Undefined", file="head")],
+        [glb_tree], [mode("5ch", "Foot", glb_mode)], "moving head with a glb head model (test data, estimated values)",
+    )
+    can_v, can_t = box_mesh((-100.0, -100.0, 0.0), (100.0, 100.0, 300.0))
+    can_tree = el("Geometry", [beam("Lens", None, m4(), BeamRadius="0.1", **lamp)], Name="Can", Model="Can", Position=m4())
+    can = fixture_type(
+        "Body3ds", "Body3ds", ["Dimmer"], [], physical, [model("Can", 0.25, 0.25, 0.4, "Undefined", file="can")],
+        [can_tree], [mode("1ch", "Can", [simple("Lens", [1], "Dimmer", 0, 1)])], "fixed can with a 3ds model (test data, estimated values)",
+    )
+    prim_tree = el("Geometry", [beam("Lens", "Lens", m4(0, 0, -0.2), BeamRadius="0.12", **lamp)], Name="Shell", Model="Shell", Position=m4())
+    prim = fixture_type(
+        "BodyPrim", "BodyPrim", ["Dimmer"], [], physical, [model("Shell", 0.3, 0.3, 0.4, "Cylinder"), model("Lens", 0.24, 0.24, 0.01, "Cylinder")],
+        [prim_tree], [mode("1ch", "Shell", [simple("Lens", [1], "Dimmer", 0, 1)])], "fixed par, primitive models only (test data, estimated values)",
+    )
+    return {
+        "Footlight@BodyGlb.gdtf": zip_bytes({"description.xml": glb, "models/gltf/head.glb": glb_bytes(head_v, head_t, (0.2, 0.2, 0.2), "head")}),
+        "Footlight@Body3ds.gdtf": zip_bytes({"description.xml": can, "models/3ds/can.3ds": three_ds_bytes(can_v, can_t, "can")}),
+        "Footlight@BodyPrim.gdtf": zip_bytes({"description.xml": prim}),
+    }
+
+
+# bodies.mvr: one fixture of each body type, 4 m up, 2 m apart along stage x,
+# unrotated (GDTF Z up = stage y up: the beams point straight down).
+BODY_FIXTURES = [("Head glb", "Footlight@BodyGlb.gdtf", "5ch", -2000), ("Can 3ds", "Footlight@Body3ds.gdtf", "1ch", 0), ("Par prim", "Footlight@BodyPrim.gdtf", "1ch", 2000)]
+
+
+def bodies_mvr():
+    lights = uid("class/Lighting")
+    fixtures = [
+        fixture_xml(name, spec, mode_name, 3001 + k, k + 1, mvr_matrix(x, 0, 4000), [(0, 1 + 10 * k)], lights)
+        for k, (name, spec, mode_name, x) in enumerate(BODY_FIXTURES)
+    ]
+    layers = [el("Layer", [el("ChildList", fixtures)], name="Bodies", uuid=uid("layer/bodies"))]
+    entries = {"GeneralSceneDescription.xml": gsd(layers, [el("Class", name="Lighting", uuid=lights)])}
+    entries.update(body_types())
+    return zip_bytes(entries)
+
+
 def outputs():
     files = {}
     for name in TYPES:
@@ -966,6 +1040,7 @@ def outputs():
     files[MVR_DIR / "show150.mvr"] = show_mvr()
     files[MVR_DIR / "gate.mvr"] = gate_mvr()
     files[MVR_DIR / "venue.mvr"] = venue_mvr()
+    files[MVR_DIR / "bodies.mvr"] = bodies_mvr()
     for name, data in bad_files().items():
         files[MVR_DIR / name] = data
     return files

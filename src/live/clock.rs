@@ -129,6 +129,8 @@ pub struct FrameClock {
     /// pixels: while the camera waits for its view nothing is re-rendered,
     /// leaving the cores to the view build and the first light stages.
     last_preview: Option<LastPreview>,
+    /// Fixture bodies over the composite (issue 14 item 5), when shown.
+    bodies: Option<super::bodies::LiveBodies>,
 }
 
 /// The last moving preview: its camera, every light with its k_i and the
@@ -191,7 +193,19 @@ impl FrameClock {
             epoch,
             views: None,
             last_preview: None,
+            bodies: None,
         }
+    }
+
+    /// Draws fixture bodies over every composite from now on ([`super::bodies`]).
+    pub fn with_bodies(mut self, bodies: Option<super::bodies::LiveBodies>) -> Self {
+        self.bodies = bodies.filter(|b| !b.is_empty());
+        self
+    }
+
+    /// The body layer, when bodies are shown (its totals and rectangles).
+    pub fn bodies(&self) -> Option<&super::bodies::LiveBodies> {
+        self.bodies.as_ref()
     }
 
     /// Shows `views`' moving preview (through `display`) while the camera
@@ -335,11 +349,20 @@ impl FrameClock {
         let intensity = inputs.iter().map(|input| luminance(input.k)).collect();
         let k = Arc::new(lights.iter().map(|l| l.k).collect());
         let buffers = Arc::new(frame_buffers(&published, density));
+        let mut rgb = self.frame_rgb(gpu_rgb, &update);
+        if let Some(bodies) = &mut self.bodies {
+            // The body layer after Σ k_i buffer_i (CPU or GPU picture alike).
+            let view = self.tracer.view();
+            let (w, h) = (self.compositor.width(), self.compositor.height());
+            let generation = self.tracer.view_generation();
+            let display = self.compositor.display();
+            rgb = bodies.apply(&view.gbuffer.camera, generation, w, h, &inputs, rgb, &display).0;
+        }
         let frame = Frame {
             number: self.number,
             width: self.compositor.width(),
             height: self.compositor.height(),
-            rgb: self.frame_rgb(gpu_rgb, &update),
+            rgb,
             intensity: Arc::new(intensity),
             composite_time: t0.elapsed(),
             update,

@@ -273,6 +273,7 @@ pub struct Daemon {
     tap: Option<std::sync::mpsc::Sender<FramesTap>>,
     bound: Option<std::sync::mpsc::Sender<DaemonHandle>>,
     named: Vec<NamedView>,
+    bodies: Option<Vec<crate::render::bodies::BodyModel>>,
 }
 
 /// What a running daemon tells its embedder (tests, the binary).
@@ -305,6 +306,7 @@ impl Daemon {
             tap: None,
             bound: None,
             named: Vec::new(),
+            bodies: None,
         }
     }
 
@@ -322,6 +324,7 @@ impl Daemon {
             tap: None,
             bound: None,
             named: Vec::new(),
+            bodies: None,
         }
     }
 
@@ -329,6 +332,13 @@ impl Daemon {
     /// ([`super::views::named_views`]: scene camera, patch `[camera]`, `[[view]]`).
     pub fn named_views(mut self, named: Vec<NamedView>) -> Self {
         self.named = named;
+        self
+    }
+
+    /// Draws these fixture bodies over every composite (issue 14 item 5;
+    /// [`crate::render::bodies::body_models`]); `None` or empty: no bodies.
+    pub fn bodies(mut self, models: Option<Vec<crate::render::bodies::BodyModel>>) -> Self {
+        self.bodies = models;
         self
     }
 
@@ -359,7 +369,7 @@ impl Daemon {
 
     /// Runs until `shutdown` completes (`Ok`) or a task fails (`Err`).
     pub async fn run(self, shutdown: impl Future<Output = ()>) -> Result<(), DaemonError> {
-        let Daemon { scene, decoder, show, camera, config, source, listener, tap, bound, named } = self;
+        let Daemon { scene, decoder, show, camera, config, source, listener, tap, bound, named, bodies } = self;
         let (stop_tx, stop) = stop_signal();
         tokio::pin!(shutdown);
 
@@ -390,6 +400,7 @@ impl Daemon {
         });
         let tracer = Arc::new(Tracer::with_haze(scene.clone(), Arc::new(view), decoder.len(), config.tracer, haze));
         let named = if named.is_empty() { super::views::named_views(&camera, &scene, None) } else { named };
+        let bodies = bodies.map(|m| super::bodies::LiveBodies::new(m, scene.clone()));
         let views = Arc::new(Views::new(scene, tracer.clone(), camera, named, config.limits, config.views));
         let (choice, display) = (config.compositor, config.display);
         let gpu = tokio::task::spawn_blocking(move || crate::gpu::GpuFrames::open(choice, w, h, display))
@@ -398,7 +409,8 @@ impl Daemon {
             .map_err(|e| DaemonError::Gpu(e.to_string()))?;
         let mut clock = FrameClock::new(decoder.clone(), tracer.clone(), Compositor::new(w, h, display))
             .with_gpu(gpu)
-            .with_views(views.clone(), display);
+            .with_views(views.clone(), display)
+            .with_bodies(bodies);
         let compositor = clock.gpu_adapter().map(|a| format!("GPU: {a}")).unwrap_or_else(|| "CPU".into());
 
         // DMX: a network input is bound now (a taken port is an error before

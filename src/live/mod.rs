@@ -9,12 +9,14 @@
 //!   (every stage is a [`crate::render::LightBuild`] method).
 //! * [`cache`]: recent geometry states per light (position presets are instant).
 //! * [`views`]: camera writes, named views, the moving preview and the view cache.
+//! * [`bodies`]: fixture bodies over each composite (issue 14 item 5).
 //! * [`daemon`]: [`Daemon`], the owner of every task and the one stop signal.
 //!
 //! Threads: DMX input and HTTP run on tokio; each frame-clock tick runs on
 //! tokio's blocking pool; builds run on the tracer's own thread and rayon
 //! pool. Neither input nor the clock ever waits for the tracer.
 
+pub mod bodies;
 pub mod cache;
 pub mod clock;
 pub mod daemon;

@@ -56,6 +56,30 @@ pub struct Gdtf {
     pub ft: gdtf::fixture_type::FixtureType,
     /// The archive's files under `wheels/` (gobo and colour-slot images), by entry name.
     media: BTreeMap<String, Vec<u8>>,
+    /// The archive's 3D model files under `models/` (glb, 3ds), by entry name.
+    model_files: BTreeMap<String, Vec<u8>>,
+}
+
+/// A `<Model>` of the fixture type (issue 14 item 5: fixture bodies).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModelInfo {
+    /// `Name`.
+    pub name: String,
+    /// `Length` (along the geometry's X), `Width` (Y), `Height` (Z), metres.
+    pub dimensions: [f64; 3],
+    /// `PrimitiveType` as written in the file (`Cube`, `Cylinder`, `Base`…).
+    pub primitive: String,
+    /// `File`: the model file's name, without folder and extension.
+    pub file: Option<String>,
+}
+
+/// A model's 3D file from the GDTF archive.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MeshFormat {
+    /// `models/gltf/<File>.glb` (glTF 2.0 binary; glTF axes, Y up).
+    Glb,
+    /// `models/3ds/<File>.3ds` (Z up).
+    Max3ds,
 }
 
 /// A DMX mode expanded to its geometry instances and patched channels.
@@ -256,7 +280,12 @@ impl Gdtf {
             .filter(|n| n.starts_with("wheels/"))
             .filter_map(|n| archive.get(n).map(|d| (n.to_string(), d.to_vec())))
             .collect();
-        Ok(Self { label, data_version, ft, media })
+        let model_files = archive
+            .names()
+            .filter(|n| n.starts_with("models/"))
+            .filter_map(|n| archive.get(n).map(|d| (n.to_string(), d.to_vec())))
+            .collect();
+        Ok(Self { label, data_version, ft, media, model_files })
     }
 
     /// The fixture type's name (`Name`, else `ShortName`).
@@ -285,6 +314,33 @@ impl Gdtf {
                 self.media.get(c).or_else(|| self.media.iter().find(|(k, _)| k.eq_ignore_ascii_case(c)).map(|(_, v)| v))
             })
             .map(Vec::as_slice)
+    }
+
+    /// The `<Model>` named `name`.
+    pub fn model(&self, name: &str) -> Option<ModelInfo> {
+        let m = self.ft.models.iter().find(|m| m.name.as_deref() == Some(name))?;
+        Some(ModelInfo {
+            name: name.to_string(),
+            dimensions: [m.length, m.width, m.height],
+            primitive: format!("{:?}", m.primitive_type),
+            file: m.file.clone(),
+        })
+    }
+
+    /// A model's 3D file: `models/gltf/<file>.glb` first, else
+    /// `models/3ds/<file>.3ds` (GDTF 1.2 "Model"; exact name, then ignoring
+    /// ASCII case). `None` when the archive holds neither.
+    pub fn model_mesh(&self, file: &str) -> Option<(MeshFormat, &str, &[u8])> {
+        let candidates = [
+            (MeshFormat::Glb, format!("models/gltf/{file}.glb")),
+            (MeshFormat::Max3ds, format!("models/3ds/{file}.3ds")),
+        ];
+        candidates.iter().find_map(|(format, c)| {
+            self.model_files
+                .get_key_value(c.as_str())
+                .or_else(|| self.model_files.iter().find(|(k, _)| k.eq_ignore_ascii_case(c)))
+                .map(|(k, v)| (*format, k.as_str(), v.as_slice()))
+        })
     }
 
     /// Number of slots of the wheel named `name`.

@@ -38,6 +38,7 @@
 #![forbid(unsafe_code)]
 
 pub mod archive;
+pub mod body;
 pub mod gate;
 pub mod gdtf;
 pub mod mvr;
