@@ -235,3 +235,68 @@ fn k_of_show(show: &footlight::live::Show, u: &footlight::fixture::Universes) ->
     use footlight::live::Decode;
     show.decode(u).into_iter().map(|i| i.k).collect()
 }
+
+/// The cells of a bar built together ([`footlight::render::cells::whitted_together`]:
+/// one pass over the union of their footprints, each cell's own shadow rays
+/// and anti-aliasing) equal each cell built alone (`LightBuild::whitted`),
+/// pixel by pixel to 1e-6 of the cell's peak, on a floor with a box that
+/// casts shadows and a mirror wall (camera paths of depth 1 and 2) under
+/// adaptive anti-aliasing. A light aimed away from everything is built
+/// with them and stays empty.
+#[test]
+fn cells_built_together_equal_cells_built_alone() {
+    use footlight::render::build::{BuildSettings, Cancel, LightBuild};
+    use footlight::render::cells::{PathBounds, whitted_together};
+    use footlight::render::view::AaParams;
+    let import = footlight_mvr::load_mvr(&root().join("tests/data/mvr/features.mvr")).unwrap();
+    let mut lights: Vec<_> = import.patch.fixtures.iter().filter(|f| f.id == 301).map(|f| f.light.clone()).collect();
+    assert_eq!(lights.len(), 8);
+    let centre = lights[3].position;
+    let mut b = SceneBuilder::new();
+    let m = lambert(&mut b, 0.5);
+    floor(&mut b, 30.0, 0.0, m);
+    cube(&mut b, Vec3::new(centre.x - 0.3, 0.0, centre.z - 0.3), Vec3::new(centre.x + 0.3, 0.8, centre.z + 0.3), m);
+    let mut mirror = footlight::scene::Material::lambert("mirror", Vec3::splat(0.1));
+    mirror.k_r = Vec3::splat(0.7);
+    let mirror = b.add_material(mirror);
+    let z = centre.z - 3.0;
+    b.add_quad(
+        Vec3::new(centre.x - 6.0, 0.0, z),
+        Vec3::new(centre.x + 6.0, 0.0, z),
+        Vec3::new(centre.x + 6.0, 6.0, z),
+        Vec3::new(centre.x - 6.0, 6.0, z),
+        mirror,
+    );
+    let scene = b.build();
+    lights.push(footlight::Light::aimed(centre, centre + Vec3::Y, lights[0].beam.clone()));
+    let cam =
+        Camera::look_at(Vec3::new(centre.x, 5.0, centre.z + 9.0), Vec3::new(centre.x, 0.5, centre.z), 60f32.to_radians());
+    let (w, h) = (80, 56);
+    let v = view(&scene, cam, w, h, Sampling::Adaptive, 2);
+    assert!(v.shading.vertices().iter().any(|x| x.depth > 0), "the mirror is seen");
+    let settings = BuildSettings { photons: None, ..BuildSettings::default() };
+    let bounds = PathBounds::build(&v);
+    let (together, stats) =
+        whitted_together(&scene, &v, &bounds, &lights, Some(AaParams::new(settings.aa_threshold)), &|| false).unwrap();
+    assert_eq!(together.len(), lights.len());
+    assert!(stats.union_tiles < stats.light_tiles, "the cells share tiles: {stats:?}");
+    let mut reshaded_any = false;
+    for (i, light) in lights.iter().enumerate() {
+        let mut alone_build = LightBuild::new(light.clone(), i, settings, Cancel::never());
+        let alone = alone_build.whitted(&scene, &v).unwrap();
+        let (buf, reshaded) = &together[i];
+        assert_eq!(*reshaded, alone_build.reshaded(), "light {i}: same pixels re-shaded");
+        reshaded_any |= *reshaded > 0;
+        let (a, t) = (alone.to_dense(), buf.to_dense());
+        let peak = a.iter().map(|p| p.max_element()).fold(0.0f32, f32::max);
+        if i == 8 {
+            assert_eq!(peak, 0.0, "the light aimed away lights nothing");
+        } else {
+            assert!(peak > 0.0, "cell {i} lights the floor");
+        }
+        for (p, (x, y)) in a.iter().zip(&t).enumerate() {
+            assert!((*x - *y).abs().max_element() <= 1e-6 * peak, "light {i} pixel {p}: alone {x}, together {y}");
+        }
+    }
+    assert!(reshaded_any, "anti-aliasing ran");
+}
