@@ -242,11 +242,11 @@ fn k_of_show(show: &footlight::live::Show, u: &footlight::fixture::Universes) ->
 /// pixel by pixel to 1e-6 of the cell's peak, on a floor with a box that
 /// casts shadows and a mirror wall (camera paths of depth 1 and 2) under
 /// adaptive anti-aliasing. A light aimed away from everything is built
-/// with them and stays empty.
+/// with them and stays empty. The same for the direct stage.
 #[test]
 fn cells_built_together_equal_cells_built_alone() {
     use footlight::render::build::{BuildSettings, Cancel, LightBuild};
-    use footlight::render::cells::{PathBounds, whitted_together};
+    use footlight::render::cells::{PathBounds, direct_together, whitted_together};
     use footlight::render::view::AaParams;
     let import = footlight_mvr::load_mvr(&root().join("tests/data/mvr/features.mvr")).unwrap();
     let mut lights: Vec<_> = import.patch.fixtures.iter().filter(|f| f.id == 301).map(|f| f.light.clone()).collect();
@@ -299,4 +299,17 @@ fn cells_built_together_equal_cells_built_alone() {
         }
     }
     assert!(reshaded_any, "anti-aliasing ran");
+    // The direct stage (directly seen surfaces, footprint-culled) built together.
+    let (direct, _) = direct_together(&scene, &v, &lights, &|| false).unwrap();
+    for (i, light) in lights.iter().enumerate() {
+        let (alone, _) = LightBuild::new(light.clone(), i, settings, Cancel::never())
+            .direct(&scene, &v, footlight::render::footprint::DirectQuality::Full)
+            .unwrap();
+        let (a, t) = (alone.to_dense(), direct[i].to_dense());
+        let peak = a.iter().map(|p| p.max_element()).fold(0.0f32, f32::max);
+        assert_eq!(peak > 0.0, i < 8, "light {i}");
+        for (p, (x, y)) in a.iter().zip(&t).enumerate() {
+            assert!((*x - *y).abs().max_element() <= 1e-6 * peak, "direct, light {i} pixel {p}: alone {x}, together {y}");
+        }
+    }
 }

@@ -137,11 +137,73 @@ pub fn whitted_together(
 ) -> Option<(Vec<(LightBuffer, usize)>, TogetherStats)> {
     let (w, h) = (view.width() as usize, view.height() as usize);
     let n = bounds.len();
+    let lists: Vec<Vec<usize>> = lights.iter().map(|l| bounds.tiles_in_beam(l)).collect();
+    let (per_light, union_tiles, light_tiles) = shade_union(scene, view, bounds.tiles_x, n, lights, &lists, false, stop)?;
+    let adaptive = matches!(view.sampling, Sampling::Adaptive) && aa.is_some();
+    // Scratch for anti-aliasing, shared by the lights one after another.
+    let mut dense = if adaptive { vec![Vec3::ZERO; w * h] } else { Vec::new() };
+    let mut flags = if adaptive { vec![false; w * h] } else { Vec::new() };
+    let mut out = Vec::with_capacity(lights.len());
+    let mut reshaded_all = 0;
+    for (light, tiles) in lights.iter().zip(per_light) {
+        if stop() {
+            return None;
+        }
+        let (Some(aa), false) = (aa.filter(|_| adaptive), tiles.is_empty()) else {
+            out.push((LightBuffer::from_tile_list(w as u32, h as u32, tiles), 0));
+            continue;
+        };
+        let (buffer, reshaded) = anti_alias(scene, view, bounds.tiles_x, light, tiles, aa, &mut dense, &mut flags);
+        reshaded_all += reshaded;
+        out.push((buffer, reshaded));
+    }
+    let stats = TogetherStats { tiles: n, union_tiles, light_tiles, reshaded: reshaded_all };
+    Some((out, stats))
+}
+
+/// The direct stage ([`super::footprint::primary_direct`] at
+/// [`super::footprint::DirectQuality::Full`]: directly seen surfaces only,
+/// no anti-aliasing) of every light of `lights`, built together over the
+/// union of their footprints ([`View::tile_bounds`]); equal to each light's
+/// own direct stage. `None` once `stop` returns true.
+pub fn direct_together(
+    scene: &Scene,
+    view: &View,
+    lights: &[Light],
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Option<(Vec<LightBuffer>, TogetherStats)> {
+    let (w, h) = (view.width(), view.height());
+    let bounds = view.tile_bounds();
+    let tiles_x = (w as usize).div_ceil(TILE);
+    let lists: Vec<Vec<usize>> = lights.iter().map(|l| bounds.tiles_in_beam(l)).collect();
+    let (per_light, union_tiles, light_tiles) =
+        shade_union(scene, view, tiles_x, bounds.len(), lights, &lists, true, stop)?;
+    let out = per_light.into_iter().map(|tiles| LightBuffer::from_tile_list(w, h, tiles)).collect();
+    Some((out, TogetherStats { tiles: bounds.len(), union_tiles, light_tiles, reshaded: 0 }))
+}
+
+/// Per light, its non-zero tiles; the union's size; the sum of the lists'
+/// sizes. One parallel pass over the union of `lists` (light i's tiles):
+/// every vertex of a tile (only the directly seen ones with `primary`)
+/// evaluates the direct light of each light whose list holds the tile,
+/// summed per pixel in vertex order (the sum a light alone makes).
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn shade_union(
+    scene: &Scene,
+    view: &View,
+    tiles_x: usize,
+    n: usize,
+    lights: &[Light],
+    lists: &[Vec<usize>],
+    primary: bool,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Option<(Vec<Vec<(usize, Vec<Vec3>)>>, usize, usize)> {
+    let (w, h) = (view.width() as usize, view.height() as usize);
     // Which lights reach each tile.
     let mut reach: Vec<Vec<u32>> = vec![Vec::new(); n];
     let mut light_tiles = 0;
-    for (i, light) in lights.iter().enumerate() {
-        for t in bounds.tiles_in_beam(light) {
+    for (i, list) in lists.iter().enumerate() {
+        for &t in list {
             reach[t].push(i as u32);
             light_tiles += 1;
         }
@@ -156,13 +218,13 @@ pub fn whitted_together(
             if stop() {
                 return (t, blocks);
             }
-            let (tx, ty) = (t % bounds.tiles_x, t / bounds.tiles_x);
+            let (tx, ty) = (t % tiles_x, t / tiles_x);
             let mut sums = vec![Vec3::ZERO; who.len()];
             for y in ty * TILE..((ty + 1) * TILE).min(h) {
                 for x in tx * TILE..((tx + 1) * TILE).min(w) {
                     sums.iter_mut().for_each(|s| *s = Vec3::ZERO);
                     // The same sum as the light alone: vertex after vertex.
-                    for v in view.shading.pixel(y * w + x) {
+                    for v in view.shading.pixel(y * w + x).iter().filter(|v| !primary || v.depth == 0) {
                         for (s, &i) in sums.iter_mut().zip(who) {
                             *s += v.weight * direct(scene, &lights[i as usize], v);
                         }
@@ -188,26 +250,7 @@ pub fn whitted_together(
             }
         }
     }
-    let adaptive = matches!(view.sampling, Sampling::Adaptive) && aa.is_some();
-    // Scratch for anti-aliasing, shared by the lights one after another.
-    let mut dense = if adaptive { vec![Vec3::ZERO; w * h] } else { Vec::new() };
-    let mut flags = if adaptive { vec![false; w * h] } else { Vec::new() };
-    let mut out = Vec::with_capacity(lights.len());
-    let mut reshaded_all = 0;
-    for (light, tiles) in lights.iter().zip(per_light) {
-        if stop() {
-            return None;
-        }
-        let (Some(aa), false) = (aa.filter(|_| adaptive), tiles.is_empty()) else {
-            out.push((LightBuffer::from_tile_list(w as u32, h as u32, tiles), 0));
-            continue;
-        };
-        let (buffer, reshaded) = anti_alias(scene, view, bounds.tiles_x, light, tiles, aa, &mut dense, &mut flags);
-        reshaded_all += reshaded;
-        out.push((buffer, reshaded));
-    }
-    let stats = TogetherStats { tiles: n, union_tiles: union.len(), light_tiles, reshaded: reshaded_all };
-    Some((out, stats))
+    Some((per_light, union.len(), light_tiles))
 }
 
 /// One light's adaptive anti-aliasing from its shaded tiles: the pixels
