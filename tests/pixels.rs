@@ -313,3 +313,32 @@ fn cells_built_together_equal_cells_built_alone() {
         }
     }
 }
+
+/// A cell's own rotation turns its beam (`tests/data/mvr/cells.mvr`, written
+/// by `tools/gen_gdtf_mvr.py`): the Fan4's cell k is a GeometryReference
+/// turned by 0°, 30°, 60°, 90° about the GDTF Y axis. Each cell's beam
+/// axis must be the unturned cell's axis turned by this test's own R_y
+/// (in fixture axes); the fixture hangs unrotated, so cell 1 points straight
+/// down and cell 4 (90°) horizontally, along the fixture's −X.
+#[test]
+fn cell_rotation_turns_its_beam() {
+    use glam::Mat3;
+    let import = footlight_mvr::load_mvr(&root().join("tests/data/mvr/cells.mvr")).unwrap();
+    let cells: Vec<_> = import.patch.fixtures.iter().filter(|f| f.id == 801).collect();
+    assert_eq!(cells.len(), 4, "one light per cell");
+    assert!((cells[0].light.axis() - Vec3::NEG_Y).length() < 1e-5, "the unturned cell points down: {}", cells[0].light.axis());
+    // The fixture's frame: the unturned cell's rotation (GDTF axes to the stage).
+    let frame = cells[0].light.rotation;
+    for (k, deg) in [0.0f32, 30.0, 60.0, 90.0].iter().enumerate() {
+        let (c, s) = (deg.to_radians().cos(), deg.to_radians().sin());
+        // R_y as the test writes it (columns), applied to the rest beam −Z.
+        let r = Mat3::from_cols(Vec3::new(c, 0.0, -s), Vec3::Y, Vec3::new(s, 0.0, c));
+        let expected = frame * (r * Vec3::NEG_Z);
+        let axis = cells[k].light.axis();
+        assert!((axis - expected).length() < 1e-5, "cell {} turned {deg}°: axis {axis}, expected {expected}", k + 1);
+        let down = axis.dot(Vec3::NEG_Y).clamp(-1.0, 1.0).acos().to_degrees();
+        assert!((down - deg).abs() < 1e-3, "cell {} is {down}° from straight down, not {deg}°", k + 1);
+    }
+    assert!(cells[3].light.axis().y.abs() < 1e-5, "the 90° cell points horizontally");
+    assert!((cells[3].light.axis() - frame * Vec3::NEG_X).length() < 1e-5, "along the fixture's −X");
+}

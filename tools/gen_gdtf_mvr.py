@@ -29,6 +29,8 @@ GDTF files (tests/data/gdtf/):
   Footlight@Blinder.gdtf  2-lamp tungsten blinder; modes 2ch and 1ch
   Footlight@Fresnel.gdtf  1 kW tungsten Fresnel with a DMX profile; modes 1ch, 2ch (zoom)
   Footlight@Hazer.gdtf    hazer, no beam: Haze density and Fan channels
+  Footlight@Fan4.gdtf     4 GeometryReference cells turned 0/30/60/90 degrees about GDTF Y
+                          (cell rotation); mode 4ch
 
 MVR files (tests/data/mvr/):
   features.mvr   layers, classes, group objects, focus points, truss and scene
@@ -39,6 +41,7 @@ MVR files (tests/data/mvr/):
   gate.mvr       5 Spots in the Extended mode (gobos, blades, prism, frost: golden image)
   venue.mvr      the MVR's geometry as the scene: a GLB floor, a GLB truss instanced
                  3x by a Symdef, a 3DS 1000 mm cube in a GroupObject, a missing model
+  cells.mvr      one Fan4 5 m up: each cell's beam along its own matrix
   bad-*.mvr      refused archives: a `..` path, an absolute path, a >100:1 entry,
                  a header claiming > 1 GiB; and malformed XML (line/column test)
 """
@@ -69,6 +72,12 @@ def uid(name):
 def m4(tx=0.0, ty=0.0, tz=0.0):
     """GDTF geometry matrix (metres): rows {u1,v1,w1,o1}..., translation in the 4th column."""
     return f"{{1,0,0,{tx:g}}}{{0,1,0,{ty:g}}}{{0,0,1,{tz:g}}}{{0,0,0,1}}"
+
+
+def m4_rot_y(deg, tx=0.0, ty=0.0, tz=0.0):
+    """GDTF geometry matrix (rows, as m4) rotating by `deg` about the geometry's Y axis: R_y = [[c,0,s],[0,1,0],[-s,0,c]]."""
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return f"{{{c:.9f},0,{s:.9f},{tx:g}}}{{0,1,0,{ty:g}}}{{{-s:.9f},0,{c:.9f},{tz:g}}}{{0,0,0,1}}"
 
 
 def attrs(**kw):
@@ -610,7 +619,30 @@ def hazer():
     return text, {}
 
 
+# Fan4: four GeometryReference cells of one Pixel beam, cell k turned by
+# FAN_ANGLES[k] degrees about the GDTF Y axis (its beam, -Z at rest, then
+# points along R_y(a)·(-Z) = (-sin a, 0, -cos a) in fixture axes). Known
+# answer in tests/pixels.rs (cell rotation).
+FAN_ANGLES = (0.0, 30.0, 60.0, 90.0)
+
+
+def fan():
+    used = ["Dimmer"]
+    physical = [el("Emitters"), el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
+    models = [model("Body", 0.5, 0.08, 0.1, "Cube"), model("Pixel", 0.1, 0.06, 0.01, "Cube")]
+    pixel = beam("Pixel", "Pixel", m4(), LampType="LED", PowerConsumption="15", LuminousFlux="400", ColorTemperature="6500", BeamAngle="10", FieldAngle="14", BeamRadius="0.03", BeamType="Wash")
+    refs = [
+        el("GeometryReference", [el("Break", DMXOffset=str(1 + k), DMXBreak="1")], Name=f"Fan{k + 1}", Geometry="Pixel", Model="Pixel", Position=m4_rot_y(a, -0.15 + 0.1 * k, 0, -0.05))
+        for k, a in enumerate(FAN_ANGLES)
+    ]
+    tree = el("Geometry", refs, Name="Fan", Model="Body", Position=m4())
+    m1 = [simple("Pixel", [1], "Dimmer")]
+    text = fixture_type("Fan4", "Fan4", used, [], physical, models, [tree, pixel], [mode("4ch", "Fan", m1)], "4 cells turned 0/30/60/90 degrees (test data, estimated values)")
+    return text, {}
+
+
 TYPES = {
+    "Footlight@Fan4.gdtf": fan,
     "Footlight@Spot.gdtf": spot,
     "Footlight@Wash.gdtf": wash,
     "Footlight@Bar8.gdtf": bar,
@@ -912,6 +944,16 @@ def gate_mvr():
     return zip_bytes(entries)
 
 
+def cells_mvr():
+    """cells.mvr: one Fan4 hung 5 m up, unrotated (its GDTF -Z is the MVR's -Z: down)."""
+    lights = uid("class/Lighting")
+    f = fixture_xml("Fan 1", "Footlight@Fan4.gdtf", "4ch", 801, 1, mvr_matrix(0, 0, 5000), [(0, 1)], lights)
+    layers = [el("Layer", [el("ChildList", [f])], name="Cells", uuid=uid("layer/cells"))]
+    entries = {"GeneralSceneDescription.xml": gsd(layers, [el("Class", name="Lighting", uuid=lights)])}
+    entries["Footlight@Fan4.gdtf"] = gdtf_bytes("Footlight@Fan4.gdtf")
+    return zip_bytes(entries)
+
+
 def minimal_gsd():
     f = fixture_xml("Spot 1", "Footlight@Spot.gdtf", "Basic", 1, 1, mvr_matrix(0, 0, 6000), [(0, 1)])
     return gsd([el("Layer", [el("ChildList", [f])], name="L", uuid=uid("layer/min"))], [])
@@ -966,6 +1008,7 @@ def outputs():
     files[MVR_DIR / "show150.mvr"] = show_mvr()
     files[MVR_DIR / "gate.mvr"] = gate_mvr()
     files[MVR_DIR / "venue.mvr"] = venue_mvr()
+    files[MVR_DIR / "cells.mvr"] = cells_mvr()
     for name, data in bad_files().items():
         files[MVR_DIR / name] = data
     return files
