@@ -42,6 +42,7 @@ MVR files (tests/data/mvr/):
   venue.mvr      the MVR's geometry as the scene: a GLB floor, a GLB truss instanced
                  3x by a Symdef, a 3DS 1000 mm cube in a GroupObject, a missing model
   cells.mvr      one Fan4 5 m up: each cell's beam along its own matrix
+  ../textures/checker.jpg  a baseline JPEG of flat 8x8 blocks (JPEG_BLOCKS), encoded here
   bad-*.mvr      refused archives: a `..` path, an absolute path, a >100:1 entry,
                  a header claiming > 1 GiB; and malformed XML (line/column test)
 """
@@ -108,6 +109,52 @@ def png_gray(width, height, pixel):
 
 
 GOBO_SIZE = 64
+
+
+def jpeg_gray_blocks(blocks):
+    """Baseline greyscale JPEG (ITU-T T.81) of flat 8x8 blocks: `blocks` is a list of rows of 0..255
+    values, one per block. Every quantiser step is 1 and each block has only its DC coefficient
+    (F(0,0) = 8 (v - 128) for a flat block), so a decoder's IDCT gives back v exactly: the known
+    answer of the JPEG tests, written without any JPEG library."""
+    rows, cols = len(blocks), len(blocks[0])
+    seg = lambda marker, payload: bytes([0xFF, marker]) + struct.pack(">H", len(payload) + 2) + payload  # noqa: E731
+    dc_bits = [0, 1, 5, 1, 1, 1, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0]  # T.81 Table K.3 (luminance DC)
+    dc_vals = list(range(12))
+    codes, code, k = {}, 0, 0
+    for length, count in enumerate(dc_bits, start=1):
+        for _ in range(count):
+            codes[dc_vals[k]] = (code, length)
+            code, k = code + 1, k + 1
+        code <<= 1
+    out = bytearray(b"\xff\xd8")
+    out += seg(0xDB, bytes([0]) + bytes([1] * 64))
+    out += seg(0xC0, struct.pack(">BHHB", 8, 8 * rows, 8 * cols, 1) + bytes([1, 0x11, 0]))
+    out += seg(0xC4, bytes([0x00] + dc_bits + dc_vals))
+    out += seg(0xC4, bytes([0x10, 1] + [0] * 15 + [0x00]))  # AC: only end-of-block, code "0"
+    out += seg(0xDA, bytes([1, 1, 0x00, 0, 63, 0]))
+    bits, pred = [], 0
+    for row in blocks:
+        for v in row:
+            dc = 8 * (v - 128)
+            diff, pred = dc - pred, dc
+            size = abs(diff).bit_length()
+            c, n = codes[size]
+            bits += [(c >> (n - 1 - i)) & 1 for i in range(n)]
+            extra = diff if diff >= 0 else diff - 1 + (1 << size)
+            bits += [(extra >> (size - 1 - i)) & 1 for i in range(size)]
+            bits.append(0)  # end of block
+    bits += [1] * (-len(bits) % 8)
+    for i in range(0, len(bits), 8):
+        byte = int("".join(map(str, bits[i:i + 8])), 2)
+        out.append(byte)
+        if byte == 0xFF:
+            out.append(0)
+    out += b"\xff\xd9"
+    return bytes(out)
+
+
+# tests/data/textures/checker.jpg: 3x2 flat 8x8 blocks (24x16 texels), row by row.
+JPEG_BLOCKS = [[255, 0, 128], [64, 200, 10]]
 
 
 def gobo_ring(x, y):
@@ -1009,6 +1056,7 @@ def outputs():
     files[MVR_DIR / "gate.mvr"] = gate_mvr()
     files[MVR_DIR / "venue.mvr"] = venue_mvr()
     files[MVR_DIR / "cells.mvr"] = cells_mvr()
+    files[ROOT / "tests" / "data" / "textures" / "checker.jpg"] = jpeg_gray_blocks(JPEG_BLOCKS)
     for name, data in bad_files().items():
         files[MVR_DIR / name] = data
     return files
