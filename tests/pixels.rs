@@ -269,8 +269,11 @@ fn cells_built_together_equal_cells_built_alone() {
     );
     let scene = b.build();
     lights.push(footlight::Light::aimed(centre, centre + Vec3::Y, lights[0].beam.clone()));
-    let cam =
-        Camera::look_at(Vec3::new(centre.x, 5.0, centre.z + 9.0), Vec3::new(centre.x, 0.5, centre.z), 60f32.to_radians());
+    let cam = Camera::look_at(
+        Vec3::new(centre.x, 5.0, centre.z + 9.0),
+        Vec3::new(centre.x, 0.5, centre.z),
+        60f32.to_radians(),
+    );
     let (w, h) = (80, 56);
     let v = view(&scene, cam, w, h, Sampling::Adaptive, 2);
     assert!(v.shading.vertices().iter().any(|x| x.depth > 0), "the mirror is seen");
@@ -309,7 +312,10 @@ fn cells_built_together_equal_cells_built_alone() {
         let peak = a.iter().map(|p| p.max_element()).fold(0.0f32, f32::max);
         assert_eq!(peak > 0.0, i < 8, "light {i}");
         for (p, (x, y)) in a.iter().zip(&t).enumerate() {
-            assert!((*x - *y).abs().max_element() <= 1e-6 * peak, "direct, light {i} pixel {p}: alone {x}, together {y}");
+            assert!(
+                (*x - *y).abs().max_element() <= 1e-6 * peak,
+                "direct, light {i} pixel {p}: alone {x}, together {y}"
+            );
         }
     }
 }
@@ -326,7 +332,11 @@ fn cell_rotation_turns_its_beam() {
     let import = footlight_mvr::load_mvr(&root().join("tests/data/mvr/cells.mvr")).unwrap();
     let cells: Vec<_> = import.patch.fixtures.iter().filter(|f| f.id == 801).collect();
     assert_eq!(cells.len(), 4, "one light per cell");
-    assert!((cells[0].light.axis() - Vec3::NEG_Y).length() < 1e-5, "the unturned cell points down: {}", cells[0].light.axis());
+    assert!(
+        (cells[0].light.axis() - Vec3::NEG_Y).length() < 1e-5,
+        "the unturned cell points down: {}",
+        cells[0].light.axis()
+    );
     // The fixture's frame: the unturned cell's rotation (GDTF axes to the stage).
     let frame = cells[0].light.rotation;
     for (k, deg) in [0.0f32, 30.0, 60.0, 90.0].iter().enumerate() {

@@ -138,7 +138,8 @@ pub fn whitted_together(
     let (w, h) = (view.width() as usize, view.height() as usize);
     let n = bounds.len();
     let lists: Vec<Vec<usize>> = lights.iter().map(|l| bounds.tiles_in_beam(l)).collect();
-    let (per_light, union_tiles, light_tiles) = shade_union(scene, view, bounds.tiles_x, n, lights, &lists, false, stop)?;
+    let (per_light, union_tiles, light_tiles) =
+        shade_union(scene, view, bounds.tiles_x, n, lights, &lists, false, stop)?;
     let adaptive = matches!(view.sampling, Sampling::Adaptive) && aa.is_some();
     // Scratch for anti-aliasing, shared by the lights one after another.
     let mut dense = if adaptive { vec![Vec3::ZERO; w * h] } else { Vec::new() };
@@ -297,8 +298,10 @@ fn anti_alias(
         let k = ((lit.len() - 1) as f32 * AA_REFERENCE_PERCENTILE) as usize;
         let (_, level, _) = lit.select_nth_unstable_by(k, f32::total_cmp);
         let scale = Vec3::splat(1.0 / *level);
-        let display: Vec<Vec3> =
-            (0..ww * wh).into_par_iter().map(|i| Vec3::from_array(srgb8(dense[global(i)] * scale).map(f32::from))).collect();
+        let display: Vec<Vec3> = (0..ww * wh)
+            .into_par_iter()
+            .map(|i| Vec3::from_array(srgb8(dense[global(i)] * scale).map(f32::from)))
+            .collect();
         let surface = |i: usize| {
             let s = &view.gbuffer.samples[i][CENTRE_SAMPLE];
             (s.triangle != NO_HIT).then(|| {
