@@ -352,3 +352,47 @@ fn cell_rotation_turns_its_beam() {
     assert!(cells[3].light.axis().y.abs() < 1e-5, "the 90° cell points horizontally");
     assert!((cells[3].light.axis() - frame * Vec3::NEG_X).length() < 1e-5, "along the fixture's −X");
 }
+
+/// GDTF `Relation Type="Override"` (`cells.mvr`'s Fan 2, mode 5ch at 1.11:
+/// cell k's dimmer on slot 11 + k, a master on slot 15 overriding every
+/// cell's dimmer). Known answer (Footlight's reading of the relation,
+/// docs/mvr-gdtf.md): master at 0 → each cell at its own level; master
+/// above 0 → every cell at the master's level; master back to 0 → the
+/// cells' own levels again. `Multiply` (the Wash's virtual dimmer on its
+/// RGBW emitters in features.mvr): k_i at 40 % dimmer is 0.4 × k_i at full.
+#[test]
+fn override_master_sets_every_cell_and_multiply_scales() {
+    let import = footlight_mvr::load_mvr(&root().join("tests/data/mvr/cells.mvr")).unwrap();
+    let cells: Vec<_> = import.patch.fixtures.iter().filter(|f| f.id == 802).collect();
+    assert_eq!(cells.len(), 4);
+    let v = |u: &Universes| -> Vec<f32> { cells.iter().map(|f| f.decode_universes(u).v).collect() };
+    let mut u = Universes::new();
+    u.set_slot(1, 11, 51); // cell 1 at 20 %
+    u.set_slot(1, 13, 255); // cell 3 at full
+    let own = v(&u);
+    let expected_own = [51.0 / 255.0, 0.0, 1.0, 0.0];
+    for (k, (got, want)) in own.iter().zip(expected_own).enumerate() {
+        assert!((got - want).abs() < 1e-6, "master 0: cell {} at {got}, expected {want}", k + 1);
+    }
+    u.set_slot(1, 15, 204); // master at 80 %
+    for (k, got) in v(&u).iter().enumerate() {
+        assert!((got - 0.8).abs() < 1e-6, "master 80 %: cell {} at {got}", k + 1);
+    }
+    u.set_slot(1, 15, 0);
+    assert_eq!(v(&u), own, "master back at 0: the cells' own levels");
+
+    // Multiply: the Wash (8ch at 1.101) dimmer on slot 101 times its emitters.
+    let import = footlight_mvr::load_mvr(&root().join("tests/data/mvr/features.mvr")).unwrap();
+    let wash = import.patch.fixtures.iter().find(|f| f.id == 201).unwrap();
+    let k_at = |dimmer: u8| {
+        let mut u = Universes::new();
+        u.set_slot(1, 101, dimmer);
+        for s in 102..=105 {
+            u.set_slot(1, s, 255);
+        }
+        wash.k_of(&wash.decode_universes(&u))
+    };
+    let (full, part) = (k_at(255), k_at(102));
+    assert!(full.min_element() > 0.0, "{full}");
+    assert!((part - full * 0.4).abs().max_element() <= 1e-5 * full.max_element(), "{part} vs 0.4 × {full}");
+}

@@ -30,7 +30,8 @@ GDTF files (tests/data/gdtf/):
   Footlight@Fresnel.gdtf  1 kW tungsten Fresnel with a DMX profile; modes 1ch, 2ch (zoom)
   Footlight@Hazer.gdtf    hazer, no beam: Haze density and Fan channels
   Footlight@Fan4.gdtf     4 GeometryReference cells turned 0/30/60/90 degrees about GDTF Y
-                          (cell rotation); mode 4ch
+                          (cell rotation); modes 4ch and 5ch (a master overriding every
+                          cell's dimmer: Relation Type="Override")
 
 MVR files (tests/data/mvr/):
   features.mvr   layers, classes, group objects, focus points, truss and scene
@@ -41,7 +42,8 @@ MVR files (tests/data/mvr/):
   gate.mvr       5 Spots in the Extended mode (gobos, blades, prism, frost: golden image)
   venue.mvr      the MVR's geometry as the scene: a GLB floor, a GLB truss instanced
                  3x by a Symdef, a 3DS 1000 mm cube in a GroupObject, a missing model
-  cells.mvr      one Fan4 5 m up: each cell's beam along its own matrix
+  cells.mvr      two Fan4 5 m up: each cell's beam along its own matrix; Fan 2 (5ch at 1.11)
+                 has the Override master
   ../textures/checker.jpg  a baseline JPEG of flat 8x8 blocks (JPEG_BLOCKS), encoded here
   bad-*.mvr      refused archives: a `..` path, an absolute path, a >100:1 entry,
                  a header claiming > 1 GiB; and malformed XML (line/column test)
@@ -684,7 +686,12 @@ def fan():
     ]
     tree = el("Geometry", refs, Name="Fan", Model="Body", Position=m4())
     m1 = [simple("Pixel", [1], "Dimmer")]
-    text = fixture_type("Fan4", "Fan4", used, [], physical, models, [tree, pixel], [mode("4ch", "Fan", m1)], "4 cells turned 0/30/60/90 degrees (test data, estimated values)")
+    # Mode 5ch: a master on slot 5 overriding every cell's dimmer (GDTF Relation Type="Override";
+    # known answer in tests/pixels.rs: master above 0 -> every cell at the master's level).
+    m2 = [simple("Pixel", [1], "Dimmer"), simple("Fan", [5], "Dimmer")]
+    over = [("Master override", "Fan_Dimmer", "Pixel_Dimmer.Dimmer.Dimmer 1", "Override")]
+    modes = [mode("4ch", "Fan", m1), mode("5ch", "Fan", m2, over)]
+    text = fixture_type("Fan4", "Fan4", used, [], physical, models, [tree, pixel], modes, "4 cells turned 0/30/60/90 degrees (test data, estimated values)")
     return text, {}
 
 
@@ -995,7 +1002,8 @@ def cells_mvr():
     """cells.mvr: one Fan4 hung 5 m up, unrotated (its GDTF -Z is the MVR's -Z: down)."""
     lights = uid("class/Lighting")
     f = fixture_xml("Fan 1", "Footlight@Fan4.gdtf", "4ch", 801, 1, mvr_matrix(0, 0, 5000), [(0, 1)], lights)
-    layers = [el("Layer", [el("ChildList", [f])], name="Cells", uuid=uid("layer/cells"))]
+    f2 = fixture_xml("Fan 2", "Footlight@Fan4.gdtf", "5ch", 802, 2, mvr_matrix(2000, 0, 5000), [(0, 11)], lights)
+    layers = [el("Layer", [el("ChildList", [f, f2])], name="Cells", uuid=uid("layer/cells"))]
     entries = {"GeneralSceneDescription.xml": gsd(layers, [el("Class", name="Lighting", uuid=lights)])}
     entries["Footlight@Fan4.gdtf"] = gdtf_bytes("Footlight@Fan4.gdtf")
     return zip_bytes(entries)

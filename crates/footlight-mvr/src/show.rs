@@ -43,7 +43,8 @@ use crate::gdtf::{BeamInfo, ChannelInfo, Gdtf, GeometryKind, GeometryNode, LampT
 use crate::mvr::{Mvr, Scene, stage_pose};
 use footlight_fixture::beam::SpotBeam;
 use footlight_fixture::fixture_type::{
-    Action, Attribute, Channel, CorrectionTable, Function, Mode, Movement, Optics, SpotOptics, WheelSlot, wheel_factor,
+    Action, Attribute, Channel, CorrectionTable, Function, Mode, Movement, Optics, SlotOverride, SpotOptics, WheelSlot,
+    wheel_factor,
 };
 use footlight_fixture::patch::{BREAK_STRIDE, BuiltinSpot, TypeLoader, TypedFixture};
 use footlight_fixture::state::{MAX_MIX, SLOTS, Universes};
@@ -222,7 +223,8 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
                 format!("mode {:?}: channels on DMX breaks past {MAX_BREAKS} are not decoded", l.mode),
             ));
         }
-        modes.push(Mode { name: l.mode.clone(), channels, footprint: footprint.min(SLOTS as u16), line: 0 });
+        let overrides = override_relations(l, &mut channels);
+        modes.push(Mode { name: l.mode.clone(), channels, footprint: footprint.min(SLOTS as u16), line: 0, overrides });
     }
     if !unsupported.is_empty() {
         warnings.push(PatchError::new(
@@ -801,7 +803,8 @@ pub fn cells(g: &Gdtf, ty: &FixtureType, mode: &str) -> Result<Vec<Cell>, PatchE
             }
         }
         let channels: Vec<Channel> = base.channels.iter().filter(|c| offsets.contains(&c.offset)).cloned().collect();
-        let mode = Mode { name: base.name.clone(), channels, footprint: base.footprint, line: base.line };
+        let overrides = base.overrides.iter().filter(|r| offsets.contains(&r.follower.0)).copied().collect();
+        let mode = Mode { name: base.name.clone(), channels, footprint: base.footprint, line: base.line, overrides };
         let cell_ty = FixtureType { modes: vec![mode], ..ty.clone() };
         let (_, rotation, translation) = offset.to_scale_rotation_translation();
         let rotation = Quat::from_xyzw(rotation.x as f32, rotation.y as f32, rotation.z as f32, rotation.w as f32);
@@ -810,6 +813,37 @@ pub fn cells(g: &Gdtf, ty: &FixtureType, mode: &str) -> Result<Vec<Cell>, PatchE
         out.push(Cell { name: node.name.clone(), offset, rotation, fixture_type: Arc::new(cell_ty) });
     }
     Ok(out)
+}
+
+/// The mode's GDTF `Override` relations as [`SlotOverride`]s: the master
+/// DMX channel (named `<Geometry>_<Attribute>`, GDTF's default channel
+/// name) over every instance of the follower's channel (the first part of
+/// the follower's `Channel.LogicalChannel.ChannelFunction` path; a
+/// follower on a referenced geometry is every cell's). A master acts only
+/// through its overrides: its own attribute becomes [`Attribute::Other`]
+/// (two dimmers would otherwise both set v). `Multiply` relations need no
+/// mapping: a shared dimmer already multiplies (v · the emitter mix, eq. 4).
+fn override_relations(l: &Layout, channels: &mut [Channel]) -> Vec<SlotOverride> {
+    let slots = |c: &ChannelInfo| -> Option<(u16, Option<u16>)> {
+        let base = break_base(c.dmx_break)?;
+        let at = |o: u16| base + o.saturating_sub(1).min(BREAK_STRIDE - 1);
+        Some((at(*c.offsets.first()?), c.offsets.get(1).map(|o| at(*o))))
+    };
+    let named = |name: &str| -> Vec<(u16, Option<u16>)> {
+        l.channels.iter().filter(|c| format!("{}_{}", c.template, c.attribute) == name).filter_map(slots).collect()
+    };
+    let mut out = Vec::new();
+    for r in l.relations.iter().filter(|r| r.kind.eq_ignore_ascii_case("Override")) {
+        let Some(&master) = named(&r.master).first() else { continue };
+        let follower = r.follower.split('.').next().unwrap_or("");
+        for f in named(follower).into_iter().filter(|f| *f != master) {
+            out.push(SlotOverride { master, follower: f });
+        }
+        if let Some(ch) = channels.iter_mut().find(|c| c.offset == master.0) {
+            ch.attribute = Attribute::Other;
+        }
+    }
+    out
 }
 
 /// The `<Beam>` geometries under `node` outside references, with their matrices to the fixture.
