@@ -89,11 +89,8 @@ fn gdtf_agrees_with_pygdtf() {
             assert_eq!(Value::from(ours), m["breaks"], "{t} {mode}: channels per break");
             assert_eq!(strip_kind(&tree(&layout.root)), m["tree"], "{t} {mode}: geometry tree");
             // Relations (Multiply virtual dimmers, the Fan4's Override master): name, master, follower, type.
-            let relations: Vec<Value> = layout
-                .relations
-                .iter()
-                .map(|r| serde_json::json!([r.name, r.master, r.follower, r.kind]))
-                .collect();
+            let relations: Vec<Value> =
+                layout.relations.iter().map(|r| serde_json::json!([r.name, r.master, r.follower, r.kind])).collect();
             assert_eq!(Value::from(relations), m["relations"], "{t} {mode}: relations");
             let mut beams = Vec::new();
             collect_beams(&layout.root, &mut beams);
