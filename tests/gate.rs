@@ -232,3 +232,78 @@ fn the_frame_clock_rebuilds_a_spinning_gobo_only_when_its_angle_steps() {
     clock.tick_at(&u, 1.1 * step);
     assert!(ready_after(&tracer, g0) > g0, "a stepped spin is a rebuild");
 }
+
+/// `tests/data/textures/checker.jpg`: a baseline JPEG of flat 8×8 blocks,
+/// encoded by `tools/gen_gdtf_mvr.py` without any JPEG library (its
+/// `JPEG_BLOCKS`): block values row by row.
+const JPEG_BLOCKS: [[u8; 3]; 2] = [[255, 0, 128], [64, 200, 10]];
+
+fn checker_jpeg() -> Vec<u8> {
+    std::fs::read(root().join("tests/data/textures/checker.jpg")).expect("checker.jpg (tools/gen_gdtf_mvr.py)")
+}
+
+/// A JPEG wheel slot image as a gobo: the gate decoder (`footlight_mvr::gate::decode`,
+/// what a GDTF's `wheels/<MediaFileName>.jpg` goes through) reads every
+/// block's transmission v/255 at the block's texel centres.
+#[test]
+fn jpeg_wheel_image_decodes_to_its_blocks() {
+    let gobo = footlight_mvr::gate::decode("checker", &checker_jpeg()).expect("JPEG gobo decodes");
+    assert_eq!(gobo.size(), (24, 16));
+    for (by, row) in JPEG_BLOCKS.iter().enumerate() {
+        for (bx, &v) in row.iter().enumerate() {
+            for (dx, dy) in [(1, 1), (3, 4), (6, 6)] {
+                let (x, y) = (bx * 8 + dx, by * 8 + dy);
+                let p = Vec2::new((x as f32 + 0.5) / 24.0 * 2.0 - 1.0, 1.0 - (y as f32 + 0.5) / 16.0 * 2.0);
+                let t = gobo.sample(p);
+                assert!((t - f32::from(v) / 255.0).abs() <= 1.01 / 255.0, "texel ({x},{y}): {t} vs {v}/255");
+            }
+        }
+    }
+}
+
+/// A JPEG base-colour texture through the glTF importer (glTF 2.0 allows
+/// PNG and JPEG images): a plane whose material's texture is checker.jpg
+/// reads every block as its sRGB value made linear.
+#[test]
+fn jpeg_base_colour_texture_loads_through_gltf() {
+    use footlight::scene::texture::srgb_to_linear;
+    let d = std::env::temp_dir().join(format!("footlight-jpeg-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    std::fs::write(d.join("checker.jpg"), checker_jpeg()).unwrap();
+    let pos: [[f32; 3]; 4] = [[-1.0, 0.0, -1.0], [1.0, 0.0, -1.0], [1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]];
+    let uv: [[f32; 2]; 4] = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    let idx: [u16; 6] = [0, 2, 1, 0, 3, 2];
+    let mut bin: Vec<u8> = pos.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
+    bin.extend(uv.iter().flatten().flat_map(|f| f.to_le_bytes()));
+    bin.extend(idx.iter().flat_map(|i| i.to_le_bytes()));
+    std::fs::write(d.join("plane.bin"), &bin).unwrap();
+    let json = r#"{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],
+        "meshes":[{"primitives":[{"attributes":{"POSITION":0,"TEXCOORD_0":1},"indices":2,"material":0}]}],
+        "materials":[{"pbrMetallicRoughness":{"baseColorFactor":[1,1,1,1],"metallicFactor":0,"roughnessFactor":1,
+            "baseColorTexture":{"index":0}}}],
+        "textures":[{"source":0,"sampler":0}],"samplers":[{"magFilter":9728,"minFilter":9728}],
+        "images":[{"uri":"checker.jpg","mimeType":"image/jpeg"}],
+        "accessors":[
+          {"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,-1],"max":[1,0,1]},
+          {"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"},
+          {"bufferView":2,"componentType":5123,"count":6,"type":"SCALAR"}],
+        "bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":48},{"buffer":0,"byteOffset":48,"byteLength":32},
+          {"buffer":0,"byteOffset":80,"byteLength":12}],
+        "buffers":[{"byteLength":92,"uri":"plane.bin"}]}"#;
+    std::fs::write(d.join("plane.gltf"), json).unwrap();
+    let scene = footlight::scene::load(&d.join("plane.gltf")).expect("textured plane loads");
+    let texture = scene.materials.iter().find_map(|m| m.base_texture.clone()).expect("the JPEG texture is used");
+    assert_eq!(texture.size(), (24, 16));
+    for (by, row) in JPEG_BLOCKS.iter().enumerate() {
+        for (bx, &v) in row.iter().enumerate() {
+            let (x, y) = (bx * 8 + 3, by * 8 + 4);
+            let got = texture.sample(Vec2::new((x as f32 + 0.5) / 24.0, (y as f32 + 0.5) / 16.0));
+            let lin = |b: f32| srgb_to_linear(b.clamp(0.0, 255.0) / 255.0);
+            let (lo, hi) = (lin(f32::from(v) - 1.0), lin(f32::from(v) + 1.0));
+            for c in got.to_array() {
+                assert!(c >= lo - 1e-6 && c <= hi + 1e-6, "block ({bx},{by}): {got} vs sRGB {v}");
+            }
+        }
+    }
+    std::fs::remove_dir_all(&d).ok();
+}

@@ -235,3 +235,164 @@ fn k_of_show(show: &footlight::live::Show, u: &footlight::fixture::Universes) ->
     use footlight::live::Decode;
     show.decode(u).into_iter().map(|i| i.k).collect()
 }
+
+/// The cells of a bar built together ([`footlight::render::cells::whitted_together`]:
+/// one pass over the union of their footprints, each cell's own shadow rays
+/// and anti-aliasing) equal each cell built alone (`LightBuild::whitted`),
+/// pixel by pixel to 1e-6 of the cell's peak, on a floor with a box that
+/// casts shadows and a mirror wall (camera paths of depth 1 and 2) under
+/// adaptive anti-aliasing. A light aimed away from everything is built
+/// with them and stays empty. The same for the direct stage.
+#[test]
+fn cells_built_together_equal_cells_built_alone() {
+    use footlight::render::build::{BuildSettings, Cancel, LightBuild};
+    use footlight::render::cells::{PathBounds, direct_together, whitted_together};
+    use footlight::render::view::AaParams;
+    let import = footlight_mvr::load_mvr(&root().join("tests/data/mvr/features.mvr")).unwrap();
+    let mut lights: Vec<_> = import.patch.fixtures.iter().filter(|f| f.id == 301).map(|f| f.light.clone()).collect();
+    assert_eq!(lights.len(), 8);
+    let centre = lights[3].position;
+    let mut b = SceneBuilder::new();
+    let m = lambert(&mut b, 0.5);
+    floor(&mut b, 30.0, 0.0, m);
+    cube(&mut b, Vec3::new(centre.x - 0.3, 0.0, centre.z - 0.3), Vec3::new(centre.x + 0.3, 0.8, centre.z + 0.3), m);
+    let mut mirror = footlight::scene::Material::lambert("mirror", Vec3::splat(0.1));
+    mirror.k_r = Vec3::splat(0.7);
+    let mirror = b.add_material(mirror);
+    let z = centre.z - 3.0;
+    b.add_quad(
+        Vec3::new(centre.x - 6.0, 0.0, z),
+        Vec3::new(centre.x + 6.0, 0.0, z),
+        Vec3::new(centre.x + 6.0, 6.0, z),
+        Vec3::new(centre.x - 6.0, 6.0, z),
+        mirror,
+    );
+    let scene = b.build();
+    lights.push(footlight::Light::aimed(centre, centre + Vec3::Y, lights[0].beam.clone()));
+    let cam = Camera::look_at(
+        Vec3::new(centre.x, 5.0, centre.z + 9.0),
+        Vec3::new(centre.x, 0.5, centre.z),
+        60f32.to_radians(),
+    );
+    let (w, h) = (80, 56);
+    let v = view(&scene, cam, w, h, Sampling::Adaptive, 2);
+    assert!(v.shading.vertices().iter().any(|x| x.depth > 0), "the mirror is seen");
+    let settings = BuildSettings { photons: None, ..BuildSettings::default() };
+    let bounds = PathBounds::build(&v);
+    let (together, stats) =
+        whitted_together(&scene, &v, &bounds, &lights, Some(AaParams::new(settings.aa_threshold)), &|| false).unwrap();
+    assert_eq!(together.len(), lights.len());
+    assert!(stats.union_tiles < stats.light_tiles, "the cells share tiles: {stats:?}");
+    let mut reshaded_any = false;
+    for (i, light) in lights.iter().enumerate() {
+        let mut alone_build = LightBuild::new(light.clone(), i, settings, Cancel::never());
+        let alone = alone_build.whitted(&scene, &v).unwrap();
+        let (buf, reshaded) = &together[i];
+        assert_eq!(*reshaded, alone_build.reshaded(), "light {i}: same pixels re-shaded");
+        reshaded_any |= *reshaded > 0;
+        let (a, t) = (alone.to_dense(), buf.to_dense());
+        let peak = a.iter().map(|p| p.max_element()).fold(0.0f32, f32::max);
+        if i == 8 {
+            assert_eq!(peak, 0.0, "the light aimed away lights nothing");
+        } else {
+            assert!(peak > 0.0, "cell {i} lights the floor");
+        }
+        for (p, (x, y)) in a.iter().zip(&t).enumerate() {
+            assert!((*x - *y).abs().max_element() <= 1e-6 * peak, "light {i} pixel {p}: alone {x}, together {y}");
+        }
+    }
+    assert!(reshaded_any, "anti-aliasing ran");
+    // The direct stage (directly seen surfaces, footprint-culled) built together.
+    let (direct, _) = direct_together(&scene, &v, &lights, &|| false).unwrap();
+    for (i, light) in lights.iter().enumerate() {
+        let (alone, _) = LightBuild::new(light.clone(), i, settings, Cancel::never())
+            .direct(&scene, &v, footlight::render::footprint::DirectQuality::Full)
+            .unwrap();
+        let (a, t) = (alone.to_dense(), direct[i].to_dense());
+        let peak = a.iter().map(|p| p.max_element()).fold(0.0f32, f32::max);
+        assert_eq!(peak > 0.0, i < 8, "light {i}");
+        for (p, (x, y)) in a.iter().zip(&t).enumerate() {
+            assert!(
+                (*x - *y).abs().max_element() <= 1e-6 * peak,
+                "direct, light {i} pixel {p}: alone {x}, together {y}"
+            );
+        }
+    }
+}
+
+/// A cell's own rotation turns its beam (`tests/data/mvr/cells.mvr`, written
+/// by `tools/gen_gdtf_mvr.py`): the Fan4's cell k is a GeometryReference
+/// turned by 0°, 30°, 60°, 90° about the GDTF Y axis. Each cell's beam
+/// axis must be the unturned cell's axis turned by this test's own R_y
+/// (in fixture axes); the fixture hangs unrotated, so cell 1 points straight
+/// down and cell 4 (90°) horizontally, along the fixture's −X.
+#[test]
+fn cell_rotation_turns_its_beam() {
+    use glam::Mat3;
+    let import = footlight_mvr::load_mvr(&root().join("tests/data/mvr/cells.mvr")).unwrap();
+    let cells: Vec<_> = import.patch.fixtures.iter().filter(|f| f.id == 801).collect();
+    assert_eq!(cells.len(), 4, "one light per cell");
+    assert!(
+        (cells[0].light.axis() - Vec3::NEG_Y).length() < 1e-5,
+        "the unturned cell points down: {}",
+        cells[0].light.axis()
+    );
+    // The fixture's frame: the unturned cell's rotation (GDTF axes to the stage).
+    let frame = cells[0].light.rotation;
+    for (k, deg) in [0.0f32, 30.0, 60.0, 90.0].iter().enumerate() {
+        let (c, s) = (deg.to_radians().cos(), deg.to_radians().sin());
+        // R_y as the test writes it (columns), applied to the rest beam −Z.
+        let r = Mat3::from_cols(Vec3::new(c, 0.0, -s), Vec3::Y, Vec3::new(s, 0.0, c));
+        let expected = frame * (r * Vec3::NEG_Z);
+        let axis = cells[k].light.axis();
+        assert!((axis - expected).length() < 1e-5, "cell {} turned {deg}°: axis {axis}, expected {expected}", k + 1);
+        let down = axis.dot(Vec3::NEG_Y).clamp(-1.0, 1.0).acos().to_degrees();
+        assert!((down - deg).abs() < 1e-3, "cell {} is {down}° from straight down, not {deg}°", k + 1);
+    }
+    assert!(cells[3].light.axis().y.abs() < 1e-5, "the 90° cell points horizontally");
+    assert!((cells[3].light.axis() - frame * Vec3::NEG_X).length() < 1e-5, "along the fixture's −X");
+}
+
+/// GDTF `Relation Type="Override"` (`cells.mvr`'s Fan 2, mode 5ch at 1.11:
+/// cell k's dimmer on slot 11 + k, a master on slot 15 overriding every
+/// cell's dimmer). Known answer (Footlight's reading of the relation,
+/// docs/mvr-gdtf.md): master at 0 → each cell at its own level; master
+/// above 0 → every cell at the master's level; master back to 0 → the
+/// cells' own levels again. `Multiply` (the Wash's virtual dimmer on its
+/// RGBW emitters in features.mvr): k_i at 40 % dimmer is 0.4 × k_i at full.
+#[test]
+fn override_master_sets_every_cell_and_multiply_scales() {
+    let import = footlight_mvr::load_mvr(&root().join("tests/data/mvr/cells.mvr")).unwrap();
+    let cells: Vec<_> = import.patch.fixtures.iter().filter(|f| f.id == 802).collect();
+    assert_eq!(cells.len(), 4);
+    let v = |u: &Universes| -> Vec<f32> { cells.iter().map(|f| f.decode_universes(u).v).collect() };
+    let mut u = Universes::new();
+    u.set_slot(1, 11, 51); // cell 1 at 20 %
+    u.set_slot(1, 13, 255); // cell 3 at full
+    let own = v(&u);
+    let expected_own = [51.0 / 255.0, 0.0, 1.0, 0.0];
+    for (k, (got, want)) in own.iter().zip(expected_own).enumerate() {
+        assert!((got - want).abs() < 1e-6, "master 0: cell {} at {got}, expected {want}", k + 1);
+    }
+    u.set_slot(1, 15, 204); // master at 80 %
+    for (k, got) in v(&u).iter().enumerate() {
+        assert!((got - 0.8).abs() < 1e-6, "master 80 %: cell {} at {got}", k + 1);
+    }
+    u.set_slot(1, 15, 0);
+    assert_eq!(v(&u), own, "master back at 0: the cells' own levels");
+
+    // Multiply: the Wash (8ch at 1.101) dimmer on slot 101 times its emitters.
+    let import = footlight_mvr::load_mvr(&root().join("tests/data/mvr/features.mvr")).unwrap();
+    let wash = import.patch.fixtures.iter().find(|f| f.id == 201).unwrap();
+    let k_at = |dimmer: u8| {
+        let mut u = Universes::new();
+        u.set_slot(1, 101, dimmer);
+        for s in 102..=105 {
+            u.set_slot(1, s, 255);
+        }
+        wash.k_of(&wash.decode_universes(&u))
+    };
+    let (full, part) = (k_at(255), k_at(102));
+    assert!(full.min_element() > 0.0, "{full}");
+    assert!((part - full * 0.4).abs().max_element() <= 1e-5 * full.max_element(), "{part} vs 0.4 × {full}");
+}

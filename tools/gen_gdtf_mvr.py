@@ -29,6 +29,9 @@ GDTF files (tests/data/gdtf/):
   Footlight@Blinder.gdtf  2-lamp tungsten blinder; modes 2ch and 1ch
   Footlight@Fresnel.gdtf  1 kW tungsten Fresnel with a DMX profile; modes 1ch, 2ch (zoom)
   Footlight@Hazer.gdtf    hazer, no beam: Haze density and Fan channels
+  Footlight@Fan4.gdtf     4 GeometryReference cells turned 0/30/60/90 degrees about GDTF Y
+                          (cell rotation); modes 4ch and 5ch (a master overriding every
+                          cell's dimmer: Relation Type="Override")
 
 MVR files (tests/data/mvr/):
   features.mvr   layers, classes, group objects, focus points, truss and scene
@@ -41,6 +44,9 @@ MVR files (tests/data/mvr/):
                  3x by a Symdef, a 3DS 1000 mm cube in a GroupObject, a missing model
   bodies.mvr     fixture bodies: a glb head model on a moving head, a 3ds can, a
                  primitives-only par (known dimensions; tests/bodies.rs)
+  cells.mvr      two Fan4 5 m up: each cell's beam along its own matrix; Fan 2 (5ch at 1.11)
+                 has the Override master
+  ../textures/checker.jpg  a baseline JPEG of flat 8x8 blocks (JPEG_BLOCKS), encoded here
   bad-*.mvr      refused archives: a `..` path, an absolute path, a >100:1 entry,
                  a header claiming > 1 GiB; and malformed XML (line/column test)
 """
@@ -73,6 +79,12 @@ def m4(tx=0.0, ty=0.0, tz=0.0):
     return f"{{1,0,0,{tx:g}}}{{0,1,0,{ty:g}}}{{0,0,1,{tz:g}}}{{0,0,0,1}}"
 
 
+def m4_rot_y(deg, tx=0.0, ty=0.0, tz=0.0):
+    """GDTF geometry matrix (rows, as m4) rotating by `deg` about the geometry's Y axis: R_y = [[c,0,s],[0,1,0],[-s,0,c]]."""
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return f"{{{c:.9f},0,{s:.9f},{tx:g}}}{{0,1,0,{ty:g}}}{{{-s:.9f},0,{c:.9f},{tz:g}}}{{0,0,0,1}}"
+
+
 def attrs(**kw):
     return "".join(f" {k}={quoteattr(str(v))}" for k, v in kw.items() if v is not None)
 
@@ -101,6 +113,52 @@ def png_gray(width, height, pixel):
 
 
 GOBO_SIZE = 64
+
+
+def jpeg_gray_blocks(blocks):
+    """Baseline greyscale JPEG (ITU-T T.81) of flat 8x8 blocks: `blocks` is a list of rows of 0..255
+    values, one per block. Every quantiser step is 1 and each block has only its DC coefficient
+    (F(0,0) = 8 (v - 128) for a flat block), so a decoder's IDCT gives back v exactly: the known
+    answer of the JPEG tests, written without any JPEG library."""
+    rows, cols = len(blocks), len(blocks[0])
+    seg = lambda marker, payload: bytes([0xFF, marker]) + struct.pack(">H", len(payload) + 2) + payload  # noqa: E731
+    dc_bits = [0, 1, 5, 1, 1, 1, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0]  # T.81 Table K.3 (luminance DC)
+    dc_vals = list(range(12))
+    codes, code, k = {}, 0, 0
+    for length, count in enumerate(dc_bits, start=1):
+        for _ in range(count):
+            codes[dc_vals[k]] = (code, length)
+            code, k = code + 1, k + 1
+        code <<= 1
+    out = bytearray(b"\xff\xd8")
+    out += seg(0xDB, bytes([0]) + bytes([1] * 64))
+    out += seg(0xC0, struct.pack(">BHHB", 8, 8 * rows, 8 * cols, 1) + bytes([1, 0x11, 0]))
+    out += seg(0xC4, bytes([0x00] + dc_bits + dc_vals))
+    out += seg(0xC4, bytes([0x10, 1] + [0] * 15 + [0x00]))  # AC: only end-of-block, code "0"
+    out += seg(0xDA, bytes([1, 1, 0x00, 0, 63, 0]))
+    bits, pred = [], 0
+    for row in blocks:
+        for v in row:
+            dc = 8 * (v - 128)
+            diff, pred = dc - pred, dc
+            size = abs(diff).bit_length()
+            c, n = codes[size]
+            bits += [(c >> (n - 1 - i)) & 1 for i in range(n)]
+            extra = diff if diff >= 0 else diff - 1 + (1 << size)
+            bits += [(extra >> (size - 1 - i)) & 1 for i in range(size)]
+            bits.append(0)  # end of block
+    bits += [1] * (-len(bits) % 8)
+    for i in range(0, len(bits), 8):
+        byte = int("".join(map(str, bits[i:i + 8])), 2)
+        out.append(byte)
+        if byte == 0xFF:
+            out.append(0)
+    out += b"\xff\xd9"
+    return bytes(out)
+
+
+# tests/data/textures/checker.jpg: 3x2 flat 8x8 blocks (24x16 texels), row by row.
+JPEG_BLOCKS = [[255, 0, 128], [64, 200, 10]]
 
 
 def gobo_ring(x, y):
@@ -612,7 +670,35 @@ def hazer():
     return text, {}
 
 
+# Fan4: four GeometryReference cells of one Pixel beam, cell k turned by
+# FAN_ANGLES[k] degrees about the GDTF Y axis (its beam, -Z at rest, then
+# points along R_y(a)·(-Z) = (-sin a, 0, -cos a) in fixture axes). Known
+# answer in tests/pixels.rs (cell rotation).
+FAN_ANGLES = (0.0, 30.0, 60.0, 90.0)
+
+
+def fan():
+    used = ["Dimmer"]
+    physical = [el("Emitters"), el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
+    models = [model("Body", 0.5, 0.08, 0.1, "Cube"), model("Pixel", 0.1, 0.06, 0.01, "Cube")]
+    pixel = beam("Pixel", "Pixel", m4(), LampType="LED", PowerConsumption="15", LuminousFlux="400", ColorTemperature="6500", BeamAngle="10", FieldAngle="14", BeamRadius="0.03", BeamType="Wash")
+    refs = [
+        el("GeometryReference", [el("Break", DMXOffset=str(1 + k), DMXBreak="1")], Name=f"Fan{k + 1}", Geometry="Pixel", Model="Pixel", Position=m4_rot_y(a, -0.15 + 0.1 * k, 0, -0.05))
+        for k, a in enumerate(FAN_ANGLES)
+    ]
+    tree = el("Geometry", refs, Name="Fan", Model="Body", Position=m4())
+    m1 = [simple("Pixel", [1], "Dimmer")]
+    # Mode 5ch: a master on slot 5 overriding every cell's dimmer (GDTF Relation Type="Override";
+    # known answer in tests/pixels.rs: master above 0 -> every cell at the master's level).
+    m2 = [simple("Pixel", [1], "Dimmer"), simple("Fan", [5], "Dimmer")]
+    over = [("Master override", "Fan_Dimmer", "Pixel_Dimmer.Dimmer.Dimmer 1", "Override")]
+    modes = [mode("4ch", "Fan", m1), mode("5ch", "Fan", m2, over)]
+    text = fixture_type("Fan4", "Fan4", used, [], physical, models, [tree, pixel], modes, "4 cells turned 0/30/60/90 degrees (test data, estimated values)")
+    return text, {}
+
+
 TYPES = {
+    "Footlight@Fan4.gdtf": fan,
     "Footlight@Spot.gdtf": spot,
     "Footlight@Wash.gdtf": wash,
     "Footlight@Bar8.gdtf": bar,
@@ -914,6 +1000,17 @@ def gate_mvr():
     return zip_bytes(entries)
 
 
+def cells_mvr():
+    """cells.mvr: one Fan4 hung 5 m up, unrotated (its GDTF -Z is the MVR's -Z: down)."""
+    lights = uid("class/Lighting")
+    f = fixture_xml("Fan 1", "Footlight@Fan4.gdtf", "4ch", 801, 1, mvr_matrix(0, 0, 5000), [(0, 1)], lights)
+    f2 = fixture_xml("Fan 2", "Footlight@Fan4.gdtf", "5ch", 802, 2, mvr_matrix(2000, 0, 5000), [(0, 11)], lights)
+    layers = [el("Layer", [el("ChildList", [f, f2])], name="Cells", uuid=uid("layer/cells"))]
+    entries = {"GeneralSceneDescription.xml": gsd(layers, [el("Class", name="Lighting", uuid=lights)])}
+    entries["Footlight@Fan4.gdtf"] = gdtf_bytes("Footlight@Fan4.gdtf")
+    return zip_bytes(entries)
+
+
 def minimal_gsd():
     f = fixture_xml("Spot 1", "Footlight@Spot.gdtf", "Basic", 1, 1, mvr_matrix(0, 0, 6000), [(0, 1)])
     return gsd([el("Layer", [el("ChildList", [f])], name="L", uuid=uid("layer/min"))], [])
@@ -1041,6 +1138,8 @@ def outputs():
     files[MVR_DIR / "gate.mvr"] = gate_mvr()
     files[MVR_DIR / "venue.mvr"] = venue_mvr()
     files[MVR_DIR / "bodies.mvr"] = bodies_mvr()
+    files[MVR_DIR / "cells.mvr"] = cells_mvr()
+    files[ROOT / "tests" / "data" / "textures" / "checker.jpg"] = jpeg_gray_blocks(JPEG_BLOCKS)
     for name, data in bad_files().items():
         files[MVR_DIR / name] = data
     return files

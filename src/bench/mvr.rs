@@ -13,6 +13,10 @@
 //! a cell pays beyond its footprint) and the composite per 60 Hz frame with
 //! every fader moving and with one fader moving (the composite is
 //! tile-sparse: it redoes only the tiles of the lights whose k_i changed).
+//! The same cells are then built together ([`crate::render::cells`]: each
+//! bar's cells in one pass over the union of their footprints, and the
+//! whole rig in one pass), timed against one by one, with the largest
+//! difference to the cells built alone next to each time.
 
 use crate::fixture::FixtureState;
 use crate::render::composite::{CompositeInput, Compositor};
@@ -146,6 +150,8 @@ pub struct PixelReport {
     pub direct_build_ms: f64,
     /// Every cell's settled Whitted stage (anti-aliased), ms in all.
     pub whitted_build_ms: f64,
+    /// The cells built together ([`crate::render::cells`]): each bar's cells in one pass.
+    pub together: Together,
     /// Tiles a cell's cone reaches, mean.
     pub tiles_per_cell: f64,
     /// Direct stage of a light whose cone reaches no tile, ms (median of 20):
@@ -186,8 +192,128 @@ impl PixelReport {
             self.all_faders_tiles,
             self.one_fader_ms,
             self.one_fader_tiles
+        ) + &self.together.lines(self.direct_build_ms, self.whitted_build_ms)
+    }
+}
+
+/// The pixel cells built together ([`crate::render::cells`]) against one
+/// by one: times and the largest difference to the cells built alone.
+#[derive(Clone, Debug, Serialize)]
+pub struct Together {
+    /// Path bounds of the view ([`crate::render::cells::PathBounds::build`]), once per view, ms.
+    pub bounds_ms: f64,
+    /// Every bar's direct stage, its cells together, ms in all.
+    pub direct_ms: f64,
+    /// Largest |together − alone| over the direct stages, relative to the cell's peak.
+    pub direct_err: f64,
+    /// Every bar's Whitted stage, its cells together, ms in all.
+    pub whitted_ms: f64,
+    /// Largest |together − alone| over the Whitted stages, relative to the cell's peak.
+    pub whitted_err: f64,
+    /// The Whitted stage of every cell of the rig in one pass, ms.
+    pub rig_whitted_ms: f64,
+    /// Largest |together − alone| of the one-pass rig, relative to the cell's peak.
+    pub rig_whitted_err: f64,
+    /// Union of the bars' footprints (tiles shaded once per bar), summed over bars.
+    pub union_tiles: usize,
+    /// Tiles the cells' cones reach, summed over cells (what one by one shades).
+    pub cell_tiles: usize,
+}
+
+impl Together {
+    fn lines(&self, direct_alone: f64, whitted_alone: f64) -> String {
+        format!(
+            "    cells built together (one pass per bar over the union of its cells' footprints, {} tiles vs {} cell tiles):\n      \
+             direct stages {:.1} ms (alone {:.1} ms; max difference {:.1e} of the cell's peak)\n      \
+             Whitted stages {:.1} ms + path bounds {:.1} ms once per view (alone {:.1} ms; max difference {:.1e}); \
+             the whole rig in one pass {:.1} ms (max difference {:.1e})\n      \
+             first picture of every cell (direct + Whitted): alone {:.1} ms, together {:.1} ms\n",
+            self.union_tiles,
+            self.cell_tiles,
+            self.direct_ms,
+            direct_alone,
+            self.direct_err,
+            self.whitted_ms,
+            self.bounds_ms,
+            whitted_alone,
+            self.whitted_err,
+            self.rig_whitted_ms,
+            self.rig_whitted_err,
+            direct_alone + whitted_alone,
+            self.direct_ms + self.whitted_ms + self.bounds_ms
         )
     }
+}
+
+/// Largest |b − a| over every pixel, relative to the peak of `a`, over pairs of buffers.
+fn max_difference(alone: &[LightBuffer], together: &[LightBuffer]) -> f64 {
+    alone
+        .iter()
+        .zip(together)
+        .map(|(a, b)| {
+            let (a, b) = (a.to_dense(), b.to_dense());
+            let peak = a.iter().map(|p| p.max_element()).fold(0.0f32, f32::max);
+            let diff = a.iter().zip(&b).map(|(x, y)| (*x - *y).abs().max_element()).fold(0.0f32, f32::max);
+            if peak > 0.0 { f64::from(diff / peak) } else { f64::from(diff) }
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Builds the cells together, bar by bar (`bar_of[i]`: cell i's bar), and
+/// the whole rig in one pass; compares with `direct` and `whitted` (the
+/// cells' buffers built alone).
+fn together(
+    scene: &Scene,
+    view: &View,
+    lights: &[crate::Light],
+    bar_of: &[u32],
+    direct: &[LightBuffer],
+    whitted: &[LightBuffer],
+) -> Result<Together, String> {
+    use crate::render::cells::{PathBounds, direct_together, whitted_together};
+    let aa = Some(crate::render::AaParams::new(crate::render::BuildSettings::default().aa_threshold));
+    let t = Instant::now();
+    let bounds = PathBounds::build(view);
+    let bounds_ms = t.elapsed().as_secs_f64() * 1e3;
+    let mut bars: std::collections::BTreeMap<u32, Vec<usize>> = std::collections::BTreeMap::new();
+    for (i, b) in bar_of.iter().enumerate() {
+        bars.entry(*b).or_default().push(i);
+    }
+    let never = || false;
+    let (mut d, mut wb) = (vec![None; lights.len()], vec![None; lights.len()]);
+    let (mut direct_ms, mut whitted_ms, mut union_tiles, mut cell_tiles) = (0.0, 0.0, 0, 0);
+    for cells in bars.values() {
+        let group: Vec<crate::Light> = cells.iter().map(|&i| lights[i].clone()).collect();
+        let t = Instant::now();
+        let (bufs, _) = direct_together(scene, view, &group, &never).ok_or("cancelled")?;
+        direct_ms += t.elapsed().as_secs_f64() * 1e3;
+        let t = Instant::now();
+        let (built, stats) = whitted_together(scene, view, &bounds, &group, aa, &never).ok_or("cancelled")?;
+        whitted_ms += t.elapsed().as_secs_f64() * 1e3;
+        union_tiles += stats.union_tiles;
+        cell_tiles += stats.light_tiles;
+        for ((&i, b), (w, _)) in cells.iter().zip(bufs).zip(built) {
+            d[i] = Some(b);
+            wb[i] = Some(w);
+        }
+    }
+    let d: Vec<LightBuffer> = d.into_iter().flatten().collect();
+    let wb: Vec<LightBuffer> = wb.into_iter().flatten().collect();
+    let t = Instant::now();
+    let (rig, _) = whitted_together(scene, view, &bounds, lights, aa, &never).ok_or("cancelled")?;
+    let rig_whitted_ms = t.elapsed().as_secs_f64() * 1e3;
+    let rig: Vec<LightBuffer> = rig.into_iter().map(|(b, _)| b).collect();
+    Ok(Together {
+        bounds_ms,
+        direct_ms,
+        direct_err: max_difference(direct, &d),
+        whitted_ms,
+        whitted_err: max_difference(whitted, &wb),
+        rig_whitted_ms,
+        rig_whitted_err: max_difference(whitted, &rig),
+        union_tiles,
+        cell_tiles,
+    })
 }
 
 /// Runs the pixel-bar measurements on `show` (its LED fixtures that became
@@ -228,11 +354,15 @@ pub fn pixels(scene: &Scene, camera: Camera, (w, h): (u32, u32), show: &Path) ->
         buffers.push(b);
     }
     let direct_build_ms = t.elapsed().as_secs_f64() * 1e3;
+    let direct_alone = buffers.clone();
     let t = Instant::now();
     for (i, f) in cells.iter().enumerate() {
         buffers[i] = build(&f.light, i).whitted(scene, &view).map_err(|e| e.to_string())?;
     }
     let whitted_build_ms = t.elapsed().as_secs_f64() * 1e3;
+    let lights: Vec<crate::Light> = cells.iter().map(|f| f.light.clone()).collect();
+    let bar_of: Vec<u32> = cells.iter().map(|f| f.id).collect();
+    let together = together(scene, &view, &lights, &bar_of, &direct_alone, &buffers)?;
     // A light aimed away from everything the camera sees: its direct stage tests every tile and shades none.
     let forward = camera.direction(w as f32 / 2.0, h as f32 / 2.0, w, h);
     let away = crate::Light::aimed(camera.position, camera.position - forward, cells[0].light.beam.clone());
@@ -285,6 +415,7 @@ pub fn pixels(scene: &Scene, camera: Camera, (w, h): (u32, u32), show: &Path) ->
         import_ms,
         direct_build_ms,
         whitted_build_ms,
+        together,
         tiles_per_cell: in_beam.iter().sum::<usize>() as f64 / cells.len() as f64,
         empty_light_ms,
         all_faders_ms,

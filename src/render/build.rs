@@ -264,6 +264,16 @@ impl LightBuild {
         Ok(buffer)
     }
 
+    /// Hands in a Whitted stage built elsewhere for this same light and view
+    /// (the lights built together by [`super::cells::whitted_together`]):
+    /// [`LightBuild::photons`] then goes on from it as if
+    /// [`LightBuild::whitted`] had run.
+    pub fn with_whitted(mut self, buffer: &LightBuffer, reshaded: usize) -> Self {
+        self.direct = Some(buffer.to_dense());
+        self.reshaded = reshaded;
+        self
+    }
+
     /// Stage 3: direct plus the photon-mapped indirect term (eq. 3, 5:
     /// buffer_i = D_i + A_i, both scaled by k_i). Without photon settings it
     /// is the Whitted buffer.

@@ -22,6 +22,7 @@
 pub mod bodies;
 pub mod buffer;
 pub mod build;
+pub mod cells;
 pub mod composite;
 pub mod display;
 pub mod footprint;

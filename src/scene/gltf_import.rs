@@ -620,7 +620,7 @@ impl Importer<'_> {
                             self.read_uri(&name, uri, None).map_err(|e| e.to_string())
                         }
                     };
-                    match bytes.and_then(|b| Texture::decode_png(&name, &b)) {
+                    match bytes.and_then(|b| Texture::decode_image(&name, &b)) {
                         Ok(mut t) => {
                             let sampler = texture.sampler();
                             t.nearest = sampler.mag_filter() == Some(gltf::texture::MagFilter::Nearest);

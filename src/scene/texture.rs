@@ -67,12 +67,25 @@ impl Texture {
 
     /// Decodes a PNG (sRGB → linear, alpha dropped). The error says why.
     pub fn decode_png(name: &str, bytes: &[u8]) -> Result<Self, String> {
-        let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Png);
+        Self::decode_as(name, bytes, image::ImageFormat::Png)
+    }
+
+    /// Decodes a PNG or a JPEG (the two image types glTF 2.0 allows; told
+    /// apart by their first bytes), sRGB → linear, alpha dropped.
+    pub fn decode_image(name: &str, bytes: &[u8]) -> Result<Self, String> {
+        match image::guess_format(bytes) {
+            Ok(image::ImageFormat::Jpeg) => Self::decode_as(name, bytes, image::ImageFormat::Jpeg),
+            _ => Self::decode_png(name, bytes),
+        }
+    }
+
+    fn decode_as(name: &str, bytes: &[u8], format: image::ImageFormat) -> Result<Self, String> {
+        let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
         let mut limits = image::Limits::default();
         limits.max_image_width = Some(MAX_TEXTURE_SIDE);
         limits.max_image_height = Some(MAX_TEXTURE_SIDE);
         reader.limits(limits);
-        let img = reader.decode().map_err(|e| format!("not a readable PNG ({e})"))?;
+        let img = reader.decode().map_err(|e| format!("not a readable {format:?} ({e})"))?;
         let rgb = img.to_rgb32f();
         let (w, h) = rgb.dimensions();
         // to_rgb32f maps 8- and 16-bit samples onto 0..1 without a transfer function.

@@ -305,9 +305,15 @@ impl Gdtf {
         self.ft.dmx_modes.iter().find(named).or_else(|| self.ft.dmx_modes.iter().find(loose))
     }
 
-    /// A wheel image by its `MediaFileName` (`wheels/<name>.png`, or the name with its extension).
+    /// A wheel image by its `MediaFileName` (`wheels/<name>.png`, `.jpg`,
+    /// `.jpeg`, or the name with its extension).
     pub fn wheel_image(&self, media_name: &str) -> Option<&[u8]> {
-        let candidates = [format!("wheels/{media_name}.png"), format!("wheels/{media_name}")];
+        let candidates = [
+            format!("wheels/{media_name}.png"),
+            format!("wheels/{media_name}.jpg"),
+            format!("wheels/{media_name}.jpeg"),
+            format!("wheels/{media_name}"),
+        ];
         candidates
             .iter()
             .find_map(|c| {

@@ -43,14 +43,15 @@ use crate::gdtf::{BeamInfo, ChannelInfo, Gdtf, GeometryKind, GeometryNode, LampT
 use crate::mvr::{Mvr, Scene, stage_pose};
 use footlight_fixture::beam::SpotBeam;
 use footlight_fixture::fixture_type::{
-    Action, Attribute, Channel, CorrectionTable, Function, Mode, Movement, Optics, SpotOptics, WheelSlot, wheel_factor,
+    Action, Attribute, Channel, CorrectionTable, Function, Mode, Movement, Optics, SlotOverride, SpotOptics, WheelSlot,
+    wheel_factor,
 };
 use footlight_fixture::patch::{BREAK_STRIDE, BuiltinSpot, TypeLoader, TypedFixture};
 use footlight_fixture::state::{MAX_MIX, SLOTS, Universes};
 use footlight_fixture::{Beam, Fixture, FixtureModel, FixtureState, FixtureType, Light, Manual, Patch, PatchError};
 use footlight_photometry::{Chroma, DimmerCurve, Emitter, Gel, Lamp};
 use gdtf::wheel::WheelSlotOptic;
-use glam::{DQuat, Quat, Vec2, Vec3};
+use glam::{DMat4, DQuat, Quat, Vec2, Vec3};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
@@ -222,7 +223,8 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
                 format!("mode {:?}: channels on DMX breaks past {MAX_BREAKS} are not decoded", l.mode),
             ));
         }
-        modes.push(Mode { name: l.mode.clone(), channels, footprint: footprint.min(SLOTS as u16), line: 0 });
+        let overrides = override_relations(l, &mut channels);
+        modes.push(Mode { name: l.mode.clone(), channels, footprint: footprint.min(SLOTS as u16), line: 0, overrides });
     }
     if !unsupported.is_empty() {
         warnings.push(PatchError::new(
@@ -552,12 +554,18 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
                     local.extend(c.slots_for(c.default));
                 }
                 let cells = cell_plans.get(&f.gdtf_spec).and_then(|m| m.get(&md.name)).filter(|c| !c.is_empty());
-                let parts: Vec<(String, Arc<FixtureType>, usize, Vec3)> = match cells {
+                // A cell's own rotation (its GeometryReference's and beam's
+                // matrices) turns its beam within the fixture; a moving head's
+                // cells follow the head's pan/tilt instead.
+                let parts: Vec<(String, Arc<FixtureType>, usize, Vec3, Quat)> = match cells {
                     Some(cells) => cells
                         .iter()
-                        .map(|c| (format!("{} / {}", f.name, c.name), c.fixture_type.clone(), 0, c.offset))
+                        .map(|c| {
+                            let turn = if ty.movement.is_some() { Quat::IDENTITY } else { c.rotation };
+                            (format!("{} / {}", f.name, c.name), c.fixture_type.clone(), 0, c.offset, turn)
+                        })
                         .collect(),
-                    None => vec![(f.name.clone(), ty.clone(), mode, *beam_offset)],
+                    None => vec![(f.name.clone(), ty.clone(), mode, *beam_offset, Quat::IDENTITY)],
                 };
                 let ranges = match dmx {
                     Some(start) => break_ranges(md, start, &breaks),
@@ -583,12 +591,12 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
                         }
                     }
                 }
-                for (name, fixture_type, mode, beam_offset) in parts {
+                for (name, fixture_type, mode, beam_offset, turn) in parts {
                     let typed = TypedFixture {
                         fixture_type,
                         mode,
                         position: position + q * beam_frame * beam_offset,
-                        rotation,
+                        rotation: (rotation * turn).normalize(),
                         gel: None,
                         scroller: None,
                         gels: None,
@@ -746,6 +754,11 @@ pub struct Cell {
     pub name: String,
     /// Its beam's position from the fixture origin (GDTF axes, metres).
     pub offset: Vec3,
+    /// Its beam's orientation in the fixture (GDTF axes): the rotation of
+    /// the beam's matrix to the fixture (the GeometryReference's matrix
+    /// times the referenced geometries'). The cell's beam points along
+    /// `rotation · (−Z)` in fixture axes.
+    pub rotation: Quat,
     /// The cell's fixture type: the fixture's type with one mode holding
     /// the cell's own channels (on the reference's geometries, at the
     /// reference's break offsets) and the channels of geometries outside
@@ -762,7 +775,7 @@ pub fn cells(g: &Gdtf, ty: &FixtureType, mode: &str) -> Result<Vec<Cell>, PatchE
     let l = g.layout(mode)?;
     let Some(index) = ty.mode(&l.mode) else { return Ok(Vec::new()) };
     let base = &ty.modes[index];
-    let mut refs: Vec<(&GeometryNode, Vec3)> = Vec::new();
+    let mut refs: Vec<(&GeometryNode, DMat4)> = Vec::new();
     emitting_references(&l.root, &mut refs);
     if refs.len() < 2 {
         // No instanced cells: several plain `<Beam>`s (a multi-lamp blinder) are cells too.
@@ -790,29 +803,65 @@ pub fn cells(g: &Gdtf, ty: &FixtureType, mode: &str) -> Result<Vec<Cell>, PatchE
             }
         }
         let channels: Vec<Channel> = base.channels.iter().filter(|c| offsets.contains(&c.offset)).cloned().collect();
-        let mode = Mode { name: base.name.clone(), channels, footprint: base.footprint, line: base.line };
+        let overrides = base.overrides.iter().filter(|r| offsets.contains(&r.follower.0)).copied().collect();
+        let mode = Mode { name: base.name.clone(), channels, footprint: base.footprint, line: base.line, overrides };
         let cell_ty = FixtureType { modes: vec![mode], ..ty.clone() };
-        out.push(Cell { name: node.name.clone(), offset: *offset, fixture_type: Arc::new(cell_ty) });
+        let (_, rotation, translation) = offset.to_scale_rotation_translation();
+        let rotation = Quat::from_xyzw(rotation.x as f32, rotation.y as f32, rotation.z as f32, rotation.w as f32);
+        let rotation = if rotation.is_finite() { rotation.normalize() } else { Quat::IDENTITY };
+        let offset = translation.as_vec3();
+        out.push(Cell { name: node.name.clone(), offset, rotation, fixture_type: Arc::new(cell_ty) });
     }
     Ok(out)
 }
 
-/// The `<Beam>` geometries under `node` outside references, with their positions.
-fn plain_beams<'a>(node: &'a GeometryNode, out: &mut Vec<(&'a GeometryNode, Vec3)>) {
+/// The mode's GDTF `Override` relations as [`SlotOverride`]s: the master
+/// DMX channel (named `<Geometry>_<Attribute>`, GDTF's default channel
+/// name) over every instance of the follower's channel (the first part of
+/// the follower's `Channel.LogicalChannel.ChannelFunction` path; a
+/// follower on a referenced geometry is every cell's). A master acts only
+/// through its overrides: its own attribute becomes [`Attribute::Other`]
+/// (two dimmers would otherwise both set v). `Multiply` relations need no
+/// mapping: a shared dimmer already multiplies (v · the emitter mix, eq. 4).
+fn override_relations(l: &Layout, channels: &mut [Channel]) -> Vec<SlotOverride> {
+    let slots = |c: &ChannelInfo| -> Option<(u16, Option<u16>)> {
+        let base = break_base(c.dmx_break)?;
+        let at = |o: u16| base + o.saturating_sub(1).min(BREAK_STRIDE - 1);
+        Some((at(*c.offsets.first()?), c.offsets.get(1).map(|o| at(*o))))
+    };
+    let named = |name: &str| -> Vec<(u16, Option<u16>)> {
+        l.channels.iter().filter(|c| format!("{}_{}", c.template, c.attribute) == name).filter_map(slots).collect()
+    };
+    let mut out = Vec::new();
+    for r in l.relations.iter().filter(|r| r.kind.eq_ignore_ascii_case("Override")) {
+        let Some(&master) = named(&r.master).first() else { continue };
+        let follower = r.follower.split('.').next().unwrap_or("");
+        for f in named(follower).into_iter().filter(|f| *f != master) {
+            out.push(SlotOverride { master, follower: f });
+        }
+        if let Some(ch) = channels.iter_mut().find(|c| c.offset == master.0) {
+            ch.attribute = Attribute::Other;
+        }
+    }
+    out
+}
+
+/// The `<Beam>` geometries under `node` outside references, with their matrices to the fixture.
+fn plain_beams<'a>(node: &'a GeometryNode, out: &mut Vec<(&'a GeometryNode, DMat4)>) {
     match node.kind {
         GeometryKind::Reference(_) => {}
-        GeometryKind::Beam(_) => out.push((node, node.to_fixture.w_axis.truncate().as_vec3())),
+        GeometryKind::Beam(_) => out.push((node, node.to_fixture)),
         _ => node.children.iter().for_each(|c| plain_beams(c, out)),
     }
 }
 
 /// GeometryReferences under `node` whose instance holds a beam, with that
-/// beam's position (depth-first; a reference inside a cell is part of it).
-fn emitting_references<'a>(node: &'a GeometryNode, out: &mut Vec<(&'a GeometryNode, Vec3)>) {
+/// beam's matrix to the fixture (depth-first; a reference inside a cell is part of it).
+fn emitting_references<'a>(node: &'a GeometryNode, out: &mut Vec<(&'a GeometryNode, DMat4)>) {
     if matches!(node.kind, GeometryKind::Reference(_))
         && let Some((beam, _)) = first_beam(node)
     {
-        out.push((node, beam.to_fixture.w_axis.truncate().as_vec3()));
+        out.push((node, beam.to_fixture));
         return;
     }
     node.children.iter().for_each(|c| emitting_references(c, out));

@@ -474,7 +474,7 @@ fn mode(
         return Err(at(m.span(), format!("mode {name:?} has no [[mode.channel]]")));
     }
     let footprint = used.iter().map(|(o, _)| o + 1).max().unwrap_or(0);
-    Ok(Mode { name, channels, footprint, line: line_of(text, m.span().start) })
+    Ok(Mode { name, channels, footprint, line: line_of(text, m.span().start), overrides: Vec::new() })
 }
 
 /// Resolves an attribute name for this type, or says which names it takes.

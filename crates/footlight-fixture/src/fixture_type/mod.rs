@@ -440,9 +440,43 @@ pub struct Mode {
     pub footprint: u16,
     /// Line of the `[[mode]]` entry.
     pub line: usize,
+    /// GDTF `Override` relations ([`SlotOverride`]); empty for TOML types.
+    pub overrides: Vec<SlotOverride>,
+}
+
+/// A GDTF `Relation Type="Override"` (DIN SPEC 15800 names the type
+/// without a formula; Footlight's reading, docs/mvr-gdtf.md): while the
+/// master DMX channel is above 0, the follower channel reads the master's
+/// value (the same fraction of its own range); at 0 the follower keeps its
+/// own value. Offsets as [`Channel::offset`] / [`Channel::fine`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SlotOverride {
+    /// The master's coarse and fine slot offsets.
+    pub master: (u16, Option<u16>),
+    /// The follower's coarse and fine slot offsets.
+    pub follower: (u16, Option<u16>),
 }
 
 impl Mode {
+    /// The value of slot `o` after the mode's [`SlotOverride`]s: a
+    /// follower's slot reads its master's while the master is above 0.
+    pub fn overridden(&self, slot: &dyn Fn(u16) -> u8, o: u16) -> u8 {
+        for r in &self.overrides {
+            let (mc, mf) = (slot(r.master.0), r.master.1.map_or(0, slot));
+            if mc == 0 && mf == 0 {
+                continue;
+            }
+            if o == r.follower.0 {
+                return mc;
+            }
+            if Some(o) == r.follower.1 {
+                // An 8-bit master on a 16-bit follower: m · 257 (the same fraction).
+                return if r.master.1.is_some() { mf } else { mc };
+            }
+        }
+        slot(o)
+    }
+
     /// The channel controlling `attribute`, if any.
     pub fn channel(&self, attribute: Attribute) -> Option<&Channel> {
         self.channels.iter().find(|c| c.attribute == attribute)
@@ -505,6 +539,8 @@ impl FixtureType {
     /// (offset from the start address, 0-based; slots past the universe
     /// read as 0). Attributes without a channel keep [`FixtureType::rest_state`].
     pub fn decode(&self, mode: &Mode, manual: &Manual, slot: &dyn Fn(u16) -> u8) -> FixtureState {
+        let read = |o: u16| mode.overridden(slot, o);
+        let slot: &dyn Fn(u16) -> u8 = if mode.overrides.is_empty() { slot } else { &read };
         let mut s = self.rest_state(manual);
         for c in &mode.channels {
             let (raw, full) = c.raw(slot);

@@ -11,7 +11,7 @@ use footlight_mvr::mvr::Mvr;
 use serde_json::Value;
 use std::process::Command;
 
-const TYPES: [&str; 6] = ["Spot", "Wash", "Bar8", "Blinder", "Fresnel", "Hazer"];
+const TYPES: [&str; 7] = ["Spot", "Wash", "Bar8", "Blinder", "Fresnel", "Hazer", "Fan4"];
 
 fn peers_available() -> bool {
     match Command::new("python3").args(["-c", "import pygdtf, pymvr"]).output() {
@@ -88,6 +88,10 @@ fn gdtf_agrees_with_pygdtf() {
             }
             assert_eq!(Value::from(ours), m["breaks"], "{t} {mode}: channels per break");
             assert_eq!(strip_kind(&tree(&layout.root)), m["tree"], "{t} {mode}: geometry tree");
+            // Relations (Multiply virtual dimmers, the Fan4's Override master): name, master, follower, type.
+            let relations: Vec<Value> =
+                layout.relations.iter().map(|r| serde_json::json!([r.name, r.master, r.follower, r.kind])).collect();
+            assert_eq!(Value::from(relations), m["relations"], "{t} {mode}: relations");
             let mut beams = Vec::new();
             collect_beams(&layout.root, &mut beams);
             let theirs_beams = m["beams"].as_array().unwrap();

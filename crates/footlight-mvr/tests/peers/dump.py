@@ -81,6 +81,7 @@ def gdtf(path):
             "tree": tree(ft, root),
             "beams": beams(ft, root, []),
             "cells": cells(ft, root, root.position.matrix, []),
+            "relations": [[r.name, str(r.master), str(r.follower), str(r.type)] for r in m.relations],
         }
     slots = {
         w.name: [

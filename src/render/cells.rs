@@ -1,0 +1,340 @@
+//! Lights built together (issue 14: pixel cells). An LED bar's cells are
+//! lights of their own (one unit buffer I_h,ε_i each, eq. 5), but they hang
+//! a few centimetres apart and light the same part of the picture; built
+//! one by one, each cell's Whitted stage walks every shading vertex of the
+//! frame (the bench measured 36 ms per cell at 800×500).
+//!
+//! [`whitted_together`] builds a set of lights in one pass: the tiles of
+//! the picture are bounded once ([`PathBounds`]: every camera-path vertex
+//! of a tile, mirrors and glass included, in one sphere), each light keeps
+//! the tiles its cone reaches, and one parallel pass over the **union** of
+//! those tiles evaluates, at every vertex, the direct light of each light
+//! whose cone reaches the tile ([`super::whitted::direct`]: its own shadow
+//! ray). Each light then gets the same adaptive anti-aliasing as alone
+//! ([`View::reshade`] of the pixels its own relative gradient flags, §3.4),
+//! decided on a window around its lit tiles instead of the whole frame, and
+//! is stored in its own tile-sparse [`LightBuffer`]: eq. 5 is unchanged.
+//!
+//! The result equals [`super::build::LightBuild::whitted`] of each light
+//! alone (same vertices, same sums in the same order; a culled tile is one
+//! where every term is zero): `tests/pixels.rs` checks it to 1e-6, and
+//! `footlight bench --pixels-only` times both.
+
+use super::buffer::{LightBuffer, TILE};
+use super::display::srgb8;
+use super::gbuffer::{CENTRE_SAMPLE, NO_HIT, SAME_SURFACE_COS};
+use super::view::{AA_REFERENCE_PERCENTILE, AaParams, Sampling, View, mark_gradients};
+use super::whitted::direct;
+use crate::fixture::Light;
+use crate::scene::{Hit, Scene};
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Bounding sphere of **every** camera-path vertex (any depth: seen
+/// directly, through mirrors or through glass) of each 16×16 tile of a
+/// view. Unlike [`super::footprint::TileBounds`] (depth-0 vertices only,
+/// for the direct stage) it bounds what the Whitted stage shades. Built
+/// once per view and kept by the caller.
+pub struct PathBounds {
+    tiles_x: usize,
+    /// Per tile: centre and radius, or `None` when no vertex is in it.
+    spheres: Vec<Option<(Vec3, f32)>>,
+    /// A tile holds a vertex at a non-finite position: never culled.
+    unbounded: Vec<bool>,
+}
+
+impl PathBounds {
+    /// Bounds of `view`'s shading vertices, tile by tile.
+    pub fn build(view: &View) -> Self {
+        let (w, h) = (view.width() as usize, view.height() as usize);
+        let (tiles_x, tiles_y) = (w.div_ceil(TILE), h.div_ceil(TILE));
+        let (spheres, unbounded) = (0..tiles_x * tiles_y)
+            .into_par_iter()
+            .map(|t| {
+                let (tx, ty) = (t % tiles_x, t / tiles_x);
+                let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+                let mut bad = false;
+                for y in ty * TILE..((ty + 1) * TILE).min(h) {
+                    for x in tx * TILE..((tx + 1) * TILE).min(w) {
+                        for v in view.shading.pixel(y * w + x) {
+                            if v.position.is_finite() {
+                                lo = lo.min(v.position);
+                                hi = hi.max(v.position);
+                            } else {
+                                bad = true;
+                            }
+                        }
+                    }
+                }
+                ((lo.x <= hi.x).then(|| ((lo + hi) * 0.5, (hi - lo).length() * 0.5)), bad)
+            })
+            .unzip();
+        Self { tiles_x, spheres, unbounded }
+    }
+
+    /// Number of tiles.
+    pub fn len(&self) -> usize {
+        self.spheres.len()
+    }
+
+    /// True for an empty view.
+    pub fn is_empty(&self) -> bool {
+        self.spheres.is_empty()
+    }
+
+    /// Tiles with a vertex that may lie inside `light`'s cone (half-angle
+    /// `acos(cos_cutoff)`, where its pattern is zero beyond). Conservative:
+    /// a tile is left out only when its sphere lies wholly outside the cone.
+    pub fn tiles_in_beam(&self, light: &Light) -> Vec<usize> {
+        let axis = light.axis();
+        let cutoff = light.beam.cos_cutoff().clamp(-1.0, 1.0).acos();
+        (0..self.spheres.len())
+            .filter(|&t| {
+                if self.unbounded[t] {
+                    return true;
+                }
+                let Some((centre, radius)) = self.spheres[t] else { return false };
+                let d = centre - light.position;
+                let dist = d.length();
+                if !dist.is_finite() || dist <= radius || !axis.is_finite() {
+                    return true;
+                }
+                let angle = (d.dot(axis) / dist).clamp(-1.0, 1.0).acos();
+                let widen = (radius / dist).clamp(0.0, 1.0).asin();
+                angle <= cutoff + widen + 1e-4
+            })
+            .collect()
+    }
+}
+
+/// What [`whitted_together`] did, for the bench.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TogetherStats {
+    /// Tiles of the picture.
+    pub tiles: usize,
+    /// Tiles in the union of the lights' cones (shaded once).
+    pub union_tiles: usize,
+    /// Sum over lights of the tiles their cone reaches.
+    pub light_tiles: usize,
+    /// Pixels re-shaded by anti-aliasing, all lights together.
+    pub reshaded: usize,
+}
+
+/// The Whitted stage (eq. 1 direct term with adaptive anti-aliasing, §3.4)
+/// of every light of `lights`, built together: one pass over the union of
+/// their footprints, every vertex evaluating each light's direct light (one
+/// shadow ray per light), each light in its own unit buffer (eq. 5).
+/// Equal to [`super::build::LightBuild::whitted`] of each light alone.
+/// `bounds` must be [`PathBounds::build`] of `view`. Returns `None` once
+/// `stop` returns true (checked per tile and per light).
+pub fn whitted_together(
+    scene: &Scene,
+    view: &View,
+    bounds: &PathBounds,
+    lights: &[Light],
+    aa: Option<AaParams>,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Option<(Vec<(LightBuffer, usize)>, TogetherStats)> {
+    let (w, h) = (view.width() as usize, view.height() as usize);
+    let n = bounds.len();
+    let lists: Vec<Vec<usize>> = lights.iter().map(|l| bounds.tiles_in_beam(l)).collect();
+    let (per_light, union_tiles, light_tiles) =
+        shade_union(scene, view, bounds.tiles_x, n, lights, &lists, false, stop)?;
+    let adaptive = matches!(view.sampling, Sampling::Adaptive) && aa.is_some();
+    // Scratch for anti-aliasing, shared by the lights one after another.
+    let mut dense = if adaptive { vec![Vec3::ZERO; w * h] } else { Vec::new() };
+    let mut flags = if adaptive { vec![false; w * h] } else { Vec::new() };
+    let mut out = Vec::with_capacity(lights.len());
+    let mut reshaded_all = 0;
+    for (light, tiles) in lights.iter().zip(per_light) {
+        if stop() {
+            return None;
+        }
+        let (Some(aa), false) = (aa.filter(|_| adaptive), tiles.is_empty()) else {
+            out.push((LightBuffer::from_tile_list(w as u32, h as u32, tiles), 0));
+            continue;
+        };
+        let (buffer, reshaded) = anti_alias(scene, view, bounds.tiles_x, light, tiles, aa, &mut dense, &mut flags);
+        reshaded_all += reshaded;
+        out.push((buffer, reshaded));
+    }
+    let stats = TogetherStats { tiles: n, union_tiles, light_tiles, reshaded: reshaded_all };
+    Some((out, stats))
+}
+
+/// The direct stage ([`super::footprint::primary_direct`] at
+/// [`super::footprint::DirectQuality::Full`]: directly seen surfaces only,
+/// no anti-aliasing) of every light of `lights`, built together over the
+/// union of their footprints ([`View::tile_bounds`]); equal to each light's
+/// own direct stage. `None` once `stop` returns true.
+pub fn direct_together(
+    scene: &Scene,
+    view: &View,
+    lights: &[Light],
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Option<(Vec<LightBuffer>, TogetherStats)> {
+    let (w, h) = (view.width(), view.height());
+    let bounds = view.tile_bounds();
+    let tiles_x = (w as usize).div_ceil(TILE);
+    let lists: Vec<Vec<usize>> = lights.iter().map(|l| bounds.tiles_in_beam(l)).collect();
+    let (per_light, union_tiles, light_tiles) =
+        shade_union(scene, view, tiles_x, bounds.len(), lights, &lists, true, stop)?;
+    let out = per_light.into_iter().map(|tiles| LightBuffer::from_tile_list(w, h, tiles)).collect();
+    Some((out, TogetherStats { tiles: bounds.len(), union_tiles, light_tiles, reshaded: 0 }))
+}
+
+/// Per light, its non-zero tiles; the union's size; the sum of the lists'
+/// sizes. One parallel pass over the union of `lists` (light i's tiles):
+/// every vertex of a tile (only the directly seen ones with `primary`)
+/// evaluates the direct light of each light whose list holds the tile,
+/// summed per pixel in vertex order (the sum a light alone makes).
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn shade_union(
+    scene: &Scene,
+    view: &View,
+    tiles_x: usize,
+    n: usize,
+    lights: &[Light],
+    lists: &[Vec<usize>],
+    primary: bool,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Option<(Vec<Vec<(usize, Vec<Vec3>)>>, usize, usize)> {
+    let (w, h) = (view.width() as usize, view.height() as usize);
+    // Which lights reach each tile.
+    let mut reach: Vec<Vec<u32>> = vec![Vec::new(); n];
+    let mut light_tiles = 0;
+    for (i, list) in lists.iter().enumerate() {
+        for &t in list {
+            reach[t].push(i as u32);
+            light_tiles += 1;
+        }
+    }
+    let union: Vec<usize> = (0..n).filter(|&t| !reach[t].is_empty()).collect();
+    // One pass over the union: per tile, one TILE×TILE block per light reaching it.
+    let shaded: Vec<(usize, Vec<Vec<Vec3>>)> = union
+        .par_iter()
+        .map(|&t| {
+            let who = &reach[t];
+            let mut blocks = vec![vec![Vec3::ZERO; TILE * TILE]; who.len()];
+            if stop() {
+                return (t, blocks);
+            }
+            let (tx, ty) = (t % tiles_x, t / tiles_x);
+            let mut sums = vec![Vec3::ZERO; who.len()];
+            for y in ty * TILE..((ty + 1) * TILE).min(h) {
+                for x in tx * TILE..((tx + 1) * TILE).min(w) {
+                    sums.iter_mut().for_each(|s| *s = Vec3::ZERO);
+                    // The same sum as the light alone: vertex after vertex.
+                    for v in view.shading.pixel(y * w + x).iter().filter(|v| !primary || v.depth == 0) {
+                        for (s, &i) in sums.iter_mut().zip(who) {
+                            *s += v.weight * direct(scene, &lights[i as usize], v);
+                        }
+                    }
+                    let p = (y - ty * TILE) * TILE + (x - tx * TILE);
+                    for (b, s) in blocks.iter_mut().zip(&sums) {
+                        b[p] = *s;
+                    }
+                }
+            }
+            (t, blocks)
+        })
+        .collect();
+    if stop() {
+        return None;
+    }
+    // Hand each light its blocks.
+    let mut per_light: Vec<Vec<(usize, Vec<Vec3>)>> = vec![Vec::new(); lights.len()];
+    for (t, blocks) in shaded {
+        for (&i, b) in reach[t].iter().zip(blocks) {
+            if b.iter().any(|p| *p != Vec3::ZERO) {
+                per_light[i as usize].push((t, b));
+            }
+        }
+    }
+    Some((per_light, union.len(), light_tiles))
+}
+
+/// One light's adaptive anti-aliasing from its shaded tiles: the pixels
+/// [`View::gradient_flags`] would flag on the whole frame, found on the
+/// window of its lit tiles grown by 2 pixels (outside it every value is 0,
+/// so no gradient), then [`View::reshade`]. `dense` and `flags` are
+/// frame-sized scratch, all zero / false on entry and on return.
+#[allow(clippy::too_many_arguments)]
+fn anti_alias(
+    scene: &Scene,
+    view: &View,
+    tiles_x: usize,
+    light: &Light,
+    tiles: Vec<(usize, Vec<Vec3>)>,
+    aa: AaParams,
+    dense: &mut [Vec3],
+    flags: &mut [bool],
+) -> (LightBuffer, usize) {
+    let (w, h) = (view.width() as usize, view.height() as usize);
+    let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0, 0);
+    for (t, block) in &tiles {
+        let (tx, ty) = (t % tiles_x, t / tiles_x);
+        for y in ty * TILE..((ty + 1) * TILE).min(h) {
+            for x in tx * TILE..((tx + 1) * TILE).min(w) {
+                dense[y * w + x] = block[(y - ty * TILE) * TILE + (x - tx * TILE)];
+            }
+        }
+        (x0, y0) = (x0.min(tx * TILE), y0.min(ty * TILE));
+        (x1, y1) = (x1.max(((tx + 1) * TILE).min(w)), y1.max(((ty + 1) * TILE).min(h)));
+    }
+    // The window: lit tiles plus 2 pixels (a flag reaches 1 pixel past an edge).
+    let (x0, y0, x1, y1) = (x0.saturating_sub(2), y0.saturating_sub(2), (x1 + 2).min(w), (y1 + 2).min(h));
+    let (ww, wh) = (x1 - x0, y1 - y0);
+    let global = |i: usize| (y0 + i / ww) * w + x0 + i % ww;
+    // The light's reference level (99th percentile of its lit pixels): the
+    // lit pixels are all in its tiles, so the window sees every one.
+    let mut lit: Vec<f32> = tiles
+        .iter()
+        .flat_map(|(_, b)| b.iter().map(|v| v.max_element()))
+        .filter(|&m| m > 0.0 && m.is_finite())
+        .collect();
+    let mut reshaded = 0;
+    if !lit.is_empty() {
+        let k = ((lit.len() - 1) as f32 * AA_REFERENCE_PERCENTILE) as usize;
+        let (_, level, _) = lit.select_nth_unstable_by(k, f32::total_cmp);
+        let scale = Vec3::splat(1.0 / *level);
+        let display: Vec<Vec3> = (0..ww * wh)
+            .into_par_iter()
+            .map(|i| Vec3::from_array(srgb8(dense[global(i)] * scale).map(f32::from)))
+            .collect();
+        let surface = |i: usize| {
+            let s = &view.gbuffer.samples[i][CENTRE_SAMPLE];
+            (s.triangle != NO_HIT).then(|| {
+                let sp = scene.surface(&Hit { triangle: s.triangle, t: 0.0, u: s.u, v: s.v });
+                (sp.material, sp.shading_normal)
+            })
+        };
+        let same = |a: usize, b: usize| match (surface(global(a)), surface(global(b))) {
+            (Some((ma, na)), Some((mb, nb))) => ma == mb && na.dot(nb) >= SAME_SURFACE_COS,
+            _ => false,
+        };
+        let local = mark_gradients(&display, ww, wh, aa.threshold, same);
+        for (i, f) in local.iter().enumerate() {
+            flags[global(i)] = *f;
+        }
+        reshaded = view.reshade(scene, light, dense, flags);
+    }
+    // Pack the window (re-shading may light a pixel of a neighbouring tile),
+    // and leave the scratch clean.
+    let (tx0, ty0, tx1, ty1) = (x0 / TILE, y0 / TILE, x1.div_ceil(TILE), y1.div_ceil(TILE));
+    let mut list = Vec::new();
+    for ty in ty0..ty1 {
+        for tx in tx0..tx1 {
+            let mut block = vec![Vec3::ZERO; TILE * TILE];
+            for y in ty * TILE..((ty + 1) * TILE).min(h) {
+                for x in tx * TILE..((tx + 1) * TILE).min(w) {
+                    block[(y - ty * TILE) * TILE + (x - tx * TILE)] = dense[y * w + x];
+                    dense[y * w + x] = Vec3::ZERO;
+                    flags[y * w + x] = false;
+                }
+            }
+            list.push((ty * tiles_x + tx, block));
+        }
+    }
+    (LightBuffer::from_tile_list(w as u32, h as u32, list), reshaded)
+}
