@@ -134,12 +134,12 @@ pub fn converge(
     };
     let mut rows = Vec::new();
     for p in pipelines {
-        let photons = BuildSettings::default().photons.map(|s| crate::render::photon::PhotonSettings {
-            pass_emitted: p.pass_emitted,
-            ..s
-        });
+        let photons = BuildSettings::default()
+            .photons
+            .map(|s| crate::render::photon::PhotonSettings { pass_emitted: p.pass_emitted, ..s });
         let settings = BuildSettings { refine_passes: p.passes, photons, ..BuildSettings::default() };
-        let row = |stage: String, ms: f64, mse: [f64; 3]| ConvergeRow { stage: format!("{}: {stage}", p.label), ms, mse };
+        let row =
+            |stage: String, ms: f64, mse: [f64; 3]| ConvergeRow { stage: format!("{}: {stage}", p.label), ms, mse };
         let t0 = Instant::now();
         let ms = || t0.elapsed().as_secs_f64() * 1e3;
         let mut b = LightBuild::new(light.clone(), 0, settings, Cancel::never())
@@ -213,6 +213,8 @@ pub struct ConvergeProfile {
     pub stages: Vec<(String, f64)>,
     /// Per pass: its stages and the blend + render of its picture, ms.
     pub passes: Vec<(crate::render::photon::PassTimes, f64)>,
+    /// Photons emitted per pass and the mean stages of 3 such passes.
+    pub pass_sizes: Vec<(usize, crate::render::photon::PassTimes)>,
 }
 
 /// Profiles a moved light's stages at `size` (see [`ConvergeProfile`]).
@@ -271,13 +273,31 @@ pub fn converge_profile(
     let _ = view.render_vertex_irradiance(scene, &exact);
     p.stages.push(("shading the per-vertex irradiance".into(), ms(t)));
     let t = Instant::now();
-    let mut sppm = Progressive::new(scene, &view, &maps).starting_from(exact, maps.settings.estimate as f32);
+    let mut sppm = Progressive::new(scene, &view, &maps).starting_from(exact.clone(), maps.settings.estimate as f32);
     p.stages.push(("SPPM set-up (initial radii)".into(), ms(t)));
     for _ in 0..passes {
         sppm.pass(scene, &view, light);
         let t = Instant::now();
         let _ = view.render_progressive(scene, &sppm);
         p.passes.push((sppm.last_times(), ms(t)));
+    }
+    // Pass size: from the same start, 3 passes emitting 1, 2 and 4 times as
+    // many photons as stored.
+    for factor in [1, 2, 4] {
+        let emitted = maps.settings.stored * factor;
+        let mut sppm = Progressive::new(scene, &view, &maps)
+            .starting_from(exact.clone(), maps.settings.estimate as f32)
+            .with_pass_emitted(emitted);
+        let mut sum = crate::render::photon::PassTimes::default();
+        for _ in 0..3 {
+            sppm.pass(scene, &view, light);
+            let l = sppm.last_times();
+            sum.trace_ms += l.trace_ms / 3.0;
+            sum.tree_ms += l.tree_ms / 3.0;
+            sum.gather_ms += l.gather_ms / 3.0;
+            sum.photons += l.photons / 3;
+        }
+        p.pass_sizes.push((emitted, sum));
     }
     p
 }
@@ -309,6 +329,21 @@ impl ConvergeProfile {
                 mean(&|p| p.0.gather_ms),
                 mean(&|p| p.1),
             );
+        }
+        if !self.pass_sizes.is_empty() {
+            s += "\n| photons emitted per pass | stored | trace ms | tree ms | gather ms | ms per 1000 stored |\n\
+                  |---:|---:|---:|---:|---:|---:|\n";
+            for (emitted, t) in &self.pass_sizes {
+                let total = t.trace_ms + t.tree_ms + t.gather_ms;
+                s += &format!(
+                    "| {emitted} | {} | {:.1} | {:.1} | {:.1} | {:.2} |\n",
+                    t.photons,
+                    t.trace_ms,
+                    t.tree_ms,
+                    t.gather_ms,
+                    total * 1000.0 / t.photons.max(1) as f64
+                );
+            }
         }
         s
     }
@@ -348,12 +383,20 @@ pub fn run(
         let step = crate::live::tracer::TracerSettings::default().coarse_indirect;
         converge_profile(scene, light, camera, size, 16, step)
     });
-    let converge =
-        if wants(Part::Converge) {
-            converge(scene, light, k_full, camera, size, reference_passes, &[Pipeline::before(), Pipeline::shipped()])
-        } else {
-            Vec::new()
+    let converge = if wants(Part::Converge) {
+        let shipped = Pipeline::shipped();
+        let stored = crate::render::photon::PhotonSettings::default().stored;
+        // Half as many passes of twice the photons: the same photon budget.
+        let bigger = Pipeline {
+            label: "variant, 2× photons per pass",
+            pass_emitted: 2 * shipped.pass_emitted.max(stored),
+            passes: shipped.passes / 2,
+            ..shipped
         };
+        converge(scene, light, k_full, camera, size, reference_passes, &[Pipeline::before(), shipped, bigger])
+    } else {
+        Vec::new()
+    };
     let indirect =
         if wants(Part::Indirect) { indirect_rows(scene_path, light, camera, size.0 < 400)? } else { Vec::new() };
     Ok(AccuracyReport { size, aa, breakdowns, converge, reference_passes, profile, indirect })

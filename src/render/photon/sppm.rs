@@ -117,6 +117,13 @@ impl Progressive {
         self
     }
 
+    /// Each pass emits `emitted` photons (rounded up to whole 2048-photon
+    /// chunks) instead of the maps' `pass_emitted` setting.
+    pub fn with_pass_emitted(mut self, emitted: usize) -> Self {
+        self.settings.pass_emitted = emitted;
+        self
+    }
+
     /// Passes done so far.
     pub fn passes(&self) -> u32 {
         self.passes
