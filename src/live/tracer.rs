@@ -121,6 +121,10 @@ pub struct TracerSettings {
     /// pixels and interpolated in between (0 or 1: exact everywhere); the
     /// first refinement pass finishes it ([`LightBuild::with_coarse_indirect`]).
     pub coarse_indirect: u32,
+    /// A moved light's refinement blends its first SPPM pass with the
+    /// coarse estimate instead of finishing the exact lookups first
+    /// ([`LightBuild::with_refinement_from_coarse`]; issue 13).
+    pub refine_from_coarse: bool,
 }
 
 impl Default for TracerSettings {
@@ -132,6 +136,7 @@ impl Default for TracerSettings {
             max_refining: 4,
             cache_bytes: 512 << 20,
             coarse_indirect: 3,
+            refine_from_coarse: true,
         }
     }
 }
@@ -891,6 +896,9 @@ fn direct_stage(s: &Shared, index: usize) {
         && light == req.light
     {
         build = build.with_maps(maps);
+    } else {
+        // A moved light (its photons are traced anew): see the setting.
+        build = build.with_refinement_from_coarse(s.settings.refine_from_coarse);
     }
     let view = s.view();
     s.builds.fetch_add(1, Ordering::SeqCst);

@@ -530,8 +530,14 @@ impl IrradianceCache {
     /// so the caller can fall back to a direct estimate instead of showing
     /// a black hole.
     pub fn lookup(&self, x: Vec3, n: Vec3) -> Option<Vec3> {
+        self.lookup_among(x, n, CACHE_NEIGHBOURS)
+    }
+
+    /// As [`IrradianceCache::lookup`], consulting the `neighbours` nearest
+    /// cache points (at least 1).
+    pub fn lookup_among(&self, x: Vec3, n: Vec3, neighbours: usize) -> Option<Vec3> {
         let tree = self.tree.as_ref()?;
-        let k = NonZero::new(CACHE_NEIGHBOURS).expect("non-zero");
+        let k = NonZero::new(neighbours.max(1)).expect("non-zero");
         let found = tree.nearest_n::<SquaredEuclidean>(&x.to_array(), k);
         let fits = |c: &CachePoint, d: f32| c.normal.dot(n) >= SAME_SURFACE_COS && d < c.radius;
         let (mut reach, mut fitting) = (0.0f32, 0usize);

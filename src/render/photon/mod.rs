@@ -25,8 +25,8 @@ pub mod sppm;
 pub mod trace;
 
 pub use map::{BoundaryMode, Filter, IrradianceCache, Photon, PhotonMap};
-pub use sppm::Progressive;
-pub use trace::{PhotonMaps, trace_photons, trace_photons_until};
+pub use sppm::{PassTimes, Progressive};
+pub use trace::{PhotonMaps, TraceTimes, WIDE_LOOKUP, trace_photons, trace_photons_until};
 
 /// Photon-mapping settings (paper, section 4: 50,000 photons stored per
 /// map, 150 in the estimate).
@@ -57,6 +57,9 @@ pub struct PhotonSettings {
     /// with measured cuts), so the cone stays the default (issue 13,
     /// `footlight bench --accuracy-only`).
     pub filter: Filter,
+    /// Photons emitted per SPPM pass ([`Progressive`]), rounded up to whole
+    /// 2048-photon chunks; 0: as many as `stored`.
+    pub pass_emitted: usize,
 }
 
 impl Default for PhotonSettings {
@@ -71,6 +74,7 @@ impl Default for PhotonSettings {
             seed: 0x00F0_07B1_6B75,
             boundary: BoundaryMode::Measured,
             filter: Filter::Cone,
+            pass_emitted: 0,
         }
     }
 }

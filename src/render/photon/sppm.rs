@@ -46,6 +46,22 @@ pub struct Progressive {
     /// Per-vertex photon-map irradiance shown before the first pass, and
     /// its weight in photons (see the module docs).
     start: Option<(Vec<Vec3>, f32)>,
+    /// Where the last pass's time went.
+    last: PassTimes,
+}
+
+/// Wall-clock time of one SPPM pass's stages, ms (profiled in `footlight
+/// bench --accuracy-only --accuracy-part converge`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct PassTimes {
+    /// Emitting and tracing the pass's photons.
+    pub trace_ms: f64,
+    /// Building the pass's photon k-d tree.
+    pub tree_ms: f64,
+    /// Gathering at every vertex and updating its radius, count and flux.
+    pub gather_ms: f64,
+    /// Photons stored in the pass.
+    pub photons: usize,
 }
 
 impl Progressive {
@@ -71,7 +87,15 @@ impl Progressive {
             })
             .collect::<Vec<f32>>();
         let n = radius2.len();
-        Self { radius2, count: vec![0.0; n], tau: vec![Vec3::ZERO; n], passes: 0, settings: maps.settings, start: None }
+        Self {
+            radius2,
+            count: vec![0.0; n],
+            tau: vec![Vec3::ZERO; n],
+            passes: 0,
+            settings: maps.settings,
+            start: None,
+            last: PassTimes::default(),
+        }
     }
 
     /// Blends the passes with `start`, the photon-map irradiance at every
@@ -93,9 +117,21 @@ impl Progressive {
         self
     }
 
+    /// Each pass emits `emitted` photons (rounded up to whole 2048-photon
+    /// chunks) instead of the maps' `pass_emitted` setting.
+    pub fn with_pass_emitted(mut self, emitted: usize) -> Self {
+        self.settings.pass_emitted = emitted;
+        self
+    }
+
     /// Passes done so far.
     pub fn passes(&self) -> u32 {
         self.passes
+    }
+
+    /// Where the last pass's time went (zero before the first).
+    pub fn last_times(&self) -> PassTimes {
+        self.last
     }
 
     /// Traces one pass of photons (seeded by the pass number) and updates
@@ -109,8 +145,11 @@ impl Progressive {
     /// stays consistent (a cancelled pass changes nothing). Returns whether
     /// the pass ran.
     pub fn pass_until(&mut self, scene: &Scene, view: &View, light: &Light, stop: &(dyn Fn() -> bool + Sync)) -> bool {
+        let t0 = std::time::Instant::now();
+        let ms = |t: std::time::Instant| t.elapsed().as_secs_f64() * 1e3;
         let sampler = BeamSampler::new(&light.beam);
-        let chunks = self.settings.stored.div_ceil(2048).max(1) as u64;
+        let per_pass = if self.settings.pass_emitted > 0 { self.settings.pass_emitted } else { self.settings.stored };
+        let chunks = per_pass.div_ceil(2048).max(1) as u64;
         let mut pass_settings = self.settings;
         pass_settings.seed =
             self.settings.seed ^ (0xA5A5_0000_0000 + u64::from(self.passes + 1)).wrapping_mul(0x2545_F491_4F6C_DD1D);
@@ -137,7 +176,12 @@ impl Progressive {
                 p
             })
             .collect();
+        let trace_ms = ms(t0);
+        let t1 = std::time::Instant::now();
+        let stored = photons.len();
         let map = PhotonMap::new(photons);
+        let tree_ms = ms(t1);
+        let t2 = std::time::Instant::now();
         let vertices = view.shading.vertices();
         self.radius2.par_iter_mut().zip(&mut self.count).zip(&mut self.tau).zip(vertices).for_each(
             |(((r2, n), tau), v)| {
@@ -156,6 +200,7 @@ impl Progressive {
             },
         );
         self.passes += 1;
+        self.last = PassTimes { trace_ms, tree_ms, gather_ms: ms(t2), photons: stored };
         true
     }
 

@@ -28,6 +28,10 @@ use rayon::prelude::*;
 /// (caustics are sharp).
 const CAUSTIC_RADIUS_SHARE: f32 = 0.25;
 
+/// Cache points consulted when the 4 nearest do not fit, before a kNN
+/// gather ([`PhotonMaps::irradiance`]).
+pub const WIDE_LOOKUP: usize = 16;
+
 /// Photons emitted per RNG chunk.
 const CHUNK: usize = 2048;
 /// Chunks traced per round before the stored count is checked.
@@ -49,6 +53,20 @@ pub struct PhotonMaps {
     pub max_radius: f32,
     /// Settings used.
     pub settings: PhotonSettings,
+    /// Where the trace's time went (profiled in `footlight bench
+    /// --accuracy-only --accuracy-part converge`).
+    pub times: TraceTimes,
+}
+
+/// Wall-clock time of the stages of [`trace_photons_until`], ms.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct TraceTimes {
+    /// Emitting and tracing photons.
+    pub trace_ms: f64,
+    /// Building the global and caustic k-d trees.
+    pub tree_ms: f64,
+    /// Precomputing the irradiance cache (its k-d tree included).
+    pub cache_ms: f64,
 }
 
 impl PhotonMaps {
@@ -62,6 +80,7 @@ impl PhotonMaps {
             flux: 0.0,
             max_radius,
             settings,
+            times: TraceTimes::default(),
         }
     }
 
@@ -70,7 +89,25 @@ impl PhotonMaps {
     /// disagree or their gather balls do not reach: box corners, thin parts),
     /// from the direct kNN estimates of both maps, so a lit region never
     /// reads zero.
+    ///
+    /// Before the kNN fallback, the [`WIDE_LOOKUP`] nearest cache points are
+    /// consulted: on a surface next to a more densely lit one (a wall beside
+    /// the spot's pool, a riser's face under its lit top) the 4 nearest
+    /// cache points often belong to the other surface while this surface's
+    /// own points, whose gather balls reach `x`, are a little farther. On
+    /// the bundled stage 41 % of the diffuse vertices missed the 4 nearest
+    /// and paid a 150-photon gather each (issue 13: the photon stage's
+    /// largest cost, `footlight bench --accuracy-only --accuracy-part profile`).
     pub fn irradiance(&self, x: Vec3, n: Vec3) -> Vec3 {
+        self.irradiance
+            .lookup(x, n)
+            .or_else(|| self.irradiance.lookup_among(x, n, WIDE_LOOKUP))
+            .unwrap_or_else(|| self.direct_estimate(x, n))
+    }
+
+    /// The estimate before the wide lookup (4 cache points, then the kNN
+    /// gather): kept for the bench's before/after rows.
+    pub fn irradiance_narrow(&self, x: Vec3, n: Vec3) -> Vec3 {
         self.irradiance.lookup(x, n).unwrap_or_else(|| self.direct_estimate(x, n))
     }
 
@@ -154,6 +191,8 @@ pub fn trace_photons_until(
     if settings.stored == 0 || sampler.flux() <= 0.0 || beam_misses_scene(scene, light) {
         return Some(PhotonMaps::empty(*settings, max_radius));
     }
+    let t0 = std::time::Instant::now();
+    let ms = |t: std::time::Instant| t.elapsed().as_secs_f64() * 1e3;
     let cap = (settings.stored.saturating_mul(settings.max_emitted_factor.max(1))).max(CHUNK);
     let mut global = Vec::new();
     let mut caustic = Vec::new();
@@ -182,14 +221,19 @@ pub fn trace_photons_until(
     if stop() {
         return None;
     }
+    let mut times = TraceTimes { trace_ms: ms(t0), ..TraceTimes::default() };
+    let t1 = std::time::Instant::now();
     let global = PhotonMap::new(global).with_boundary(settings.boundary).with_filter(settings.filter);
     let caustic = PhotonMap::new(caustic).with_boundary(settings.boundary);
+    times.tree_ms = ms(t1);
+    let t2 = std::time::Instant::now();
     let irradiance = IrradianceCache::build_with_caustics(
         &global,
         &caustic,
         (settings.estimate, settings.irradiance_stride, max_radius),
         (settings.caustic_estimate, 2, max_radius * CAUSTIC_RADIUS_SHARE),
     );
+    times.cache_ms = ms(t2);
     Some(PhotonMaps {
         global,
         caustic,
@@ -198,6 +242,7 @@ pub fn trace_photons_until(
         flux: sampler.flux(),
         max_radius,
         settings: *settings,
+        times,
     })
 }
 
