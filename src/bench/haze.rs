@@ -15,6 +15,9 @@ use super::time_ms;
 use crate::fixture::Light;
 use crate::render::LightBuffer;
 use crate::render::gbuffer::GBuffer;
+use crate::render::media::multiple::{
+    MultipleSettings, at_density, multiple_along_ray, render_multiple, trace_volume_photons,
+};
 use crate::render::media::reference::path_traced_ray;
 use crate::render::media::single::radiance_at_full;
 use crate::render::media::{HazeQuality, HazeView, Medium, integrate_ray, render_inscatter, resolve};
@@ -59,6 +62,46 @@ pub struct MultiplePoint {
     pub single: f64,
     /// Renderer with the similarity relation.
     pub similarity: f64,
+}
+
+/// Multiple scattering by volume photons ([`crate::render::media::multiple`])
+/// against the path tracer, for one medium: summed over the rays.
+#[derive(Clone, Debug, Serialize)]
+pub struct VolumePoint {
+    /// σ_s per metre.
+    pub sigma_s: f32,
+    /// Henyey-Greenstein g.
+    pub g: f32,
+    /// Photons emitted.
+    pub photons: usize,
+    /// Path tracer, orders ≥ 2 (all minus order 1), summed over the rays.
+    pub reference: f64,
+    /// Its standard error (of the all-orders sum).
+    pub std_error: f64,
+    /// Volume photons, orders ≥ 2, summed over the rays.
+    pub estimate: f64,
+    /// Path tracer, all orders, summed.
+    pub all: f64,
+    /// Renderer: single scattering (σ_t on light paths) + volume photons.
+    pub total: f64,
+    /// Renderer: the similarity relation (the term before), summed.
+    pub similarity: f64,
+    /// Largest |total − all| / all over the rays.
+    pub max_ray_error: f64,
+    /// Photon tracing for one light, ms.
+    pub trace_ms: f64,
+    /// The screen term at the bench size (scale 8), ms.
+    pub render_ms: f64,
+}
+
+/// The multiple-scattering term at density d from its value at 100 %
+/// (m d² e^((1 − d) κ)) against photons traced at d, summed over the rays.
+#[derive(Clone, Debug, Serialize)]
+pub struct VolumeDensityPoint {
+    /// Density 0-1.
+    pub density: f32,
+    /// Σ|re-weighted − rebuilt| / Σ rebuilt.
+    pub rel_error: f64,
 }
 
 /// Haze on the 600-fixture rig.
@@ -153,6 +196,12 @@ pub struct HazeReport {
     pub density_change_ms: f64,
     /// Multiple scattering against the path tracer.
     pub multiple: Vec<MultiplePoint>,
+    /// Multiple scattering by volume photons against the path tracer.
+    pub volume: Vec<VolumePoint>,
+    /// The volume-photon term re-weighted to a density against a rebuild.
+    pub volume_density: Vec<VolumeDensityPoint>,
+    /// Volume photons of the bench light on the stage: tracing + screen, ms.
+    pub volume_stage_ms: f64,
     /// The live daemon's density knots (0, ½, 1) re-weighted for a hazer
     /// change against an exact rebuild at that density.
     pub density_live: Vec<DensityPoint>,
@@ -215,6 +264,36 @@ impl HazeReport {
                 (p.similarity / p.path_traced - 1.0) * 100.0
             );
         }
+        s += "    multiple scattering by volume photons (orders ≥ 2; 30° spot, 8×6×8 m box, rays at y 4, 2.5, 1 m, sums over the rays):\n";
+        for p in &self.volume {
+            s += &format!(
+                "      σ_s {:.2} g {:.1} {:>6} photons: captured {:>5.1} % of orders ≥ 2 ({:.3e} of {:.3e}); single + photons {:+.1} % of all orders (worst ray {:.1} %), similarity before {:+.1} %; {:.0} ms trace + {:.0} ms screen {}×{}\n",
+                p.sigma_s,
+                p.g,
+                p.photons,
+                p.estimate / p.reference * 100.0,
+                p.estimate,
+                p.reference,
+                (p.total / p.all - 1.0) * 100.0,
+                p.max_ray_error * 100.0,
+                (p.similarity / p.all - 1.0) * 100.0,
+                p.trace_ms,
+                p.render_ms,
+                self.width,
+                self.height
+            );
+        }
+        for p in &self.volume_density {
+            s += &format!(
+                "      density {:>3.0} %: photons re-weighted from 100 % vs traced at the density: rel. error {:.1} %\n",
+                p.density * 100.0,
+                p.rel_error * 100.0
+            );
+        }
+        s += &format!(
+            "      bench light on the stage: volume photons traced + screen term {:.0} ms\n",
+            self.volume_stage_ms
+        );
         if let Some(r) = &self.rig {
             s += &format!(
                 "    600-fixture rig {}×{}: coarse beams of all {} lights {:.1} s ({:.0} of {} tiles per beam), beam buffers {:.0} MiB; knot buffers ½, 1: {:.0} ms to resolve, {:.0} MiB\n",
@@ -348,6 +427,12 @@ pub fn run(
         let similarity = f64::from(dense.sigma_s * integrate_ray(&empty, &dense, &spot, o, d, f32::INFINITY, 128).a1);
         multiple.push(MultiplePoint { height: y, path_traced: mc.all, std_error: mc.std_error, single, similarity });
     }
+    let (volume, volume_density) = run_volume(paths, (w, h), repeats);
+    let settings = MultipleSettings::default();
+    let (volume_stage_ms, _) = time_ms(repeats, || {
+        let photons = trace_volume_photons(scene, light, &medium, &settings);
+        render_multiple(&hv, &medium, &photons, settings.scale)
+    });
     // The live daemon's knots: weights only, against a rebuild at d.
     let knots = crate::render::media::knot_buffers(&hv, &medium, light.position, &surface, Some(&haze));
     let knot_dense: Vec<Vec<Vec3>> = [surface.to_dense(), knots[0].to_dense(), knots[1].to_dense()].into();
@@ -376,6 +461,9 @@ pub fn run(
         density,
         density_change_ms,
         multiple,
+        volume,
+        volume_density,
+        volume_stage_ms,
         density_live,
         density_live_quadratic,
         moved: None,
@@ -396,6 +484,81 @@ pub fn quadratic_weights(d: f32) -> [f32; 3] {
 
 /// Tail thresholds measured on the rig (share of a light's own peak).
 const TAILS: [f32; 3] = [1e-4, 1e-3, 1e-2];
+
+/// Volume photons against the path tracer (`paths` per ray) in the
+/// multiple-scattering box at three densities and two g, with the screen
+/// term timed at `size`; and the density re-weighting of the term.
+pub fn run_volume(paths: usize, size: (u32, u32), repeats: usize) -> (Vec<VolumePoint>, Vec<VolumeDensityPoint>) {
+    let empty = SceneBuilder::new().build();
+    let (lo, hi) = (Vec3::new(-4.0, 0.0, -4.0), Vec3::new(4.0, 6.0, 4.0));
+    let spot = Light::aimed(
+        Vec3::new(0.0, 5.5, 0.0),
+        Vec3::new(0.0, 4.5, 0.0),
+        crate::fixture::Beam::Spot(crate::fixture::SpotBeam::from_beam_field(20.0, 30.0)),
+    );
+    let rays: Vec<(Vec3, Vec3)> = [4.0f32, 2.5, 1.0].iter().map(|&y| (Vec3::new(0.4, y, 10.0), Vec3::NEG_Z)).collect();
+    let camera = Camera::look_at(Vec3::new(0.0, 3.0, 12.0), Vec3::new(0.0, 3.0, 0.0), 50f32.to_radians());
+    let hv = HazeView::new(&empty, &GBuffer::build(&empty, camera, size.0, size.1));
+    let settings = MultipleSettings::default();
+    let mut points = Vec::new();
+    for (sigma_s, g) in [(0.03f32, 0.8f32), (0.1, 0.8), (0.3, 0.8), (0.3, 0.5)] {
+        let Ok(mut m) = Medium::new(sigma_s, 0.01 * sigma_s / 0.3, g, lo, hi) else { continue };
+        let (trace_ms, photons) = time_ms(repeats, || trace_volume_photons(&empty, &spot, &m, &settings));
+        let (render_ms, _) = time_ms(repeats, || render_multiple(&hv, &m, &photons, settings.scale));
+        let mut p = VolumePoint {
+            sigma_s,
+            g,
+            photons: settings.photons,
+            reference: 0.0,
+            std_error: 0.0,
+            estimate: 0.0,
+            all: 0.0,
+            total: 0.0,
+            similarity: 0.0,
+            max_ray_error: 0.0,
+            trace_ms,
+            render_ms,
+        };
+        let mut var = 0.0;
+        for (k, &(o, d)) in rays.iter().enumerate() {
+            let mc = path_traced_ray(&m, &spot, o, d, f32::INFINITY, paths, 64, 0x7A11 + k as u64);
+            m.multiple = false;
+            let single = f64::from(m.sigma_s * integrate_ray(&empty, &m, &spot, o, d, f32::INFINITY, 128).a1);
+            m.multiple = true;
+            let similarity = f64::from(m.sigma_s * integrate_ray(&empty, &m, &spot, o, d, f32::INFINITY, 128).a1);
+            m.multiple = false;
+            let est = f64::from(multiple_along_ray(&m, &photons, o, d, f32::INFINITY));
+            p.reference += mc.all - mc.single;
+            p.estimate += est;
+            p.all += mc.all;
+            p.total += single + est;
+            p.similarity += similarity;
+            p.max_ray_error = p.max_ray_error.max(((single + est) / mc.all - 1.0).abs());
+            var += mc.std_error * mc.std_error;
+        }
+        p.std_error = var.sqrt();
+        points.push(p);
+    }
+    // Density: the term at 100 % re-weighted against photons traced at d.
+    let mut density = Vec::new();
+    if let Ok(m) = Medium::new(0.3, 0.01, 0.8, lo, hi) {
+        let full = trace_volume_photons(&empty, &spot, &m, &settings);
+        for d in [0.1f32, 0.25, 0.5, 0.75] {
+            let thin = m.at_density(d);
+            let rebuilt = trace_volume_photons(&empty, &spot, &thin, &settings);
+            let (mut num, mut den) = (0.0f64, 0.0f64);
+            for &(o, dir) in &rays {
+                let kappa = integrate_ray(&empty, &m, &spot, o, dir, f32::INFINITY, 128).kappa();
+                let re = at_density(multiple_along_ray(&m, &full, o, dir, f32::INFINITY), kappa, d);
+                let exact = multiple_along_ray(&thin, &rebuilt, o, dir, f32::INFINITY);
+                num += f64::from((re - exact).abs());
+                den += f64::from(exact);
+            }
+            density.push(VolumeDensityPoint { density: d, rel_error: num / den.max(1e-30) });
+        }
+    }
+    (points, density)
+}
 
 /// Coarse haze buffers for every light of the rig at 1920×1080, and a
 /// density change (re-weighting all of them; surface buffers stand in as

@@ -335,10 +335,25 @@ impl LightBuild {
     /// intensity ([`super::media::render_inscatter`]), then `surface` (this
     /// light's direct + indirect buffer) re-weighted with it at the medium's
     /// density ([`super::media::resolve`]: extinction along camera and light
-    /// paths plus in-scattering). Linear in the light, so still eq. 5.
+    /// paths plus in-scattering; with `multiple`, volume photons for
+    /// orders ≥ 2: [`super::media::multiple`]). Linear in the light, so
+    /// still eq. 5.
     pub fn haze(&mut self, scene: &Scene, haze: &Haze, surface: &LightBuffer) -> Result<LightBuffer, BuildError> {
         self.cancel.check()?;
-        let beam = super::media::render_inscatter(scene, &haze.view, &self.light, &haze.medium, haze.quality);
+        let beam = if haze.medium.multiple {
+            // Volume photons for orders ≥ 2 (issue 15.5).
+            let settings = super::media::multiple::MultipleSettings::default();
+            super::media::multiple::render_beam_with_multiple(
+                scene,
+                &haze.view,
+                &self.light,
+                &haze.medium,
+                haze.quality,
+                &settings,
+            )
+        } else {
+            super::media::render_inscatter(scene, &haze.view, &self.light, &haze.medium, haze.quality)
+        };
         self.cancel.check()?;
         let buffer =
             super::media::resolve(&haze.view, &haze.medium, self.light.position, surface, Some(&beam), haze.density);
@@ -350,6 +365,9 @@ impl LightBuild {
     /// ([`super::media::render_inscatter`]) in `medium` (the haze at 100 %),
     /// resolved by the tracer into the knot buffers with the surface buffer
     /// it publishes next ([`super::media::knot_buffers`]) and then dropped.
+    /// With `medium.multiple` the refined stage (`quality.refine_edges`)
+    /// also carries the volume-photon multiple scattering
+    /// ([`super::media::multiple::render_beam_with_multiple`]).
     pub fn haze_beam(
         &self,
         scene: &Scene,
@@ -358,7 +376,14 @@ impl LightBuild {
         quality: super::media::HazeQuality,
     ) -> Result<super::buffer::HazeBuffer, BuildError> {
         self.cancel.check()?;
-        let beam = super::media::render_inscatter(scene, view, &self.light, medium, quality);
+        // Multiple scattering (volume photons) with the refined beam only:
+        // the coarse first stage stays fast.
+        let beam = if medium.multiple && quality.refine_edges {
+            let settings = super::media::multiple::MultipleSettings::default();
+            super::media::multiple::render_beam_with_multiple(scene, view, &self.light, medium, quality, &settings)
+        } else {
+            super::media::render_inscatter(scene, view, &self.light, medium, quality)
+        };
         self.cancel.check()?;
         beam.as_light_buffer().check()?;
         Ok(beam)

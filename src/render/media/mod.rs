@@ -20,6 +20,8 @@
 //! * [`medium`]: coefficients, Henyey-Greenstein phase, the haze box.
 //! * [`single`]: per-light single scattering along camera rays
 //!   (equiangular, shadowed, coarse-then-refined): the stage function.
+//! * [`multiple`]: multiple scattering by volume photons (orders ≥ 2),
+//!   kept in the third channel of the light's haze buffer.
 //! * [`resolve`]: the composite-time density re-weighting and the
 //!   extinction of the surface terms.
 //! * [`live`]: the daemon's buffers per light at densities 0, ½, 1 and
@@ -36,6 +38,7 @@
 
 pub mod live;
 pub mod medium;
+pub mod multiple;
 pub mod reference;
 pub mod resolve;
 pub mod single;

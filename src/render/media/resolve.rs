@@ -8,7 +8,9 @@
 //! Footlight rendered before haze existed), κ_s = σ_t τ_cam + σ_t* τ_light
 //! the optical depth from the pixel's surface point to the camera and to
 //! the light (computed here from the view: no ray is traced), and (a0, κ_h)
-//! the haze buffer ([`super::single`]). Every term is linear in the light's
+//! the haze buffer ([`super::single`]). A haze buffer with multiple
+//! scattering carries it in its third channel m (at 100 %), added as
+//! m d² e^((1 − d) κ_h) ([`super::multiple::at_density`]). Every term is linear in the light's
 //! intensity, so the composite stays I = Σ k_i buffer_i(d) (eq. 5).
 //!
 //! Exact: at d = 0 (S_i unchanged, bit for bit), at d = 1, and for the
@@ -69,6 +71,8 @@ pub fn resolve(
                     if a0 > 0.0 {
                         v += Vec3::splat(d * sigma_s * a0 * (-d * kappa).exp());
                     }
+                    // Multiple scattering, if the beam carries it (third channel).
+                    v += Vec3::splat(super::multiple::at_density(hz[k].z, kappa, d));
                 }
                 tile[k] = v;
             }
