@@ -29,8 +29,10 @@ pub struct Medium {
     pub min: Vec3,
     /// Box maximum corner.
     pub max: Vec3,
-    /// Multiple scattering by the similarity relation on light paths
-    /// (see [`Medium::sigma_t_light`]); off: single scattering only.
+    /// Multiple scattering: volume photons for orders ≥ 2 where a build
+    /// adds them ([`super::multiple`]), the similarity relation on light
+    /// paths where it does not (the live coarse stage,
+    /// [`Medium::sigma_t_light`]); off: single scattering only.
     pub multiple: bool,
 }
 

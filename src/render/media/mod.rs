@@ -29,9 +29,10 @@
 //! * [`reference`]: the single-pass haze reference and a Monte Carlo
 //!   volume path tracer (multiple scattering).
 //!
-//! Multiple scattering is approximated by the similarity relation on light
-//! paths ([`Medium::sigma_t_light`]); what it leaves out is listed in
-//! `docs/rendering.md` ("Haze").
+//! * [`multiple`]: multiple scattering (orders ≥ 2) by volume photons, in
+//!   `render` and the live refined stage; the live coarse stage uses the
+//!   similarity relation on light paths ([`Medium::sigma_t_light`]). What
+//!   is left out is listed in `docs/rendering.md` ("Haze").
 
 // `!(x > 0.0)` rejects NaN along with out-of-range values: deliberate.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]

@@ -45,7 +45,7 @@ pub struct HazeFile {
     pub address: Option<Spanned<i64>>,
     /// Density in percent (0-100) used until DMX arrives, and always without a channel.
     pub density: Option<Spanned<f32>>,
-    /// Multiple scattering by the similarity relation (default true).
+    /// Multiple scattering: volume photons for orders ≥ 2 (default true).
     pub multiple: Option<bool>,
 }
 
@@ -64,7 +64,8 @@ pub struct HazeSpec {
     pub dmx: Option<(u16, u16)>,
     /// Density 0-1 of the default look (the `density` key / 100).
     pub density: f32,
-    /// Similarity-relation multiple scattering on the light paths.
+    /// Multiple scattering: volume photons for orders ≥ 2 in `render` and the
+    /// live refined stage, the similarity relation in the live coarse stage.
     pub multiple: bool,
     /// Line of the `[haze]` table, for later messages.
     pub line: usize,
