@@ -192,58 +192,98 @@ impl LightBuffer {
 /// One light's haze buffer (issue 15): per pixel the in-scattered light of
 /// a unit source along the pixel's centre ray, kept so that a density change
 /// is a re-weighting (`render::media::resolve`), stored tile-sparse like
-/// [`LightBuffer`]. Channels: x = a0 = ∫ p f_ε g / r² dt (per unit σ_s, no
-/// extinction), y = κ, the effective optical depth at the medium's full
-/// density (in-scattered radiance at density d = d σ_s a0 e^(−d κ)), z = 0.
-/// Pixels whose ray misses the beam hold (0, 0, 0) and cost no storage.
+/// [`LightBuffer`]. Channels of the beam: x = a0 = ∫ p f_ε g / r² dt (per
+/// unit σ_s, no extinction), y = κ, the effective optical depth at the
+/// medium's full density (single-scattered radiance at density d =
+/// d σ_s a0 e^(−d κ)), z = 0. Pixels whose ray misses the beam hold
+/// (0, 0, 0) and cost no storage. With multiple scattering
+/// (`render::media::multiple`) it also holds the multiply scattered
+/// radiance (orders ≥ 2, per 1 cd) rendered at one or more densities, each
+/// a tile-sparse buffer with the value in x.
 #[derive(Clone, Debug, PartialEq)]
-pub struct HazeBuffer(LightBuffer);
+pub struct HazeBuffer {
+    beam: LightBuffer,
+    multiple: Vec<(f32, LightBuffer)>,
+}
 
 impl HazeBuffer {
     /// An all-zero haze buffer (the beam is nowhere in view, or no haze).
     pub fn empty(width: u32, height: u32) -> Self {
-        Self(LightBuffer::empty(width, height))
+        Self::from_light_buffer(LightBuffer::empty(width, height))
     }
 
     /// Packs dense (a0, κ, 0) pixels, keeping tiles with any non-zero pixel.
     pub fn from_dense(width: u32, height: u32, dense: &[Vec3]) -> Self {
-        Self(LightBuffer::from_dense(width, height, dense))
+        Self::from_light_buffer(LightBuffer::from_dense(width, height, dense))
     }
 
     /// Wraps tiles of (a0, κ, 0) pixels (a tile-sparse haze stage).
     pub fn from_light_buffer(buffer: LightBuffer) -> Self {
-        Self(buffer)
+        Self { beam: buffer, multiple: Vec::new() }
+    }
+
+    /// This buffer with the multiply scattered radiance at haze density
+    /// `density` (0-1 of the medium's) added: `term` holds it in x. A term
+    /// already held for that density is replaced; terms stay sorted by density.
+    pub fn with_multiple(mut self, density: f32, term: LightBuffer) -> Self {
+        self.multiple.retain(|(d, _)| *d != density);
+        self.multiple.push((density, term));
+        self.multiple.sort_by(|a, b| a.0.total_cmp(&b.0));
+        self
+    }
+
+    /// The multiply scattered radiance terms, (density, term), sorted by
+    /// density; empty for single scattering.
+    pub fn multiple(&self) -> &[(f32, LightBuffer)] {
+        &self.multiple
     }
 
     /// (a0, κ) at pixel (x, y).
     pub fn get(&self, x: u32, y: u32) -> (f32, f32) {
-        let v = self.0.get(x, y);
+        let v = self.beam.get(x, y);
         (v.x, v.y)
     }
 
-    /// The tiles as a [`LightBuffer`] (channels as documented on the type).
+    /// The beam's tiles as a [`LightBuffer`] (channels as documented on the type).
     pub fn as_light_buffer(&self) -> &LightBuffer {
-        &self.0
+        &self.beam
+    }
+
+    /// Tile coordinates of every tile the beam or a multiple-scattering term occupies.
+    pub fn occupied(&self) -> Vec<(usize, usize)> {
+        let mut tiles = self.beam.occupied();
+        for (_, m) in &self.multiple {
+            tiles.extend(m.occupied());
+        }
+        tiles.sort_unstable();
+        tiles.dedup();
+        tiles
+    }
+
+    /// Checks the beam and every multiple-scattering term for NaN/Inf.
+    pub fn check(&self) -> Result<(), BadValue> {
+        self.beam.check()?;
+        self.multiple.iter().try_for_each(|(_, m)| m.check())
     }
 
     /// Image width.
     pub fn width(&self) -> u32 {
-        self.0.width
+        self.beam.width
     }
 
     /// Image height.
     pub fn height(&self) -> u32 {
-        self.0.height
+        self.beam.height
     }
 
-    /// Number of occupied tiles.
+    /// Number of occupied tiles of the beam.
     pub fn occupied_tiles(&self) -> usize {
-        self.0.occupied_tiles()
+        self.beam.occupied_tiles()
     }
 
-    /// Bytes of pixel data held.
+    /// Bytes of pixel data held (beam and multiple-scattering terms).
     pub fn bytes(&self) -> usize {
-        self.0.bytes()
+        self.beam.bytes() + self.multiple.iter().map(|(_, m)| m.bytes()).sum::<usize>()
     }
 }
 

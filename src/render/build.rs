@@ -350,6 +350,7 @@ impl LightBuild {
                 &haze.medium,
                 haze.quality,
                 &settings,
+                &[haze.density],
             )
         } else {
             super::media::render_inscatter(scene, &haze.view, &self.light, &haze.medium, haze.quality)
@@ -380,12 +381,22 @@ impl LightBuild {
         // the coarse first stage stays fast.
         let beam = if medium.multiple && quality.refine_edges {
             let settings = super::media::multiple::MultipleSettings::default();
-            super::media::multiple::render_beam_with_multiple(scene, view, &self.light, medium, quality, &settings)
+            // The term at the live knots ½ and 1 (resolved there exactly).
+            let knots = &super::media::live::KNOTS[1..];
+            super::media::multiple::render_beam_with_multiple(
+                scene,
+                view,
+                &self.light,
+                medium,
+                quality,
+                &settings,
+                knots,
+            )
         } else {
             super::media::render_inscatter(scene, view, &self.light, medium, quality)
         };
         self.cancel.check()?;
-        beam.as_light_buffer().check()?;
+        beam.check()?;
         Ok(beam)
     }
 

@@ -40,11 +40,16 @@
 //! --haze-only` ("multiple scattering" rows) and in `tests/haze.rs`.
 //!
 //! # Density
-//! The term is rendered at 100 % density and kept in the third channel of
-//! the light's haze buffer ([`add_to_haze`]); at density d
-//! [`super::resolve`] uses m · d² · e^((1 − d) κ) (order 2 grows as d², its
-//! extinction as the beam's κ): an approximation whose error against a
-//! rebuild at d the bench reports.
+//! Photons are traced once, at 100 %, and each keeps its scattering order
+//! k and the optical depth τ of its path; at density d its power is
+//! multiplied by d^k e^((1 − d) τ), the ratio of the path's contribution at
+//! the two densities ([`VolumePhotons::at_density`]): unbiased, the same as
+//! tracing at d in expectation. The term is rendered at the densities the
+//! caller needs and kept next to the beam ([`HazeBuffer::with_multiple`]):
+//! `render` at its own density, the live tracer at its knots ½ and 1, so
+//! [`super::resolve`] reads it exactly there. The bench reports the
+//! re-weighting against photons traced at d, and what the live knots'
+//! interpolation leaves.
 
 use super::medium::{Medium, hg};
 use super::reference::sample_hg;
@@ -92,6 +97,11 @@ pub struct VolumePhotons {
     dir: Vec<Vec3>,
     /// Powers (per 1 cd of the light).
     power: Vec<f32>,
+    /// Scattering order of the collision each photon is stored at (≥ 2).
+    order: Vec<u16>,
+    /// Optical depth (at the traced medium's density) of the photon's path
+    /// from the light to where it is stored.
+    tau: Vec<f32>,
     /// Kernel radius r = grid cell size, metres.
     radius: f32,
     /// Grid origin (the box's minimum).
@@ -116,6 +126,37 @@ impl VolumePhotons {
     /// The kernel radius in metres.
     pub fn radius(&self) -> f32 {
         self.radius
+    }
+
+    /// These photons re-weighted from the density they were traced at to
+    /// `d` times it (0-1; clamped, NaN → 0): each photon's path is kept and
+    /// its power multiplied by the ratio of the path's contribution at the
+    /// two densities, d^k e^((1 − d) τ) for a photon stored at its k-th
+    /// collision after optical depth τ (every collision density and every
+    /// σ_s scales by d, every transmittance e^(−σ_t s) becomes
+    /// e^(−d σ_t s); the albedo does not change). Unbiased at any d, the
+    /// same as tracing at d in expectation: ray-march the result through
+    /// the medium at d ([`Medium::at_density`]).
+    pub fn at_density(&self, d: f32) -> VolumePhotons {
+        let d = super::medium::clean_density(d);
+        let power = self
+            .power
+            .iter()
+            .zip(&self.order)
+            .zip(&self.tau)
+            .map(|((&p, &k), &tau)| if d > 0.0 { p * d.powi(i32::from(k)) * ((1.0 - d) * tau).exp() } else { 0.0 })
+            .collect();
+        VolumePhotons {
+            pos: self.pos.clone(),
+            dir: self.dir.clone(),
+            power,
+            order: self.order.clone(),
+            tau: self.tau.clone(),
+            radius: self.radius,
+            origin: self.origin,
+            dims: self.dims,
+            start: self.start.clone(),
+        }
     }
 
     fn cell_of(&self, p: Vec3) -> [usize; 3] {
@@ -150,6 +191,8 @@ struct Stored {
     pos: Vec3,
     dir: Vec3,
     power: f32,
+    order: u16,
+    tau: f32,
 }
 
 /// Traces `settings.photons` photons of `light` (1 cd) through `medium`
@@ -168,6 +211,8 @@ pub fn trace_volume_photons(
         pos: Vec::new(),
         dir: Vec::new(),
         power: Vec::new(),
+        order: Vec::new(),
+        tau: Vec::new(),
         radius,
         origin: medium.min,
         dims,
@@ -223,6 +268,7 @@ fn walk(
 ) {
     let sigma_t = medium.sigma_t();
     let start = power;
+    let mut tau = 0.0f32;
     for order in 1..=max_order {
         let t_surface = scene.accel.intersect(x, w, f32::INFINITY).map_or(f32::INFINITY, |h| h.t);
         let Some((t0, t1)) = medium.clip(x, w, t_surface) else { return };
@@ -234,8 +280,9 @@ fn walk(
         let s = (-(1.0 - u * p_seg).ln() / sigma_t).min(t1 - t0);
         x += w * (t0 + s);
         power *= p_seg;
+        tau += sigma_t * s;
         if order >= 2 {
-            out.push(Stored { pos: x, dir: w, power });
+            out.push(Stored { pos: x, dir: w, power, order: order.min(u32::from(u16::MAX)) as u16, tau });
         }
         power *= albedo;
         // Russian roulette below 1 % of the emitted power.
@@ -276,6 +323,8 @@ fn grid(stored: Vec<Stored>, mut grid: VolumePhotons) -> VolumePhotons {
     grid.pos = order.iter().map(|&i| stored[i].pos).collect();
     grid.dir = order.iter().map(|&i| stored[i].dir).collect();
     grid.power = order.iter().map(|&i| stored[i].power).collect();
+    grid.order = order.iter().map(|&i| stored[i].order).collect();
+    grid.tau = order.iter().map(|&i| stored[i].tau).collect();
     grid
 }
 
@@ -372,23 +421,23 @@ fn depth_weight(a: f32, b: f32) -> f32 {
 /// captured fraction includes what this drops).
 pub const TILE_CUTOFF: f32 = 1e-3;
 
-/// `beam` (a light's single-scattering haze buffer, (a0, κ, 0)) with the
-/// multiply scattered radiance `multiple` (dense, at 100 % density, from
-/// [`render_multiple`]) in its third channel: (a0, κ, m). Tiles of the
-/// beam are kept; tiles with glow only are added when their largest m is at
-/// least [`TILE_CUTOFF`] of the peak.
-pub fn add_to_haze(beam: &HazeBuffer, multiple: &[f32]) -> HazeBuffer {
-    let b = beam.as_light_buffer();
-    let (w, h) = (b.width as usize, b.height as usize);
+/// The multiply scattered radiance `multiple` (dense, row-major, from
+/// [`render_multiple`]) as a tile-sparse buffer with the value in x
+/// ([`HazeBuffer::with_multiple`]): tiles whose largest value is at least
+/// [`TILE_CUTOFF`] of the peak are kept, plus the tiles in `keep` (the
+/// beam's, so the glow inside the beam is never cut). Non-finite or
+/// negative values are stored as they are: the buffer check reports them.
+pub fn multiple_buffer(width: u32, height: u32, multiple: &[f32], keep: &[(usize, usize)]) -> LightBuffer {
+    let (w, h) = (width as usize, height as usize);
     if multiple.len() != w * h {
-        return HazeBuffer::from_light_buffer(b.clone());
+        return LightBuffer::empty(width, height);
     }
     let peak = multiple.iter().fold(0.0f32, |a, &m| if m.is_finite() { a.max(m) } else { a });
-    let mut tiles = b.occupied();
+    let mut tiles = keep.to_vec();
     for ty in 0..h.div_ceil(TILE) {
         for tx in 0..w.div_ceil(TILE) {
             let lit = (ty * TILE..((ty + 1) * TILE).min(h))
-                .any(|y| (tx * TILE..((tx + 1) * TILE).min(w)).any(|x| multiple[y * w + x] >= TILE_CUTOFF * peak));
+                .any(|y| (tx * TILE..((tx + 1) * TILE).min(w)).any(|x| !(multiple[y * w + x] < TILE_CUTOFF * peak)));
             if peak > 0.0 && lit {
                 tiles.push((tx, ty));
             }
@@ -396,26 +445,24 @@ pub fn add_to_haze(beam: &HazeBuffer, multiple: &[f32]) -> HazeBuffer {
     }
     tiles.sort_unstable();
     tiles.dedup();
-    let buffer = LightBuffer::from_tiles(b.width, b.height, &tiles, |tx, ty, tile| {
-        let src = b.tile(tx, ty);
+    LightBuffer::from_tiles(width, height, &tiles, |tx, ty, tile| {
         for r in 0..TILE.min(h - ty * TILE) {
             for c in 0..TILE.min(w - tx * TILE) {
-                let k = r * TILE + c;
-                let m = multiple[(ty * TILE + r) * w + tx * TILE + c];
-                let base = src.map_or(Vec3::ZERO, |s| s[k]);
-                tile[k] = Vec3::new(base.x, base.y, if m.is_finite() && m > 0.0 { m } else { 0.0 });
+                tile[r * TILE + c] = Vec3::new(multiple[(ty * TILE + r) * w + tx * TILE + c], 0.0, 0.0);
             }
         }
-    });
-    HazeBuffer::from_light_buffer(buffer)
+    })
 }
 
 /// A light's haze buffer with multiple scattering: the single-scattered
 /// beam at `quality` with σ_t on the light paths (the photons carry what
 /// the similarity relation approximated, so it is not used in the air),
-/// plus the volume-photon term at 100 % in the third channel
-/// ([`add_to_haze`]). Surface extinction in [`super::resolve`] still
-/// follows `medium` (`multiple`: the similarity relation).
+/// plus the volume-photon term rendered at each of `densities` (0-1 of
+/// `medium`'s) from one set of photons traced at 100 % and re-weighted
+/// ([`VolumePhotons::at_density`]): `render` asks for its own density, the
+/// live tracer for its knots ½ and 1, so [`super::resolve`] finds the term
+/// exactly where it resolves. Surface extinction in [`super::resolve`]
+/// still follows `medium` (`multiple`: the similarity relation).
 pub fn render_beam_with_multiple(
     scene: &Scene,
     hv: &HazeView,
@@ -423,18 +470,35 @@ pub fn render_beam_with_multiple(
     medium: &Medium,
     quality: super::single::HazeQuality,
     settings: &MultipleSettings,
+    densities: &[f32],
 ) -> HazeBuffer {
     let air = Medium { multiple: false, ..*medium };
     let beam = super::single::render_inscatter(scene, hv, light, &air, quality);
     let photons = trace_volume_photons(scene, light, &air, settings);
-    add_to_haze(&beam, &render_multiple(hv, &air, &photons, settings.scale))
+    let keep = beam.as_light_buffer().occupied();
+    let (w, h) = (beam.width(), beam.height());
+    densities.iter().fold(beam, |haze, &d| {
+        let d = super::medium::clean_density(d);
+        if d == 0.0 {
+            return haze;
+        }
+        let term = render_multiple(hv, &air.at_density(d), &photons.at_density(d), settings.scale);
+        haze.with_multiple(d, multiple_buffer(w, h, &term, &keep))
+    })
 }
 
-/// A light's multiple-scattering radiance at density `d` from its value
-/// `m` at 100 % and the pixel's beam optical depth `kappa` (module doc):
-/// m · d² · e^((1 − d) κ).
-pub fn at_density(m: f32, kappa: f32, d: f32) -> f32 {
-    if m > 0.0 { m * d * d * ((1.0 - d) * kappa).exp() } else { 0.0 }
+/// The multiply scattered radiance at density `to` from its value `m` at
+/// density `from` (`from` > 0) and the pixel's beam optical depth `kappa`
+/// at 100 %: m · (to/from)² · e^((from − to) κ) (order 2 grows as the
+/// square of the density, its extinction as the beam's). Only used between
+/// the densities a haze buffer holds the term at; exact at `from`.
+pub fn anchored(m: f32, kappa: f32, from: f32, to: f32) -> f32 {
+    if m > 0.0 && from > 0.0 {
+        let r = to / from;
+        m * r * r * ((from - to) * kappa).exp()
+    } else {
+        0.0
+    }
 }
 
 #[cfg(test)]

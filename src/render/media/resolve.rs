@@ -9,9 +9,11 @@
 //! the optical depth from the pixel's surface point to the camera and to
 //! the light (computed here from the view: no ray is traced), and (a0, κ_h)
 //! the haze buffer ([`super::single`]). A haze buffer with multiple
-//! scattering carries it in its third channel m (at 100 %), added as
-//! m d² e^((1 − d) κ_h) ([`super::multiple::at_density`]). Every term is linear in the light's
-//! intensity, so the composite stays I = Σ k_i buffer_i(d) (eq. 5).
+//! scattering carries that term rendered at one or more densities
+//! ([`crate::render::buffer::HazeBuffer::multiple`]); it is added as it is
+//! where d is one of them, else from the nearest one above (or the
+//! highest) by [`super::multiple::anchored`]. Every term is linear in the
+//! light's intensity, so the composite stays I = Σ k_i buffer_i(d) (eq. 5).
 //!
 //! Exact: at d = 0 (S_i unchanged, bit for bit), at d = 1, and for the
 //! surface term of a pixel with one visible surface at any d. The haze term
@@ -47,15 +49,22 @@ pub fn resolve(
     }
     let mut candidates = surface.occupied();
     if let Some(h) = haze {
-        candidates.extend(h.as_light_buffer().occupied());
+        candidates.extend(h.occupied());
         candidates.sort_unstable();
         candidates.dedup();
     }
+    // The multiple-scattering term to read: held at d, else the nearest
+    // density above d, else the highest.
+    let multiple = haze.and_then(|b| {
+        let terms = b.multiple();
+        terms.iter().find(|(at, _)| *at >= d).or(terms.last())
+    });
     let (w, h) = (hv.width as usize, hv.height as usize);
     let sigma_s = medium.sigma_s;
     LightBuffer::from_tiles(hv.width, hv.height, &candidates, |tx, ty, tile| {
         let src = surface.tile(tx, ty);
         let hz = haze.and_then(|b| b.as_light_buffer().tile(tx, ty));
+        let mt = multiple.and_then(|(at, m)| m.tile(tx, ty).map(|t| (*at, t)));
         for r in 0..TILE.min(h - ty * TILE) {
             for c in 0..TILE.min(w - tx * TILE) {
                 let k = r * TILE + c;
@@ -66,13 +75,16 @@ pub fn resolve(
                 {
                     v = s[k] * (-d * surface_depth(hv, medium, light_position, i)).exp();
                 }
+                let kappa = hz.map_or(0.0, |hz| hz[k].y);
                 if let Some(hz) = hz {
-                    let (a0, kappa) = (hz[k].x, hz[k].y);
+                    let a0 = hz[k].x;
                     if a0 > 0.0 {
                         v += Vec3::splat(d * sigma_s * a0 * (-d * kappa).exp());
                     }
-                    // Multiple scattering, if the beam carries it (third channel).
-                    v += Vec3::splat(super::multiple::at_density(hz[k].z, kappa, d));
+                }
+                if let Some((at, m)) = mt {
+                    let m = m[k].x;
+                    v += Vec3::splat(if at == d { m } else { super::multiple::anchored(m, kappa, at, d) });
                 }
                 tile[k] = v;
             }
