@@ -152,6 +152,11 @@ pub struct RigHaze {
     pub tail: Vec<(f32, f64, f64, f64)>,
     /// The density between knots the rig is rebuilt at ([`RIG_DENSITY`]).
     pub density: f32,
+    /// One full composite of every light's two non-zero knot buffers at a
+    /// density between ½ and 1 (all faders changed at once: the CPU
+    /// compositor's worst frame in haze), ms; and the same without haze
+    /// (each light's knot 1 alone standing in for its surface buffer).
+    pub composite_ms: (f64, f64),
     /// The live composite at that density (knot weights only) against an
     /// exact rebuild of every beam there, all lights at k = 1: (rel. L1,
     /// max/peak) with the daemon's knot weights, then with
@@ -330,6 +335,15 @@ impl HazeReport {
                 r.reweighting_error[0].1,
                 r.reweighting_error[1].0,
                 r.reweighting_error[1].1
+            );
+            s += &format!(
+                "    600-fixture rig full composite (every fader changed) at {}×{}: {:.0} ms in haze (two knot buffers per light, {:.1} Hz), {:.0} ms with one buffer per light ({:.1} Hz)\n",
+                r.width,
+                r.height,
+                r.composite_ms.0,
+                1e3 / r.composite_ms.0.max(1e-9),
+                r.composite_ms.1,
+                1e3 / r.composite_ms.1.max(1e-9)
             );
             for (tau, mib, rel, max) in &r.tail {
                 s += &format!(
@@ -656,6 +670,7 @@ fn run_rig(scene: &Scene, camera: Camera, lights: &[Light], medium: &Medium) -> 
             }
         }
     };
+    let mut kept = Vec::with_capacity(lights.len());
     for (l, b) in lights.iter().zip(&buffers) {
         let t = std::time::Instant::now();
         let knots = crate::render::media::knot_buffers(&hv, medium, l.position, &empty, Some(b));
@@ -680,7 +695,17 @@ fn run_rig(scene: &Scene, camera: Camera, lights: &[Light], medium: &Medium) -> 
             tail_bytes[k] += ((tiles.len() - drop.len()) as f64 * per_tile) as usize;
             add(&mut dropped[k], &knots[1], Some(&drop));
         }
+        kept.push(knots);
     }
+    // The compositor's worst frame in haze: every light's k changed, two
+    // knot buffers each (hat weights at d = 0.75), against one buffer each.
+    let hats = crate::render::media::knot_weights(0.75);
+    let refs: Vec<&LightBuffer> = kept.iter().flat_map(|k| [&k[0], &k[1]]).collect();
+    let ks: Vec<Vec3> = kept.iter().flat_map(|_| [Vec3::splat(hats[1]), Vec3::splat(hats[2])]).collect();
+    let (hazy_ms, _) = super::time_ms(3, || crate::render::composite::composite(&refs, &ks, w, h));
+    let ones: Vec<&LightBuffer> = kept.iter().map(|k| &k[1]).collect();
+    let (clear_ms, _) = super::time_ms(3, || crate::render::composite::composite(&ones, &ks[..ones.len()], w, h));
+    drop(kept);
     let grey = |v: &[Vec3]| v.iter().map(|p| p.x).collect::<Vec<f32>>();
     // Surfaces are empty: the knot 0 adds nothing, whatever its weight.
     let live = |wj: [f32; 3]| sum[0].iter().zip(&sum[1]).map(|(a, b)| wj[1] * a.x + wj[2] * b.x).collect::<Vec<f32>>();
@@ -716,6 +741,7 @@ fn run_rig(scene: &Scene, camera: Camera, lights: &[Light], medium: &Medium) -> 
         cone_rays: cone_rays as f64 / count,
         tail,
         density: RIG_DENSITY,
+        composite_ms: (hazy_ms, clear_ms),
         reweighting_error,
     }
 }
