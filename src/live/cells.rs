@@ -1,0 +1,229 @@
+//! The cells of one fixture built together by the live tracer (issue 14:
+//! pixel cells). An LED bar's cells are lights of their own (one unit
+//! buffer each, eq. 5), a few centimetres apart, and they are due at the
+//! same moments: at start-up, after a view change, when the bar moves. Built
+//! one by one, each cell's stages walk the picture on their own; built
+//! together ([`crate::render::cells`]), one pass over the union of the
+//! cells' footprints evaluates every cell at each vertex.
+//!
+//! The tracer's scheduling ([`super::schedule`]) is unchanged: it picks a
+//! light and a stage. When that light is a cell of a fixture (a group set
+//! by [`super::Tracer::set_groups`]) and other cells of the same fixture
+//! are due for the same stage, the whole set is built in one pass:
+//! - **direct stage** ([`direct_together`]): every cell of the group with a
+//!   pending request at full quality (a cell in motion, shaded at moving
+//!   quality, is built alone as before);
+//! - **Whitted stage** ([`whitted_together`], with the view's
+//!   [`PathBounds`] made once per view): every settled cell of the group
+//!   whose build waits for its Whitted stage.
+//!
+//! Each cell keeps its own request id, [`LightBuild`] and buffer: after the
+//! pass each buffer goes through the same steps as a cell built alone (haze
+//! beam, publish under its request id, build kept for its later stages), so
+//! a cell that moved again during the pass is refused at publish (never
+//! shown stale) and its newer request is served next; the pass stops early
+//! only when every cell in it was superseded. Photons and refinement stay
+//! per cell (each cell traces its own photon maps). Cells of different
+//! fixtures are never mixed.
+
+use super::{Request, Shared, after_direct, after_whitted, new_build, report_bug, take_request};
+use crate::Light;
+use crate::render::View;
+use crate::render::build::{BuildError, Cancel, LightBuild};
+use crate::render::cells::{PathBounds, direct_together, whitted_together};
+use crate::render::view::AaParams;
+use std::ops::Range;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+/// The tracer's fixture groups, the current view's path bounds and the
+/// batch counters.
+pub(super) struct Cells {
+    /// Per light: the lights of its fixture (itself alone by default).
+    groups: Mutex<Arc<Vec<Range<usize>>>>,
+    /// [`PathBounds`] of the current view (made at the first Whitted pass).
+    bounds: Mutex<Option<(Arc<View>, Arc<PathBounds>)>>,
+    /// Passes that built two cells or more.
+    passes: AtomicU64,
+    /// Light stages built in those passes.
+    lights: AtomicU64,
+}
+
+impl Cells {
+    /// `n` lights, each alone.
+    pub(super) fn new(n: usize) -> Self {
+        Self {
+            groups: Mutex::new(Arc::new((0..n).map(|i| i..i + 1).collect())),
+            bounds: Mutex::new(None),
+            passes: AtomicU64::new(0),
+            lights: AtomicU64::new(0),
+        }
+    }
+
+    /// Consecutive lights with the same `Some` fixture id form a group.
+    pub(super) fn set_groups(&self, fixture: &[Option<u32>]) {
+        let n = self.groups.lock().expect("groups lock").len();
+        let id = |i: usize| fixture.get(i).copied().flatten();
+        let mut groups = Vec::with_capacity(n);
+        let mut start = 0;
+        while start < n {
+            let mut end = start + 1;
+            while end < n && id(start).is_some() && id(end) == id(start) {
+                end += 1;
+            }
+            groups.extend((start..end).map(|_| start..end));
+            start = end;
+        }
+        *self.groups.lock().expect("groups lock") = Arc::new(groups);
+    }
+
+    fn group(&self, index: usize) -> Range<usize> {
+        self.groups.lock().expect("groups lock").get(index).cloned().unwrap_or(index..index + 1)
+    }
+
+    /// The path bounds of `view`, made once per view.
+    fn bounds(&self, view: &Arc<View>) -> Arc<PathBounds> {
+        let mut kept = self.bounds.lock().expect("bounds lock");
+        if let Some((v, b)) = kept.as_ref()
+            && Arc::ptr_eq(v, view)
+        {
+            return b.clone();
+        }
+        let b = Arc::new(PathBounds::build(view));
+        *kept = Some((view.clone(), b.clone()));
+        b
+    }
+
+    fn count(&self, lights: usize) {
+        if lights >= 2 {
+            self.passes.fetch_add(1, Ordering::SeqCst);
+            self.lights.fetch_add(lights as u64, Ordering::SeqCst);
+        }
+    }
+
+    pub(super) fn passes(&self) -> u64 {
+        self.passes.load(Ordering::SeqCst)
+    }
+
+    pub(super) fn lights(&self) -> u64 {
+        self.lights.load(Ordering::SeqCst)
+    }
+}
+
+/// True once every token of `cancels` fired: the pass stops.
+fn all_fired(cancels: &[Cancel]) -> bool {
+    cancels.iter().all(Cancel::fired)
+}
+
+/// The direct stage of light `index` together with every other cell of
+/// its fixture that has a request waiting at full quality. False (nothing
+/// done) when fewer than two cells are due: the caller builds `index` alone.
+pub(super) fn direct_batch(s: &Shared, index: usize) -> bool {
+    if !s.settings.batch_cells {
+        return false;
+    }
+    let group = s.cells.group(index);
+    if group.len() < 2 {
+        return false;
+    }
+    let due = |j: usize| {
+        let st = s.slots[j].state.lock().expect("slot lock");
+        st.pending
+            .as_ref()
+            .is_some_and(|r| !st.previous_move.is_some_and(|p| r.at.duration_since(p) < s.settings.settle))
+    };
+    if !due(index) {
+        return false;
+    }
+    let members: Vec<usize> = group.filter(|&j| due(j)).collect();
+    if members.len() < 2 {
+        return false;
+    }
+    // Only the worker takes requests: each member's is still there.
+    let taken: Vec<(usize, Request, Instant, LightBuild)> = members
+        .into_iter()
+        .filter_map(|j| {
+            let (req, since, _) = take_request(s, j)?;
+            let build = new_build(s, j, &req);
+            Some((j, req, since, build))
+        })
+        .collect();
+    let view = s.view();
+    s.builds.fetch_add(taken.len() as u64, Ordering::SeqCst);
+    s.cells.count(taken.len());
+    let lights: Vec<Light> = taken.iter().map(|t| t.1.light.clone()).collect();
+    let cancels: Vec<Cancel> = taken.iter().map(|t| t.3.cancel().clone()).collect();
+    let result = s.pool.install(|| direct_together(&s.scene, &view, &lights, &|| all_fired(&cancels)));
+    // Every cell superseded (their newer requests wait) or shutdown.
+    let Some((buffers, _)) = result else { return true };
+    let bounds = view.tile_bounds();
+    for ((j, req, since, build), buffer) in taken.into_iter().zip(buffers) {
+        if build.cancel().fired() {
+            continue; // moved during the pass: its newer request is served next
+        }
+        if let Err(e) = buffer.check() {
+            report_bug(j, &BuildError::from(e));
+            continue;
+        }
+        let share = bounds.tiles_in_beam(&req.light).len() as f32 / bounds.len().max(1) as f32;
+        after_direct(s, j, req, since, build, buffer, share);
+    }
+    true
+}
+
+/// The Whitted stage of light `index` together with every other settled
+/// cell of its fixture whose build waits for its Whitted stage. False
+/// (nothing done) when fewer than two are: the caller goes on alone.
+pub(super) fn whitted_batch(s: &Shared, index: usize) -> bool {
+    if !s.settings.batch_cells {
+        return false;
+    }
+    let group = s.cells.group(index);
+    if group.len() < 2 {
+        return false;
+    }
+    let now = Instant::now();
+    let due = |j: usize| {
+        let st = s.slots[j].state.lock().expect("slot lock");
+        st.pending.is_none()
+            && st.build.as_ref().is_some_and(|(_, b, _)| !b.has_whitted())
+            && st.last_move.is_none_or(|t| now.duration_since(t) >= s.settings.settle)
+    };
+    if !due(index) {
+        return false;
+    }
+    let members: Vec<usize> = group.filter(|&j| due(j)).collect();
+    if members.len() < 2 {
+        return false;
+    }
+    let taken: Vec<(usize, u64, LightBuild, Instant)> = members
+        .into_iter()
+        .filter_map(|j| {
+            let slot = &s.slots[j];
+            let (id, build, at) = slot.state.lock().expect("slot lock").build.take()?;
+            (slot.latest.load(Ordering::SeqCst) == id).then_some((j, id, build, at))
+        })
+        .collect();
+    let view = s.view();
+    let bounds = s.cells.bounds(&view);
+    s.cells.count(taken.len());
+    let lights: Vec<Light> = taken.iter().map(|t| t.2.light().clone()).collect();
+    let cancels: Vec<Cancel> = taken.iter().map(|t| t.2.cancel().clone()).collect();
+    // The threshold `LightBuild::whitted` uses: the light's own relative gradient.
+    let aa = Some(AaParams::new(s.settings.build.aa_threshold));
+    let result = s.pool.install(|| whitted_together(&s.scene, &view, &bounds, &lights, aa, &|| all_fired(&cancels)));
+    let Some((built, _)) = result else { return true };
+    for ((j, id, build, at), (buffer, reshaded)) in taken.into_iter().zip(built) {
+        if build.cancel().fired() {
+            continue;
+        }
+        if let Err(e) = buffer.check() {
+            report_bug(j, &BuildError::from(e));
+            continue;
+        }
+        let build = build.with_whitted(&buffer, reshaded);
+        after_whitted(s, j, id, build, buffer, at);
+    }
+    true
+}
