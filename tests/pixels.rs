@@ -434,7 +434,9 @@ fn bar_stage() -> (footlight::scene::Scene, Camera, Vec<footlight::Light>) {
 /// stages in one pass (`Tracer::batched_builds` counts 2 passes of 8
 /// cells), and every published cell buffer equals that cell built alone
 /// with `LightBuild` (direct, then Whitted with mirrors and adaptive
-/// anti-aliasing) to 1e-6 of its peak. A cell moved alone afterwards is
+/// anti-aliasing) to 1e-6 of its peak. The bar moved on while in motion:
+/// one moving-quality pass (one pixel per 2×2 block), equal to each cell's
+/// own moving-quality direct stage. A cell moved alone afterwards is
 /// built alone (no new batched pass), to its own new buffer, and the other
 /// cells are not rebuilt. With `batch_cells` off, nothing is batched and
 /// the buffers are the same.
@@ -450,8 +452,8 @@ fn live_tracer_builds_a_bars_cells_together() {
     let scene = Arc::new(scene);
     let v = Arc::new(view(&scene, cam, 64, 44, Sampling::Adaptive, 2));
     let build = BuildSettings { photons: None, refine_passes: 0, ..BuildSettings::default() };
-    let direct_alone = |i: usize, l: &footlight::Light| {
-        LightBuild::new(l.clone(), i, build, Cancel::never()).direct(&scene, &v, DirectQuality::Full).unwrap().0
+    let direct_alone = |i: usize, l: &footlight::Light, q: DirectQuality| {
+        LightBuild::new(l.clone(), i, build, Cancel::never()).direct(&scene, &v, q).unwrap().0
     };
     let whitted_alone = |i: usize, l: &footlight::Light| {
         LightBuild::new(l.clone(), i, build, Cancel::never()).whitted(&scene, &v).unwrap()
@@ -490,7 +492,23 @@ fn live_tracer_builds_a_bars_cells_together() {
     wait(&tracer, "every direct stage", &all_at(Stage::Direct));
     assert_eq!((tracer.batched_builds(), tracer.batched_lights(), tracer.builds()), (1, 8, 8), "one direct pass");
     for (i, l) in lights.iter().enumerate() {
-        assert_same("direct", i, &direct_alone(i, l), &tracer.published(i).buffer);
+        assert_same("direct", i, &direct_alone(i, l, DirectQuality::Full), &tracer.published(i).buffer);
+    }
+    // The bar moves on at once (within the settle time): its cells in
+    // motion get one moving-quality direct pass together.
+    let shift = Vec3::new(0.3, 0.0, -0.2);
+    let moved: Vec<footlight::Light> =
+        lights.iter().map(|l| footlight::Light { position: l.position + shift, ..l.clone() }).collect();
+    let before: Vec<u64> = (0..n).map(|i| tracer.published(i).generation).collect();
+    tracer.set_paused(true);
+    for (i, l) in moved.iter().enumerate() {
+        tracer.request(i, l.clone(), 1.0);
+    }
+    tracer.set_paused(false);
+    wait(&tracer, "the moved bar", &|t| (0..n).all(|i| t.published(i).generation > before[i]));
+    assert_eq!((tracer.batched_builds(), tracer.batched_lights(), tracer.builds()), (2, 16, 16), "one moving pass");
+    for (i, l) in moved.iter().enumerate() {
+        assert_same("moving", i, &direct_alone(i, l, DirectQuality::Moving), &tracer.published(i).buffer);
     }
     drop(tracer);
 

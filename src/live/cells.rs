@@ -10,9 +10,9 @@
 //! light and a stage. When that light is a cell of a fixture (a group set
 //! by [`super::Tracer::set_groups`]) and other cells of the same fixture
 //! are due for the same stage, the whole set is built in one pass:
-//! - **direct stage** ([`direct_together`]): every cell of the group with a
-//!   pending request at full quality (a cell in motion, shaded at moving
-//!   quality, is built alone as before);
+//! - **direct stage** ([`direct_together_at`]): every cell of the group
+//!   with a pending request at the same quality (a moving bar's cells at
+//!   moving quality, one pixel per 2×2 block, together too);
 //! - **Whitted stage** ([`whitted_together`], with the view's
 //!   [`PathBounds`] made once per view): every settled cell of the group
 //!   whose build waits for its Whitted stage.
@@ -30,7 +30,8 @@ use super::{Request, Shared, after_direct, after_whitted, new_build, report_bug,
 use crate::Light;
 use crate::render::View;
 use crate::render::build::{BuildError, Cancel, LightBuild};
-use crate::render::cells::{PathBounds, direct_together, whitted_together};
+use crate::render::cells::{PathBounds, direct_together_at, whitted_together};
+use crate::render::footprint::DirectQuality;
 use crate::render::view::AaParams;
 use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -117,7 +118,8 @@ fn all_fired(cancels: &[Cancel]) -> bool {
 }
 
 /// The direct stage of light `index` together with every other cell of
-/// its fixture that has a request waiting at full quality. False (nothing
+/// its fixture that has a request waiting at the same quality (full, or
+/// moving for cells in motion). False (nothing
 /// done) when fewer than two cells are due: the caller builds `index` alone.
 pub(super) fn direct_batch(s: &Shared, index: usize) -> bool {
     if !s.settings.batch_cells {
@@ -127,16 +129,13 @@ pub(super) fn direct_batch(s: &Shared, index: usize) -> bool {
     if group.len() < 2 {
         return false;
     }
+    // Due: a request waits; in motion or not (the quality of its stage).
     let due = |j: usize| {
         let st = s.slots[j].state.lock().expect("slot lock");
-        st.pending
-            .as_ref()
-            .is_some_and(|r| !st.previous_move.is_some_and(|p| r.at.duration_since(p) < s.settings.settle))
+        st.pending.as_ref().map(|r| st.previous_move.is_some_and(|p| r.at.duration_since(p) < s.settings.settle))
     };
-    if !due(index) {
-        return false;
-    }
-    let members: Vec<usize> = group.filter(|&j| due(j)).collect();
+    let Some(moving) = due(index) else { return false };
+    let members: Vec<usize> = group.filter(|&j| due(j) == Some(moving)).collect();
     if members.len() < 2 {
         return false;
     }
@@ -154,7 +153,8 @@ pub(super) fn direct_batch(s: &Shared, index: usize) -> bool {
     s.cells.count(taken.len());
     let lights: Vec<Light> = taken.iter().map(|t| t.1.light.clone()).collect();
     let cancels: Vec<Cancel> = taken.iter().map(|t| t.3.cancel().clone()).collect();
-    let result = s.pool.install(|| direct_together(&s.scene, &view, &lights, &|| all_fired(&cancels)));
+    let quality = if moving { DirectQuality::Moving } else { DirectQuality::Full };
+    let result = s.pool.install(|| direct_together_at(&s.scene, &view, &lights, quality, &|| all_fired(&cancels)));
     // Every cell superseded (their newer requests wait) or shutdown.
     let Some((buffers, _)) = result else { return true };
     let bounds = view.tile_bounds();
@@ -222,8 +222,29 @@ pub(super) fn whitted_batch(s: &Shared, index: usize) -> bool {
             report_bug(j, &BuildError::from(e));
             continue;
         }
-        let build = build.with_whitted(&buffer, reshaded);
+        // Its photons stage goes on from this Whitted term (without photons
+        // the build ends here and needs no copy of it).
+        let build = if build.has_photons() { build.with_whitted(&buffer, reshaded) } else { build };
         after_whitted(s, j, id, build, buffer, at);
     }
     true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Consecutive lights with the same fixture id are one group; a light
+    /// without an id, or the same id further on, is not joined to them.
+    #[test]
+    fn groups_are_runs_of_one_fixture_id() {
+        let cells = Cells::new(7);
+        cells.set_groups(&[Some(1), Some(1), None, None, Some(2), Some(1)]);
+        let groups: Vec<Range<usize>> = (0..7).map(|i| cells.group(i)).collect();
+        assert_eq!(groups, vec![0..2, 0..2, 2..3, 3..4, 4..5, 5..6, 6..7]);
+        assert_eq!(cells.group(9), 9..10, "a light past the table is alone");
+        cells.count(1);
+        cells.count(8);
+        assert_eq!((cells.passes(), cells.lights()), (1, 8), "a single light is no batched pass");
+    }
 }

@@ -33,6 +33,16 @@
 //! never queues behind them; the frame clock only reads published buffers
 //! (an `Arc` swap under a short lock).
 //!
+//! # Cells of one fixture (issue 14)
+//! The lights of one fixture's pixel cells ([`Tracer::set_groups`]: the
+//! daemon groups consecutive lights with the same fixture id) that are due
+//! for the same stage at once (start-up, a view change, a moved bar) get
+//! their direct stage, then their Whitted stage, in one pass over the union
+//! of their footprints ([`crate::render::cells`]; scheduling, request ids,
+//! cancellation and publishing per cell as above: see [`cells`]).
+//! Photons and refinement stay per cell. [`Tracer::batched_builds`] counts
+//! the passes; [`TracerSettings::batch_cells`] turns it off.
+//!
 //! # Haze (issue 15)
 //! With a medium ([`Tracer::with_haze`]) each light keeps its beam
 //! ([`LightBuild::haze_beam`]): a coarse beam ([`HazeQuality::COARSE`]) in
