@@ -438,7 +438,8 @@ fn bar_stage() -> (footlight::scene::Scene, Camera, Vec<footlight::Light>) {
 /// one moving-quality pass (one pixel per 2×2 block), equal to each cell's
 /// own moving-quality direct stage. A cell moved alone afterwards is
 /// built alone (no new batched pass), to its own new buffer, and the other
-/// cells are not rebuilt. With `batch_cells` off, nothing is batched and
+/// cells are not rebuilt. A view change builds the bar together again, to
+/// each cell's buffer for the new view. With `batch_cells` off, nothing is batched and
 /// the buffers are the same.
 #[test]
 fn live_tracer_builds_a_bars_cells_together() {
@@ -535,6 +536,24 @@ fn live_tracer_builds_a_bars_cells_together() {
     assert_same("moved cell", 3, &whitted_alone(3, &moved), &tracer.published(3).buffer);
     for i in (0..n).filter(|&i| i != 3) {
         assert_eq!(tracer.published(i).generation, generations[i], "cell {i} was not rebuilt");
+    }
+    // A view change rebuilds the whole bar: together again, for the new view.
+    let cam2 = Camera::look_at(cam.position + Vec3::new(2.0, 1.0, -1.0), lights[3].position - Vec3::Y * 6.0, 0.9);
+    let v2 = Arc::new(view(&scene, cam2, 64, 44, Sampling::Adaptive, 2));
+    let generations: Vec<u64> = (0..n).map(|i| tracer.published(i).generation).collect();
+    tracer.set_view(v2.clone(), &[]);
+    wait(&tracer, "the new view", &|t| {
+        (0..n).all(|i| t.published(i).generation > generations[i]) && all_at(Stage::Ready)(t)
+    });
+    assert_eq!(
+        (tracer.batched_builds(), tracer.batched_lights()),
+        (4, 32),
+        "a direct and a Whitted pass for the new view"
+    );
+    for (i, l) in lights.iter().enumerate() {
+        let l = if i == 3 { &moved } else { l };
+        let alone = LightBuild::new(l.clone(), i, build, Cancel::never()).whitted(&scene, &v2).unwrap();
+        assert_same("new view", i, &alone, &tracer.published(i).buffer);
     }
     drop(tracer);
 
