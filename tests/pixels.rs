@@ -617,8 +617,8 @@ fn a_cell_moved_during_a_pass_is_never_published_stale() {
         std::thread::sleep(Duration::from_micros(200));
     }
     assert!(tracer.batched_builds() >= 2, "the direct and the Whitted passes were batched");
-    for i in 0..n {
-        let l = if i == 3 { &moved } else { &lights[i] };
+    for (i, l) in lights.iter().enumerate() {
+        let l = if i == 3 { &moved } else { l };
         assert_eq!(shown(&tracer, i).as_ref(), Some(l), "cell {i} shows its latest position");
         let alone = LightBuild::new(l.clone(), i, build, Cancel::never()).whitted(&scene, &v).unwrap().to_dense();
         let got = tracer.published(i).buffer.to_dense();
