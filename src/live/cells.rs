@@ -35,7 +35,7 @@ use crate::render::footprint::DirectQuality;
 use crate::render::view::AaParams;
 use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, Weak};
 use std::time::Instant;
 
 /// The tracer's fixture groups, the current view's path bounds and the
@@ -43,8 +43,11 @@ use std::time::Instant;
 pub(super) struct Cells {
     /// Per light: the lights of its fixture (itself alone by default).
     groups: Mutex<Arc<Vec<Range<usize>>>>,
-    /// [`PathBounds`] of the current view (made at the first Whitted pass).
-    bounds: Mutex<Option<(Arc<View>, Arc<PathBounds>)>>,
+    /// [`PathBounds`] of the current view (made at the first Whitted pass),
+    /// with a `Weak` to its view: it keeps no view alive (the view cache
+    /// lets a view's caches go when nothing holds it), and the `Weak` keeps
+    /// the allocation, so a new view never matches an old one's address.
+    bounds: Mutex<Option<(Weak<View>, Arc<PathBounds>)>>,
     /// Passes that built two cells or more.
     passes: AtomicU64,
     /// Light stages built in those passes.
@@ -87,12 +90,12 @@ impl Cells {
     fn bounds(&self, view: &Arc<View>) -> Arc<PathBounds> {
         let mut kept = self.bounds.lock().expect("bounds lock");
         if let Some((v, b)) = kept.as_ref()
-            && Arc::ptr_eq(v, view)
+            && std::ptr::eq(v.as_ptr(), Arc::as_ptr(view))
         {
             return b.clone();
         }
         let b = Arc::new(PathBounds::build(view));
-        *kept = Some((view.clone(), b.clone()));
+        *kept = Some((Arc::downgrade(view), b.clone()));
         b
     }
 
