@@ -462,7 +462,8 @@ fn bench_command(args: BenchArgs) -> Result<()> {
     if args.pixels_only {
         let size = if args.quick { (200, 125) } else { (800, 500) };
         let show = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr/show150.mvr");
-        let report = bench::mvr::pixels(&scene, camera, size, &show).map_err(|e| anyhow::anyhow!("pixel bars: {e}"))?;
+        let report = bench::mvr::pixels(&Arc::new(scene), camera, size, &show)
+            .map_err(|e| anyhow::anyhow!("pixel bars: {e}"))?;
         print!("{}", report.lines());
         return Ok(());
     }

@@ -507,4 +507,6 @@ fn pixel_bar_bench_section_runs_alone() {
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(out.contains("pixel bars: 24 bars × 8 cells = 192 lights"), "{out}");
     assert!(out.contains("all faders moving") && out.contains("one fader"), "{out}");
+    // Through the live tracer: each bar's cells in one direct and one Whitted pass.
+    assert!(out.contains("through the live tracer") && out.contains("(48 batched passes;"), "{out}");
 }

@@ -864,7 +864,7 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     let clients = clients.map_err(|e| tracing::error!("preview clients: {e}")).unwrap_or_default();
     progress.set_message("MVR import and strobe");
     let show150 = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr/show150.mvr");
-    let mvr = mvr::run(scene, camera, (w, h), &show150, cfg.repeats, 50);
+    let mvr = mvr::run(&scene_arc, camera, (w, h), &show150, cfg.repeats, 50);
     progress.set_message("browser stream");
     use stream::Viewer::{Buffers, None as NoViewers, Pictures, Polling};
     let (stream_size, stream_seconds) = if cfg.quick { ((200, 125), 2.0) } else { ((800, 500), 12.0) };

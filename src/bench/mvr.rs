@@ -16,7 +16,12 @@
 //! The same cells are then built together ([`crate::render::cells`]: each
 //! bar's cells in one pass over the union of their footprints, and the
 //! whole rig in one pass), timed against one by one, with the largest
-//! difference to the cells built alone next to each time.
+//! difference to the cells built alone next to each time. Last, the same
+//! through the live tracer ([`through_tracer`]): the time from start-up to
+//! every cell's settled Whitted stage on screen with the tracer building a
+//! bar's cells together ([`crate::live::TracerSettings::batch_cells`]) and
+//! one by one, the largest difference between the two pictures, and the
+//! first picture of every light of the whole show (the direct stages).
 
 use crate::fixture::FixtureState;
 use crate::render::composite::{CompositeInput, Compositor};
@@ -25,7 +30,8 @@ use crate::scene::{Camera, Scene};
 use glam::Vec3;
 use serde::Serialize;
 use std::path::Path;
-use std::time::Instant;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 /// What the MVR section measured.
 #[derive(Clone, Debug, Serialize)]
@@ -71,7 +77,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// Runs the MVR measurements: import `show` `repeats` times, then 120
 /// frames of `strobing` lights strobing at rates spread over 1-25 Hz.
 pub fn run(
-    scene: &Scene,
+    scene: &Arc<Scene>,
     camera: Camera,
     (w, h): (u32, u32),
     show: &Path,
@@ -166,6 +172,129 @@ pub struct PixelReport {
     pub one_fader_ms: f64,
     /// Tiles recomposited per frame with one fader moving, mean.
     pub one_fader_tiles: f64,
+    /// The rig and the show through the live tracer ([`through_tracer`]).
+    pub live: Live,
+}
+
+/// The pixel rig and the whole show through the live tracer, the cells of
+/// each fixture built together (batched) and one by one (alone). Photons
+/// off (the later stages are per cell either way), settle time 0, every
+/// light requested at once as at start-up.
+#[derive(Clone, Debug, Serialize)]
+pub struct Live {
+    /// Start to every cell of the rig at its Whitted stage, cells alone, ms (faster of two runs).
+    pub rig_alone_ms: f64,
+    /// The same, each bar's cells together, ms.
+    pub rig_batched_ms: f64,
+    /// Batched passes the tracer ran for the rig (direct and Whitted).
+    pub rig_passes: u64,
+    /// Largest |batched − alone| of the cells' published buffers, relative to the cell's peak.
+    pub rig_err: f64,
+    /// Lights of the whole show.
+    pub show_lights: usize,
+    /// Start to a first picture (direct stage) of every light of the show, alone, ms.
+    pub show_first_alone_ms: f64,
+    /// The same, each fixture's cells together, ms.
+    pub show_first_batched_ms: f64,
+    /// Largest |batched − alone| of the show's first pictures, relative to the light's peak.
+    pub show_first_err: f64,
+}
+
+impl Live {
+    fn lines(&self) -> String {
+        format!(
+            "    through the live tracer (photons off, every light requested at start-up; build threads at the lowest OS \
+             priority):\n      \
+             rig to every cell at Whitted: alone {:.1} ms, cells together {:.1} ms ({} batched passes; \
+             max difference {:.1e} of the cell's peak)\n      \
+             whole show ({} lights) to a first picture of every light: alone {:.1} ms, cells together {:.1} ms \
+             (max difference {:.1e})\n",
+            self.rig_alone_ms,
+            self.rig_batched_ms,
+            self.rig_passes,
+            self.rig_err,
+            self.show_lights,
+            self.show_first_alone_ms,
+            self.show_first_batched_ms,
+            self.show_first_err
+        )
+    }
+}
+
+/// Lights `lights` through a live tracer over `view`, grouped by `fixture`
+/// ([`crate::live::Tracer::set_groups`]), every light requested at once:
+/// the time from start to every light at its Whitted stage (`first_only`:
+/// at its first picture), the published buffers and the batched passes run.
+/// Photons off, settle time 0. NaN time if it takes over 10 minutes.
+pub fn through_tracer(
+    scene: &Arc<Scene>,
+    view: &Arc<View>,
+    lights: &[crate::Light],
+    fixture: &[Option<u32>],
+    batch: bool,
+    first_only: bool,
+) -> (f64, Vec<LightBuffer>, u64) {
+    use crate::live::{Stage, Tracer, TracerSettings};
+    let mut settings = TracerSettings { batch_cells: batch, settle: Duration::ZERO, ..TracerSettings::default() };
+    settings.build.photons = None;
+    settings.build.refine_passes = 0;
+    let tracer = Tracer::new(scene.clone(), view.clone(), lights.len(), settings);
+    tracer.set_groups(fixture);
+    tracer.set_paused(true);
+    for (i, l) in lights.iter().enumerate() {
+        tracer.request(i, l.clone(), 1.0);
+    }
+    let done = |s: Stage| if first_only { s != Stage::Queued } else { s == Stage::Ready };
+    let t = Instant::now();
+    tracer.set_paused(false);
+    let mut ms = f64::NAN;
+    while t.elapsed() < Duration::from_secs(600) {
+        if (0..lights.len()).all(|i| done(tracer.published(i).stage)) {
+            ms = t.elapsed().as_secs_f64() * 1e3;
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let buffers = (0..lights.len()).map(|i| (*tracer.published(i).buffer).clone()).collect();
+    let passes = tracer.batched_builds();
+    tracer.shutdown(Duration::from_secs(60));
+    (ms, buffers, passes)
+}
+
+/// [`Live`]: the rig (`lights`, grouped by `bar_of`) to Whitted and the
+/// whole show (`show`) to a first picture, batched and alone, each the
+/// faster of two runs.
+fn live(
+    scene: &Arc<Scene>,
+    view: &Arc<View>,
+    lights: &[crate::Light],
+    bar_of: &[u32],
+    show: &[&crate::fixture::Fixture],
+) -> Live {
+    let bars: Vec<Option<u32>> = bar_of.iter().map(|b| Some(*b)).collect();
+    let show_lights: Vec<crate::Light> = show.iter().map(|f| f.light.clone()).collect();
+    let ids: Vec<Option<u32>> = show.iter().map(|f| Some(f.id)).collect();
+    // Each twice, in the order alone, together, together, alone (the load of
+    // a shared machine drifts), the faster of the two kept.
+    let twice = |lights: &[crate::Light], ids: &[Option<u32>], first_only: bool| {
+        let a = through_tracer(scene, view, lights, ids, false, first_only);
+        let b = through_tracer(scene, view, lights, ids, true, first_only);
+        let b2 = through_tracer(scene, view, lights, ids, true, first_only);
+        let a2 = through_tracer(scene, view, lights, ids, false, first_only);
+        (a.0.min(a2.0), a.1, b.0.min(b2.0), b.1, b.2)
+    };
+    let (rig_alone_ms, alone, rig_batched_ms, batched, rig_passes) = twice(lights, &bars, false);
+    let (show_first_alone_ms, first_alone, show_first_batched_ms, first_batched, _) = twice(&show_lights, &ids, true);
+    Live {
+        rig_alone_ms,
+        rig_batched_ms,
+        rig_passes,
+        rig_err: max_difference(&alone, &batched),
+        show_lights: show_lights.len(),
+        show_first_alone_ms,
+        show_first_batched_ms,
+        show_first_err: max_difference(&first_alone, &first_batched),
+    }
 }
 
 impl PixelReport {
@@ -193,6 +322,7 @@ impl PixelReport {
             self.one_fader_ms,
             self.one_fader_tiles
         ) + &self.together.lines(self.direct_build_ms, self.whitted_build_ms)
+            + &self.live.lines()
     }
 }
 
@@ -319,7 +449,7 @@ fn together(
 /// Runs the pixel-bar measurements on `show` (its LED fixtures that became
 /// several lights: the cells of their GDTF `GeometryReference`s) over
 /// `scene` from `camera`.
-pub fn pixels(scene: &Scene, camera: Camera, (w, h): (u32, u32), show: &Path) -> Result<PixelReport, String> {
+pub fn pixels(scene: &Arc<Scene>, camera: Camera, (w, h): (u32, u32), show: &Path) -> Result<PixelReport, String> {
     use crate::render::build::{BuildSettings, Cancel, LightBuild};
     use crate::render::footprint::DirectQuality;
     let t = Instant::now();
@@ -340,7 +470,7 @@ pub fn pixels(scene: &Scene, camera: Camera, (w, h): (u32, u32), show: &Path) ->
     if cells.is_empty() {
         return Err(format!("{}: no pixel cells", show.display()));
     }
-    let view = View::build(scene, camera, w, h, Sampling::Adaptive, RecursionLimits::default());
+    let view = Arc::new(View::build(scene, camera, w, h, Sampling::Adaptive, RecursionLimits::default()));
     let tiles = view.tile_bounds().len();
     let build =
         |light: &crate::Light, i: usize| LightBuild::new(light.clone(), i, BuildSettings::default(), Cancel::never());
@@ -407,6 +537,8 @@ pub fn pixels(scene: &Scene, camera: Camera, (w, h): (u32, u32), show: &Path) ->
     // The one fader: the cell whose cone reaches the most tiles (the worst single fader).
     let widest = (0..cells.len()).max_by_key(|i| in_beam[*i]).unwrap_or(0);
     let (one_fader_ms, one_fader_tiles) = frame(&|i| i == widest);
+    let show: Vec<&crate::fixture::Fixture> = import.patch.fixtures.iter().collect();
+    let live = live(scene, &view, &lights, &bar_of, &show);
     Ok(PixelReport {
         bars,
         cells: cells.len(),
@@ -422,5 +554,6 @@ pub fn pixels(scene: &Scene, camera: Camera, (w, h): (u32, u32), show: &Path) ->
         all_faders_tiles,
         one_fader_ms,
         one_fader_tiles,
+        live,
     })
 }

@@ -399,6 +399,8 @@ impl Daemon {
             medium
         });
         let tracer = Arc::new(Tracer::with_haze(scene.clone(), Arc::new(view), decoder.len(), config.tracer, haze));
+        // A fixture's cells (one light each, under its id) are built together.
+        tracer.set_groups(&decoder.labels().iter().map(|l| l.fixture).collect::<Vec<_>>());
         let named = if named.is_empty() { super::views::named_views(&camera, &scene, None) } else { named };
         let bodies = bodies.map(|m| super::bodies::LiveBodies::new(m, scene.clone()));
         let views = Arc::new(Views::new(scene, tracer.clone(), camera, named, config.limits, config.views));

@@ -33,6 +33,16 @@
 //! never queues behind them; the frame clock only reads published buffers
 //! (an `Arc` swap under a short lock).
 //!
+//! # Cells of one fixture (issue 14)
+//! The lights of one fixture's pixel cells ([`Tracer::set_groups`]: the
+//! daemon groups consecutive lights with the same fixture id) that are due
+//! for the same stage at once (start-up, a view change, a moved bar) get
+//! their direct stage, then their Whitted stage, in one pass over the union
+//! of their footprints ([`crate::render::cells`]; scheduling, request ids,
+//! cancellation and publishing per cell as above: `src/live/cells.rs`).
+//! Photons and refinement stay per cell. [`Tracer::batched_builds`] counts
+//! the passes; [`TracerSettings::batch_cells`] turns it off.
+//!
 //! # Haze (issue 15)
 //! With a medium ([`Tracer::with_haze`]) each light keeps its beam
 //! ([`LightBuild::haze_beam`]): a coarse beam ([`HazeQuality::COARSE`]) in
@@ -69,6 +79,9 @@
 //! that has not moved since. While the camera moves the tracer is paused
 //! ([`Tracer::set_paused`]): the frame clock shows the cheap moving preview
 //! and no work is spent on a view about to be replaced.
+
+#[path = "cells.rs"]
+mod cells;
 
 use super::cache::{GeometryCache, Knots};
 use crate::Light;
@@ -125,6 +138,11 @@ pub struct TracerSettings {
     /// coarse estimate instead of finishing the exact lookups first
     /// ([`LightBuild::with_refinement_from_coarse`]; issue 13).
     pub refine_from_coarse: bool,
+    /// Cells of one fixture (lights grouped by [`Tracer::set_groups`]) that
+    /// are due at once get their direct and Whitted stages in one pass
+    /// ([`crate::render::cells`]); false: every light alone (the bench's
+    /// comparison).
+    pub batch_cells: bool,
 }
 
 impl Default for TracerSettings {
@@ -137,6 +155,7 @@ impl Default for TracerSettings {
             cache_bytes: 512 << 20,
             coarse_indirect: 3,
             refine_from_coarse: true,
+            batch_cells: true,
         }
     }
 }
@@ -271,6 +290,8 @@ struct Shared {
     builds: AtomicU64,
     /// Haze stages run (coarse and refined beams).
     haze_stages: AtomicU64,
+    /// Cells of one fixture built together ([`cells`]).
+    cells: cells::Cells,
 }
 
 /// Background builder of per-light buffers.
@@ -385,6 +406,7 @@ impl Tracer {
             haze_view: Mutex::new(None),
             builds: AtomicU64::new(0),
             haze_stages: AtomicU64::new(0),
+            cells: cells::Cells::new(lights),
         });
         let worker = {
             let shared = shared.clone();
@@ -440,6 +462,27 @@ impl Tracer {
     /// Haze stages run since start (coarse and refined beams).
     pub fn haze_stages(&self) -> u64 {
         self.shared.haze_stages.load(Ordering::SeqCst)
+    }
+
+    /// Groups the lights into fixtures: `fixture[i]` is light i's fixture
+    /// id ([`super::clock::LightLabel::fixture`]); consecutive lights with
+    /// the same id are the cells of one fixture (the MVR import emits a
+    /// fixture's cells one after another under its id) and are built
+    /// together when due at once ([`TracerSettings::batch_cells`]). `None`,
+    /// or a light not listed: built alone.
+    pub fn set_groups(&self, fixture: &[Option<u32>]) {
+        self.shared.cells.set_groups(fixture);
+    }
+
+    /// Passes that built several cells of one fixture together (a direct
+    /// or a Whitted stage each); a light built alone does not count.
+    pub fn batched_builds(&self) -> u64 {
+        self.shared.cells.passes()
+    }
+
+    /// Light stages built in those passes (the cells of every batch, summed).
+    pub fn batched_lights(&self) -> u64 {
+        self.shared.cells.lights()
     }
 
     /// Pauses (true) or resumes the worker. A stage in progress finishes;
@@ -859,8 +902,16 @@ fn worker(s: &Shared) {
         let now = Instant::now();
         let job = if s.paused.load(Ordering::SeqCst) { None } else { schedule(&s.views(now), now) };
         match job {
-            Some(Job::Direct(i)) => direct_stage(s, i),
-            Some(Job::Later(i)) => later_stage(s, i),
+            Some(Job::Direct(i)) => {
+                if !cells::direct_batch(s, i) {
+                    direct_stage(s, i);
+                }
+            }
+            Some(Job::Later(i)) => {
+                if !cells::whitted_batch(s, i) {
+                    later_stage(s, i);
+                }
+            }
             None => {
                 let wait = s.idle_wait(now);
                 let (lock, cv) = &s.wake;
@@ -879,27 +930,9 @@ fn report_bug(index: usize, e: &BuildError) {
 
 /// Stage 1 for the light that waited longest.
 fn direct_stage(s: &Shared, index: usize) {
-    let slot = &s.slots[index];
-    let (req, waiting_since, quality) = {
-        let mut st = slot.state.lock().expect("slot lock");
-        let Some(req) = st.pending.take() else { return };
-        let moving = st.previous_move.is_some_and(|p| req.at.duration_since(p) < s.settings.settle);
-        let since = st.waiting_since.take().unwrap_or(req.at);
-        (req, since, moving)
-    };
-    let quality = if quality { DirectQuality::Moving } else { DirectQuality::Full };
-    let cancel = Cancel::new(slot.latest.clone(), req.id, s.stop.clone());
-    let mut build = LightBuild::new(req.light.clone(), index, s.settings.build, cancel)
-        .with_coarse_indirect(s.settings.coarse_indirect);
-    let maps = slot.state.lock().expect("slot lock").maps.clone();
-    if let Some((light, maps)) = maps
-        && light == req.light
-    {
-        build = build.with_maps(maps);
-    } else {
-        // A moved light (its photons are traced anew): see the setting.
-        build = build.with_refinement_from_coarse(s.settings.refine_from_coarse);
-    }
+    let Some((req, waiting_since, moving)) = take_request(s, index) else { return };
+    let quality = if moving { DirectQuality::Moving } else { DirectQuality::Full };
+    let mut build = new_build(s, index, &req);
     let view = s.view();
     s.builds.fetch_add(1, Ordering::SeqCst);
     let result = s.pool.install(|| build.direct(&s.scene, &view, quality));
@@ -907,6 +940,52 @@ fn direct_stage(s: &Shared, index: usize) {
         Ok(r) => r,
         Err(e) => return report_bug(index, &e),
     };
+    let share = stats.tiles_in_beam as f32 / stats.tiles.max(1) as f32;
+    after_direct(s, index, req, waiting_since, build, buffer, share);
+}
+
+/// Takes light `index`'s pending request: the request, when its wait
+/// began, and whether the light is in motion (its previous request less
+/// than the settle time before). `None` when nothing waits.
+fn take_request(s: &Shared, index: usize) -> Option<(Request, Instant, bool)> {
+    let mut st = s.slots[index].state.lock().expect("slot lock");
+    let req = st.pending.take()?;
+    let moving = st.previous_move.is_some_and(|p| req.at.duration_since(p) < s.settings.settle);
+    let since = st.waiting_since.take().unwrap_or(req.at);
+    Some((req, since, moving))
+}
+
+/// A new build of request `req` for light `index`, starting from the
+/// light's photon maps when they were traced for this very geometry.
+fn new_build(s: &Shared, index: usize, req: &Request) -> LightBuild {
+    let slot = &s.slots[index];
+    let cancel = Cancel::new(slot.latest.clone(), req.id, s.stop.clone());
+    let build = LightBuild::new(req.light.clone(), index, s.settings.build, cancel)
+        .with_coarse_indirect(s.settings.coarse_indirect);
+    let maps = slot.state.lock().expect("slot lock").maps.clone();
+    if let Some((light, maps)) = maps
+        && light == req.light
+    {
+        build.with_maps(maps)
+    } else {
+        // A moved light (its photons are traced anew): see the setting.
+        build.with_refinement_from_coarse(s.settings.refine_from_coarse)
+    }
+}
+
+/// After a direct stage (alone or together): the coarse haze beam, the
+/// publish, the light's counters and its build kept for the later stages.
+/// `share`: the fraction of the picture's tiles its cone reaches.
+fn after_direct(
+    s: &Shared,
+    index: usize,
+    req: Request,
+    waiting_since: Instant,
+    build: LightBuild,
+    buffer: LightBuffer,
+    share: f32,
+) {
+    let slot = &s.slots[index];
     // The moved beam comes with the first picture of the moved light.
     s.haze_stage(index, req.id, &build, HazeQuality::COARSE);
     if !s.publish(index, req.id, buffer, Stage::Direct, &req.light) {
@@ -918,9 +997,24 @@ fn direct_stage(s: &Shared, index: usize) {
     st.direct_times.push_back(now);
     st.direct_total += 1;
     prune(&mut st.direct_times, now);
-    st.weight = 1.0 + stats.tiles_in_beam as f32 / stats.tiles.max(1) as f32;
+    st.weight = 1.0 + share;
     if slot.latest.load(Ordering::SeqCst) == req.id {
         st.build = Some((req.id, build, req.at));
+    }
+}
+
+/// After a Whitted stage (alone or together): the refined haze beam, the
+/// publish, then the build kept for its photons, or finished.
+fn after_whitted(s: &Shared, index: usize, id: u64, build: LightBuild, buffer: LightBuffer, at: Instant) {
+    let stage = if build.has_photons() { Stage::Whitted } else { Stage::Ready };
+    let cached = (stage == Stage::Ready).then(|| Arc::new(buffer.clone()));
+    let light = build.light().clone();
+    s.haze_stage(index, id, &build, HazeQuality::REFINED);
+    if s.publish(index, id, buffer, stage, &light) {
+        match cached {
+            Some(b) => finished(s, index, id, build.light(), b, at),
+            None => keep_build(s, index, id, build, at),
+        }
     }
 }
 
@@ -934,20 +1028,8 @@ fn later_stage(s: &Shared, index: usize) {
     let view = s.view();
     if let Some((id, mut build, at)) = build {
         if !build.has_whitted() {
-            let result = s.pool.install(|| build.whitted(&s.scene, &view));
-            let stage = if build.has_photons() { Stage::Whitted } else { Stage::Ready };
-            match result {
-                Ok(buffer) => {
-                    let cached = (stage == Stage::Ready).then(|| Arc::new(buffer.clone()));
-                    let light = build.light().clone();
-                    s.haze_stage(index, id, &build, HazeQuality::REFINED);
-                    if s.publish(index, id, buffer, stage, &light) {
-                        match cached {
-                            Some(b) => finished(s, index, id, build.light(), b, at),
-                            None => keep_build(s, index, id, build, at),
-                        }
-                    }
-                }
+            match s.pool.install(|| build.whitted(&s.scene, &view)) {
+                Ok(buffer) => after_whitted(s, index, id, build, buffer, at),
                 Err(e) => report_bug(index, &e),
             }
             return;

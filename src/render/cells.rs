@@ -22,6 +22,7 @@
 
 use super::buffer::{LightBuffer, TILE};
 use super::display::srgb8;
+use super::footprint::DirectQuality;
 use super::gbuffer::{CENTRE_SAMPLE, NO_HIT, SAME_SURFACE_COS};
 use super::view::{AA_REFERENCE_PERCENTILE, AaParams, Sampling, View, mark_gradients};
 use super::whitted::direct;
@@ -139,7 +140,7 @@ pub fn whitted_together(
     let n = bounds.len();
     let lists: Vec<Vec<usize>> = lights.iter().map(|l| bounds.tiles_in_beam(l)).collect();
     let (per_light, union_tiles, light_tiles) =
-        shade_union(scene, view, bounds.tiles_x, n, lights, &lists, false, stop)?;
+        shade_union(scene, view, bounds.tiles_x, n, lights, &lists, false, 1, stop)?;
     let adaptive = matches!(view.sampling, Sampling::Adaptive) && aa.is_some();
     // Scratch for anti-aliasing, shared by the lights one after another.
     let mut dense = if adaptive { vec![Vec3::ZERO; w * h] } else { Vec::new() };
@@ -173,12 +174,30 @@ pub fn direct_together(
     lights: &[Light],
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Option<(Vec<LightBuffer>, TogetherStats)> {
+    direct_together_at(scene, view, lights, DirectQuality::Full, stop)
+}
+
+/// [`direct_together`] at `quality`: with [`DirectQuality::Moving`] (lights
+/// in motion) one pixel per 2×2 block is shaded and repeated over the
+/// block, as [`super::footprint::primary_direct`] does for one light; equal
+/// to each light's own direct stage at that quality.
+pub fn direct_together_at(
+    scene: &Scene,
+    view: &View,
+    lights: &[Light],
+    quality: DirectQuality,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Option<(Vec<LightBuffer>, TogetherStats)> {
+    let step = match quality {
+        DirectQuality::Full => 1,
+        DirectQuality::Moving => 2,
+    };
     let (w, h) = (view.width(), view.height());
     let bounds = view.tile_bounds();
     let tiles_x = (w as usize).div_ceil(TILE);
     let lists: Vec<Vec<usize>> = lights.iter().map(|l| bounds.tiles_in_beam(l)).collect();
     let (per_light, union_tiles, light_tiles) =
-        shade_union(scene, view, tiles_x, bounds.len(), lights, &lists, true, stop)?;
+        shade_union(scene, view, tiles_x, bounds.len(), lights, &lists, true, step, stop)?;
     let out = per_light.into_iter().map(|tiles| LightBuffer::from_tile_list(w, h, tiles)).collect();
     Some((out, TogetherStats { tiles: bounds.len(), union_tiles, light_tiles, reshaded: 0 }))
 }
@@ -187,7 +206,9 @@ pub fn direct_together(
 /// sizes. One parallel pass over the union of `lists` (light i's tiles):
 /// every vertex of a tile (only the directly seen ones with `primary`)
 /// evaluates the direct light of each light whose list holds the tile,
-/// summed per pixel in vertex order (the sum a light alone makes).
+/// summed per pixel in vertex order (the sum a light alone makes). With
+/// `step` 2 only the first pixel of each 2×2 block is shaded and its value
+/// fills the block (moving quality).
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn shade_union(
     scene: &Scene,
@@ -197,6 +218,7 @@ fn shade_union(
     lights: &[Light],
     lists: &[Vec<usize>],
     primary: bool,
+    step: usize,
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Option<(Vec<Vec<(usize, Vec<Vec3>)>>, usize, usize)> {
     let (w, h) = (view.width() as usize, view.height() as usize);
@@ -221,8 +243,9 @@ fn shade_union(
             }
             let (tx, ty) = (t % tiles_x, t / tiles_x);
             let mut sums = vec![Vec3::ZERO; who.len()];
-            for y in ty * TILE..((ty + 1) * TILE).min(h) {
-                for x in tx * TILE..((tx + 1) * TILE).min(w) {
+            let (x1, y1) = (((tx + 1) * TILE).min(w), ((ty + 1) * TILE).min(h));
+            for y in (ty * TILE..y1).step_by(step) {
+                for x in (tx * TILE..x1).step_by(step) {
                     sums.iter_mut().for_each(|s| *s = Vec3::ZERO);
                     // The same sum as the light alone: vertex after vertex.
                     for v in view.shading.pixel(y * w + x).iter().filter(|v| !primary || v.depth == 0) {
@@ -230,9 +253,13 @@ fn shade_union(
                             *s += v.weight * direct(scene, &lights[i as usize], v);
                         }
                     }
-                    let p = (y - ty * TILE) * TILE + (x - tx * TILE);
-                    for (b, s) in blocks.iter_mut().zip(&sums) {
-                        b[p] = *s;
+                    for yy in y..(y + step).min(y1) {
+                        for xx in x..(x + step).min(x1) {
+                            let p = (yy - ty * TILE) * TILE + (xx - tx * TILE);
+                            for (b, s) in blocks.iter_mut().zip(&sums) {
+                                b[p] = *s;
+                            }
+                        }
                     }
                 }
             }
