@@ -39,7 +39,7 @@
 //! for the same stage at once (start-up, a view change, a moved bar) get
 //! their direct stage, then their Whitted stage, in one pass over the union
 //! of their footprints ([`crate::render::cells`]; scheduling, request ids,
-//! cancellation and publishing per cell as above: `src/live/cells.rs`).
+//! cancellation and publishing per cell as above: `src/live/tracer/cells.rs`).
 //! Photons and refinement stay per cell. [`Tracer::batched_builds`] counts
 //! the passes; [`TracerSettings::batch_cells`] turns it off.
 //!
@@ -80,7 +80,6 @@
 //! ([`Tracer::set_paused`]): the frame clock shows the cheap moving preview
 //! and no work is spent on a view about to be replaced.
 
-#[path = "cells.rs"]
 mod cells;
 
 use super::cache::{GeometryCache, Knots};
