@@ -351,6 +351,7 @@ fn frame(number: u64, w: u32, h: u32, buffer: Arc<LightBuffer>, generation: u64)
         buffers: Arc::new(vec![(generation, buffer)]),
         display: Display::default(),
         preview: false,
+        bodies: None,
         haze_density: None,
     })
 }

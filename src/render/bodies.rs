@@ -357,6 +357,31 @@ pub struct BodyHit {
     pub lens: bool,
 }
 
+/// A body pixel with the lens glow's k_i left out: radiance (cd/m², linear
+/// RGB) = `base` (grey) + k_`light` · `glow` (eq. 4's k_i, cd). The browser
+/// stream sends this and multiplies by the frame's k_i itself, so a dimmer
+/// change needs no body message (docs/stream.md).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BodyPixel {
+    /// The housing under the fixed work light, cd/m² (grey).
+    pub base: f32,
+    /// The lens glow per unit k_i, cd/m² per cd (0 on the housing).
+    pub glow: f32,
+    /// The light whose k_i the glow uses (0 when `glow` is 0).
+    pub light: u32,
+}
+
+impl BodyPixel {
+    /// The radiance with the frame's k (light order): base + k_light · glow.
+    pub fn radiance(&self, k: &[Vec3]) -> Vec3 {
+        let glow = match k.get(self.light as usize) {
+            Some(k) if self.glow != 0.0 => *k * self.glow,
+            _ => Vec3::ZERO,
+        };
+        Vec3::splat(self.base) + glow
+    }
+}
+
 /// A pixel rectangle (x0, y0, x1, y1), exclusive ends.
 pub type Rect = (u32, u32, u32, u32);
 
@@ -436,6 +461,26 @@ impl BodyLayer {
         }
     }
 
+    /// Body pixel `index` split as the browser stream sends it
+    /// ([`BodyPixel`]): radiance = base + k_light · glow; `None` where the
+    /// stage shows. [`BodyLayer::radiance`] is this with the frame's k_i, so
+    /// the server's picture and the stream's agree by construction.
+    pub fn pixel(&self, index: usize, camera: &Camera, bodies: &[Body], lights: &[Light]) -> Option<BodyPixel> {
+        let h = self.hits.get(index).copied().flatten()?;
+        let mut p = BodyPixel { base: BODY_ALBEDO * std::f32::consts::FRAC_1_PI * WORK_LIGHT_LUX, glow: 0.0, light: 0 };
+        if let Some((light_index, radius)) =
+            bodies.get(h.body as usize).and_then(|b| b.parts.get(h.part as usize)?.glow)
+            && let Some(light) = lights.get(light_index)
+        {
+            let (x, y) = (index as u32 % self.width, index as u32 / self.width);
+            let to_camera = -camera.direction(x as f32 + 0.5, y as f32 + 0.5, self.width, self.height);
+            let cos_lens = to_camera.dot(light.axis()).max(0.05);
+            p.glow = light.pattern_toward(to_camera) / (std::f32::consts::PI * radius * radius * cos_lens);
+            p.light = light_index as u32;
+        }
+        Some(p)
+    }
+
     /// Radiance of body pixel `index` (cd/m², linear RGB), `None` where the
     /// stage shows: housing work light plus the lens glow with its light's
     /// k_i (`lights[i]`, `k[i]` in light order).
@@ -447,17 +492,7 @@ impl BodyLayer {
         lights: &[Light],
         k: &[Vec3],
     ) -> Option<Vec3> {
-        let h = self.hits.get(index).copied().flatten()?;
-        let mut l = Vec3::splat(BODY_ALBEDO * std::f32::consts::FRAC_1_PI * WORK_LIGHT_LUX);
-        if let Some((light, radius)) = bodies.get(h.body as usize).and_then(|b| b.parts.get(h.part as usize)?.glow)
-            && let (Some(light), Some(k)) = (lights.get(light), k.get(light))
-        {
-            let (x, y) = (index as u32 % self.width, index as u32 / self.width);
-            let to_camera = -camera.direction(x as f32 + 0.5, y as f32 + 0.5, self.width, self.height);
-            let cos_lens = to_camera.dot(light.axis()).max(0.05);
-            l += *k * light.pattern_toward(to_camera) / (std::f32::consts::PI * radius * radius * cos_lens);
-        }
-        Some(l)
+        self.pixel(index, camera, bodies, lights).map(|p| p.radiance(k))
     }
 
     /// Radiance of every body pixel ([`BodyLayer::radiance`]).
