@@ -32,16 +32,50 @@ struct Daemon {
     thread: Option<std::thread::JoinHandle<()>>,
 }
 
+/// What the test daemon shows.
+#[derive(Clone, Copy, PartialEq)]
+enum Rig {
+    /// The paper rig over the bundled stage.
+    Paper,
+    /// `tests/data/mvr/bodies.mvr` over a floor, seen from the front, with its fixture bodies.
+    Bodies,
+}
+
 impl Daemon {
     fn start() -> Self {
+        Self::start_rig(Rig::Paper)
+    }
+
+    fn start_rig(rig: Rig) -> Self {
         let (tx, rx) = std::sync::mpsc::channel();
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
         let thread = std::thread::spawn(move || {
             let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
             rt.block_on(async move {
-                let scene = Arc::new(stage());
-                let camera = scene.camera.unwrap();
-                let patch = footlight::Patch::load(&root().join("patch/paper-rig.toml")).expect("paper rig");
+                let (scene, camera, patch, bodies) = match rig {
+                    Rig::Paper => {
+                        let scene = Arc::new(stage());
+                        let camera = scene.camera.unwrap();
+                        let patch = footlight::Patch::load(&root().join("patch/paper-rig.toml")).expect("paper rig");
+                        (scene, camera, patch, None)
+                    }
+                    Rig::Bodies => {
+                        let path = root().join("tests/data/mvr/bodies.mvr");
+                        let patch = footlight_mvr::load_mvr(&path).expect("bodies.mvr").patch;
+                        let names: Vec<String> = patch.fixtures.iter().map(|f| f.name.clone()).collect();
+                        let ids: Vec<u32> = patch.fixtures.iter().map(|f| f.id).collect();
+                        let (models, _) = footlight::render::bodies::body_models(&path, &names, &ids);
+                        let mut b = footlight::scene::SceneBuilder::new();
+                        let m = lambert(&mut b, 0.5);
+                        floor(&mut b, 12.0, 0.0, m);
+                        let camera = footlight::scene::Camera::look_at(
+                            Vec3::new(0.0, 3.0, 9.0),
+                            Vec3::new(0.0, 3.6, 0.0),
+                            40f32.to_radians(),
+                        );
+                        (Arc::new(b.build()), camera, patch, Some(models))
+                    }
+                };
                 let listener = footlight::live::bind_http("127.0.0.1:0".parse().unwrap()).await.unwrap();
                 let http = listener.local_addr().unwrap();
                 let dmx = DmxSource::Network {
@@ -65,6 +99,7 @@ impl Daemon {
                 let daemon = footlight::live::Daemon::new(scene, Arc::new(Show::new(patch)), camera, config)
                     .input(dmx)
                     .serve(listener)
+                    .bodies(bodies)
                     .on_running(running_tx);
                 let announce = std::thread::spawn(move || {
                     let handle = running_rx.recv().unwrap();
@@ -319,6 +354,78 @@ fn chromium_composites_the_paper_rig_from_the_buffer_stream_like_the_server() {
         .sum();
     assert_eq!((shown["mode"].as_str(), shown["buffers"].as_u64()), (Some("pictures"), Some(0)), "{shown}");
     assert_eq!((shown["width"].as_u64(), shown["sum"].as_u64()), (Some(W as u64), Some(want)), "{shown}");
+}
+
+/// Headless Chromium draws the fixture bodies of `bodies.mvr` from the
+/// stream's body tiles over its own composite: its canvas equals the
+/// server's frame (which draws the same layer on the CPU) within 1 code
+/// value with the bodies at rest, after a DMX pan turns the glb head's lens
+/// to the camera, and after a dimmer change (the glow follows k_i in the
+/// browser: no body tile is sent for it).
+#[test]
+fn chromium_draws_the_fixture_bodies_like_the_server() {
+    let Some(chromium) = chromium() else { return };
+    let daemon = Daemon::start_rig(Rig::Bodies);
+    let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    // bodies.mvr: head pan 1-2, tilt 3-4, dimmer 5 (16-bit pan -180..180, tilt -90..90); can 11; par 21.
+    let rest = {
+        let mut s = [0u8; 512];
+        s[..5].copy_from_slice(&[128, 0, 128, 0, 255]);
+        s[10] = 255;
+        s[20] = 255;
+        s
+    };
+    // Pan 12.5°, tilt -83.8°: the head at (-2, 4, 0) m looks at the camera (tests/bodies.rs).
+    let (p, q) = (((12.5f32 + 180.0) / 360.0 * 65535.0).round() as u16, ((-83.8f32 + 90.0) / 180.0 * 65535.0).round() as u16);
+    let mut panned = rest;
+    panned[..4].copy_from_slice(&[(p >> 8) as u8, p as u8, (q >> 8) as u8, q as u8]);
+    let mut dimmed = panned;
+    dimmed[4] = 0; // (the glow at 60/255 is still over white)
+    let set = |slots: &[u8; 512]| {
+        sock.send_to(&art_dmx(0, 0, slots), daemon.artnet).unwrap();
+        let t = Instant::now();
+        loop {
+            let s = daemon.status();
+            let lights = s["lights"].as_array().cloned().unwrap_or_default();
+            let dmx_in = lights.len() == 3
+                && lights[0]["dmx"].as_array().is_some_and(|d| d.iter().zip(&slots[..5]).all(|(a, b)| *a == *b))
+                && lights.iter().all(|l| l["stage"] == "ready");
+            if dmx_in {
+                std::thread::sleep(Duration::from_millis(100));
+                return daemon.status();
+            }
+            assert!(t.elapsed() < Duration::from_secs(120), "never ready: {s}");
+            std::thread::sleep(Duration::from_millis(30));
+        }
+    };
+    let mut number = set(&rest)["frame"].as_u64().unwrap();
+    let mut browser = Browser::open(chromium, &format!("http://{}/", daemon.http));
+    let mut pictures = Vec::new();
+    let mut body_messages = Vec::new();
+    for (i, slots) in [rest, panned, dimmed].iter().enumerate() {
+        if i > 0 {
+            number = set(slots)["frame"].as_u64().unwrap();
+        }
+        let page = browser.settled(number);
+        assert_eq!(page["mode"], "buffers", "{page}");
+        assert!(page["error"].is_null(), "{page}");
+        let got = canvas(&page);
+        let want = image::load_from_memory(&http_get(daemon.http, "/api/frame.png").1).unwrap().to_rgb8();
+        let worst = got.iter().zip(want.as_raw()).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
+        let off = got.iter().zip(want.as_raw()).filter(|(a, b)| a.abs_diff(**b) > 1).count();
+        assert!(worst <= 1, "state {i}: {off} channel values differ by more than 1 (worst {worst})");
+        body_messages.push(page["counts"]["bodies"].as_u64().unwrap());
+        assert!(page["counts"]["body_tiles"].as_u64().unwrap() > 0, "the page got body tiles: {page}");
+        pictures.push(got);
+    }
+    for (i, p) in pictures.windows(2).enumerate() {
+        let n = p[0].chunks(3).zip(p[1].chunks(3)).filter(|(a, b)| a != b).count();
+        assert!(n > 0, "states {i} and {} look the same", i + 1);
+    }
+    assert!(body_messages[1] > body_messages[0], "the pan sent body tiles: {body_messages:?}");
+    assert_eq!(body_messages[2], body_messages[1], "the dimmer change sent none: {body_messages:?}");
+    let s = daemon.status();
+    assert!(s["stream"]["body_messages"].as_u64().unwrap() >= 2, "{}", s["stream"]);
 }
 
 /// A tile-dense buffer of noise (DEFLATE cannot shrink it), `seed` varies it.

@@ -827,6 +827,28 @@ mod tests {
     }
 
     #[test]
+    fn body_tiles_round_trip_exactly() {
+        use crate::live::bodies::{BodyTile, BodyTiles};
+        let px = |j: usize| match j % 3 {
+            0 => None,
+            1 => Some(BodyPixel { base: 0.318, glow: 0.0, light: 0 }),
+            _ => Some(BodyPixel { base: 0.318, glow: 1234.5 + j as f32, light: 7 }),
+        };
+        let tile = |seed: usize| Arc::new(BodyTile { revision: seed as u64, pixels: (0..TILE * TILE).map(|j| px(j + seed)).collect() });
+        let tiles = BodyTiles { width: 40, height: 20, lights: 9, tiles: (0..6).map(tile).collect() };
+        let msg = encode_bodies(&tiles, &[1, 5]);
+        assert_eq!((msg[0], msg[1] & 1), (MSG_BODIES, 1), "repetitive pixels deflate");
+        let (lights, back) = decode_bodies(&msg).unwrap();
+        assert_eq!(lights, 9);
+        assert_eq!(back.len(), 2);
+        for ((index, pixels), want) in back.iter().zip([1usize, 5]) {
+            assert_eq!((*index as usize, pixels), (want, &tiles.tiles[want].pixels));
+        }
+        assert!(decode_bodies(&msg[..msg.len() - 1]).is_err());
+        assert!(decode_bodies(&encode_cleared(1, 2)).is_err());
+    }
+
+    #[test]
     fn frame_message_layout() {
         let display = Display::default();
         let frame = Frame {
