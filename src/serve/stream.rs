@@ -11,6 +11,12 @@
 //! balance, exposure, clipping and sRGB curve. The byte layout is in
 //! `docs/stream.md`; [`encode_buffer`]/[`decode_buffer`] are its reference.
 //!
+//! With fixture bodies ([`Frame::bodies`]) a viewer also gets the body
+//! layer's 16×16 tiles that changed (message type 6, [`encode_bodies`]):
+//! per pixel the housing's radiance and the lens glow per unit k_i, drawn by
+//! the page over its composite with the frame's k_i, so a dimmer change
+//! sends no body bytes and a moving head sends only the tiles it touched.
+//!
 //! Clients without WebGL2 ask for `?mode=pictures`: they get the frame as a
 //! PNG (the shared once-per-picture [`PngCache`]) pushed only when the
 //! picture changed.
