@@ -201,8 +201,12 @@ async fn a_dmx_pan_moves_one_body_in_the_next_frame_and_rebuilds_only_its_light(
     let lights = footlight::live::Decode::len(&show);
     assert_eq!(lights, 3);
     let tracer = Arc::new(Tracer::new(scene.clone(), Arc::new(view), lights, settings));
-    let mut clock = FrameClock::new(Arc::new(Show::new(patch.clone())), tracer.clone(), Compositor::new(LW, LH, Display::neutral(2000.0)))
-        .with_bodies(Some(LiveBodies::new(body_models(&path, &names, &show.fixture_ids()).0, scene.clone())));
+    let mut clock = FrameClock::new(
+        Arc::new(Show::new(patch.clone())),
+        tracer.clone(),
+        Compositor::new(LW, LH, Display::neutral(2000.0)),
+    )
+    .with_bodies(Some(LiveBodies::new(body_models(&path, &names, &show.fixture_ids()).0, scene.clone())));
 
     // Universe of the head (fixture 1: pan 1-2, tilt 3-4, dimmer 5), all lamps at full.
     let universe = show.universes()[0];
@@ -248,8 +252,10 @@ async fn a_dmx_pan_moves_one_body_in_the_next_frame_and_rebuilds_only_its_light(
     // The head's body at each pose, cast afresh.
     let layer_at = |slots: [u8; 512]| {
         let inputs = footlight::live::Decode::decode(&show, &fixture_universes(slots));
-        let bodies: Vec<Body> =
-            models.iter().map(|m| m.pose(&inputs[m.driver].light, inputs[m.driver].state.pan, inputs[m.driver].state.tilt)).collect();
+        let bodies: Vec<Body> = models
+            .iter()
+            .map(|m| m.pose(&inputs[m.driver].light, inputs[m.driver].state.pan, inputs[m.driver].state.tilt))
+            .collect();
         BodyLayer::build(&scene, &cam, LW, LH, &bodies)
     };
     let (old, new) = (layer_at(slots), layer_at(panned));
@@ -262,14 +268,21 @@ async fn a_dmx_pan_moves_one_body_in_the_next_frame_and_rebuilds_only_its_light(
     for i in 0..(LW * LH) as usize {
         if before.rgb[3 * i..3 * i + 3] != next.rgb[3 * i..3 * i + 3] {
             changed += 1;
-            assert!(inside(i, ro) || inside(i, rn), "pixel {i} changed outside the head's old {ro:?} and new {rn:?} rectangles");
+            assert!(
+                inside(i, ro) || inside(i, rn),
+                "pixel {i} changed outside the head's old {ro:?} and new {rn:?} rectangles"
+            );
         }
     }
     let is_head = |l: &BodyLayer, i: usize| l.hits[i].is_some_and(|h| h.body == 0);
     let moved: Vec<usize> = (0..(LW * LH) as usize).filter(|&i| is_head(&old, i) != is_head(&new, i)).collect();
     assert!(moved.len() > 10, "the head's silhouette moves: {} pixels", moved.len());
     let shown = moved.iter().filter(|&&i| before.rgb[3 * i..3 * i + 3] != next.rgb[3 * i..3 * i + 3]).count();
-    assert!(shown * 10 >= moved.len() * 9, "{shown} of {} moved silhouette pixels changed ({changed} changed)", moved.len());
+    assert!(
+        shown * 10 >= moved.len() * 9,
+        "{shown} of {} moved silhouette pixels changed ({changed} changed)",
+        moved.len()
+    );
     // The stream's tiles: changed only where the head was or is.
     let (tb, tn) = (before.bodies.as_ref().unwrap(), next.bodies.as_ref().unwrap());
     let tiles_x = tn.tiles_x() as u32;
@@ -300,11 +313,17 @@ async fn a_dmx_pan_moves_one_body_in_the_next_frame_and_rebuilds_only_its_light(
     out_rx.changed().await.unwrap();
     let dimmed = out_rx.borrow_and_update().clone();
     assert!(Arc::ptr_eq(dimmed.bodies.as_ref().unwrap(), tn), "a dimmer change sends no body tile");
-    let lens: Vec<usize> = (0..(LW * LH) as usize).filter(|&i| new.hits[i].is_some_and(|h| h.body == 0 && h.lens)).collect();
+    let lens: Vec<usize> =
+        (0..(LW * LH) as usize).filter(|&i| new.hits[i].is_some_and(|h| h.body == 0 && h.lens)).collect();
     let glow_changed = lens.iter().filter(|&&i| dimmed.rgb[3 * i..3 * i + 3] != next.rgb[3 * i..3 * i + 3]).count();
     assert!(!lens.is_empty() && glow_changed == lens.len(), "{glow_changed} of {} lens pixels", lens.len());
 
-    eprintln!("silhouette {} px moved, {shown} shown, {changed} changed, {} tiles, {} lens px", moved.len(), touched.len(), lens.len());
+    eprintln!(
+        "silhouette {} px moved, {shown} shown, {changed} changed, {} tiles, {} lens px",
+        moved.len(),
+        touched.len(),
+        lens.len()
+    );
     // Only the panned light is rebuilt.
     tracer.set_paused(false);
     let (t, first) = (tracer.clone(), g0[0]);

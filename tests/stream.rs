@@ -1,7 +1,9 @@
 //! The browser stream (issue 17): headless Chromium composites the paper
 //! rig from the buffer stream and its canvas equals the server's frame
 //! within 1 code value at several DMX states, with dimmer changes reaching
-//! the canvas without any buffer message; a client that stops reading is
+//! the canvas without any buffer message; with fixture bodies its canvas
+//! (bodies drawn from the stream's body tiles) equals the server's frame at
+//! rest, after a pan and after a dimmer change; a client that stops reading is
 //! skipped, then dropped, with at most one message held for it; malformed
 //! and oversized client messages close only that connection; pictures mode
 //! pushes the server's PNG. Real sockets need real time: every wait is a
@@ -376,7 +378,8 @@ fn chromium_draws_the_fixture_bodies_like_the_server() {
         s
     };
     // Pan 12.5°, tilt -83.8°: the head at (-2, 4, 0) m looks at the camera (tests/bodies.rs).
-    let (p, q) = (((12.5f32 + 180.0) / 360.0 * 65535.0).round() as u16, ((-83.8f32 + 90.0) / 180.0 * 65535.0).round() as u16);
+    let (p, q) =
+        (((12.5f32 + 180.0) / 360.0 * 65535.0).round() as u16, ((-83.8f32 + 90.0) / 180.0 * 65535.0).round() as u16);
     let mut panned = rest;
     panned[..4].copy_from_slice(&[(p >> 8) as u8, p as u8, (q >> 8) as u8, q as u8]);
     let mut dimmed = panned;

@@ -62,6 +62,9 @@ pub struct BodiesReport {
     pub rows: Vec<BodiesRow>,
 }
 
+/// A scenario: its name, which heads move, whether every dimmer steps each frame.
+type Scenario = (&'static str, Box<dyn Fn(usize) -> bool>, bool);
+
 fn mean_sd(v: &[f64]) -> (f64, f64) {
     let n = v.len().max(1) as f64;
     let mean = v.iter().sum::<f64>() / n;
@@ -99,7 +102,7 @@ pub fn run(scene: &Arc<Scene>, camera: Camera, (w, h): (u32, u32), frames: usize
     let still = |_: usize| false;
     let mut rows = Vec::new();
     let mut build = None;
-    let scenarios: [(&str, Box<dyn Fn(usize) -> bool>, bool); 4] = [
+    let scenarios: [Scenario; 4] = [
         ("none moving", Box::new(still), false),
         ("dimmer only (every head, each frame)", Box::new(still), true),
         ("1 head moving", Box::new(|h| h == 0), false),

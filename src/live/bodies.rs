@@ -154,7 +154,11 @@ impl LiveBodies {
         let reset = self.tiles.as_ref().is_none_or(|t| t.width != w || t.height != h);
         let mut tiles = match &self.tiles {
             Some(t) if !reset => t.tiles.clone(),
-            _ => vec![Arc::new(BodyTile { revision: 0, pixels: vec![None; TILE * TILE] }); tx * ty],
+            _ => {
+                // One shared empty tile: tiles are replaced, never changed in place.
+                let empty = Arc::new(BodyTile { revision: 0, pixels: vec![None; TILE * TILE] });
+                std::iter::repeat_n(empty, tx * ty).collect()
+            }
         };
         let mut todo = vec![reset || all; tx * ty];
         for r in dirty {

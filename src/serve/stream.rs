@@ -837,10 +837,12 @@ mod tests {
         use crate::live::bodies::{BodyTile, BodyTiles};
         let px = |j: usize| match j % 3 {
             0 => None,
-            1 => Some(BodyPixel { base: 0.318, glow: 0.0, light: 0 }),
-            _ => Some(BodyPixel { base: 0.318, glow: 1234.5 + j as f32, light: 7 }),
+            1 => Some(BodyPixel { base: 0.3, glow: 0.0, light: 0 }),
+            _ => Some(BodyPixel { base: 0.3, glow: 1234.5 + j as f32, light: 7 }),
         };
-        let tile = |seed: usize| Arc::new(BodyTile { revision: seed as u64, pixels: (0..TILE * TILE).map(|j| px(j + seed)).collect() });
+        let tile = |seed: usize| {
+            Arc::new(BodyTile { revision: seed as u64, pixels: (0..TILE * TILE).map(|j| px(j + seed)).collect() })
+        };
         let tiles = BodyTiles { width: 40, height: 20, lights: 9, tiles: (0..6).map(tile).collect() };
         let msg = encode_bodies(&tiles, &[1, 5]);
         assert_eq!((msg[0], msg[1] & 1), (MSG_BODIES, 1), "repetitive pixels deflate");
