@@ -571,14 +571,19 @@ fn slab(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3, t_max: f32) -> bool {
     t0.partial_cmp(&t1) != Some(std::cmp::Ordering::Greater)
 }
 
-/// A conservative pixel rectangle around the parts' bounding spheres (the
-/// whole image when one reaches behind the camera).
+/// A conservative pixel rectangle around the parts' bounding boxes: the
+/// projected corners of each part's box (the box's projection lies in their
+/// hull, a pixel centre inside it lies in their bounding rectangle), with a
+/// pixel of margin; a part with a corner at or behind the camera plane falls
+/// back to its bounding sphere (the whole image when it reaches behind).
 fn footprint(camera: &Camera, width: u32, height: u32, body: &Body) -> Rect {
     let mut r: Option<Rect> = None;
     for part in &body.parts {
-        let centre = part.to_world.transform_point3((part.shape.lo + part.shape.hi) * 0.5);
-        let radius = (part.shape.hi - part.shape.lo).length() * 0.5 + 1e-3;
-        let pr = sphere_rect(camera, width, height, centre, radius);
+        let pr = box_rect(camera, width, height, part).unwrap_or_else(|| {
+            let centre = part.to_world.transform_point3((part.shape.lo + part.shape.hi) * 0.5);
+            let radius = (part.shape.hi - part.shape.lo).length() * 0.5 + 1e-3;
+            sphere_rect(camera, width, height, centre, radius)
+        });
         if pr.0 >= pr.2 || pr.1 >= pr.3 {
             continue;
         }
@@ -588,6 +593,37 @@ fn footprint(camera: &Camera, width: u32, height: u32, body: &Body) -> Rect {
         });
     }
     r.unwrap_or((0, 0, 0, 0))
+}
+
+/// The pixel rectangle of a part's projected box corners (1e-3 m padding, 1 px
+/// margin); `None` when a corner is not in front of the camera.
+fn box_rect(camera: &Camera, width: u32, height: u32, part: &Part) -> Option<Rect> {
+    let (lo, hi) = (part.shape.lo - Vec3::splat(1e-3), part.shape.hi + Vec3::splat(1e-3));
+    let tan_half = (camera.yfov * 0.5).tan();
+    let aspect = width as f32 / height.max(1) as f32;
+    let (mut x0, mut y0, mut x1, mut y1) = (f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY);
+    for i in 0..8 {
+        let c = Vec3::new([lo.x, hi.x][i & 1], [lo.y, hi.y][(i >> 1) & 1], [lo.z, hi.z][(i >> 2) & 1]);
+        let rel = camera.basis.transpose() * (part.to_world.transform_point3(c) - camera.position);
+        let depth = -rel.z;
+        if !(depth > 1e-3) {
+            return None;
+        }
+        let x = (rel.x / (depth * tan_half * aspect) + 1.0) * 0.5 * width as f32;
+        let y = (1.0 - rel.y / (depth * tan_half)) * 0.5 * height as f32;
+        (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+    }
+    if !(x0.is_finite() && y0.is_finite() && x1.is_finite() && y1.is_finite()) {
+        return None;
+    }
+    let cl = |v: f32, n: u32| v.clamp(0.0, n as f32) as u32;
+    let r = (
+        cl(x0.floor() - 1.0, width),
+        cl(y0.floor() - 1.0, height),
+        cl(x1.ceil() + 1.0, width),
+        cl(y1.ceil() + 1.0, height),
+    );
+    Some(if r.0 >= r.2 || r.1 >= r.3 { (0, 0, 0, 0) } else { r })
 }
 
 fn sphere_rect(camera: &Camera, width: u32, height: u32, centre: Vec3, radius: f32) -> Rect {
@@ -676,5 +712,38 @@ mod tests {
         let fresh = BodyLayer::build(&scene, &cam, w, h, &bodies);
         assert_eq!(layer.hits, fresh.hits);
         assert!(count(&layer) > 10);
+    }
+
+    #[test]
+    fn the_box_footprints_miss_no_pixel_of_a_brute_force_cast() {
+        let scene = floor_scene();
+        let cam = Camera::look_at(Vec3::new(1.0, 2.5, 6.0), Vec3::new(0.0, 2.0, 0.0), 60f32.to_radians());
+        let beam = Beam::Spot(SpotBeam::from_beam_field(20.0, 30.0));
+        let (w, h) = (96, 64);
+        let mut bodies = Vec::new();
+        for k in 0..12 {
+            let a = k as f32 * 0.7;
+            let at = Vec3::new(-3.0 + 0.55 * k as f32, 1.0 + 0.3 * (k % 4) as f32, -1.0 + 0.9 * (k % 3) as f32);
+            let light = Light::aimed(at, at + Vec3::new(a.cos(), -0.5 - a.sin().abs(), a.sin()), beam.clone());
+            bodies.push(BodyModel::estimated("b", 0).pose(&light, 0.0, 0.0));
+        }
+        let layer = BodyLayer::build(&scene, &cam, w, h, &bodies);
+        let mut hit = 0;
+        for y in 0..h {
+            for x in 0..w {
+                let dir = cam.direction(x as f32 + 0.5, y as f32 + 0.5, w, h);
+                let stage = scene.accel.intersect(cam.position, dir, f32::INFINITY).map_or(f32::INFINITY, |h| h.t);
+                let mut best: Option<(f32, usize)> = None;
+                for (j, b) in bodies.iter().enumerate() {
+                    if let Some((t, _, _)) = cast(b, cam.position, dir, best.map_or(f32::INFINITY, |b| b.0)) {
+                        best = Some((t, j));
+                    }
+                }
+                let want = best.filter(|b| b.0 < stage).map(|b| b.1 as u32);
+                assert_eq!(layer.hits[(y * w + x) as usize].map(|h| h.body), want, "pixel ({x}, {y})");
+                hit += usize::from(want.is_some());
+            }
+        }
+        assert!(hit > 200, "{hit} body pixels");
     }
 }
