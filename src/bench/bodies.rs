@@ -54,7 +54,7 @@ pub struct BodiesReport {
     pub size: (u32, u32),
     /// Bodies in the rig.
     pub bodies: usize,
-    /// Bodies with pixels in the picture at the start.
+    /// Bodies whose screen rectangle lies (partly) inside the picture at the start.
     pub visible: usize,
     /// Casting the whole layer (first frame, every camera change), ms.
     pub layer_build_ms: f64,
@@ -160,8 +160,8 @@ impl BodiesReport {
     pub fn markdown(&self) -> String {
         let (w, h) = self.size;
         let mut s = format!(
-            "## Fixture bodies (issue 14 item 5)\n\n{} bodies (tests/replays/chase-44.toml, estimated boxes), {} in the \
-             picture, {w}×{h}; casting the whole layer (first frame, camera change): {:.1} ms. Per frame at 60 Hz, \
+            "## Fixture bodies (issue 14 item 5)\n\n{} bodies (tests/replays/chase-44.toml, estimated boxes), {} with \
+             a screen rectangle in the picture, {w}×{h}; casting the whole layer (first frame, camera change): {:.1} ms. Per frame at 60 Hz, \
              mean ± sd over the frames; no light buffer is rebuilt in any row.\n\n\
              | scenario | bodies moving | server: LiveBodies::apply ms | pixels ray-tested | stream: tiles | stream: bytes/frame | stream: encode ms |\n\
              |---|---:|---:|---:|---:|---:|---:|\n",

@@ -130,6 +130,8 @@ pub struct StreamStats {
     pub body_messages: AtomicU64,
     /// Body tiles sent in them.
     pub body_tiles: AtomicU64,
+    /// Bodies messages encoded (one per snapshot step, shared by the clients making it).
+    pub body_encodes: AtomicU64,
     /// k messages sent.
     pub frame_messages: AtomicU64,
     /// Picture messages sent.
@@ -163,6 +165,7 @@ impl StreamStats {
             "buffer_messages": r(&self.buffer_messages),
             "body_messages": r(&self.body_messages),
             "body_tiles": r(&self.body_tiles),
+            "body_encodes": r(&self.body_encodes),
             "frame_messages": r(&self.frame_messages),
             "picture_messages": r(&self.picture_messages),
             "bytes_sent": r(&self.bytes_sent),
@@ -187,12 +190,24 @@ pub struct StreamState {
     pub stats: Arc<StreamStats>,
     /// Encoded buffers by light: (generation, message).
     cache: Arc<tokio::sync::Mutex<HashMap<usize, (u64, Bytes)>>>,
+    /// The last bodies message: from which tiles (`None`: a fresh client)
+    /// to which, shared by every client that makes the same step.
+    body_cache: Arc<tokio::sync::Mutex<Option<BodyStep>>>,
 }
+
+/// A bodies message from one tile snapshot (`None`: none held) to another.
+type BodyStep = (Option<Arc<BodyTiles>>, Arc<BodyTiles>, Bytes);
 
 impl StreamState {
     /// Stream state over `frames`, encoding pictures with `png`.
     pub fn new(frames: watch::Receiver<Arc<Frame>>, png: Arc<PngCache>) -> Self {
-        Self { frames, png, stats: Arc::new(StreamStats::default()), cache: Default::default() }
+        Self {
+            frames,
+            png,
+            stats: Arc::new(StreamStats::default()),
+            cache: Default::default(),
+            body_cache: Default::default(),
+        }
     }
 
     /// The buffer message of `light` at `generation`, encoded once for all clients.
@@ -471,12 +486,30 @@ impl Client {
         let which: Vec<usize> =
             (0..tiles.tiles.len()).filter(|&i| tiles.tiles[i].revision != self.body_sent[i]).collect();
         if !which.is_empty() {
-            let t = tiles.clone();
-            let list = which.clone();
-            let msg = tokio::task::spawn_blocking(move || encode_bodies(&t, &list)).await.map_err(|e| {
-                tracing::error!("stream: encoding the body tiles failed: {e}");
-                End::Closed
-            })?;
+            // Clients that keep up all step from the same snapshot to the same
+            // one (what a client holds is exactly its last snapshot's
+            // revisions): the message is encoded once for them.
+            let same = |a: &Option<Arc<BodyTiles>>, b: &Option<Arc<BodyTiles>>| match (a, b) {
+                (None, None) => true,
+                (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+                _ => false,
+            };
+            let mut cache = self.s.body_cache.lock().await;
+            let msg = match &*cache {
+                Some((from, to, msg)) if same(from, &self.last_bodies) && Arc::ptr_eq(to, tiles) => msg.clone(),
+                _ => {
+                    let t = tiles.clone();
+                    let list = which.clone();
+                    let msg = tokio::task::spawn_blocking(move || encode_bodies(&t, &list)).await.map_err(|e| {
+                        tracing::error!("stream: encoding the body tiles failed: {e}");
+                        End::Closed
+                    })?;
+                    self.s.stats.body_encodes.fetch_add(1, Ordering::Relaxed);
+                    *cache = Some((self.last_bodies.clone(), tiles.clone(), msg.clone()));
+                    msg
+                }
+            };
+            drop(cache);
             self.send(msg).await?;
             self.s.stats.body_messages.fetch_add(1, Ordering::Relaxed);
             self.s.stats.body_tiles.fetch_add(which.len() as u64, Ordering::Relaxed);
