@@ -747,3 +747,99 @@ fn the_display_changes_live_over_http() {
     assert!(gens(&after).iter().all(|g| g.as_u64().is_some_and(|n| n > 0)), "{after}");
     assert_eq!(gens(&builds), gens(&after));
 }
+
+/// Body tiles of a 48×32 picture (3×2 tiles): `set` gives (tile, revision,
+/// seed) for tiles with a body pattern; the rest empty at revision 0.
+fn body_tiles(set: &[(usize, u64, u32)]) -> Arc<footlight::live::bodies::BodyTiles> {
+    use footlight::live::bodies::{BodyTile, BodyTiles};
+    use footlight::render::bodies::BodyPixel;
+    let tiles = (0..6)
+        .map(|t| {
+            let Some(&(_, revision, seed)) = set.iter().find(|s| s.0 == t) else {
+                return Arc::new(BodyTile { revision: 0, pixels: vec![None; 256] });
+            };
+            let pixels = (0..256u32)
+                .map(|j| {
+                    ((j + seed) % 5 != 0).then_some(BodyPixel {
+                        base: 0.25,
+                        glow: if j % 7 == 0 { 10.0 + (j * seed) as f32 } else { 0.0 },
+                        light: 0,
+                    })
+                })
+                .collect();
+            Arc::new(BodyTile { revision, pixels })
+        })
+        .collect();
+    Arc::new(BodyTiles { width: 48, height: 32, lights: 1, tiles })
+}
+
+/// Reads messages up to and including the next frame message; returns the bodies messages among them.
+fn bodies_until_frame(
+    ws: &mut tungstenite::WebSocket<tungstenite::stream::MaybeTlsStream<std::net::TcpStream>>,
+) -> Vec<Vec<u8>> {
+    let mut out = Vec::new();
+    loop {
+        let m = binary(ws);
+        match m[0] {
+            MSG_FRAME => return out,
+            stream::MSG_BODIES => out.push(m),
+            _ => {}
+        }
+    }
+}
+
+/// Applies bodies messages to a viewer's layer (all empty at hello).
+fn apply_bodies(layer: &mut [Vec<Option<footlight::render::bodies::BodyPixel>>], messages: &[Vec<u8>]) -> usize {
+    let mut tiles = 0;
+    for m in messages {
+        let (lights, list) = stream::decode_bodies(m).unwrap();
+        assert_eq!(lights, 1);
+        for (index, pixels) in list {
+            layer[index as usize] = pixels;
+            tiles += 1;
+        }
+    }
+    tiles
+}
+
+/// Two viewers get the body tiles on connect and then only the tiles that
+/// changed, one message per change, encoded once for both; their layers equal
+/// the server's after each step; a k-only frame sends no body message.
+#[test]
+fn body_tiles_reach_each_viewer_once_per_change_encoded_once_for_all() {
+    let (w, h) = (48, 32);
+    let buffer = noise(w, h, 3);
+    let with = |n: u64, tiles: &Arc<footlight::live::bodies::BodyTiles>| {
+        Arc::new(Frame { bodies: Some(tiles.clone()), ..(*frame(n, w, h, buffer.clone(), 1)).clone() })
+    };
+    let s0 = body_tiles(&[(1, 1, 3)]);
+    let server = serve(with(0, &s0));
+    let pixels = |t: &footlight::live::bodies::BodyTiles| t.tiles.iter().map(|t| t.pixels.clone()).collect::<Vec<_>>();
+    let mut viewers = Vec::new();
+    for _ in 0..2 {
+        let mut ws = server.connect("");
+        assert_eq!(binary(&mut ws)[0], MSG_HELLO);
+        let mut layer = vec![vec![None; 256]; 6];
+        let got = bodies_until_frame(&mut ws);
+        assert_eq!(got.len(), 1);
+        assert_eq!(apply_bodies(&mut layer, &got), 1, "only the tile with a body");
+        assert_eq!(layer, pixels(&s0));
+        viewers.push((ws, layer));
+    }
+    // Tile 1 changes, tile 4 gets a body, tile 1's old pattern elsewhere stays.
+    let s1 = body_tiles(&[(1, 2, 4), (4, 3, 5)]);
+    server.frames.send_replace(with(1, &s1));
+    for (ws, layer) in &mut viewers {
+        let got = bodies_until_frame(ws);
+        assert_eq!((got.len(), apply_bodies(layer, &got)), (1, 2));
+        assert_eq!(*layer, pixels(&s1));
+    }
+    // A k-only frame (a dimmer): no body message.
+    server.frames.send_replace(with(2, &s1));
+    for (ws, _) in &mut viewers {
+        assert!(bodies_until_frame(ws).is_empty(), "a k change sends no body tile");
+    }
+    let s = server.stream();
+    assert_eq!((s["body_messages"].as_u64(), s["body_tiles"].as_u64()), (Some(4), Some(6)), "{s}");
+    assert_eq!(s["body_encodes"], 2, "one encode per step, shared: {s}");
+}
