@@ -606,7 +606,7 @@ fn box_rect(camera: &Camera, width: u32, height: u32, part: &Part) -> Option<Rec
         let c = Vec3::new([lo.x, hi.x][i & 1], [lo.y, hi.y][(i >> 1) & 1], [lo.z, hi.z][(i >> 2) & 1]);
         let rel = camera.basis.transpose() * (part.to_world.transform_point3(c) - camera.position);
         let depth = -rel.z;
-        if !(depth > 1e-3) {
+        if depth.is_nan() || depth <= 1e-3 {
             return None;
         }
         let x = (rel.x / (depth * tan_half * aspect) + 1.0) * 0.5 * width as f32;
