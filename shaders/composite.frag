@@ -4,7 +4,8 @@
 // Display::to_srgb8): white balance and exposure, the highlight roll-off
 // when on (HighlightRolloff, the same curve as shaders/composite.wgsl),
 // clip to [0, 1], quantise to the reference's 65536-entry table index,
-// sRGB curve, 8-bit rounding.
+// sRGB curve, 8-bit rounding. Fixture bodies replace the sum where they
+// cover a pixel (below).
 precision highp float;
 precision highp int;
 precision highp sampler2D;
@@ -23,6 +24,14 @@ uniform vec3 u_display_scale;
 uniform vec3 u_rolloff;
 // Picture height (rows are sent top to bottom; gl_FragCoord counts up).
 uniform int u_height;
+// Fixture bodies (message 6, src/live/bodies.rs): per pixel (base, glow,
+// light, 0); base < 0 where no body covers the pixel. The body's radiance
+// base + k_light * glow replaces the composite there, as the server's
+// BodyLayer::overlay_srgb8 does, before the same display step.
+uniform sampler2D u_body;
+// Texel i: k_i of light i (cd; RGBA32F, one row).
+uniform sampler2D u_kbody;
+uniform int u_has_bodies;
 
 out vec4 color;
 
@@ -49,6 +58,13 @@ void main() {
     for (int i = 0; i < u_lights; ++i) {
         vec4 k = texelFetch(u_k, ivec2(i, 0), 0);
         sum += (k.rgb * k.a) * texelFetch(u_buffers, ivec3(p, i), 0).rgb;
+    }
+    if (u_has_bodies != 0) {
+        vec4 b = texelFetch(u_body, p, 0);
+        if (b.r >= 0.0) {
+            vec3 kb = b.g != 0.0 ? texelFetch(u_kbody, ivec2(int(b.b), 0), 0).rgb : vec3(0.0);
+            sum = vec3(b.r) + kb * b.g;
+        }
     }
     vec3 x0 = u_rolloff.z == 0.0 ? sum * u_scale : rolloff(sum * u_display_scale) * 65535.0;
     vec3 index = floor(clamp(x0, 0.0, 65535.0) + 0.5);

@@ -382,6 +382,11 @@ struct BenchArgs {
     /// composite cost, printed as text. Without --patch the MVR is the patch.
     #[arg(long)]
     pixels_only: bool,
+    /// Only the fixture-body section (issue 14 item 5): the 44 chase heads'
+    /// bodies redrawn per frame (none, one, all moving; dimmer only) and the
+    /// browser stream's body bytes per frame, printed as Markdown.
+    #[arg(long)]
+    bodies_only: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -465,6 +470,13 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         let report = bench::mvr::pixels(&Arc::new(scene), camera, size, &show)
             .map_err(|e| anyhow::anyhow!("pixel bars: {e}"))?;
         print!("{}", report.lines());
+        return Ok(());
+    }
+    if args.bodies_only {
+        let (size, frames) = if args.quick { ((200, 125), 30) } else { ((800, 500), 240) };
+        let report = bench::bodies::run(&Arc::new(scene), camera, size, frames)
+            .map_err(|e| anyhow::anyhow!("fixture bodies: {e}"))?;
+        println!("{}", report.markdown());
         return Ok(());
     }
     let out = args.out.unwrap_or_else(bench::default_out_dir);

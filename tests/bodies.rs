@@ -145,3 +145,202 @@ fn glb_3ds_and_primitive_bodies_span_their_model_dimensions_at_any_pan_tilt() {
 fn got_extent_of(layer: &BodyLayer, body: u32) -> (f32, f32, f32, f32) {
     drawn_extent(layer, body)
 }
+
+/// 200×125 live picture of `bodies.mvr` over a floor: the three bodies 4 m up, seen from the front.
+const LW: u32 = 200;
+const LH: u32 = 125;
+
+fn live_camera() -> Camera {
+    Camera::look_at(Vec3::new(0.0, 3.0, 9.0), Vec3::new(0.0, 3.6, 0.0), 40f32.to_radians())
+}
+
+/// The DMX crate's merged frame of one universe (what the daemon's clock reads).
+fn merged(universe: u16, slots: [u8; 512]) -> footlight_dmx::Universes {
+    let mut u = footlight_dmx::Universes::default();
+    u.update(&footlight_dmx::UniverseFrame { universe, slots, at: tokio::time::Instant::now(), stale: false });
+    u
+}
+
+/// Waits (real time: the tracer runs on its own threads) until the tracer is idle.
+fn wait_idle(tracer: &footlight::live::Tracer) {
+    let t = std::time::Instant::now();
+    while !tracer.idle() {
+        assert!(t.elapsed() < std::time::Duration::from_secs(120), "tracer never idle");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+}
+
+/// A DMX pan of the glb head through the daemon's frame clock (paused
+/// time): the moved body shows in the very next frame, the picture changes
+/// only inside the body's old and new rectangles (projected here from a
+/// layer cast afresh at each pose), the stream's body tiles change only
+/// there, a dimmer change afterwards re-sends no body tile but changes the
+/// lens glow, and the tracer rebuilds the panned light only.
+#[tokio::test(start_paused = true)]
+async fn a_dmx_pan_moves_one_body_in_the_next_frame_and_rebuilds_only_its_light() {
+    use footlight::live::{FrameClock, Show, Tracer, TracerSettings, bodies::LiveBodies};
+    use footlight::render::composite::Compositor;
+    use footlight::render::{Display, RecursionLimits, Sampling, View};
+    use std::sync::Arc;
+    let path = crate::common::root().join("tests/data/mvr/bodies.mvr");
+    let import = footlight_mvr::load_mvr(&path).expect("bodies.mvr loads");
+    let patch = import.patch;
+    let show = Show::new(patch.clone());
+    let names: Vec<String> = patch.fixtures.iter().map(|f| f.name.clone()).collect();
+    let (models, warnings) = body_models(&path, &names, &show.fixture_ids());
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let mut b = SceneBuilder::new();
+    let m = crate::common::lambert(&mut b, 0.5);
+    crate::common::floor(&mut b, 12.0, 0.0, m);
+    let scene = Arc::new(b.build());
+    let cam = live_camera();
+    let view = View::build(&scene, cam, LW, LH, Sampling::One, RecursionLimits::default());
+    let mut settings = TracerSettings { threads: 1, ..TracerSettings::default() };
+    settings.build.photons = None;
+    settings.build.refine_passes = 0;
+    let lights = footlight::live::Decode::len(&show);
+    assert_eq!(lights, 3);
+    let tracer = Arc::new(Tracer::new(scene.clone(), Arc::new(view), lights, settings));
+    let mut clock = FrameClock::new(
+        Arc::new(Show::new(patch.clone())),
+        tracer.clone(),
+        Compositor::new(LW, LH, Display::neutral(2000.0)),
+    )
+    .with_bodies(Some(LiveBodies::new(body_models(&path, &names, &show.fixture_ids()).0, scene.clone())));
+
+    // Universe of the head (fixture 1: pan 1-2, tilt 3-4, dimmer 5), all lamps at full.
+    let universe = show.universes()[0];
+    let mut slots = *patch.look_universes.get(universe).expect("look frame");
+    for a in [5, 11, 21] {
+        slots[a - 1] = 255;
+    }
+    let fixture_universes = |slots: [u8; 512]| {
+        let mut u = footlight::fixture::Universes::new();
+        for (a, v) in slots.iter().enumerate() {
+            u.set_slot(universe, a as u16 + 1, *v);
+        }
+        u
+    };
+    clock.tick(&fixture_universes(slots));
+    let t = tracer.clone();
+    tokio::task::spawn_blocking(move || wait_idle(&t)).await.unwrap();
+    let generations = |t: &Tracer| (0..3).map(|i| t.published(i).generation).collect::<Vec<_>>();
+    let (g0, builds0) = (generations(&tracer), tracer.builds());
+
+    let (in_tx, in_rx) = tokio::sync::watch::channel(merged(universe, slots));
+    let first = Arc::new(clock.tick(&fixture_universes(slots)));
+    let (out_tx, mut out_rx) = tokio::sync::watch::channel(first);
+    let (_stop_tx, stop) = footlight::live::daemon::stop_signal();
+    tokio::spawn(footlight::live::run_clock(clock, 50.0, in_rx, out_tx, Default::default(), stop));
+    tokio::time::sleep(std::time::Duration::from_millis(60)).await;
+    let before = out_rx.borrow_and_update().clone();
+
+    // Pan 12.5°, tilt -83.8° (16-bit: -180..180 and -90..90): the head at
+    // (-2, 4, 0) m turns its lens to the camera (axis (0.216, -0.971,
+    // -0.108) in GDTF coordinates), with the tracer held so no buffer changes.
+    tracer.set_paused(true);
+    let mut panned = slots;
+    let (pan, tilt) = (12.5f32, -83.8f32);
+    let p = ((pan + 180.0) / 360.0 * 65535.0).round() as u16;
+    let q = ((tilt + 90.0) / 180.0 * 65535.0).round() as u16;
+    panned[..4].copy_from_slice(&[(p >> 8) as u8, p as u8, (q >> 8) as u8, q as u8]);
+    in_tx.send(merged(universe, panned)).unwrap();
+    out_rx.changed().await.unwrap();
+    let next = out_rx.borrow_and_update().clone();
+    assert_eq!(next.number, before.number + 1, "the pan must show in the very next frame");
+
+    // The head's body at each pose, cast afresh.
+    let layer_at = |slots: [u8; 512]| {
+        let inputs = footlight::live::Decode::decode(&show, &fixture_universes(slots));
+        let bodies: Vec<Body> = models
+            .iter()
+            .map(|m| m.pose(&inputs[m.driver].light, inputs[m.driver].state.pan, inputs[m.driver].state.tilt))
+            .collect();
+        BodyLayer::build(&scene, &cam, LW, LH, &bodies)
+    };
+    let (old, new) = (layer_at(slots), layer_at(panned));
+    let (ro, rn) = (old.rect(0).unwrap(), new.rect(0).unwrap());
+    let inside = |i: usize, r: (u32, u32, u32, u32)| {
+        let (x, y) = (i as u32 % LW, i as u32 / LW);
+        x >= r.0 && x < r.2 && y >= r.1 && y < r.3
+    };
+    let mut changed = 0;
+    for i in 0..(LW * LH) as usize {
+        if before.rgb[3 * i..3 * i + 3] != next.rgb[3 * i..3 * i + 3] {
+            changed += 1;
+            assert!(
+                inside(i, ro) || inside(i, rn),
+                "pixel {i} changed outside the head's old {ro:?} and new {rn:?} rectangles"
+            );
+        }
+    }
+    let is_head = |l: &BodyLayer, i: usize| l.hits[i].is_some_and(|h| h.body == 0);
+    let moved: Vec<usize> = (0..(LW * LH) as usize).filter(|&i| is_head(&old, i) != is_head(&new, i)).collect();
+    assert!(moved.len() > 10, "the head's silhouette moves: {} pixels", moved.len());
+    let shown = moved.iter().filter(|&&i| before.rgb[3 * i..3 * i + 3] != next.rgb[3 * i..3 * i + 3]).count();
+    assert!(
+        shown * 10 >= moved.len() * 9,
+        "{shown} of {} moved silhouette pixels changed ({changed} changed)",
+        moved.len()
+    );
+    // The stream's tiles: changed only where the head was or is.
+    let (tb, tn) = (before.bodies.as_ref().unwrap(), next.bodies.as_ref().unwrap());
+    let tiles_x = tn.tiles_x() as u32;
+    let touched: Vec<usize> = (0..tn.tiles.len()).filter(|&i| tn.tiles[i].revision != tb.tiles[i].revision).collect();
+    assert!(!touched.is_empty());
+    for &i in &touched {
+        let (x0, y0) = (i as u32 % tiles_x * 16, i as u32 / tiles_x * 16);
+        let overlaps = |r: (u32, u32, u32, u32)| x0 < r.2 && r.0 < x0 + 16 && y0 < r.3 && r.1 < y0 + 16;
+        assert!(overlaps(ro) || overlaps(rn), "tile {i} changed away from the head");
+    }
+    // The tiles carry what the server drew: base + k · glow through the display is the picture.
+    let inputs = footlight::live::Decode::decode(&show, &fixture_universes(panned));
+    let k: Vec<Vec3> = inputs.iter().map(|i| i.k).collect();
+    for (t, tile) in tn.tiles.iter().enumerate() {
+        for (j, p) in tile.pixels.iter().enumerate() {
+            let (x, y) = (t as u32 % tiles_x * 16 + j as u32 % 16, t as u32 / tiles_x * 16 + j as u32 / 16);
+            let Some(p) = p else { continue };
+            let i = (y * LW + x) as usize;
+            let want = next.display.to_srgb8(&[p.radiance(&k)]);
+            assert_eq!(&next.rgb[3 * i..3 * i + 3], &want[..], "pixel ({x}, {y})");
+        }
+    }
+
+    // A dimmer change: the same tiles (no body bytes), but the lens glow follows k.
+    let mut dark = panned;
+    dark[4] = 0;
+    in_tx.send(merged(universe, dark)).unwrap();
+    out_rx.changed().await.unwrap();
+    let dimmed = out_rx.borrow_and_update().clone();
+    assert!(Arc::ptr_eq(dimmed.bodies.as_ref().unwrap(), tn), "a dimmer change sends no body tile");
+    let lens: Vec<usize> =
+        (0..(LW * LH) as usize).filter(|&i| new.hits[i].is_some_and(|h| h.body == 0 && h.lens)).collect();
+    let glow_changed = lens.iter().filter(|&&i| dimmed.rgb[3 * i..3 * i + 3] != next.rgb[3 * i..3 * i + 3]).count();
+    assert!(!lens.is_empty() && glow_changed == lens.len(), "{glow_changed} of {} lens pixels", lens.len());
+
+    eprintln!(
+        "silhouette {} px moved, {shown} shown, {changed} changed, {} tiles, {} lens px",
+        moved.len(),
+        touched.len(),
+        lens.len()
+    );
+    // Only the panned light is rebuilt.
+    tracer.set_paused(false);
+    let (t, first) = (tracer.clone(), g0[0]);
+    let g = tokio::task::spawn_blocking(move || {
+        let t0 = std::time::Instant::now();
+        while t.published(0).generation == first || !t.idle() {
+            assert!(t0.elapsed() < std::time::Duration::from_secs(120), "the panned light was never rebuilt");
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        (0..3).map(|i| t.published(i).generation).collect::<Vec<_>>()
+    })
+    .await
+    .unwrap();
+    assert!(g[0] > g0[0]);
+    assert_eq!((g[1], g[2]), (g0[1], g0[2]), "no other light rebuilt");
+    assert!(tracer.builds() > builds0);
+    for i in 1..3 {
+        assert!(tracer.report(i).unwrap().pending_ms.is_none(), "light {i} has no request");
+    }
+}

@@ -31,6 +31,7 @@ fn frame(number: u64) -> Arc<Frame> {
         buffers: Arc::new(Vec::new()),
         display: footlight::render::display::Display::default(),
         preview: false,
+        bodies: None,
         haze_density: None,
     })
 }

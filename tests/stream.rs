@@ -1,7 +1,9 @@
 //! The browser stream (issue 17): headless Chromium composites the paper
 //! rig from the buffer stream and its canvas equals the server's frame
 //! within 1 code value at several DMX states, with dimmer changes reaching
-//! the canvas without any buffer message; a client that stops reading is
+//! the canvas without any buffer message; with fixture bodies its canvas
+//! (bodies drawn from the stream's body tiles) equals the server's frame at
+//! rest, after a pan and after a dimmer change; a client that stops reading is
 //! skipped, then dropped, with at most one message held for it; malformed
 //! and oversized client messages close only that connection; pictures mode
 //! pushes the server's PNG. Real sockets need real time: every wait is a
@@ -32,16 +34,50 @@ struct Daemon {
     thread: Option<std::thread::JoinHandle<()>>,
 }
 
+/// What the test daemon shows.
+#[derive(Clone, Copy, PartialEq)]
+enum Rig {
+    /// The paper rig over the bundled stage.
+    Paper,
+    /// `tests/data/mvr/bodies.mvr` over a floor, seen from the front, with its fixture bodies.
+    Bodies,
+}
+
 impl Daemon {
     fn start() -> Self {
+        Self::start_rig(Rig::Paper)
+    }
+
+    fn start_rig(rig: Rig) -> Self {
         let (tx, rx) = std::sync::mpsc::channel();
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
         let thread = std::thread::spawn(move || {
             let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
             rt.block_on(async move {
-                let scene = Arc::new(stage());
-                let camera = scene.camera.unwrap();
-                let patch = footlight::Patch::load(&root().join("patch/paper-rig.toml")).expect("paper rig");
+                let (scene, camera, patch, bodies) = match rig {
+                    Rig::Paper => {
+                        let scene = Arc::new(stage());
+                        let camera = scene.camera.unwrap();
+                        let patch = footlight::Patch::load(&root().join("patch/paper-rig.toml")).expect("paper rig");
+                        (scene, camera, patch, None)
+                    }
+                    Rig::Bodies => {
+                        let path = root().join("tests/data/mvr/bodies.mvr");
+                        let patch = footlight_mvr::load_mvr(&path).expect("bodies.mvr").patch;
+                        let names: Vec<String> = patch.fixtures.iter().map(|f| f.name.clone()).collect();
+                        let ids: Vec<u32> = patch.fixtures.iter().map(|f| f.id).collect();
+                        let (models, _) = footlight::render::bodies::body_models(&path, &names, &ids);
+                        let mut b = footlight::scene::SceneBuilder::new();
+                        let m = lambert(&mut b, 0.5);
+                        floor(&mut b, 12.0, 0.0, m);
+                        let camera = footlight::scene::Camera::look_at(
+                            Vec3::new(0.0, 3.0, 9.0),
+                            Vec3::new(0.0, 3.6, 0.0),
+                            40f32.to_radians(),
+                        );
+                        (Arc::new(b.build()), camera, patch, Some(models))
+                    }
+                };
                 let listener = footlight::live::bind_http("127.0.0.1:0".parse().unwrap()).await.unwrap();
                 let http = listener.local_addr().unwrap();
                 let dmx = DmxSource::Network {
@@ -65,6 +101,7 @@ impl Daemon {
                 let daemon = footlight::live::Daemon::new(scene, Arc::new(Show::new(patch)), camera, config)
                     .input(dmx)
                     .serve(listener)
+                    .bodies(bodies)
                     .on_running(running_tx);
                 let announce = std::thread::spawn(move || {
                     let handle = running_rx.recv().unwrap();
@@ -321,6 +358,79 @@ fn chromium_composites_the_paper_rig_from_the_buffer_stream_like_the_server() {
     assert_eq!((shown["width"].as_u64(), shown["sum"].as_u64()), (Some(W as u64), Some(want)), "{shown}");
 }
 
+/// Headless Chromium draws the fixture bodies of `bodies.mvr` from the
+/// stream's body tiles over its own composite: its canvas equals the
+/// server's frame (which draws the same layer on the CPU) within 1 code
+/// value with the bodies at rest, after a DMX pan turns the glb head's lens
+/// to the camera, and after a dimmer change (the glow follows k_i in the
+/// browser: no body tile is sent for it).
+#[test]
+fn chromium_draws_the_fixture_bodies_like_the_server() {
+    let Some(chromium) = chromium() else { return };
+    let daemon = Daemon::start_rig(Rig::Bodies);
+    let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    // bodies.mvr: head pan 1-2, tilt 3-4, dimmer 5 (16-bit pan -180..180, tilt -90..90); can 11; par 21.
+    let rest = {
+        let mut s = [0u8; 512];
+        s[..5].copy_from_slice(&[128, 0, 128, 0, 255]);
+        s[10] = 255;
+        s[20] = 255;
+        s
+    };
+    // Pan 12.5°, tilt -83.8°: the head at (-2, 4, 0) m looks at the camera (tests/bodies.rs).
+    let (p, q) =
+        (((12.5f32 + 180.0) / 360.0 * 65535.0).round() as u16, ((-83.8f32 + 90.0) / 180.0 * 65535.0).round() as u16);
+    let mut panned = rest;
+    panned[..4].copy_from_slice(&[(p >> 8) as u8, p as u8, (q >> 8) as u8, q as u8]);
+    let mut dimmed = panned;
+    dimmed[4] = 0; // (the glow at 60/255 is still over white)
+    let set = |slots: &[u8; 512]| {
+        sock.send_to(&art_dmx(0, 0, slots), daemon.artnet).unwrap();
+        let t = Instant::now();
+        loop {
+            let s = daemon.status();
+            let lights = s["lights"].as_array().cloned().unwrap_or_default();
+            let dmx_in = lights.len() == 3
+                && lights[0]["dmx"].as_array().is_some_and(|d| d.iter().zip(&slots[..5]).all(|(a, b)| *a == *b))
+                && lights.iter().all(|l| l["stage"] == "ready");
+            if dmx_in {
+                std::thread::sleep(Duration::from_millis(100));
+                return daemon.status();
+            }
+            assert!(t.elapsed() < Duration::from_secs(120), "never ready: {s}");
+            std::thread::sleep(Duration::from_millis(30));
+        }
+    };
+    let mut number = set(&rest)["frame"].as_u64().unwrap();
+    let mut browser = Browser::open(chromium, &format!("http://{}/", daemon.http));
+    let mut pictures = Vec::new();
+    let mut body_messages = Vec::new();
+    for (i, slots) in [rest, panned, dimmed].iter().enumerate() {
+        if i > 0 {
+            number = set(slots)["frame"].as_u64().unwrap();
+        }
+        let page = browser.settled(number);
+        assert_eq!(page["mode"], "buffers", "{page}");
+        assert!(page["error"].is_null(), "{page}");
+        let got = canvas(&page);
+        let want = image::load_from_memory(&http_get(daemon.http, "/api/frame.png").1).unwrap().to_rgb8();
+        let worst = got.iter().zip(want.as_raw()).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
+        let off = got.iter().zip(want.as_raw()).filter(|(a, b)| a.abs_diff(**b) > 1).count();
+        assert!(worst <= 1, "state {i}: {off} channel values differ by more than 1 (worst {worst})");
+        body_messages.push(page["counts"]["bodies"].as_u64().unwrap());
+        assert!(page["counts"]["body_tiles"].as_u64().unwrap() > 0, "the page got body tiles: {page}");
+        pictures.push(got);
+    }
+    for (i, p) in pictures.windows(2).enumerate() {
+        let n = p[0].chunks(3).zip(p[1].chunks(3)).filter(|(a, b)| a != b).count();
+        assert!(n > 0, "states {i} and {} look the same", i + 1);
+    }
+    assert!(body_messages[1] > body_messages[0], "the pan sent body tiles: {body_messages:?}");
+    assert_eq!(body_messages[2], body_messages[1], "the dimmer change sent none: {body_messages:?}");
+    let s = daemon.status();
+    assert!(s["stream"]["body_messages"].as_u64().unwrap() >= 2, "{}", s["stream"]);
+}
+
 /// A tile-dense buffer of noise (DEFLATE cannot shrink it), `seed` varies it.
 fn noise(w: u32, h: u32, seed: u32) -> Arc<LightBuffer> {
     let mut x = seed.wrapping_mul(2_654_435_761).wrapping_add(1);
@@ -351,6 +461,7 @@ fn frame(number: u64, w: u32, h: u32, buffer: Arc<LightBuffer>, generation: u64)
         buffers: Arc::new(vec![(generation, buffer)]),
         display: Display::default(),
         preview: false,
+        bodies: None,
         haze_density: None,
     })
 }
@@ -635,4 +746,100 @@ fn the_display_changes_live_over_http() {
         |l: &serde_json::Value| l.as_array().unwrap().iter().map(|x| x["direct_updates"].clone()).collect::<Vec<_>>();
     assert!(gens(&after).iter().all(|g| g.as_u64().is_some_and(|n| n > 0)), "{after}");
     assert_eq!(gens(&builds), gens(&after));
+}
+
+/// Body tiles of a 48×32 picture (3×2 tiles): `set` gives (tile, revision,
+/// seed) for tiles with a body pattern; the rest empty at revision 0.
+fn body_tiles(set: &[(usize, u64, u32)]) -> Arc<footlight::live::bodies::BodyTiles> {
+    use footlight::live::bodies::{BodyTile, BodyTiles};
+    use footlight::render::bodies::BodyPixel;
+    let tiles = (0..6)
+        .map(|t| {
+            let Some(&(_, revision, seed)) = set.iter().find(|s| s.0 == t) else {
+                return Arc::new(BodyTile { revision: 0, pixels: vec![None; 256] });
+            };
+            let pixels = (0..256u32)
+                .map(|j| {
+                    ((j + seed) % 5 != 0).then_some(BodyPixel {
+                        base: 0.25,
+                        glow: if j % 7 == 0 { 10.0 + (j * seed) as f32 } else { 0.0 },
+                        light: 0,
+                    })
+                })
+                .collect();
+            Arc::new(BodyTile { revision, pixels })
+        })
+        .collect();
+    Arc::new(BodyTiles { width: 48, height: 32, lights: 1, tiles })
+}
+
+/// Reads messages up to and including the next frame message; returns the bodies messages among them.
+fn bodies_until_frame(
+    ws: &mut tungstenite::WebSocket<tungstenite::stream::MaybeTlsStream<std::net::TcpStream>>,
+) -> Vec<Vec<u8>> {
+    let mut out = Vec::new();
+    loop {
+        let m = binary(ws);
+        match m[0] {
+            MSG_FRAME => return out,
+            stream::MSG_BODIES => out.push(m),
+            _ => {}
+        }
+    }
+}
+
+/// Applies bodies messages to a viewer's layer (all empty at hello).
+fn apply_bodies(layer: &mut [Vec<Option<footlight::render::bodies::BodyPixel>>], messages: &[Vec<u8>]) -> usize {
+    let mut tiles = 0;
+    for m in messages {
+        let (lights, list) = stream::decode_bodies(m).unwrap();
+        assert_eq!(lights, 1);
+        for (index, pixels) in list {
+            layer[index as usize] = pixels;
+            tiles += 1;
+        }
+    }
+    tiles
+}
+
+/// Two viewers get the body tiles on connect and then only the tiles that
+/// changed, one message per change, encoded once for both; their layers equal
+/// the server's after each step; a k-only frame sends no body message.
+#[test]
+fn body_tiles_reach_each_viewer_once_per_change_encoded_once_for_all() {
+    let (w, h) = (48, 32);
+    let buffer = noise(w, h, 3);
+    let with = |n: u64, tiles: &Arc<footlight::live::bodies::BodyTiles>| {
+        Arc::new(Frame { bodies: Some(tiles.clone()), ..(*frame(n, w, h, buffer.clone(), 1)).clone() })
+    };
+    let s0 = body_tiles(&[(1, 1, 3)]);
+    let server = serve(with(0, &s0));
+    let pixels = |t: &footlight::live::bodies::BodyTiles| t.tiles.iter().map(|t| t.pixels.clone()).collect::<Vec<_>>();
+    let mut viewers = Vec::new();
+    for _ in 0..2 {
+        let mut ws = server.connect("");
+        assert_eq!(binary(&mut ws)[0], MSG_HELLO);
+        let mut layer = vec![vec![None; 256]; 6];
+        let got = bodies_until_frame(&mut ws);
+        assert_eq!(got.len(), 1);
+        assert_eq!(apply_bodies(&mut layer, &got), 1, "only the tile with a body");
+        assert_eq!(layer, pixels(&s0));
+        viewers.push((ws, layer));
+    }
+    // Tile 1 changes, tile 4 gets a body, tile 1's old pattern elsewhere stays.
+    let s1 = body_tiles(&[(1, 2, 4), (4, 3, 5)]);
+    server.frames.send_replace(with(1, &s1));
+    for (ws, layer) in &mut viewers {
+        let got = bodies_until_frame(ws);
+        assert_eq!((got.len(), apply_bodies(layer, &got)), (1, 2));
+        assert_eq!(*layer, pixels(&s1));
+    }
+    // A k-only frame (a dimmer): no body message.
+    server.frames.send_replace(with(2, &s1));
+    for (ws, _) in &mut viewers {
+        assert!(bodies_until_frame(ws).is_empty(), "a k change sends no body tile");
+    }
+    let s = server.stream();
+    assert_eq!((s["body_messages"].as_u64(), s["body_tiles"].as_u64()), (Some(4), Some(6)), "{s}");
+    assert_eq!(s["body_encodes"], 2, "one encode per step, shared: {s}");
 }

@@ -355,6 +355,7 @@ async fn camera_writes_need_the_token_from_another_machine_but_not_from_loopback
         buffers: Arc::new(Vec::new()),
         display: footlight::render::Display::default(),
         preview: false,
+        bodies: None,
         haze_density: None,
     };
     let (_tx, rx) = watch::channel(Arc::new(frame));

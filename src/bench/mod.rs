@@ -7,6 +7,7 @@
 //! Writes `report.md` and `report.json` into the output folder.
 
 pub mod accuracy;
+pub mod bodies;
 pub mod chase;
 pub mod clients;
 pub mod gate;

@@ -14,11 +14,22 @@
 //!   k_i nor any body changed, the last picture is shared again.
 //!
 //! The moving-camera preview shows no bodies (it is not a composite).
+//!
+//! For the browser stream the layer is also kept as 16×16 tiles of
+//! [`BodyPixel`]s ([`BodyTiles`], shared with every [`super::Frame`]): each
+//! pixel's housing radiance and lens glow per unit k_i, so the browser
+//! multiplies by the frame's k_i itself (a dimmer change sends no body
+//! bytes). A tile gets a new revision only when its pixels changed: a moved
+//! body's old and new rectangles, a body whose lens light changed beam
+//! (zoom, gobo: the glow's pattern toward the camera), or the whole layer
+//! after a camera change. The stream sends the tiles whose revision a client
+//! has not seen (docs/stream.md, message type 6).
 
 use super::clock::LightInput;
 use crate::fixture::Light;
 use crate::render::Display;
-use crate::render::bodies::{Body, BodyLayer, BodyModel, Rect};
+use crate::render::bodies::{Body, BodyLayer, BodyModel, BodyPixel, Rect};
+use crate::render::buffer::TILE;
 use crate::scene::{Camera, Scene};
 use glam::{Quat, Vec3};
 use std::sync::Arc;
@@ -32,6 +43,44 @@ pub struct BodyUpdate {
     pub pixels_tested: u64,
     /// True when the whole layer was cast again (first frame, camera change).
     pub rebuilt: bool,
+}
+
+/// One 16×16 tile of the body layer as the stream sends it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BodyTile {
+    /// Changes whenever the tile's pixels change (counts up over the life of a [`LiveBodies`]).
+    pub revision: u64,
+    /// 16×16 pixels row-major; `None` where the stage shows (and beyond the picture's edge).
+    pub pixels: Vec<Option<BodyPixel>>,
+}
+
+impl BodyTile {
+    /// True when no pixel of the tile shows a body.
+    pub fn is_empty(&self) -> bool {
+        self.pixels.iter().all(Option::is_none)
+    }
+}
+
+/// The body layer as tiles (row-major over ⌈width/16⌉ × ⌈height/16⌉), the
+/// browser stream's view of it.
+#[derive(Clone, Debug)]
+pub struct BodyTiles {
+    /// Picture width.
+    pub width: u32,
+    /// Picture height.
+    pub height: u32,
+    /// Number of lights N (a glow's k_i is light i's; in haze the frame's k
+    /// vector holds N entries per density knot).
+    pub lights: u32,
+    /// The tiles, shared between snapshots.
+    pub tiles: Vec<Arc<BodyTile>>,
+}
+
+impl BodyTiles {
+    /// Tiles across.
+    pub fn tiles_x(&self) -> usize {
+        (self.width as usize).div_ceil(TILE)
+    }
 }
 
 /// The last composite in, the k_i it was shaded with, the picture out.
@@ -51,6 +100,11 @@ pub struct LiveBodies {
     last: Option<LastPicture>,
     /// Totals since start: bodies redrawn, pixels tested.
     pub totals: BodyUpdate,
+    /// The layer as stream tiles, and the last revision handed out.
+    tiles: Option<Arc<BodyTiles>>,
+    revision: u64,
+    /// Each light as the tiles' glow was computed with.
+    glow_lights: Vec<Light>,
 }
 
 impl LiveBodies {
@@ -64,6 +118,9 @@ impl LiveBodies {
             layer: None,
             last: None,
             totals: BodyUpdate::default(),
+            tiles: None,
+            revision: 0,
+            glow_lights: Vec::new(),
         }
     }
 
@@ -80,6 +137,58 @@ impl LiveBodies {
     /// Body `i`'s pixel rectangle in the current layer.
     pub fn rect(&self, i: usize) -> Option<Rect> {
         self.layer.as_ref().and_then(|(_, _, l)| l.rect(i))
+    }
+
+    /// The layer as stream tiles after the last [`LiveBodies::apply`]
+    /// (`None` before the first); a new `Arc` whenever a tile changed.
+    pub fn tiles(&self) -> Option<Arc<BodyTiles>> {
+        self.tiles.clone()
+    }
+
+    /// Recomputes the stream tiles overlapping `dirty` (all of them when
+    /// `all`); a tile whose pixels came out the same keeps its revision.
+    fn update_tiles(&mut self, lights: &[Light], dirty: &[Rect], all: bool) {
+        let Some((_, camera, layer)) = &self.layer else { return };
+        let (w, h) = (layer.width, layer.height);
+        let (tx, ty) = ((w as usize).div_ceil(TILE), (h as usize).div_ceil(TILE));
+        let reset = self.tiles.as_ref().is_none_or(|t| t.width != w || t.height != h);
+        let mut tiles = match &self.tiles {
+            Some(t) if !reset => t.tiles.clone(),
+            _ => {
+                // One shared empty tile: tiles are replaced, never changed in place.
+                let empty = Arc::new(BodyTile { revision: 0, pixels: vec![None; TILE * TILE] });
+                std::iter::repeat_n(empty, tx * ty).collect()
+            }
+        };
+        let mut todo = vec![reset || all; tx * ty];
+        for r in dirty {
+            let t = TILE as u32;
+            for y in r.1 / t..r.3.div_ceil(t).min(ty as u32) {
+                for x in r.0 / t..r.2.div_ceil(t).min(tx as u32) {
+                    todo[y as usize * tx + x as usize] = true;
+                }
+            }
+        }
+        let mut changed = false;
+        for (i, _) in todo.iter().enumerate().filter(|(_, d)| **d) {
+            let (x0, y0) = ((i % tx * TILE) as u32, (i / tx * TILE) as u32);
+            let mut pixels = vec![None; TILE * TILE];
+            for (j, p) in pixels.iter_mut().enumerate() {
+                let (x, y) = (x0 + (j % TILE) as u32, y0 + (j / TILE) as u32);
+                if x < w && y < h {
+                    *p = layer.pixel((y * w + x) as usize, camera, &self.bodies, lights);
+                }
+            }
+            if pixels != tiles[i].pixels {
+                self.revision += 1;
+                tiles[i] = Arc::new(BodyTile { revision: self.revision, pixels });
+                changed = true;
+            }
+        }
+        if changed || self.tiles.is_none() {
+            self.tiles = Some(Arc::new(BodyTiles { width: w, height: h, lights: lights.len() as u32, tiles }));
+        }
+        self.glow_lights = lights.to_vec();
     }
 
     fn key(input: &LightInput) -> PoseKey {
@@ -109,6 +218,7 @@ impl LiveBodies {
         if inputs.is_empty() || self.models.iter().any(|m| m.driver >= inputs.len()) {
             return (composite, update);
         }
+        let mut dirty: Vec<Rect> = Vec::new();
         let stale =
             !matches!(&self.layer, Some((g, _, l)) if *g == generation && l.width == width && l.height == height);
         if stale {
@@ -125,10 +235,29 @@ impl LiveBodies {
                 if key != self.keys[b] {
                     self.keys[b] = key;
                     self.bodies[b] = m.pose(&inputs[m.driver].light, key.2, key.3);
+                    dirty.extend(layer.rect(b));
                     update.pixels_tested += layer.redraw(&self.scene, camera, &self.bodies, b);
+                    dirty.extend(layer.rect(b));
                     update.moved += 1;
                 }
             }
+        }
+        let lights: Vec<Light> = inputs.iter().map(|i| i.light.clone()).collect();
+        // A lens whose light changed beam (zoom, gobo) without moving: its glow tiles again.
+        if !update.rebuilt && self.glow_lights.len() == lights.len() {
+            for (b, body) in self.bodies.iter().enumerate() {
+                let beam_changed = body
+                    .parts
+                    .iter()
+                    .filter_map(|p| p.glow)
+                    .any(|(l, _)| l < lights.len() && lights[l] != self.glow_lights[l]);
+                if beam_changed && let Some(r) = self.rect(b) {
+                    dirty.push(r);
+                }
+            }
+        }
+        if update.rebuilt || !dirty.is_empty() || self.glow_lights.len() != lights.len() {
+            self.update_tiles(&lights, &dirty, update.rebuilt);
         }
         self.totals.moved += update.moved;
         self.totals.pixels_tested += update.pixels_tested;
@@ -141,7 +270,6 @@ impl LiveBodies {
             return (out.clone(), update);
         }
         let Some((_, camera, layer)) = &self.layer else { return (composite, update) };
-        let lights: Vec<Light> = inputs.iter().map(|i| i.light.clone()).collect();
         let mut rgb = composite.as_ref().clone();
         layer.overlay_srgb8(camera, &self.bodies, &lights, &k, display, &mut rgb);
         let out = Arc::new(rgb);

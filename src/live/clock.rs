@@ -106,6 +106,9 @@ pub struct Frame {
     /// A moving-camera preview (not a composite of the per-light buffers):
     /// the browser stream pushes it as a picture.
     pub preview: bool,
+    /// The fixture body layer as tiles, when bodies are shown (the browser
+    /// stream sends the tiles that changed; [`super::bodies::BodyTiles`]).
+    pub bodies: Option<Arc<super::bodies::BodyTiles>>,
 }
 
 /// Frame state carried from tick to tick.
@@ -325,6 +328,7 @@ impl FrameClock {
                 haze_density: density,
                 display: self.compositor.display(),
                 preview: true,
+                bodies: self.bodies.as_ref().and_then(|b| b.tiles()),
             };
             self.number += 1;
             return frame;
@@ -358,6 +362,7 @@ impl FrameClock {
             let display = self.compositor.display();
             rgb = bodies.apply(&view.gbuffer.camera, generation, w, h, &inputs, rgb, &display).0;
         }
+        let body_tiles = self.bodies.as_ref().and_then(|b| b.tiles());
         let frame = Frame {
             number: self.number,
             width: self.compositor.width(),
@@ -371,6 +376,7 @@ impl FrameClock {
             haze_density: density,
             display: self.compositor.display(),
             preview: false,
+            bodies: body_tiles,
         };
         self.number += 1;
         frame

@@ -357,6 +357,31 @@ pub struct BodyHit {
     pub lens: bool,
 }
 
+/// A body pixel with the lens glow's k_i left out: radiance (cd/m², linear
+/// RGB) = `base` (grey) + k_`light` · `glow` (eq. 4's k_i, cd). The browser
+/// stream sends this and multiplies by the frame's k_i itself, so a dimmer
+/// change needs no body message (docs/stream.md).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BodyPixel {
+    /// The housing under the fixed work light, cd/m² (grey).
+    pub base: f32,
+    /// The lens glow per unit k_i, cd/m² per cd (0 on the housing).
+    pub glow: f32,
+    /// The light whose k_i the glow uses (0 when `glow` is 0).
+    pub light: u32,
+}
+
+impl BodyPixel {
+    /// The radiance with the frame's k (light order): base + k_light · glow.
+    pub fn radiance(&self, k: &[Vec3]) -> Vec3 {
+        let glow = match k.get(self.light as usize) {
+            Some(k) if self.glow != 0.0 => *k * self.glow,
+            _ => Vec3::ZERO,
+        };
+        Vec3::splat(self.base) + glow
+    }
+}
+
 /// A pixel rectangle (x0, y0, x1, y1), exclusive ends.
 pub type Rect = (u32, u32, u32, u32);
 
@@ -436,6 +461,26 @@ impl BodyLayer {
         }
     }
 
+    /// Body pixel `index` split as the browser stream sends it
+    /// ([`BodyPixel`]): radiance = base + k_light · glow; `None` where the
+    /// stage shows. [`BodyLayer::radiance`] is this with the frame's k_i, so
+    /// the server's picture and the stream's agree by construction.
+    pub fn pixel(&self, index: usize, camera: &Camera, bodies: &[Body], lights: &[Light]) -> Option<BodyPixel> {
+        let h = self.hits.get(index).copied().flatten()?;
+        let mut p = BodyPixel { base: BODY_ALBEDO * std::f32::consts::FRAC_1_PI * WORK_LIGHT_LUX, glow: 0.0, light: 0 };
+        if let Some((light_index, radius)) =
+            bodies.get(h.body as usize).and_then(|b| b.parts.get(h.part as usize)?.glow)
+            && let Some(light) = lights.get(light_index)
+        {
+            let (x, y) = (index as u32 % self.width, index as u32 / self.width);
+            let to_camera = -camera.direction(x as f32 + 0.5, y as f32 + 0.5, self.width, self.height);
+            let cos_lens = to_camera.dot(light.axis()).max(0.05);
+            p.glow = light.pattern_toward(to_camera) / (std::f32::consts::PI * radius * radius * cos_lens);
+            p.light = light_index as u32;
+        }
+        Some(p)
+    }
+
     /// Radiance of body pixel `index` (cd/m², linear RGB), `None` where the
     /// stage shows: housing work light plus the lens glow with its light's
     /// k_i (`lights[i]`, `k[i]` in light order).
@@ -447,17 +492,7 @@ impl BodyLayer {
         lights: &[Light],
         k: &[Vec3],
     ) -> Option<Vec3> {
-        let h = self.hits.get(index).copied().flatten()?;
-        let mut l = Vec3::splat(BODY_ALBEDO * std::f32::consts::FRAC_1_PI * WORK_LIGHT_LUX);
-        if let Some((light, radius)) = bodies.get(h.body as usize).and_then(|b| b.parts.get(h.part as usize)?.glow)
-            && let (Some(light), Some(k)) = (lights.get(light), k.get(light))
-        {
-            let (x, y) = (index as u32 % self.width, index as u32 / self.width);
-            let to_camera = -camera.direction(x as f32 + 0.5, y as f32 + 0.5, self.width, self.height);
-            let cos_lens = to_camera.dot(light.axis()).max(0.05);
-            l += *k * light.pattern_toward(to_camera) / (std::f32::consts::PI * radius * radius * cos_lens);
-        }
-        Some(l)
+        self.pixel(index, camera, bodies, lights).map(|p| p.radiance(k))
     }
 
     /// Radiance of every body pixel ([`BodyLayer::radiance`]).
@@ -536,14 +571,19 @@ fn slab(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3, t_max: f32) -> bool {
     t0.partial_cmp(&t1) != Some(std::cmp::Ordering::Greater)
 }
 
-/// A conservative pixel rectangle around the parts' bounding spheres (the
-/// whole image when one reaches behind the camera).
+/// A conservative pixel rectangle around the parts' bounding boxes: the
+/// projected corners of each part's box (the box's projection lies in their
+/// hull, a pixel centre inside it lies in their bounding rectangle), with a
+/// pixel of margin; a part with a corner at or behind the camera plane falls
+/// back to its bounding sphere (the whole image when it reaches behind).
 fn footprint(camera: &Camera, width: u32, height: u32, body: &Body) -> Rect {
     let mut r: Option<Rect> = None;
     for part in &body.parts {
-        let centre = part.to_world.transform_point3((part.shape.lo + part.shape.hi) * 0.5);
-        let radius = (part.shape.hi - part.shape.lo).length() * 0.5 + 1e-3;
-        let pr = sphere_rect(camera, width, height, centre, radius);
+        let pr = box_rect(camera, width, height, part).unwrap_or_else(|| {
+            let centre = part.to_world.transform_point3((part.shape.lo + part.shape.hi) * 0.5);
+            let radius = (part.shape.hi - part.shape.lo).length() * 0.5 + 1e-3;
+            sphere_rect(camera, width, height, centre, radius)
+        });
         if pr.0 >= pr.2 || pr.1 >= pr.3 {
             continue;
         }
@@ -553,6 +593,37 @@ fn footprint(camera: &Camera, width: u32, height: u32, body: &Body) -> Rect {
         });
     }
     r.unwrap_or((0, 0, 0, 0))
+}
+
+/// The pixel rectangle of a part's projected box corners (1e-3 m padding, 1 px
+/// margin); `None` when a corner is not in front of the camera.
+fn box_rect(camera: &Camera, width: u32, height: u32, part: &Part) -> Option<Rect> {
+    let (lo, hi) = (part.shape.lo - Vec3::splat(1e-3), part.shape.hi + Vec3::splat(1e-3));
+    let tan_half = (camera.yfov * 0.5).tan();
+    let aspect = width as f32 / height.max(1) as f32;
+    let (mut x0, mut y0, mut x1, mut y1) = (f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY);
+    for i in 0..8 {
+        let c = Vec3::new([lo.x, hi.x][i & 1], [lo.y, hi.y][(i >> 1) & 1], [lo.z, hi.z][(i >> 2) & 1]);
+        let rel = camera.basis.transpose() * (part.to_world.transform_point3(c) - camera.position);
+        let depth = -rel.z;
+        if depth.is_nan() || depth <= 1e-3 {
+            return None;
+        }
+        let x = (rel.x / (depth * tan_half * aspect) + 1.0) * 0.5 * width as f32;
+        let y = (1.0 - rel.y / (depth * tan_half)) * 0.5 * height as f32;
+        (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+    }
+    if !(x0.is_finite() && y0.is_finite() && x1.is_finite() && y1.is_finite()) {
+        return None;
+    }
+    let cl = |v: f32, n: u32| v.clamp(0.0, n as f32) as u32;
+    let r = (
+        cl(x0.floor() - 1.0, width),
+        cl(y0.floor() - 1.0, height),
+        cl(x1.ceil() + 1.0, width),
+        cl(y1.ceil() + 1.0, height),
+    );
+    Some(if r.0 >= r.2 || r.1 >= r.3 { (0, 0, 0, 0) } else { r })
 }
 
 fn sphere_rect(camera: &Camera, width: u32, height: u32, centre: Vec3, radius: f32) -> Rect {
@@ -641,5 +712,38 @@ mod tests {
         let fresh = BodyLayer::build(&scene, &cam, w, h, &bodies);
         assert_eq!(layer.hits, fresh.hits);
         assert!(count(&layer) > 10);
+    }
+
+    #[test]
+    fn the_box_footprints_miss_no_pixel_of_a_brute_force_cast() {
+        let scene = floor_scene();
+        let cam = Camera::look_at(Vec3::new(1.0, 2.5, 6.0), Vec3::new(0.0, 2.0, 0.0), 60f32.to_radians());
+        let beam = Beam::Spot(SpotBeam::from_beam_field(20.0, 30.0));
+        let (w, h) = (96, 64);
+        let mut bodies = Vec::new();
+        for k in 0..12 {
+            let a = k as f32 * 0.7;
+            let at = Vec3::new(-3.0 + 0.55 * k as f32, 1.0 + 0.3 * (k % 4) as f32, -1.0 + 0.9 * (k % 3) as f32);
+            let light = Light::aimed(at, at + Vec3::new(a.cos(), -0.5 - a.sin().abs(), a.sin()), beam.clone());
+            bodies.push(BodyModel::estimated("b", 0).pose(&light, 0.0, 0.0));
+        }
+        let layer = BodyLayer::build(&scene, &cam, w, h, &bodies);
+        let mut hit = 0;
+        for y in 0..h {
+            for x in 0..w {
+                let dir = cam.direction(x as f32 + 0.5, y as f32 + 0.5, w, h);
+                let stage = scene.accel.intersect(cam.position, dir, f32::INFINITY).map_or(f32::INFINITY, |h| h.t);
+                let mut best: Option<(f32, usize)> = None;
+                for (j, b) in bodies.iter().enumerate() {
+                    if let Some((t, _, _)) = cast(b, cam.position, dir, best.map_or(f32::INFINITY, |b| b.0)) {
+                        best = Some((t, j));
+                    }
+                }
+                let want = best.filter(|b| b.0 < stage).map(|b| b.1 as u32);
+                assert_eq!(layer.hits[(y * w + x) as usize].map(|h| h.body), want, "pixel ({x}, {y})");
+                hit += usize::from(want.is_some());
+            }
+        }
+        assert!(hit > 200, "{hit} body pixels");
     }
 }

@@ -14,13 +14,13 @@
 const VERT = /*VERTEX*/;
 const FRAG = /*FRAGMENT*/;
 
-const MSG_HELLO = 1, MSG_BUFFER = 2, MSG_FRAME = 3, MSG_CLEARED = 4, MSG_PICTURE = 5, MSG_SET_MODE = 0x10;
+const MSG_HELLO = 1, MSG_BUFFER = 2, MSG_FRAME = 3, MSG_CLEARED = 4, MSG_PICTURE = 5, MSG_BODIES = 6, MSG_SET_MODE = 0x10;
 const TILE = 16;
 // Budget for the dense per-light layers (bytes); beyond it, pictures instead.
 const LAYER_BUDGET = 1 << 30;
 
 const probe = {
-  counts: { hello: 0, buffer: 0, cleared: 0, frame: 0, picture: 0 },
+  counts: { hello: 0, buffer: 0, cleared: 0, frame: 0, picture: 0, bodies: 0, body_tiles: 0 },
   mode: 'connecting',
   frame: -1,
   composited: -1,
@@ -60,10 +60,53 @@ class Compositor {
     if (!gl.getProgramParameter(p, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(p));
     this.program = p;
     this.u = {};
-    for (const n of ['u_buffers', 'u_k', 'u_lights', 'u_scale', 'u_display_scale', 'u_rolloff', 'u_height']) this.u[n] = gl.getUniformLocation(p, n);
+    for (const n of ['u_buffers', 'u_k', 'u_lights', 'u_scale', 'u_display_scale', 'u_rolloff', 'u_height', 'u_body', 'u_kbody', 'u_has_bodies']) this.u[n] = gl.getUniformLocation(p, n);
     this.vao = gl.createVertexArray();
     this.buffers = null;
     this.kTex = null;
+    this.bodyTex = null;
+    this.kBodyTex = null;
+  }
+
+  // A float texture (RGBA32F, nearest) of w x h, filled with `fill` per texel.
+  floatTexture(w, h, fill) {
+    const gl = this.gl;
+    const t = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D, t);
+    gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA32F, w, h);
+    for (const [k, v] of [[gl.TEXTURE_MIN_FILTER, gl.NEAREST], [gl.TEXTURE_MAG_FILTER, gl.NEAREST]]) gl.texParameteri(gl.TEXTURE_2D, k, v);
+    if (fill) {
+      const data = new Float32Array(w * h * 4);
+      for (let i = 0; i < w * h; i++) data.set(fill, 4 * i);
+      gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, w, h, gl.RGBA, gl.FLOAT, data);
+    }
+    return t;
+  }
+
+  // Fixture body tiles (message 6): per pixel (base, glow, light) into the
+  // body layer texture; base < 0: no body there (the composite shows).
+  bodies(lights, tiles, indices, words) {
+    const gl = this.gl, { width: w, height: h } = this;
+    if (!this.bodyTex || this.bodyTex.w !== w || this.bodyTex.h !== h) {
+      if (this.bodyTex) gl.deleteTexture(this.bodyTex.t);
+      this.bodyTex = { t: this.floatTexture(w, h, [-1, 0, 0, 0]), w, h };
+    }
+    this.bodyLights = lights;
+    const f = new Float32Array(words.buffer, words.byteOffset, words.length);
+    const tilesX = Math.ceil(w / TILE);
+    gl.bindTexture(gl.TEXTURE_2D, this.bodyTex.t);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 4);
+    for (let t = 0; t < tiles; t++) {
+      const x0 = (indices[t] % tilesX) * TILE, y0 = Math.floor(indices[t] / tilesX) * TILE;
+      const cols = Math.min(TILE, w - x0), rows = Math.min(TILE, h - y0);
+      if (cols <= 0 || rows <= 0) continue;
+      const data = new Float32Array(cols * rows * 4);
+      for (let y = 0; y < rows; y++) for (let x = 0; x < cols; x++) {
+        const s = (t * TILE * TILE + y * TILE + x) * 3, d = (y * cols + x) * 4;
+        data[d] = f[s]; data[d + 1] = f[s + 1]; data[d + 2] = words[s + 2]; data[d + 3] = 0;
+      }
+      gl.texSubImage2D(gl.TEXTURE_2D, 0, x0, y0, cols, rows, gl.RGBA, gl.FLOAT, data);
+    }
   }
 
   // A fresh texture array for `lights` layers of width x height (hello).
@@ -86,6 +129,10 @@ class Compositor {
     gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA32F, Math.max(lights, 1), 1);
     for (const [k, v] of [[gl.TEXTURE_MIN_FILTER, gl.NEAREST], [gl.TEXTURE_MAG_FILTER, gl.NEAREST]]) gl.texParameteri(gl.TEXTURE_2D, k, v);
     this.scales = new Float32Array(lights).fill(1);
+    if (this.bodyTex) gl.deleteTexture(this.bodyTex.t);
+    this.bodyTex = null;
+    this.bodyLights = 0;
+    if (!this.noBodies) this.noBodies = this.floatTexture(1, 1, [-1, 0, 0, 0]);
     return true;
   }
 
@@ -130,6 +177,21 @@ class Compositor {
     }
     gl.bindTexture(gl.TEXTURE_2D, this.kTex);
     gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, Math.max(this.lights, 1), 1, gl.RGBA, gl.FLOAT, kk);
+    // Body glow: k_i of light i (the sum over the haze knots' entries i + jN, times the time factor).
+    const nb = Math.max(this.bodyLights || 0, 1);
+    const kb = new Float32Array(nb * 4);
+    if (this.bodyLights) {
+      for (let e = 0; e < k.length / 4; e++) {
+        const i = e % this.bodyLights;
+        for (let c = 0; c < 3; c++) kb[4 * i + c] += k[4 * e + c] * k[4 * e + 3];
+      }
+    }
+    if (!this.kBodyTex || this.kBodyTex.n !== nb) {
+      if (this.kBodyTex) gl.deleteTexture(this.kBodyTex.t);
+      this.kBodyTex = { t: this.floatTexture(nb, 1, null), n: nb };
+    }
+    gl.bindTexture(gl.TEXTURE_2D, this.kBodyTex.t);
+    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, nb, 1, gl.RGBA, gl.FLOAT, kb);
     gl.viewport(0, 0, this.width, this.height);
     gl.useProgram(this.program);
     gl.activeTexture(gl.TEXTURE0);
@@ -139,6 +201,13 @@ class Compositor {
     gl.uniform1i(this.u.u_buffers, 0);
     gl.uniform1i(this.u.u_k, 1);
     gl.uniform1i(this.u.u_lights, n);
+    gl.activeTexture(gl.TEXTURE2);
+    gl.bindTexture(gl.TEXTURE_2D, this.bodyTex ? this.bodyTex.t : this.noBodies);
+    gl.activeTexture(gl.TEXTURE3);
+    gl.bindTexture(gl.TEXTURE_2D, this.kBodyTex.t);
+    gl.uniform1i(this.u.u_body, 2);
+    gl.uniform1i(this.u.u_kbody, 3);
+    gl.uniform1i(this.u.u_has_bodies, this.bodyTex ? 1 : 0);
     gl.uniform1i(this.u.u_height, this.height);
     // As the reference: (white balance * exposure) * 65535 in f32.
     const f = Math.fround;
@@ -221,6 +290,17 @@ export function start(canvas, img) {
     } else if (type === MSG_CLEARED && gl) {
       probe.counts.cleared++;
       gl.clear(v.getUint32(4, true));
+      dirty = true;
+    } else if (type === MSG_BODIES && gl) {
+      probe.counts.bodies++;
+      const lights = v.getUint32(4, true), tiles = v.getUint32(8, true), len = v.getUint32(12, true);
+      let raw = new Uint8Array(data, 16, len);
+      if (v.getUint8(1) & 1) raw = await inflate(raw);
+      else raw = raw.slice();
+      probe.counts.body_tiles += tiles;
+      const indices = new Uint32Array(raw.buffer, raw.byteOffset, tiles);
+      const words = new Uint32Array(raw.buffer, raw.byteOffset + tiles * 4, tiles * TILE * TILE * 3);
+      gl.bodies(lights, tiles, indices, words);
       dirty = true;
     } else if (type === MSG_FRAME) {
       probe.counts.frame++;

@@ -11,6 +11,12 @@
 //! balance, exposure, clipping and sRGB curve. The byte layout is in
 //! `docs/stream.md`; [`encode_buffer`]/[`decode_buffer`] are its reference.
 //!
+//! With fixture bodies ([`Frame::bodies`]) a viewer also gets the body
+//! layer's 16×16 tiles that changed (message type 6, [`encode_bodies`]):
+//! per pixel the housing's radiance and the lens glow per unit k_i, drawn by
+//! the page over its composite with the frame's k_i, so a dimmer change
+//! sends no body bytes and a moving head sends only the tiles it touched.
+//!
 //! Clients without WebGL2 ask for `?mode=pictures`: they get the frame as a
 //! PNG (the shared once-per-picture [`PngCache`]) pushed only when the
 //! picture changed.
@@ -32,7 +38,9 @@
 //! stops (the daemon's shutdown drops the frame channel's sender).
 
 use super::png::PngCache;
+use crate::live::bodies::BodyTiles;
 use crate::live::clock::Frame;
+use crate::render::bodies::BodyPixel;
 use crate::render::buffer::{LightBuffer, TILE};
 use crate::render::display::Display;
 use axum::body::Bytes;
@@ -48,8 +56,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 use tokio::sync::watch;
 
-/// Protocol version carried in the hello message.
-pub const VERSION: u8 = 2;
+/// Protocol version carried in the hello message (3: fixture body tiles).
+pub const VERSION: u8 = 3;
 /// Message type: hello (first message of every stream).
 pub const MSG_HELLO: u8 = 1;
 /// Message type: one light's buffer.
@@ -60,6 +68,10 @@ pub const MSG_FRAME: u8 = 3;
 pub const MSG_CLEARED: u8 = 4;
 /// Message type: a server-encoded picture (PNG), pictures mode.
 pub const MSG_PICTURE: u8 = 5;
+/// Message type: tiles of the fixture body layer that changed (version 3).
+pub const MSG_BODIES: u8 = 6;
+/// Bytes per pixel of a bodies message before DEFLATE: base f32, glow f32, light u32.
+pub const BODY_PIXEL_BYTES: usize = 12;
 /// Client message type: switch mode (`[0x10, mode]`).
 pub const MSG_SET_MODE: u8 = 0x10;
 /// Streams open at most; more are refused with 503.
@@ -114,6 +126,12 @@ pub struct StreamStats {
     pub refused: AtomicU64,
     /// Buffer (and cleared) messages sent.
     pub buffer_messages: AtomicU64,
+    /// Body-tile messages sent (fixture bodies, type 6).
+    pub body_messages: AtomicU64,
+    /// Body tiles sent in them.
+    pub body_tiles: AtomicU64,
+    /// Bodies messages encoded (one per snapshot step, shared by the clients making it).
+    pub body_encodes: AtomicU64,
     /// k messages sent.
     pub frame_messages: AtomicU64,
     /// Picture messages sent.
@@ -145,6 +163,9 @@ impl StreamStats {
             "accepted": r(&self.accepted),
             "refused": r(&self.refused),
             "buffer_messages": r(&self.buffer_messages),
+            "body_messages": r(&self.body_messages),
+            "body_tiles": r(&self.body_tiles),
+            "body_encodes": r(&self.body_encodes),
             "frame_messages": r(&self.frame_messages),
             "picture_messages": r(&self.picture_messages),
             "bytes_sent": r(&self.bytes_sent),
@@ -169,12 +190,24 @@ pub struct StreamState {
     pub stats: Arc<StreamStats>,
     /// Encoded buffers by light: (generation, message).
     cache: Arc<tokio::sync::Mutex<HashMap<usize, (u64, Bytes)>>>,
+    /// The last bodies message: from which tiles (`None`: a fresh client)
+    /// to which, shared by every client that makes the same step.
+    body_cache: Arc<tokio::sync::Mutex<Option<BodyStep>>>,
 }
+
+/// A bodies message from one tile snapshot (`None`: none held) to another.
+type BodyStep = (Option<Arc<BodyTiles>>, Arc<BodyTiles>, Bytes);
 
 impl StreamState {
     /// Stream state over `frames`, encoding pictures with `png`.
     pub fn new(frames: watch::Receiver<Arc<Frame>>, png: Arc<PngCache>) -> Self {
-        Self { frames, png, stats: Arc::new(StreamStats::default()), cache: Default::default() }
+        Self {
+            frames,
+            png,
+            stats: Arc::new(StreamStats::default()),
+            cache: Default::default(),
+            body_cache: Default::default(),
+        }
     }
 
     /// The buffer message of `light` at `generation`, encoded once for all clients.
@@ -220,7 +253,20 @@ pub async fn handler(
     let stall = q.stall_ms.map_or(STALL_LIMIT, |ms| Duration::from_millis(ms.clamp(50, 10_000)));
     ws.max_message_size(MAX_CLIENT_MESSAGE).max_frame_size(MAX_CLIENT_MESSAGE).on_upgrade(move |socket| async move {
         let _guard = guard;
-        Client { socket, s, mode, stall, sent: Vec::new(), last_k: None, last_picture: None, shown: 0 }.run().await;
+        Client {
+            socket,
+            s,
+            mode,
+            stall,
+            sent: Vec::new(),
+            body_sent: Vec::new(),
+            last_bodies: None,
+            last_k: None,
+            last_picture: None,
+            shown: 0,
+        }
+        .run()
+        .await;
     })
 }
 
@@ -262,6 +308,10 @@ struct Client {
     stall: Duration,
     /// Buffers mode: the generation of each light's buffer the client holds.
     sent: Vec<Option<u64>>,
+    /// Buffers mode: the revision of each body tile the client holds (0: empty, as at hello).
+    body_sent: Vec<u64>,
+    /// The body tiles last compared (skips the comparison while they are the same `Arc`).
+    last_bodies: Option<Arc<BodyTiles>>,
     /// The last k message's content (k, display) and when it went out.
     last_k: Option<(Arc<Vec<Vec3>>, Display, tokio::time::Instant)>,
     /// Pictures mode: the pixels last pushed.
@@ -357,6 +407,8 @@ impl Client {
             Some(Ok(Message::Binary(b))) if b.len() == 2 && b[0] == MSG_SET_MODE && b[1] <= 1 => {
                 self.mode = if b[1] == 0 { Mode::Buffers } else { Mode::Pictures };
                 self.sent.clear();
+                self.body_sent.clear();
+                self.last_bodies = None;
                 self.last_k = None;
                 self.last_picture = None;
                 self.start(frame).await
@@ -393,6 +445,7 @@ impl Client {
                     self.sent[i] = Some(*generation);
                     any = true;
                 }
+                self.send_bodies(frame).await?;
                 let same = self
                     .last_k
                     .as_ref()
@@ -419,6 +472,52 @@ impl Client {
             }
             Err(e) => tracing::warn!("stream: encoding the picture failed: {e}"),
         }
+        Ok(())
+    }
+
+    /// Sends, in one message, the body tiles whose revision this client
+    /// has not seen (the browser draws them over its composite).
+    async fn send_bodies(&mut self, frame: &Arc<Frame>) -> Result<(), End> {
+        let Some(tiles) = &frame.bodies else { return Ok(()) };
+        if self.last_bodies.as_ref().is_some_and(|b| Arc::ptr_eq(b, tiles)) {
+            return Ok(());
+        }
+        self.body_sent.resize(tiles.tiles.len(), 0);
+        let which: Vec<usize> =
+            (0..tiles.tiles.len()).filter(|&i| tiles.tiles[i].revision != self.body_sent[i]).collect();
+        if !which.is_empty() {
+            // Clients that keep up all step from the same snapshot to the same
+            // one (what a client holds is exactly its last snapshot's
+            // revisions): the message is encoded once for them.
+            let same = |a: &Option<Arc<BodyTiles>>, b: &Option<Arc<BodyTiles>>| match (a, b) {
+                (None, None) => true,
+                (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+                _ => false,
+            };
+            let mut cache = self.s.body_cache.lock().await;
+            let msg = match &*cache {
+                Some((from, to, msg)) if same(from, &self.last_bodies) && Arc::ptr_eq(to, tiles) => msg.clone(),
+                _ => {
+                    let t = tiles.clone();
+                    let list = which.clone();
+                    let msg = tokio::task::spawn_blocking(move || encode_bodies(&t, &list)).await.map_err(|e| {
+                        tracing::error!("stream: encoding the body tiles failed: {e}");
+                        End::Closed
+                    })?;
+                    self.s.stats.body_encodes.fetch_add(1, Ordering::Relaxed);
+                    *cache = Some((self.last_bodies.clone(), tiles.clone(), msg.clone()));
+                    msg
+                }
+            };
+            drop(cache);
+            self.send(msg).await?;
+            self.s.stats.body_messages.fetch_add(1, Ordering::Relaxed);
+            self.s.stats.body_tiles.fetch_add(which.len() as u64, Ordering::Relaxed);
+            for i in which {
+                self.body_sent[i] = tiles.tiles[i].revision;
+            }
+        }
+        self.last_bodies = Some(tiles.clone());
         Ok(())
     }
 
@@ -543,6 +642,88 @@ pub fn encode_frame(frame: &Frame) -> Bytes {
         }
     }
     Bytes::from(b)
+}
+
+/// Bodies: header `[6, flags, 0, 0, lights u32, tiles u32, payload length
+/// u32]` (16 bytes), then the payload (raw DEFLATE when flags bit 0 is set):
+/// the tiles' indices (u32, row-major over the 16×16 tile grid), then per
+/// tile 16×16 pixels row-major of [`BODY_PIXEL_BYTES`]: base f32 (the
+/// housing's radiance, cd/m², grey; negative: no body, the composite shows),
+/// glow f32 (cd/m² per cd of k_light), light u32. The picture there is
+/// base + k_light · glow through the display ([`BodyPixel::radiance`]).
+pub fn encode_bodies(tiles: &BodyTiles, which: &[usize]) -> Bytes {
+    let mut raw = Vec::with_capacity(which.len() * (4 + TILE * TILE * BODY_PIXEL_BYTES));
+    for &i in which {
+        raw.extend_from_slice(&(i as u32).to_le_bytes());
+    }
+    for &i in which {
+        for p in &tiles.tiles[i].pixels {
+            let p = p.unwrap_or(BodyPixel { base: -1.0, glow: 0.0, light: 0 });
+            raw.extend_from_slice(&p.base.to_le_bytes());
+            raw.extend_from_slice(&p.glow.to_le_bytes());
+            raw.extend_from_slice(&p.light.to_le_bytes());
+        }
+    }
+    let mut z = flate2::write::DeflateEncoder::new(Vec::with_capacity(raw.len() / 8), flate2::Compression::fast());
+    let (flags, payload) = match z.write_all(&raw).and_then(|()| z.finish()) {
+        Ok(p) if p.len() < raw.len() => (FLAG_DEFLATE, p),
+        _ => (0, raw),
+    };
+    let mut b = Vec::with_capacity(16 + payload.len());
+    b.extend_from_slice(&[MSG_BODIES, flags, 0, 0]);
+    for v in [tiles.lights, which.len() as u32, payload.len() as u32] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    b.extend_from_slice(&payload);
+    Bytes::from(b)
+}
+
+/// The tiles of a bodies message: (tile index, 16×16 pixels, `None`: no body).
+pub type DecodedBodyTiles = Vec<(u32, Vec<Option<BodyPixel>>)>;
+
+/// Decodes a bodies message into (lights, tiles): the reference decoder of
+/// the layout (tests, bench).
+pub fn decode_bodies(b: &[u8]) -> Result<(u32, DecodedBodyTiles), DecodeError> {
+    if b.first() != Some(&MSG_BODIES) {
+        return Err(DecodeError("not a bodies message".into()));
+    }
+    let lights = u32_at(b, 4)?;
+    let tiles = u32_at(b, 8)? as usize;
+    let len = u32_at(b, 12)? as usize;
+    let payload = b.get(16..16 + len).ok_or_else(|| DecodeError("payload shorter than its length".into()))?;
+    let want = tiles
+        .checked_mul(4 + TILE * TILE * BODY_PIXEL_BYTES)
+        .ok_or_else(|| DecodeError("tile count overflows".into()))?;
+    let raw = if b[1] & FLAG_DEFLATE != 0 {
+        let mut out = Vec::with_capacity(want.min(1 << 28));
+        flate2::read::DeflateDecoder::new(payload)
+            .take(want as u64 + 1)
+            .read_to_end(&mut out)
+            .map_err(|e| DecodeError(format!("DEFLATE: {e}")))?;
+        out
+    } else {
+        payload.to_vec()
+    };
+    if raw.len() != want {
+        return Err(DecodeError(format!("{} payload bytes for {tiles} body tiles (want {want})", raw.len())));
+    }
+    let px = tiles * 4;
+    (0..tiles)
+        .map(|t| {
+            let index = u32_at(&raw, 4 * t)?;
+            let pixels = (0..TILE * TILE)
+                .map(|j| {
+                    let at = px + (t * TILE * TILE + j) * BODY_PIXEL_BYTES;
+                    let base = f32::from_bits(u32_at(&raw, at)?);
+                    let glow = f32::from_bits(u32_at(&raw, at + 4)?);
+                    let light = u32_at(&raw, at + 8)?;
+                    Ok((base >= 0.0).then_some(BodyPixel { base, glow, light }))
+                })
+                .collect::<Result<Vec<_>, DecodeError>>()?;
+            Ok((index, pixels))
+        })
+        .collect::<Result<Vec<_>, DecodeError>>()
+        .map(|t| (lights, t))
 }
 
 /// Picture: `[5, 0, 0, 0, frame u64]` then the PNG file.
@@ -685,6 +866,30 @@ mod tests {
     }
 
     #[test]
+    fn body_tiles_round_trip_exactly() {
+        use crate::live::bodies::{BodyTile, BodyTiles};
+        let px = |j: usize| match j % 3 {
+            0 => None,
+            1 => Some(BodyPixel { base: 0.3, glow: 0.0, light: 0 }),
+            _ => Some(BodyPixel { base: 0.3, glow: 1234.5 + j as f32, light: 7 }),
+        };
+        let tile = |seed: usize| {
+            Arc::new(BodyTile { revision: seed as u64, pixels: (0..TILE * TILE).map(|j| px(j + seed)).collect() })
+        };
+        let tiles = BodyTiles { width: 40, height: 20, lights: 9, tiles: (0..6).map(tile).collect() };
+        let msg = encode_bodies(&tiles, &[1, 5]);
+        assert_eq!((msg[0], msg[1] & 1), (MSG_BODIES, 1), "repetitive pixels deflate");
+        let (lights, back) = decode_bodies(&msg).unwrap();
+        assert_eq!(lights, 9);
+        assert_eq!(back.len(), 2);
+        for ((index, pixels), want) in back.iter().zip([1usize, 5]) {
+            assert_eq!((*index as usize, pixels), (want, &tiles.tiles[want].pixels));
+        }
+        assert!(decode_bodies(&msg[..msg.len() - 1]).is_err());
+        assert!(decode_bodies(&encode_cleared(1, 2)).is_err());
+    }
+
+    #[test]
     fn frame_message_layout() {
         let display = Display::default();
         let frame = Frame {
@@ -699,6 +904,7 @@ mod tests {
             buffers: Arc::new(vec![]),
             display,
             preview: false,
+            bodies: None,
             haze_density: None,
         };
         let m = encode_frame(&frame);
