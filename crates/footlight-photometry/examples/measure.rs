@@ -36,7 +36,7 @@ fn main() {
     let lamps = [
         ("tungsten", Lamp::tungsten()),
         ("discharge", Lamp::hmi()),
-        ("cmy", Lamp::Cmy { cct: 6000.0, cyan: 0.2, magenta: 0.5, yellow: 0.1 }),
+        ("cmy", Lamp::Cmy { cct: 6000.0, cyan: 0.2, magenta: 0.5, yellow: 0.1, filters: None }),
         ("led rgbw", led),
     ];
     let gels: Vec<_> = lib.iter().map(|(_, g)| g).collect();

@@ -50,6 +50,32 @@ impl Sampled {
         Self::from_fn(|nm| interpolate_table(start_nm, step_nm, table, nm))
     }
 
+    /// Resamples measured points `(nm, value)` in any order (a GDTF
+    /// `<Measurement>`'s WaveLength/Energy or transmission): linear between
+    /// neighbouring points, **zero outside the measured range** (a light
+    /// source emits nothing where it was not measured). Non-finite points
+    /// are dropped; `None` with fewer than two distinct wavelengths.
+    pub fn from_points(points: &[(f64, f64)]) -> Option<Self> {
+        let mut pts: Vec<(f64, f64)> = points.iter().copied().filter(|p| p.0.is_finite() && p.1.is_finite()).collect();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        pts.dedup_by(|a, b| a.0 == b.0);
+        if pts.len() < 2 {
+            return None;
+        }
+        let (lo, hi) = (pts[0].0, pts[pts.len() - 1].0);
+        Some(Self::from_fn(|nm| {
+            if nm < lo || nm > hi {
+                return 0.0;
+            }
+            let i = pts.partition_point(|p| p.0 < nm);
+            if i == 0 {
+                return pts[0].1;
+            }
+            let ((x0, y0), (x1, y1)) = (pts[i - 1], pts[i]);
+            y0 + (y1 - y0) * (nm - x0) / (x1 - x0)
+        }))
+    }
+
     /// The samples, index `i` at `360 + i` nm.
     pub fn values(&self) -> &[f64; SAMPLES] {
         &self.values
