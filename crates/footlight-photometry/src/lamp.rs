@@ -206,12 +206,14 @@ impl Emitter {
     /// from this spectrum, not from a metamer. `share` is its luminous share
     /// at full as the source gives it; `None` (or non-positive) takes the
     /// spectrum's own luminance Y = Σ S(λ) ȳ(λ), which is right when all
-    /// emitters of a fixture were measured on the same scale. `None` for a
-    /// spectrum with no luminance or with negative or non-finite values.
+    /// emitters of a fixture were measured on the same scale. Negative
+    /// values (a spectrometer's noise floor) count as zero. `None` for a
+    /// spectrum with no luminance or with non-finite values.
     pub fn from_spectrum(name: impl Into<String>, spectrum: &Sampled, share: Option<f32>) -> Option<Self> {
-        if spectrum.values().iter().any(|v| !v.is_finite() || *v < 0.0) {
+        if spectrum.values().iter().any(|v| !v.is_finite()) {
             return None;
         }
+        let spectrum = &Sampled::from_fn(|nm| spectrum.at(nm).max(0.0));
         let xyz = sampled_to_xyz(spectrum);
         if !(xyz.y > 0.0 && xyz.is_finite()) {
             return None;
@@ -656,6 +658,14 @@ pub(crate) mod tests {
         assert!(Emitter::from_spectrum("dark", &Sampled::constant(0.0), None).is_none());
         assert!(Emitter::from_spectrum("nan", &Sampled::constant(f64::NAN), None).is_none());
         assert!(Emitter::from_spectrum("neg", &Sampled::constant(-1.0), None).is_none());
+        // Noise below zero counts as zero: the same colour as the clean line.
+        let noisy = Sampled::from_fn(|nm| r.at(nm) - if (nm as i64) % 7 == 0 { 1e-3 } else { 0.0 });
+        let clean = Sampled::from_fn(|nm| (r.at(nm) - if (nm as i64) % 7 == 0 { 1e-3 } else { 0.0 }).max(0.0));
+        let e = Emitter::from_spectrum("noisy", &noisy, None).unwrap();
+        assert_eq!(
+            e.rendered_xyz().as_dvec3(),
+            (sampled_to_xyz(&clean) / sampled_to_xyz(&clean).y).as_vec3().as_dvec3()
+        );
     }
 
     #[test]

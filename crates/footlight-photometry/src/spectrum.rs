@@ -72,7 +72,8 @@ impl Sampled {
                 return pts[0].1;
             }
             let ((x0, y0), (x1, y1)) = (pts[i - 1], pts[i]);
-            y0 + (y1 - y0) * (nm - x0) / (x1 - x0)
+            let t = (nm - x0) / (x1 - x0);
+            y0 * (1.0 - t) + y1 * t // convex: never below both neighbours
         }))
     }
 
@@ -167,5 +168,19 @@ mod tests {
         let m = Sampled::lerp(&a, &b, 0.25);
         assert!((m.at(400.0) - 0.4).abs() < 1e-12);
         assert!((m.at(600.0) - 0.15).abs() < 1e-12);
+    }
+
+    #[test]
+    fn measured_points_interpolate_and_are_zero_outside() {
+        // Unsorted points 400..600 nm: linear between, zero outside, never
+        // below both neighbours (tiny values next to zero stay ≥ 0).
+        let s = Sampled::from_points(&[(600.0, 0.0), (400.0, 2.0), (500.0, 1e-300), (450.0, f64::NAN)]).unwrap();
+        assert_eq!(s.at(399.0), 0.0);
+        assert_eq!(s.at(601.0), 0.0);
+        assert_eq!(s.at(400.0), 2.0);
+        assert!((s.at(450.0) - 1.0).abs() < 1e-12);
+        assert!(s.values().iter().all(|v| *v >= 0.0));
+        assert!(Sampled::from_points(&[(500.0, 1.0), (500.0, 2.0)]).is_none());
+        assert!(Sampled::from_points(&[]).is_none());
     }
 }
