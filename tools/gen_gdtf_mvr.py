@@ -32,6 +32,9 @@ GDTF files (tests/data/gdtf/):
   Footlight@Fan4.gdtf     4 GeometryReference cells turned 0/30/60/90 degrees about GDTF Y
                           (cell rotation); modes 4ch and 5ch (a master overriding every
                           cell's dimmer: Relation Type="Override")
+  Footlight@SpectralLed.gdtf  RGBW LED whose emitters carry measured spectra (Gaussian
+                          lines, a phosphor white; green also at Physical 50); mode 5ch
+  Footlight@CmySpot.gdtf  discharge spot with measured C/M/Y flag filters; mode 4ch
 
 MVR files (tests/data/mvr/):
   features.mvr   layers, classes, group objects, focus points, truss and scene

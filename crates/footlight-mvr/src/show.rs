@@ -12,8 +12,11 @@
 //!   −Z: the same frame as Footlight's hanging head, see `light.rs`);
 //!   `Zoom` → field angle (GDTF's zoom is the beam angle, scaled by the
 //!   beam's field/beam ratio); `Focus1` → focus 0..1; `Iris` → iris fraction;
-//! * `ColorAdd_*` with an emitter → LED emitters (CIE xy and Y share from
-//!   the emitter's `Color`); `ColorSub_C/M/Y` → CMY flags over the beam's CCT;
+//! * `ColorAdd_*` with an emitter → LED emitters: from the emitter's
+//!   measured spectrum (`<Measurement>`) when it has one, else its CIE xy;
+//!   Y share from the `Color` (see `emitter`); `ColorSub_C/M/Y` → CMY
+//!   flags over the beam's CCT, each from its `Filter`'s measured
+//!   transmission where there is one (see `cmy_filters`), else ideal bands;
 //!   otherwise the lamp type (tungsten/halogen dims redder, discharge and
 //!   LED white keep their CCT).
 //!

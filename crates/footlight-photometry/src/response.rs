@@ -19,6 +19,10 @@
 //!   transmission (exact, no interpolation; emitters are fixed mixes of
 //!   basis spectra, see [`crate::lamp::Emitter`]).
 //!
+//! * **Measured spectra** (emitters from a GDTF `<Measurement>`): not mixes
+//!   of a basis, so the response also keeps the transmission itself and
+//!   [`Response::integrate`] multiplies and sums on the 1 nm grid.
+//!
 //! A transmission of exactly 1 everywhere gives bit-for-bit the same tables
 //! as [`Response::open`], so a clear frame changes nothing.
 
