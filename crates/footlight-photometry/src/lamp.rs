@@ -37,7 +37,8 @@
 //!   inserted by c covers c of the beam, so the beam passes (1 − c) + c·T_f(λ),
 //!   and the three flags in series pass the product. That product is a sum
 //!   of 8 subset products Π_{f∈S} T_f, each integrated once over the
-//!   Planckian table ([`Response`]), so a frame is 8 table lookups.
+//!   Planckian table ([`Response`]), so a frame is 8 table lookups; with a
+//!   filter on top (a wheel gel) it is one pass over the 1 nm grid.
 //!
 //! Normalisation: c_I is linear sRGB with luminance Y = 1 for the lamp's
 //! own full-output white. Tungsten and discharge lamps are therefore always
@@ -45,10 +46,10 @@
 //! transmittance, and an LED's Y is Σ level · share / Σ share, because the
 //! datasheet Î is measured at full white. At v = 0 every lamp is exactly black.
 
-use crate::cie::sampled_to_xyz;
+use crate::cie::{cmf_sample, sampled_to_xyz};
 use crate::planck::relative_radiance;
-use crate::response::{CMY_BANDS, LED_BASIS, Response, T_MAX_K, T_MIN_K, led_basis, led_basis_xyz};
-use crate::spectrum::Sampled;
+use crate::response::{CMY_BANDS, LED_BASIS, Response, T_MAX_K, T_MIN_K, led_basis, led_basis_xyz, planck_unit_y};
+use crate::spectrum::{SAMPLES, Sampled};
 use crate::srgb;
 use glam::{DMat3, DVec3, Vec2, Vec3};
 use std::sync::Arc;
@@ -146,6 +147,25 @@ impl CmyFilters {
             t = t.mul(&Sampled::lerp(&Sampled::constant(1.0), flag, f64::from(unit(c[f]))));
         }
         t
+    }
+
+    /// XYZ of a blackbody at `t_k` (unfiltered Y = 1) through the flags at
+    /// insertions `c` and then `response`'s filter: one pass over the 1 nm
+    /// grid (the table's node spectra interpolated as in
+    /// [`Response::planck_bands`], flags and filter multiplied in, no
+    /// allocation). The path for a filter on top of measured flags.
+    fn through(&self, t_k: f32, c: [f32; 3], response: &Response) -> Vec3 {
+        let nodes = planck_unit_y(t_k);
+        let c = c.map(|c| f64::from(unit(c)));
+        let g = response.transmission().values();
+        let flags = self.flags.each_ref().map(Sampled::values);
+        let mut xyz = DVec3::ZERO;
+        for i in 0..SAMPLES {
+            let b: f64 = nodes.iter().map(|(s, w)| s.values()[i] * w).sum();
+            let pass: f64 = (0..3).map(|f| 1.0 - c[f] + c[f] * flags[f][i]).product();
+            xyz += cmf_sample(i) * (b * pass * g[i]);
+        }
+        xyz.as_vec3()
     }
 
     /// Weight of subset S in the expansion of the product: Π_{f∈S} c_f · Π_{f∉S} (1 − c_f).
@@ -320,13 +340,7 @@ impl Lamp {
                     }
                     xyz
                 }
-                (Some(t), Some(f)) => {
-                    // A filter on top of measured flags: integrate directly
-                    // (Planck at t, ~500 exp; only while such a filter is in).
-                    let b = Sampled::from_fn(|nm| relative_radiance(nm, f64::from(t)));
-                    let y = sampled_to_xyz(&b).y;
-                    (response.integrate(&b.mul(&f.transmission([*cyan, *magenta, *yellow]))) / y).as_vec3()
-                }
+                (Some(t), Some(f)) => f.through(t, [*cyan, *magenta, *yellow], response),
                 (None, _) => Vec3::ZERO,
             },
             Self::Led { emitters } => {

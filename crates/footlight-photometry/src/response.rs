@@ -115,6 +115,37 @@ fn planck_nodes() -> &'static [(Sampled, f64)] {
     })
 }
 
+/// The Catmull-Rom interpolation of the mired grid at `t_k` (clamped to
+/// [`T_MIN_K`], [`T_MAX_K`]): node index i and the weights of nodes
+/// i − 1 … i + 2.
+fn catmull_rom(t_k: f32) -> (usize, [f64; 4]) {
+    let m = if t_k > 0.0 { 1e6 / f64::from(t_k) } else { MIRED_MAX };
+    let s = (m.clamp(MIRED_MIN, MIRED_MAX) - MIRED_FIRST_NODE) / MIRED_STEP;
+    let i = (s.floor() as usize).clamp(1, NODES - 3);
+    let f = s - i as f64;
+    let (f2, f3) = (f * f, f * f * f);
+    let w = [
+        0.5 * (-f3 + 2.0 * f2 - f),
+        0.5 * (3.0 * f3 - 5.0 * f2 + 2.0),
+        0.5 * (-3.0 * f3 + 4.0 * f2 + f),
+        0.5 * (f3 - f2),
+    ];
+    (i, w)
+}
+
+/// The blackbody spectrum at `t_k` over its own Y (so it integrates to
+/// Y = 1), interpolated between the table's node spectra with the same
+/// Catmull-Rom weights as [`Response::planck_bands`]: what a source that
+/// filters a Planckian lamp by a spectrum of its own integrates (no `exp`).
+pub(crate) fn planck_unit_y(t_k: f32) -> [(&'static Sampled, f64); 4] {
+    let (i, w) = catmull_rom(t_k);
+    let nodes = planck_nodes();
+    std::array::from_fn(|k| {
+        let (s, y) = &nodes[i - 1 + k];
+        (s, w[k] / y)
+    })
+}
+
 /// What one transmission spectrum does to every lamp family (see the module doc).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Response {
@@ -156,20 +187,10 @@ impl Response {
     /// [`T_MIN_K`], [`T_MAX_K`]), per CMY band, relative to the unfiltered
     /// blackbody's Y = 1 (Catmull-Rom in mired).
     pub fn planck_bands(&self, t_k: f32) -> [Vec3; 3] {
-        let m = if t_k > 0.0 { 1e6 / f64::from(t_k) } else { MIRED_MAX };
-        let s = (m.clamp(MIRED_MIN, MIRED_MAX) - MIRED_FIRST_NODE) / MIRED_STEP;
-        let i = (s.floor() as usize).clamp(1, NODES - 3);
-        let f = (s - i as f64) as f32;
+        let (i, w) = catmull_rom(t_k);
+        let w = w.map(|w| w as f32);
         let (p1, p2) = (&self.planck[i], &self.planck[i + 1]);
         let (p0, p3) = (&self.planck[i - 1], &self.planck[i + 2]);
-        let (f2, f3) = (f * f, f * f * f);
-        // Catmull-Rom weights for p0..p3.
-        let w = [
-            0.5 * (-f3 + 2.0 * f2 - f),
-            0.5 * (3.0 * f3 - 5.0 * f2 + 2.0),
-            0.5 * (-3.0 * f3 + 4.0 * f2 + f),
-            0.5 * (f3 - f2),
-        ];
         std::array::from_fn(|b| p0[b] * w[0] + p1[b] * w[1] + p2[b] * w[2] + p3[b] * w[3])
     }
 
