@@ -53,6 +53,9 @@ fn xy(v: DVec3) -> (f64, f64) {
     (v.x / s, v.y / s)
 }
 
+/// Gaussian components (weight, peak nm, FWHM nm) of a measured emitter.
+type Lines = Vec<(f64, f64, f64)>;
+
 fn gauss(comps: &[(f64, f64, f64)]) -> impl Fn(f64) -> f64 + '_ {
     move |nm| comps.iter().map(|(w, p, f)| w * (-0.5 * ((nm - p) / (f / 2.3548)).powi(2)).exp()).sum()
 }
@@ -70,7 +73,7 @@ fn spectral_emitters_mix_from_their_measured_spectra() {
     assert!(warnings.is_empty(), "{warnings:?}");
     assert_eq!(ty.mix_names, ["coloradd_r", "coloradd_g", "coloradd_b", "coloradd_w"]);
     // The generator's emitters: (Color's Y = luminous share, Gaussian components).
-    let emitters: [(f64, Vec<(f64, f64, f64)>); 4] = [
+    let emitters: [(f64, Lines); 4] = [
         (12.5, vec![(1.0, 630.0, 18.0)]),
         (37.5, vec![(1.0, 525.0, 32.0)]),
         (5.0, vec![(1.0, 455.0, 20.0)]),
