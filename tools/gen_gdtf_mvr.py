@@ -32,6 +32,9 @@ GDTF files (tests/data/gdtf/):
   Footlight@Fan4.gdtf     4 GeometryReference cells turned 0/30/60/90 degrees about GDTF Y
                           (cell rotation); modes 4ch and 5ch (a master overriding every
                           cell's dimmer: Relation Type="Override")
+  Footlight@SpectralLed.gdtf  RGBW LED whose emitters carry measured spectra (Gaussian
+                          lines, a phosphor white; green also at Physical 50); mode 5ch
+  Footlight@CmySpot.gdtf  discharge spot with measured C/M/Y flag filters; mode 4ch
 
 MVR files (tests/data/mvr/):
   features.mvr   layers, classes, group objects, focus points, truss and scene
@@ -697,6 +700,96 @@ def fan():
     return text, {}
 
 
+# --- Spectral colour: emitters with measured spectra, CMY flags with measured transmissions ---
+
+# Emitters of the SpectralLed: (name, DominantWaveLength, Color xyY, components [(weight, peak nm,
+# FWHM nm)]). Color's xy is a rounded nominal value (the spectrum is what counts) and its Y the
+# luminous share; every LuminousIntensity is 1000 (Color's Y wins). The `gdtf` crate 0.3 cannot
+# read an Emitter without Color (its DominantWaveLength-only variant fails in XML), so every
+# emitter has one. Points every 2 nm from 380 to 780 nm, peak-normalised energies.
+SPECTRAL_EMITTERS = [
+    ("Red", 630, "0.7000,0.3000,12.5", [(1.0, 630, 18)]),
+    ("Green", 525, "0.1700,0.7000,37.5", [(1.0, 525, 32)]),
+    ("Blue", 455, "0.1400,0.0400,5", [(1.0, 455, 20)]),
+    # Phosphor white: a blue pump plus a broad phosphor band.
+    ("White", 575, "0.3127,0.3290,50", [(0.35, 450, 20), (1.0, 570, 110)]),
+]
+# Green also carries a measurement at Physical 50 with another shape (peak 515 nm): the
+# importer must take the full-output one (Physical 100).
+SPECTRAL_GREEN_HALF = (400, [(1.0, 515, 32)])
+
+
+def gauss_sum(nm, comps):
+    return sum(w * math.exp(-0.5 * ((nm - p) / (f / 2.3548)) ** 2) for w, p, f in comps)
+
+
+def spectral_points(comps, step=2):
+    return [el("MeasurementPoint", WaveLength=str(nm), Energy=f"{gauss_sum(nm, comps):.6f}") for nm in range(380, 781, step)]
+
+
+def spectral_led():
+    used = ["Dimmer", "ColorAdd_R", "ColorAdd_G", "ColorAdd_B", "ColorAdd_W"]
+    emitters = []
+    for name, dwl, xyy, comps in SPECTRAL_EMITTERS:
+        meas = [el("Measurement", spectral_points(comps), Physical="100", LuminousIntensity="1000", InterpolationTo="Linear")]
+        if name == "Green":
+            half_li, half = SPECTRAL_GREEN_HALF
+            meas.insert(0, el("Measurement", spectral_points(half), Physical="50", LuminousIntensity=str(half_li), InterpolationTo="Linear"))
+        emitters.append(el("Emitter", meas, Name=name, Color=xyy, DominantWaveLength=str(dwl)))
+    physical = [el("Emitters", emitters), el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
+    models = [model("Body", 0.3, 0.3, 0.35, "Conventional"), model("Lens", 0.01, 0.2, 0.2, "Cylinder")]
+    tree = el(
+        "Geometry",
+        [beam("Front", "Lens", m4(0, 0, -0.2), LampType="LED", PowerConsumption="250", LuminousFlux="6000", ColorTemperature="6500", BeamAngle="25", FieldAngle="40", BeamRadius="0.1", BeamType="Wash")],
+        Name="Can",
+        Model="Body",
+        Position=m4(),
+    )
+    rgbw = [("ColorAdd_R", "Red"), ("ColorAdd_G", "Green"), ("ColorAdd_B", "Blue"), ("ColorAdd_W", "White")]
+    ch = [simple("Front", [1], "Dimmer")]
+    for k, (a, e) in enumerate(rgbw):
+        ch.append(simple("Front", [2 + k], a, extra={"Emitter": e}))
+    text = fixture_type(
+        "SpectralLed", "SpectralLed", used, [], physical, models, [tree], [mode("5ch", "Can", ch)],
+        "RGBW LED with measured emitter spectra (test data: Gaussian lines, estimated values)",
+    )
+    return text, {}
+
+
+# CMY flags of the CmySpot: full-insertion transmission (0..1) as a function of nm. Points
+# every 5 nm from 380 to 780 nm. Color is a nominal xyY (the measurement is what counts).
+CMY_FLAGS = [
+    ("Cyan", "ColorSub_C", "0.2000,0.3000,70", lambda nm: 0.03 + 0.92 / (1.0 + math.exp((nm - 585.0) / 10.0))),
+    ("Magenta", "ColorSub_M", "0.3200,0.1700,35", lambda nm: 1.0 - 0.88 * math.exp(-0.5 * ((nm - 540.0) / 25.0) ** 2)),
+    ("Yellow", "ColorSub_Y", "0.4400,0.5000,85", lambda nm: 0.02 + 0.93 / (1.0 + math.exp((500.0 - nm) / 9.0))),
+]
+
+
+def cmy_spot():
+    used = ["Dimmer", "ColorSub_C", "ColorSub_M", "ColorSub_Y"]
+    filters = []
+    for name, _, xyy, t in CMY_FLAGS:
+        pts = [el("MeasurementPoint", WaveLength=str(nm), Energy=f"{t(nm):.6f}") for nm in range(380, 781, 5)]
+        filters.append(el("Filter", [el("Measurement", pts, Physical="100", Transmission="50", InterpolationTo="Linear")], Name=name, Color=xyy))
+    physical = [el("Emitters"), el("Filters", filters), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
+    models = [model("Body", 0.4, 0.3, 0.5, "Conventional"), model("Lens", 0.01, 0.15, 0.15, "Cylinder")]
+    tree = el(
+        "Geometry",
+        [beam("Front", "Lens", m4(0, 0, -0.3), LampType="Discharge", PowerConsumption="700", LuminousFlux="15000", ColorTemperature="6000", BeamAngle="20", FieldAngle="25", BeamType="Spot")],
+        Name="Head",
+        Model="Body",
+        Position=m4(),
+    )
+    ch = [simple("Front", [1], "Dimmer")]
+    for k, (name, attr, _, _) in enumerate(CMY_FLAGS):
+        ch.append(simple("Front", [2 + k], attr, extra={"Filter": name}))
+    text = fixture_type(
+        "CmySpot", "CmySpot", used, [], physical, models, [tree], [mode("4ch", "Head", ch)],
+        "CMY spot with measured flag transmissions (test data, estimated values)",
+    )
+    return text, {}
+
+
 TYPES = {
     "Footlight@Fan4.gdtf": fan,
     "Footlight@Spot.gdtf": spot,
@@ -705,6 +798,8 @@ TYPES = {
     "Footlight@Blinder.gdtf": blinder,
     "Footlight@Fresnel.gdtf": fresnel,
     "Footlight@Hazer.gdtf": hazer,
+    "Footlight@SpectralLed.gdtf": spectral_led,
+    "Footlight@CmySpot.gdtf": cmy_spot,
 }
 
 def zip_bytes(entries, compress=zipfile.ZIP_DEFLATED):

@@ -12,8 +12,11 @@
 //!   −Z: the same frame as Footlight's hanging head, see `light.rs`);
 //!   `Zoom` → field angle (GDTF's zoom is the beam angle, scaled by the
 //!   beam's field/beam ratio); `Focus1` → focus 0..1; `Iris` → iris fraction;
-//! * `ColorAdd_*` with an emitter → LED emitters (CIE xy and Y share from
-//!   the emitter's `Color`); `ColorSub_C/M/Y` → CMY flags over the beam's CCT;
+//! * `ColorAdd_*` with an emitter → LED emitters: from the emitter's
+//!   measured spectrum (`<Measurement>`) when it has one, else its CIE xy;
+//!   Y share from the `Color` (see `emitter`); `ColorSub_C/M/Y` → CMY
+//!   flags over the beam's CCT, each from its `Filter`'s measured
+//!   transmission where there is one (see `cmy_filters`), else ideal bands;
 //!   otherwise the lamp type (tungsten/halogen dims redder, discharge and
 //!   LED white keep their CCT).
 //!
@@ -49,7 +52,7 @@ use footlight_fixture::fixture_type::{
 use footlight_fixture::patch::{BREAK_STRIDE, BuiltinSpot, TypeLoader, TypedFixture};
 use footlight_fixture::state::{MAX_MIX, SLOTS, Universes};
 use footlight_fixture::{Beam, Fixture, FixtureModel, FixtureState, FixtureType, Light, Manual, Patch, PatchError};
-use footlight_photometry::{Chroma, DimmerCurve, Emitter, Gel, Lamp};
+use footlight_photometry::{Chroma, CmyFilters, DimmerCurve, Emitter, Gel, Lamp, Sampled};
 use gdtf::wheel::WheelSlotOptic;
 use glam::{DMat4, DQuat, Quat, Vec2, Vec3};
 use std::collections::BTreeMap;
@@ -123,21 +126,18 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
             .iter()
             .find_map(|f| f.emitter.as_deref())
             .and_then(|name| g.ft.physical_descriptions.emitters.iter().find(|e| e.name.as_deref() == Some(name)));
-        let chroma = match e.map(|e| e.optic) {
-            Some(gdtf::physical_descriptions::EmitterOptic::Color { color, .. }) => {
-                Some((Vec2::new(color.x as f32, color.y as f32), color.z as f32))
-            }
-            _ => None,
-        };
-        match chroma {
-            Some((xy, y)) if xy.x > 0.0 && xy.y > 0.0 && xy.x + xy.y < 1.0 => {
-                emitters.push(Emitter::new(c.attribute.to_ascii_lowercase(), Chroma::Xy(xy), y.max(1e-3)));
+        match e.and_then(|e| emitter(e, &c.attribute.to_ascii_lowercase())) {
+            Some(em) => {
+                emitters.push(em);
                 mix_names.push(c.attribute.clone());
             }
-            _ => warnings.push(PatchError::new(
+            None => warnings.push(PatchError::new(
                 &label,
                 0,
-                format!("{}: no emitter with a CIE colour; the channel is decoded but not mixed", c.attribute),
+                format!(
+                    "{}: no emitter with a measured spectrum or a CIE colour; the channel is decoded but not mixed",
+                    c.attribute
+                ),
             )),
         }
     }
@@ -146,7 +146,8 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
         Lamp::Led { emitters }
     } else if all().any(|c| cmy.contains(&c.attribute.as_str())) {
         mix_names = cmy.map(String::from).to_vec();
-        Lamp::Cmy { cct, cyan: 0.0, magenta: 0.0, yellow: 0.0 }
+        let filters = cmy_filters(g, &layouts, &cmy);
+        Lamp::Cmy { cct, cyan: 0.0, magenta: 0.0, yellow: 0.0, filters }
     } else {
         match beam.lamp_type {
             LampType::Tungsten | LampType::Halogen => Lamp::Tungsten { cct_full: cct },
@@ -395,6 +396,55 @@ fn colour_wheel(g: &Gdtf, layouts: &[Layout], warnings: &mut Vec<PatchError>) ->
             }
         })
         .collect()
+}
+
+/// An LED emitter from a GDTF `<Emitter>`: from its measured spectrum when
+/// it has a `<Measurement>` with at least two points (the one with the
+/// highest `Physical`, i.e. the emitter at full; its shape is taken to hold
+/// at every level), else from its CIE xy. The luminous share is the
+/// `Color`'s Y when the file gives one, else the measurement's
+/// `LuminousIntensity`, else the spectrum's own luminance (so emitters
+/// measured on one scale mix by their measured output). `None` when
+/// neither a usable spectrum nor a usable xy is given.
+fn emitter(e: &gdtf::physical_descriptions::Emitter, name: &str) -> Option<Emitter> {
+    let xy_y = match e.optic {
+        gdtf::physical_descriptions::EmitterOptic::Color { color, .. } => {
+            Some((Vec2::new(color.x as f32, color.y as f32), color.z as f32))
+        }
+        _ => None,
+    };
+    let file_y = xy_y.map(|(_, y)| y).filter(|y| *y > 0.0 && y.is_finite());
+    let spectral = e.measurements.iter().max_by(|a, b| a.physical.total_cmp(&b.physical)).and_then(|m| {
+        let pts: Vec<(f64, f64)> = m.points.iter().map(|p| (p.wave_length, p.energy)).collect();
+        let share = file_y.or(m.luminous_intensity.map(|i| i as f32).filter(|i| *i > 0.0 && i.is_finite()));
+        Emitter::from_spectrum(name, &Sampled::from_points(&pts)?, share)
+    });
+    spectral.or_else(|| match xy_y {
+        Some((xy, y)) if xy.x > 0.0 && xy.y > 0.0 && xy.x + xy.y < 1.0 => {
+            Some(Emitter::new(name, Chroma::Xy(xy), y.max(1e-3)))
+        }
+        _ => None,
+    })
+}
+
+/// Measured CMY flags: each `ColorSub_C/M/Y` channel function whose `Filter`
+/// has a measurement gives that flag's full-insertion transmission
+/// ([`filter_gel`]); the others keep the ideal band model. `None` when no
+/// flag is measured.
+fn cmy_filters(g: &Gdtf, layouts: &[Layout], cmy: &[&str; 3]) -> Option<Arc<CmyFilters>> {
+    let flag = |attr: &str| {
+        layouts
+            .iter()
+            .flat_map(|l| l.channels.iter())
+            .filter(|c| c.attribute == attr)
+            .flat_map(|c| c.functions.iter())
+            .find_map(|f| f.filter.as_deref())
+            .and_then(|name| g.ft.physical_descriptions.filters.iter().find(|f| f.name.as_deref() == Some(name)))
+            .and_then(|f| filter_gel(f, attr))
+            .map(|gel| gel.sampled().clone())
+    };
+    let [c, m, y] = cmy.map(flag);
+    (c.is_some() || m.is_some() || y.is_some()).then(|| Arc::new(CmyFilters::new(c, m, y)))
 }
 
 /// A GDTF filter's first measurement as a gel: transmission at 5 nm from

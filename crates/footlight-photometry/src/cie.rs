@@ -59,6 +59,16 @@ pub fn sampled_to_xyz(s: &Sampled) -> DVec3 {
     sampled_to_xyz_range(s, 0..SAMPLES)
 }
 
+/// XYZ of the product `a · b` sample by sample (light through a filter),
+/// without allocating the product.
+pub(crate) fn product_to_xyz(a: &Sampled, b: &Sampled) -> DVec3 {
+    let mut xyz = DVec3::ZERO;
+    for (i, (x, y)) in a.values().iter().zip(b.values().iter()).enumerate() {
+        xyz += cmf_sample(i) * (x * y);
+    }
+    xyz
+}
+
 /// XYZ of the part of `s` on grid samples `range` (used to split a spectrum
 /// into wavelength bands that CMY flags act on separately).
 pub(crate) fn sampled_to_xyz_range(s: &Sampled, range: std::ops::Range<usize>) -> DVec3 {

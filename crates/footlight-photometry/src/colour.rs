@@ -212,7 +212,8 @@ mod tests {
                 cct: t,
                 cyan: c,
                 magenta: m,
-                yellow: y
+                yellow: y,
+                filters: None
             }),
             proptest::collection::vec((0.0f32..0.8, 0.0f32..0.9, 0.0f32..=1.0, 0.0f32..=1.0), 1..6).prop_map(|es| {
                 Lamp::Led {

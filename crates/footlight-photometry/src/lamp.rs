@@ -20,10 +20,25 @@
 //!   unfiltered colour is exact for any chromaticity inside that band
 //!   polygon (all of sRGB and typical LED primaries); outside it is moved
 //!   onto the polygon's edge.
+//!
+//!   An emitter with a **measured spectrum** ([`Emitter::from_spectrum`],
+//!   e.g. a GDTF `<Measurement>`) uses that spectrum instead of the metamer:
+//!   its unfiltered XYZ is integrated once, and through a filter it is
+//!   integrated against the filter's transmission
+//!   ([`Response::integrate`], ~1,400 multiply-adds per emitter per
+//!   frame, only while a filter is in the beam). The mix of several
+//!   emitters is Σ level · share · XYZ(spectrum)/Y(spectrum).
 //! * **CMY** colour mixing on a white (discharge-type) source: three
 //!   dichroic flags, each covering a fraction of the beam. Modelled as ideal
 //!   subtractive filters (estimated edges): yellow removes < 490 nm, magenta
 //!   490-589 nm, cyan ≥ 590 nm, each in proportion to its insertion.
+//!   Flags with a **measured** full-insertion transmission T_f ([`CmyFilters`],
+//!   e.g. a GDTF `Filter` with a `<Measurement>`) use it instead: a flag
+//!   inserted by c covers c of the beam, so the beam passes (1 − c) + c·T_f(λ),
+//!   and the three flags in series pass the product. That product is a sum
+//!   of 8 subset products Π_{f∈S} T_f, each integrated once over the
+//!   Planckian table ([`Response`]), so a frame is 8 table lookups; with a
+//!   filter on top (a wheel gel) it is one pass over the 1 nm grid.
 //!
 //! Normalisation: c_I is linear sRGB with luminance Y = 1 for the lamp's
 //! own full-output white. Tungsten and discharge lamps are therefore always
@@ -31,12 +46,13 @@
 //! transmittance, and an LED's Y is Σ level · share / Σ share, because the
 //! datasheet Î is measured at full white. At v = 0 every lamp is exactly black.
 
-use crate::cie::sampled_to_xyz;
+use crate::cie::{cmf_sample, sampled_to_xyz};
 use crate::planck::relative_radiance;
-use crate::response::{CMY_BANDS, LED_BASIS, Response, T_MAX_K, T_MIN_K, led_basis, led_basis_xyz};
-use crate::spectrum::Sampled;
+use crate::response::{CMY_BANDS, LED_BASIS, Response, T_MAX_K, T_MIN_K, led_basis, led_basis_xyz, planck_unit_y};
+use crate::spectrum::{SAMPLES, Sampled};
 use crate::srgb;
 use glam::{DMat3, DVec3, Vec2, Vec3};
+use std::sync::Arc;
 
 /// Nominal colour temperature of stage tungsten-halogen lamps, K (paper, section 3.2).
 pub const TUNGSTEN_CCT_K: f32 = 3200.0;
@@ -71,7 +87,99 @@ pub enum Lamp {
         magenta: f32,
         /// Yellow flag insertion 0..1 (removes < 490 nm).
         yellow: f32,
+        /// Measured flag transmissions; `None`: the ideal band model above.
+        filters: Option<Arc<CmyFilters>>,
     },
+}
+
+/// Three CMY flags' transmission at full insertion, measured or ideal, with
+/// the precomputed responses of every product of them (see the module doc).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CmyFilters {
+    /// Full-insertion transmission of [cyan, magenta, yellow].
+    flags: [Sampled; 3],
+    /// Which flags were measured (the others use the ideal band edges).
+    measured: [bool; 3],
+    /// Response of Π_{f∈S} T_f for subset S (bit 0 cyan, 1 magenta, 2 yellow).
+    subsets: Vec<Response>,
+}
+
+impl CmyFilters {
+    /// Flags from full-insertion transmissions in 0..1 (cyan, magenta,
+    /// yellow); a `None` flag keeps the ideal band model (estimated edges).
+    /// Integrates 7 filter responses: milliseconds, once per fixture type.
+    pub fn new(cyan: Option<Sampled>, magenta: Option<Sampled>, yellow: Option<Sampled>) -> Self {
+        let measured = [cyan.is_some(), magenta.is_some(), yellow.is_some()];
+        let mut given = [cyan, magenta, yellow];
+        let flags: [Sampled; 3] = std::array::from_fn(|f| given[f].take().unwrap_or_else(|| ideal_flag(f)));
+        let subsets = (0..8usize)
+            .map(|s| {
+                if s == 0 {
+                    return Response::open().clone();
+                }
+                let mut t = Sampled::constant(1.0);
+                for (f, flag) in flags.iter().enumerate() {
+                    if s & (1 << f) != 0 {
+                        t = t.mul(flag);
+                    }
+                }
+                Response::new(&t)
+            })
+            .collect();
+        Self { flags, measured, subsets }
+    }
+
+    /// Whether flag `f` (0 cyan, 1 magenta, 2 yellow) was measured.
+    pub fn is_measured(&self, f: usize) -> bool {
+        self.measured.get(f).copied().unwrap_or(false)
+    }
+
+    /// Full-insertion transmission of flag `f` (0 cyan, 1 magenta, 2 yellow).
+    pub fn flag(&self, f: usize) -> Option<&Sampled> {
+        self.flags.get(f)
+    }
+
+    /// Transmission of the three flags in series at insertions `c`:
+    /// Π_f ((1 − c_f) + c_f · T_f(λ)).
+    pub fn transmission(&self, c: [f32; 3]) -> Sampled {
+        let mut t = Sampled::constant(1.0);
+        for (f, flag) in self.flags.iter().enumerate() {
+            t = t.mul(&Sampled::lerp(&Sampled::constant(1.0), flag, f64::from(unit(c[f]))));
+        }
+        t
+    }
+
+    /// XYZ of a blackbody at `t_k` (unfiltered Y = 1) through the flags at
+    /// insertions `c` and then `response`'s filter: one pass over the 1 nm
+    /// grid (the table's node spectra interpolated as in
+    /// [`Response::planck_bands`], flags and filter multiplied in, no
+    /// allocation). The path for a filter on top of measured flags.
+    fn through(&self, t_k: f32, c: [f32; 3], response: &Response) -> Vec3 {
+        let nodes = planck_unit_y(t_k);
+        let c = c.map(|c| f64::from(unit(c)));
+        let g = response.transmission().values();
+        let flags = self.flags.each_ref().map(Sampled::values);
+        let mut xyz = DVec3::ZERO;
+        for i in 0..SAMPLES {
+            let b: f64 = nodes.iter().map(|(s, w)| s.values()[i] * w).sum();
+            let pass: f64 = (0..3).map(|f| 1.0 - c[f] + c[f] * flags[f][i]).product();
+            xyz += cmf_sample(i) * (b * pass * g[i]);
+        }
+        xyz.as_vec3()
+    }
+
+    /// Weight of subset S in the expansion of the product: Π_{f∈S} c_f · Π_{f∉S} (1 − c_f).
+    fn weights(c: [f32; 3]) -> [f32; 8] {
+        let c = c.map(unit);
+        std::array::from_fn(|s| (0..3).map(|f| if s & (1 << f) != 0 { c[f] } else { 1.0 - c[f] }).product())
+    }
+}
+
+/// The ideal flag of the band model: 0 in its band, 1 elsewhere
+/// (f = 0 cyan: red band, 1 magenta: green, 2 yellow: blue).
+fn ideal_flag(f: usize) -> Sampled {
+    let band = CMY_BANDS[2 - f.min(2)].clone();
+    Sampled::from_fn(|nm| if band.contains(&((nm - 360.0).round() as usize)) { 0.0 } else { 1.0 })
 }
 
 /// How an emitter's colour is given.
@@ -95,13 +203,56 @@ pub struct Emitter {
     chroma: Chroma,
     /// Metamer weights on the LED basis (see the module doc); Σ weights = 1.
     proxy: [(usize, f64); 3],
+    /// A measured spectrum, used instead of the metamer when present.
+    measured: Option<Arc<MeasuredSpectrum>>,
+}
+
+/// An emitter's measured spectrum, scaled to Y = 1, with its XYZ.
+#[derive(Clone, Debug, PartialEq)]
+struct MeasuredSpectrum {
+    spectrum: Sampled,
+    xyz: DVec3,
 }
 
 impl Emitter {
     /// An emitter at full level. An unusable colour (non-finite, y ≤ 0, or a
     /// non-positive-luminance sRGB value) gives an emitter that emits nothing.
     pub fn new(name: impl Into<String>, chroma: Chroma, share: f32) -> Self {
-        Self { name: name.into(), share, level: 1.0, chroma, proxy: metamer(chroma) }
+        Self { name: name.into(), share, level: 1.0, chroma, proxy: metamer(chroma), measured: None }
+    }
+
+    /// An emitter at full level from its measured spectral power
+    /// distribution (any scale, e.g. W/m²/nm on the 1 nm grid): it mixes
+    /// from this spectrum, not from a metamer. `share` is its luminous share
+    /// at full as the source gives it; `None` (or non-positive) takes the
+    /// spectrum's own luminance Y = Σ S(λ) ȳ(λ), which is right when all
+    /// emitters of a fixture were measured on the same scale. Negative
+    /// values (a spectrometer's noise floor) count as zero. `None` for a
+    /// spectrum with no luminance or with non-finite values.
+    pub fn from_spectrum(name: impl Into<String>, spectrum: &Sampled, share: Option<f32>) -> Option<Self> {
+        if spectrum.values().iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        let spectrum = &Sampled::from_fn(|nm| spectrum.at(nm).max(0.0));
+        let xyz = sampled_to_xyz(spectrum);
+        if !(xyz.y > 0.0 && xyz.is_finite()) {
+            return None;
+        }
+        let mut unit_y = Sampled::constant(0.0);
+        unit_y.add_scaled(spectrum, 1.0 / xyz.y);
+        let sum = xyz.x + xyz.y + xyz.z;
+        let chroma = Chroma::Xy(Vec2::new((xyz.x / sum) as f32, (xyz.y / sum) as f32));
+        let share = match share {
+            Some(s) if s > 0.0 && s.is_finite() => s,
+            _ => xyz.y as f32,
+        };
+        let measured = Some(Arc::new(MeasuredSpectrum { spectrum: unit_y, xyz: xyz / xyz.y }));
+        Some(Self { name: name.into(), share, level: 1.0, chroma, proxy: metamer(chroma), measured })
+    }
+
+    /// The measured spectrum (scaled to Y = 1), if the emitter has one.
+    pub fn spectrum(&self) -> Option<&Sampled> {
+        self.measured.as_ref().map(|m| &m.spectrum)
     }
 
     /// The colour it was given.
@@ -110,8 +261,12 @@ impl Emitter {
     }
 
     /// XYZ (Y = 1, or zero for an unusable colour) that the emitter renders
-    /// as: its chromaticity, or the nearest point of the band polygon.
+    /// as: its measured spectrum's, else its chromaticity or the nearest
+    /// point of the band polygon.
     pub fn rendered_xyz(&self) -> Vec3 {
+        if let Some(m) = &self.measured {
+            return m.xyz.as_vec3();
+        }
         let basis = led_basis_xyz();
         self.proxy.iter().map(|&(k, w)| basis[k] * w).sum::<DVec3>().as_vec3()
     }
@@ -168,13 +323,25 @@ impl Lamp {
                 Some(t) => response.planck_bands(t).iter().sum(),
                 None => Vec3::ZERO,
             },
-            Self::Cmy { cyan, magenta, yellow, .. } => match self.temperature(v) {
-                Some(t) => {
+            Self::Cmy { cyan, magenta, yellow, filters, .. } => match (self.temperature(v), filters) {
+                (Some(t), None) => {
                     let b = response.planck_bands(t);
                     let pass = cmy_pass(*cyan, *magenta, *yellow);
                     b[0] * pass[0] + b[1] * pass[1] + b[2] * pass[2]
                 }
-                None => Vec3::ZERO,
+                (Some(t), Some(f)) if response.is_unity() => {
+                    let w = CmyFilters::weights([*cyan, *magenta, *yellow]);
+                    let mut xyz = Vec3::ZERO;
+                    for (s, r) in f.subsets.iter().enumerate() {
+                        if w[s] > 0.0 {
+                            let b = r.planck_bands(t);
+                            xyz += (b[0] + b[1] + b[2]) * w[s];
+                        }
+                    }
+                    xyz
+                }
+                (Some(t), Some(f)) => f.through(t, [*cyan, *magenta, *yellow], response),
+                (None, _) => Vec3::ZERO,
             },
             Self::Led { emitters } => {
                 let total: f32 = emitters.iter().map(|e| nonneg(e.share)).sum();
@@ -185,6 +352,11 @@ impl Lamp {
                 for e in emitters {
                     let w = e.weight() / total;
                     if w > 0.0 {
+                        if let Some(m) = &e.measured {
+                            let c = if response.is_unity() { m.xyz } else { response.integrate(&m.spectrum) };
+                            xyz += c.as_vec3() * w;
+                            continue;
+                        }
                         for &(k, p) in &e.proxy {
                             xyz += response.led_basis(k) * (w * p as f32);
                         }
@@ -212,11 +384,16 @@ impl Lamp {
                     Self::Cmy { cyan, magenta, yellow, .. } => cmy_pass(cyan, magenta, yellow),
                     _ => [1.0; 3],
                 };
-                let filter = Sampled::from_fn(|nm| {
-                    let i = (nm - 360.0).round() as usize;
-                    let band = CMY_BANDS.iter().position(|r| r.contains(&i)).unwrap_or(2);
-                    f64::from(pass[band])
-                });
+                let filter = match self {
+                    Self::Cmy { cyan, magenta, yellow, filters: Some(f), .. } => {
+                        f.transmission([*cyan, *magenta, *yellow])
+                    }
+                    _ => Sampled::from_fn(|nm| {
+                        let i = (nm - 360.0).round() as usize;
+                        let band = CMY_BANDS.iter().position(|r| r.contains(&i)).unwrap_or(2);
+                        f64::from(pass[band])
+                    }),
+                };
                 let mut out = Sampled::constant(0.0);
                 out.add_scaled(&b.mul(&filter), 1.0 / y);
                 Some(out)
@@ -226,8 +403,13 @@ impl Lamp {
                 let mut out = Sampled::constant(0.0);
                 if total > 0.0 {
                     for e in emitters {
+                        let w = f64::from(e.weight() / total);
+                        if let Some(m) = &e.measured {
+                            out.add_scaled(&m.spectrum, w);
+                            continue;
+                        }
                         for &(k, p) in &e.proxy {
-                            out.add_scaled(&led_basis()[k], f64::from(e.weight() / total) * p);
+                            out.add_scaled(&led_basis()[k], w * p);
                         }
                     }
                 }
@@ -321,7 +503,12 @@ pub(crate) mod tests {
     }
 
     pub(crate) fn every_kind() -> Vec<Lamp> {
-        vec![Lamp::tungsten(), Lamp::hmi(), rgb_led(), Lamp::Cmy { cct: 6000.0, cyan: 0.3, magenta: 0.6, yellow: 0.1 }]
+        vec![
+            Lamp::tungsten(),
+            Lamp::hmi(),
+            rgb_led(),
+            Lamp::Cmy { cct: 6000.0, cyan: 0.3, magenta: 0.6, yellow: 0.1, filters: None },
+        ]
     }
 
     #[test]
@@ -425,18 +612,124 @@ pub(crate) mod tests {
 
     #[test]
     fn cmy_flags_subtract_their_bands() {
-        let open = Lamp::Cmy { cct: 6000.0, cyan: 0.0, magenta: 0.0, yellow: 0.0 };
+        let open = Lamp::Cmy { cct: 6000.0, cyan: 0.0, magenta: 0.0, yellow: 0.0, filters: None };
         assert!((open.colour(1.0) - Lamp::hmi().colour(1.0)).abs().max_element() < 1e-6);
-        let full = Lamp::Cmy { cct: 6000.0, cyan: 1.0, magenta: 1.0, yellow: 1.0 };
+        let full = Lamp::Cmy { cct: 6000.0, cyan: 1.0, magenta: 1.0, yellow: 1.0, filters: None };
         assert_eq!(full.colour(1.0), Vec3::ZERO);
         // Each full flag removes one band; the three bands sum to the whole, so
         // the three single-flag luminances sum to 3 − 1 = 2.
-        let y = |c, m, ye| luminance(Lamp::Cmy { cct: 6000.0, cyan: c, magenta: m, yellow: ye }.colour(1.0));
+        let y =
+            |c, m, ye| luminance(Lamp::Cmy { cct: 6000.0, cyan: c, magenta: m, yellow: ye, filters: None }.colour(1.0));
         assert!((y(1.0, 0.0, 0.0) + y(0.0, 1.0, 0.0) + y(0.0, 0.0, 1.0) - 2.0).abs() < 1e-4);
         // A half-inserted flag removes half of its band.
         assert!((y(0.5, 0.0, 0.0) - (1.0 + y(1.0, 0.0, 0.0)) / 2.0).abs() < 1e-5);
         // Magenta + yellow leave red.
-        let red = Lamp::Cmy { cct: 6000.0, cyan: 0.0, magenta: 1.0, yellow: 1.0 }.colour(1.0);
+        let red = Lamp::Cmy { cct: 6000.0, cyan: 0.0, magenta: 1.0, yellow: 1.0, filters: None }.colour(1.0);
         assert!(red.x > 10.0 * red.y && red.x > 10.0 * red.z, "{red}");
+    }
+
+    fn gaussian(peak: f64, fwhm: f64, scale: f64) -> Sampled {
+        let sigma = fwhm / (2.0 * (2.0 * std::f64::consts::LN_2).sqrt());
+        Sampled::from_fn(|nm| scale * (-0.5 * ((nm - peak) / sigma).powi(2)).exp())
+    }
+
+    #[test]
+    fn measured_emitters_mix_their_spectra() {
+        // Two measured emitters at full: the mix is the summed spectrum (the
+        // file's absolute scale, so shares default to each spectrum's Y).
+        let (r, b) = (gaussian(630.0, 20.0, 2.0), gaussian(460.0, 25.0, 5.0));
+        let mut lamp = Lamp::Led {
+            emitters: vec![
+                Emitter::from_spectrum("red", &r, None).unwrap(),
+                Emitter::from_spectrum("blue", &b, None).unwrap(),
+            ],
+        };
+        let mut sum = r.clone();
+        sum.add_scaled(&b, 1.0);
+        let want = sampled_to_xyz(&sum);
+        let got = lamp.xyz_through(1.0, Response::open()).as_dvec3();
+        // Relative to the full white (Y = 1): compare chromaticity, and Y = 1.
+        let (gs, ws) = (got.x + got.y + got.z, want.x + want.y + want.z);
+        assert!((got.x / gs - want.x / ws).abs() < 1e-6 && (got.y / gs - want.y / ws).abs() < 1e-6, "{got} {want}");
+        assert!((got.y - 1.0).abs() < 1e-6);
+        // Blue alone at half level: its share of Y at full, halved.
+        if let Lamp::Led { emitters } = &mut lamp {
+            emitters[0].level = 0.0;
+            emitters[1].level = 0.5;
+        }
+        let y_blue = sampled_to_xyz(&b).y / want.y;
+        assert!((f64::from(lamp.xyz_through(1.0, Response::open()).y) - 0.5 * y_blue).abs() < 1e-6);
+        // Through a filter: the direct integral of spectrum × transmission.
+        let t = Sampled::from_fn(|nm| if nm < 500.0 { 0.8 } else { 0.1 });
+        let through = lamp.xyz_through(1.0, &Response::new(&t)).as_dvec3();
+        let exact = sampled_to_xyz(&b.mul(&t)) * (0.5 / want.y);
+        assert!((through - exact).abs().max_element() < 1e-6, "{through} {exact}");
+        // The lamp's spectrum is what it integrates.
+        let s = lamp.spectrum(1.0).unwrap();
+        assert!((sampled_to_xyz(&s) - lamp.xyz_through(1.0, Response::open()).as_dvec3()).abs().max_element() < 1e-5);
+        // A given share wins over the spectrum's luminance; unusable spectra give None.
+        assert_eq!(Emitter::from_spectrum("r", &r, Some(3.0)).unwrap().share, 3.0);
+        assert!(Emitter::from_spectrum("dark", &Sampled::constant(0.0), None).is_none());
+        assert!(Emitter::from_spectrum("nan", &Sampled::constant(f64::NAN), None).is_none());
+        assert!(Emitter::from_spectrum("neg", &Sampled::constant(-1.0), None).is_none());
+        // Noise below zero counts as zero: the same colour as the clean line.
+        let noisy = Sampled::from_fn(|nm| r.at(nm) - if (nm as i64) % 7 == 0 { 1e-3 } else { 0.0 });
+        let clean = Sampled::from_fn(|nm| (r.at(nm) - if (nm as i64) % 7 == 0 { 1e-3 } else { 0.0 }).max(0.0));
+        let e = Emitter::from_spectrum("noisy", &noisy, None).unwrap();
+        assert_eq!(
+            e.rendered_xyz().as_dvec3(),
+            (sampled_to_xyz(&clean) / sampled_to_xyz(&clean).y).as_vec3().as_dvec3()
+        );
+    }
+
+    #[test]
+    fn ideal_cmy_filters_reproduce_the_band_model() {
+        let ideal = Some(Arc::new(CmyFilters::new(None, None, None)));
+        for (c, m, y) in [(0.0, 0.0, 0.0), (0.3, 0.6, 0.1), (1.0, 0.0, 0.5), (1.0, 1.0, 1.0)] {
+            for cct in [3200.0, 6000.0] {
+                let band = Lamp::Cmy { cct, cyan: c, magenta: m, yellow: y, filters: None };
+                let table = Lamp::Cmy { cct, cyan: c, magenta: m, yellow: y, filters: ideal.clone() };
+                let d = (band.xyz_through(1.0, Response::open()) - table.xyz_through(1.0, Response::open())).abs();
+                assert!(d.max_element() < 1e-5, "({c}, {m}, {y}) at {cct} K: {d}");
+            }
+        }
+    }
+
+    #[test]
+    fn measured_cmy_flags_match_direct_integration() {
+        // Smooth measured flags that do not look like the ideal bands.
+        let cyan = Sampled::from_fn(|nm| 0.05 + 0.9 / (1.0 + ((nm - 585.0) / 12.0).exp()));
+        let magenta = Sampled::from_fn(|nm| 1.0 - 0.85 * (-0.5 * ((nm - 540.0) / 30.0).powi(2)).exp());
+        let yellow = Sampled::from_fn(|nm| 0.92 / (1.0 + ((505.0 - nm) / 10.0).exp()));
+        let f = Arc::new(CmyFilters::new(Some(cyan.clone()), Some(magenta.clone()), Some(yellow.clone())));
+        assert!(f.is_measured(0) && f.is_measured(2));
+        let gel = Sampled::from_fn(|nm| if nm < 600.0 { 0.7 } else { 0.2 });
+        for (c, m, y) in [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.25, 0.5, 0.75), (1.0, 1.0, 1.0)] {
+            for cct in [3000.0f32, 6000.0] {
+                let lamp = Lamp::Cmy { cct, cyan: c, magenta: m, yellow: y, filters: Some(f.clone()) };
+                let b = Sampled::from_fn(|nm| relative_radiance(nm, f64::from(cct)));
+                let y0 = sampled_to_xyz(&b).y;
+                // Written out here: (1 − c) + c·T per flag, in series.
+                let pass = Sampled::from_fn(|nm| {
+                    [(c, &cyan), (m, &magenta), (y, &yellow)]
+                        .iter()
+                        .map(|(k, t)| 1.0 - f64::from(*k) + f64::from(*k) * t.at(nm))
+                        .product()
+                });
+                for (t, resp) in [(None, Response::open().clone()), (Some(&gel), Response::new(&gel))] {
+                    let mut s = b.mul(&pass);
+                    if let Some(g) = t {
+                        s = s.mul(g);
+                    }
+                    let exact = sampled_to_xyz(&s) / y0;
+                    let got = lamp.xyz_through(1.0, &resp).as_dvec3();
+                    assert!(
+                        (got - exact).abs().max_element() < 2e-5,
+                        "({c}, {m}, {y}) {cct} K gel {}: {got} vs {exact}",
+                        t.is_some()
+                    );
+                }
+            }
+        }
     }
 }

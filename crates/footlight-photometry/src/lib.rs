@@ -50,7 +50,7 @@ pub use cie::spectrum_to_xyz;
 pub use colour::{colour, colour_exact, colour_mix, filter_factor, k};
 pub use dimmer::DimmerCurve;
 pub use gel::{Gel, GelError, GelId, GelLibrary, GelMix, Published, Scroller};
-pub use lamp::{Chroma, Emitter, Lamp};
+pub use lamp::{Chroma, CmyFilters, Emitter, Lamp};
 pub use planck::blackbody;
 pub use response::Response;
 pub use spectrum::Sampled;

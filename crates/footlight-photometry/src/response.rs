@@ -19,10 +19,14 @@
 //!   transmission (exact, no interpolation; emitters are fixed mixes of
 //!   basis spectra, see [`crate::lamp::Emitter`]).
 //!
+//! * **Measured spectra** (emitters from a GDTF `<Measurement>`): not mixes
+//!   of a basis, so the response also keeps the transmission itself and
+//!   [`Response::integrate`] multiplies and sums on the 1 nm grid.
+//!
 //! A transmission of exactly 1 everywhere gives bit-for-bit the same tables
 //! as [`Response::open`], so a clear frame changes nothing.
 
-use crate::cie::{sampled_to_xyz, sampled_to_xyz_range};
+use crate::cie::{product_to_xyz, sampled_to_xyz, sampled_to_xyz_range};
 use crate::planck::relative_radiance;
 use crate::spectrum::{SAMPLES, Sampled};
 use glam::{DVec3, Vec3};
@@ -111,6 +115,37 @@ fn planck_nodes() -> &'static [(Sampled, f64)] {
     })
 }
 
+/// The Catmull-Rom interpolation of the mired grid at `t_k` (clamped to
+/// [`T_MIN_K`], [`T_MAX_K`]): node index i and the weights of nodes
+/// i − 1 … i + 2.
+fn catmull_rom(t_k: f32) -> (usize, [f64; 4]) {
+    let m = if t_k > 0.0 { 1e6 / f64::from(t_k) } else { MIRED_MAX };
+    let s = (m.clamp(MIRED_MIN, MIRED_MAX) - MIRED_FIRST_NODE) / MIRED_STEP;
+    let i = (s.floor() as usize).clamp(1, NODES - 3);
+    let f = s - i as f64;
+    let (f2, f3) = (f * f, f * f * f);
+    let w = [
+        0.5 * (-f3 + 2.0 * f2 - f),
+        0.5 * (3.0 * f3 - 5.0 * f2 + 2.0),
+        0.5 * (-3.0 * f3 + 4.0 * f2 + f),
+        0.5 * (f3 - f2),
+    ];
+    (i, w)
+}
+
+/// The blackbody spectrum at `t_k` over its own Y (so it integrates to
+/// Y = 1), interpolated between the table's node spectra with the same
+/// Catmull-Rom weights as [`Response::planck_bands`]: what a source that
+/// filters a Planckian lamp by a spectrum of its own integrates (no `exp`).
+pub(crate) fn planck_unit_y(t_k: f32) -> [(&'static Sampled, f64); 4] {
+    let (i, w) = catmull_rom(t_k);
+    let nodes = planck_nodes();
+    std::array::from_fn(|k| {
+        let (s, y) = &nodes[i - 1 + k];
+        (s, w[k] / y)
+    })
+}
+
 /// What one transmission spectrum does to every lamp family (see the module doc).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Response {
@@ -119,6 +154,12 @@ pub struct Response {
     planck: Vec<[Vec3; 3]>,
     /// Per LED basis spectrum: XYZ of basis × transmission (basis Y = 1).
     led: Vec<Vec3>,
+    /// The transmission itself, for sources that are not mixes of the
+    /// tables' bases (measured emitter spectra, measured CMY flags): they
+    /// integrate it directly, see [`Response::integrate`].
+    transmission: Sampled,
+    /// Transmission exactly 1 everywhere (the open beam or a clear frame).
+    unity: bool,
 }
 
 impl Response {
@@ -132,7 +173,8 @@ impl Response {
             })
             .collect();
         let led = led_basis().iter().map(|b| sampled_to_xyz(&b.mul(transmission)).as_vec3()).collect();
-        Self { planck, led }
+        let unity = transmission.values().iter().all(|&t| t == 1.0);
+        Self { planck, led, transmission: transmission.clone(), unity }
     }
 
     /// The open beam (transmission 1): the unfiltered lamp.
@@ -145,21 +187,31 @@ impl Response {
     /// [`T_MIN_K`], [`T_MAX_K`]), per CMY band, relative to the unfiltered
     /// blackbody's Y = 1 (Catmull-Rom in mired).
     pub fn planck_bands(&self, t_k: f32) -> [Vec3; 3] {
-        let m = if t_k > 0.0 { 1e6 / f64::from(t_k) } else { MIRED_MAX };
-        let s = (m.clamp(MIRED_MIN, MIRED_MAX) - MIRED_FIRST_NODE) / MIRED_STEP;
-        let i = (s.floor() as usize).clamp(1, NODES - 3);
-        let f = (s - i as f64) as f32;
+        let (i, w) = catmull_rom(t_k);
+        let w = w.map(|w| w as f32);
         let (p1, p2) = (&self.planck[i], &self.planck[i + 1]);
         let (p0, p3) = (&self.planck[i - 1], &self.planck[i + 2]);
-        let (f2, f3) = (f * f, f * f * f);
-        // Catmull-Rom weights for p0..p3.
-        let w = [
-            0.5 * (-f3 + 2.0 * f2 - f),
-            0.5 * (3.0 * f3 - 5.0 * f2 + 2.0),
-            0.5 * (-3.0 * f3 + 4.0 * f2 + f),
-            0.5 * (f3 - f2),
-        ];
         std::array::from_fn(|b| p0[b] * w[0] + p1[b] * w[1] + p2[b] * w[2] + p3[b] * w[3])
+    }
+
+    /// Whether the transmission is exactly 1 everywhere (nothing filtered):
+    /// sources with their own precomputed XYZ use it as is.
+    pub fn is_unity(&self) -> bool {
+        self.unity
+    }
+
+    /// XYZ of `spectrum` × this filter's transmission, integrated on the
+    /// 1 nm grid (~1,400 multiply-adds, no allocation): the path for
+    /// measured spectra, which are not mixes of the table bases. Sources
+    /// use it only when a filter is in the beam ([`Response::is_unity`] is
+    /// false); otherwise they read their own precomputed XYZ.
+    pub fn integrate(&self, spectrum: &Sampled) -> DVec3 {
+        product_to_xyz(spectrum, &self.transmission)
+    }
+
+    /// The transmission these tables were integrated from.
+    pub fn transmission(&self) -> &Sampled {
+        &self.transmission
     }
 
     /// XYZ through this filter of LED basis spectrum `k` (basis Y = 1).

@@ -50,6 +50,33 @@ impl Sampled {
         Self::from_fn(|nm| interpolate_table(start_nm, step_nm, table, nm))
     }
 
+    /// Resamples measured points `(nm, value)` in any order (a GDTF
+    /// `<Measurement>`'s WaveLength/Energy or transmission): linear between
+    /// neighbouring points, **zero outside the measured range** (a light
+    /// source emits nothing where it was not measured). Non-finite points
+    /// are dropped; `None` with fewer than two distinct wavelengths.
+    pub fn from_points(points: &[(f64, f64)]) -> Option<Self> {
+        let mut pts: Vec<(f64, f64)> = points.iter().copied().filter(|p| p.0.is_finite() && p.1.is_finite()).collect();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        pts.dedup_by(|a, b| a.0 == b.0);
+        if pts.len() < 2 {
+            return None;
+        }
+        let (lo, hi) = (pts[0].0, pts[pts.len() - 1].0);
+        Some(Self::from_fn(|nm| {
+            if nm < lo || nm > hi {
+                return 0.0;
+            }
+            let i = pts.partition_point(|p| p.0 < nm);
+            if i == 0 {
+                return pts[0].1;
+            }
+            let ((x0, y0), (x1, y1)) = (pts[i - 1], pts[i]);
+            let t = (nm - x0) / (x1 - x0);
+            y0 * (1.0 - t) + y1 * t // convex: never below both neighbours
+        }))
+    }
+
     /// The samples, index `i` at `360 + i` nm.
     pub fn values(&self) -> &[f64; SAMPLES] {
         &self.values
@@ -141,5 +168,19 @@ mod tests {
         let m = Sampled::lerp(&a, &b, 0.25);
         assert!((m.at(400.0) - 0.4).abs() < 1e-12);
         assert!((m.at(600.0) - 0.15).abs() < 1e-12);
+    }
+
+    #[test]
+    fn measured_points_interpolate_and_are_zero_outside() {
+        // Unsorted points 400..600 nm: linear between, zero outside, never
+        // below both neighbours (tiny values next to zero stay ≥ 0).
+        let s = Sampled::from_points(&[(600.0, 0.0), (400.0, 2.0), (500.0, 1e-300), (450.0, f64::NAN)]).unwrap();
+        assert_eq!(s.at(399.0), 0.0);
+        assert_eq!(s.at(601.0), 0.0);
+        assert_eq!(s.at(400.0), 2.0);
+        assert!((s.at(450.0) - 1.0).abs() < 1e-12);
+        assert!(s.values().iter().all(|v| *v >= 0.0));
+        assert!(Sampled::from_points(&[(500.0, 1.0), (500.0, 2.0)]).is_none());
+        assert!(Sampled::from_points(&[]).is_none());
     }
 }

@@ -213,7 +213,7 @@ fn lamp(at: &At, l: &Spanned<LampFile>) -> Result<(Lamp, Vec<String>), PatchErro
         "cmy" => {
             no_emitters(kind)?;
             let names = ["cyan", "magenta", "yellow"].map(String::from).to_vec();
-            Ok((Lamp::Cmy { cct: cct(HMI_CCT_K)?, cyan: 0.0, magenta: 0.0, yellow: 0.0 }, names))
+            Ok((Lamp::Cmy { cct: cct(HMI_CCT_K)?, cyan: 0.0, magenta: 0.0, yellow: 0.0, filters: None }, names))
         }
         "led" => {
             if let Some(c) = &f.cct {

@@ -663,9 +663,13 @@ impl FixtureType {
                 }
                 Lamp::Led { emitters }
             }
-            Lamp::Cmy { cct, .. } => {
-                Lamp::Cmy { cct: corrected(*cct, state.cto), cyan: mix(0), magenta: mix(1), yellow: mix(2) }
-            }
+            Lamp::Cmy { cct, filters, .. } => Lamp::Cmy {
+                cct: corrected(*cct, state.cto),
+                cyan: mix(0),
+                magenta: mix(1),
+                yellow: mix(2),
+                filters: filters.clone(),
+            },
             Lamp::Tungsten { cct_full } => Lamp::Tungsten { cct_full: corrected(*cct_full, state.cto) },
             Lamp::Discharge { cct } => Lamp::Discharge { cct: corrected(*cct, state.cto) },
         }

@@ -5,6 +5,7 @@ mod gate;
 mod peers;
 mod readers;
 mod show;
+mod spectra;
 
 use std::path::PathBuf;
 

@@ -1,8 +1,9 @@
 //! The Rust readers against pygdtf 1.4.5 and pymvr 1.0.7 (installed by
 //! `.ci/run`) on the same generated files: fixture count, addresses, mode
 //! channel counts and offsets per break, geometry tree, beam angles, wheel
-//! slot counts, gobo slot image names, prism facets, and the gate channels
-//! (gobo, prism, blades, shaper, frost) as Footlight maps them.
+//! slot counts, gobo slot image names, prism facets, the gate channels
+//! (gobo, prism, blades, shaper, frost) as Footlight maps them, and the
+//! emitters' and filters' spectral measurements.
 
 use super::{gdtf, mvr, root};
 use footlight_fixture::fixture_type::Attribute;
@@ -11,7 +12,7 @@ use footlight_mvr::mvr::Mvr;
 use serde_json::Value;
 use std::process::Command;
 
-const TYPES: [&str; 7] = ["Spot", "Wash", "Bar8", "Blinder", "Fresnel", "Hazer", "Fan4"];
+const TYPES: [&str; 9] = ["Spot", "Wash", "Bar8", "Blinder", "Fresnel", "Hazer", "Fan4", "SpectralLed", "CmySpot"];
 
 fn peers_available() -> bool {
     match Command::new("python3").args(["-c", "import pygdtf, pymvr"]).output() {
@@ -70,6 +71,7 @@ fn gdtf_agrees_with_pygdtf() {
         }
         assert_eq!(theirs["wheels"].as_object().unwrap().len(), g.ft.wheels.len(), "{t}");
         gate_agrees(t, &g, theirs);
+        measurements_agree(t, &g, theirs);
         let modes = theirs["modes"].as_object().unwrap();
         assert_eq!(modes.len(), g.mode_names().len(), "{t}");
         for (mode, m) in modes {
@@ -104,6 +106,30 @@ fn gdtf_agrees_with_pygdtf() {
             }
         }
     }
+}
+
+/// The emitters' and filters' measurements that colour is computed from
+/// (Physical, LuminousIntensity, every WaveLength/Energy point) against
+/// pygdtf's reading (which reads a missing LuminousIntensity as 0).
+fn measurements_agree(t: &str, g: &Gdtf, theirs: &Value) {
+    use gdtf::physical_descriptions::Measurement;
+    let ours = |name: Option<&str>, ms: &[Measurement]| -> (String, Value) {
+        let v: Vec<Value> = ms
+            .iter()
+            .map(|m| {
+                let pts: Vec<Value> = m.points.iter().map(|p| serde_json::json!([p.wave_length, p.energy])).collect();
+                serde_json::json!([m.physical, m.luminous_intensity.unwrap_or(0.0), pts])
+            })
+            .collect();
+        (name.unwrap_or_default().to_string(), Value::from(v))
+    };
+    let pd = &g.ft.physical_descriptions;
+    let emitters: serde_json::Map<String, Value> =
+        pd.emitters.iter().map(|e| ours(e.name.as_deref(), &e.measurements)).collect();
+    let filters: serde_json::Map<String, Value> =
+        pd.filters.iter().map(|f| ours(f.name.as_deref(), &f.measurements)).collect();
+    assert_eq!(Value::from(emitters), theirs["emitters"], "{t}: emitter measurements");
+    assert_eq!(Value::from(filters), theirs["filters"], "{t}: filter measurements");
 }
 
 /// The gate as Footlight maps it against pygdtf's reading: gobo slot image

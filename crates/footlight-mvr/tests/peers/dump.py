@@ -3,7 +3,8 @@
 
 Prints one JSON object: per GDTF file, per mode, the channels per DMX break
 (offsets, attribute), the geometry tree (names, kinds) walked from the mode,
-the beams' angles, the emitting GeometryReferences (pixel cells: name,
+the beams' angles, the emitters' and filters' measurements (Physical,
+LuminousIntensity, WaveLength/Energy points), the emitting GeometryReferences (pixel cells: name,
 beam position, breaks), the wheel slot counts, each slot's gobo image name and
 prism facet angles; per MVR file, every fixture's
 spec, mode, addresses, ids and local matrix. The Rust test
@@ -94,7 +95,23 @@ def gdtf(path):
         ]
         for w in ft.wheels
     }
-    return {"name": ft.name, "wheels": {w.name: len(w.wheel_slots) for w in ft.wheels}, "wheel_slots": slots, "modes": modes}
+    def measurements(items):
+        return {
+            i.name: [
+                [float(m.physical), float(m.luminous_intensity), [[float(p.wave_length), float(p.energy)] for p in m.measurement_points]]
+                for m in i.measurements
+            ]
+            for i in items
+        }
+
+    return {
+        "name": ft.name,
+        "wheels": {w.name: len(w.wheel_slots) for w in ft.wheels},
+        "wheel_slots": slots,
+        "modes": modes,
+        "emitters": measurements(ft.emitters),
+        "filters": measurements(ft.filters),
+    }
 
 
 def mvr(path):
