@@ -70,6 +70,19 @@ impl Bins {
 pub fn bin_samples(samples: &[PrimarySample; SAMPLES_PER_PIXEL]) -> Bins {
     let empty = Bin { triangle: NO_HIT, weight: 0.0, u: 0.0, v: 0.0 };
     let mut items = [empty; SAMPLES_PER_PIXEL];
+    // Fast path: most pixels see one triangle only (the general loop below
+    // cost as much as expanding the pixel's path; same sums, same order).
+    let first = samples[0].triangle;
+    if samples.iter().all(|s| s.triangle == first) {
+        let (mut u, mut v) = (0.0f32, 0.0f32);
+        for s in samples {
+            u += s.u;
+            v += s.v;
+        }
+        let n = SAMPLES_PER_PIXEL as f32;
+        items[0] = Bin { triangle: first, weight: n / n, u: u / n, v: v / n };
+        return Bins { items, len: 1 };
+    }
     let mut counts = [0u32; SAMPLES_PER_PIXEL];
     let mut len = 0;
     for s in samples {
@@ -122,14 +135,12 @@ pub fn surface_bins(scene: &Scene, samples: &[PrimarySample; SAMPLES_PER_PIXEL])
     if bins.len <= 1 {
         return bins;
     }
-    let surf: Vec<Option<crate::scene::SurfacePoint>> = bins
-        .as_slice()
-        .iter()
-        .map(|b| {
-            (b.triangle != NO_HIT)
-                .then(|| scene.surface(&crate::scene::Hit { triangle: b.triangle, t: 0.0, u: b.u, v: b.v }))
+    // A fixed array, not a Vec: this runs for every pixel on an edge.
+    let surf: [Option<crate::scene::SurfacePoint>; SAMPLES_PER_PIXEL] = std::array::from_fn(|i| {
+        bins.as_slice().get(i).filter(|b| b.triangle != NO_HIT).map(|b| {
+            scene.surface(&crate::scene::Hit { triangle: b.triangle, t: 0.0, u: b.u, v: b.v })
         })
-        .collect();
+    });
     let same = |a: usize, b: usize| match (&surf[a], &surf[b]) {
         (Some(p), Some(q)) => {
             let d = q.position - p.position;

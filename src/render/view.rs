@@ -349,18 +349,40 @@ impl View {
     /// times any positive factor gives the same set.
     pub fn gradient_flags(&self, scene: &Scene, dense: &[Vec3], aa: AaParams) -> Vec<bool> {
         let (w, h) = (self.width() as usize, self.height() as usize);
-        let Some(reference) = reference_level(dense) else { return vec![false; w * h] };
+        let mut flags = vec![false; w * h];
+        for (a, b) in self.gradient_pairs(scene, dense, aa) {
+            dilate(&mut flags, w, h, a);
+            dilate(&mut flags, w, h, b);
+        }
+        flags
+    }
+
+    /// The neighbour pairs (pixel, right or lower neighbour) of `dense`
+    /// whose relative values (the light's 99th-percentile pixel = 255,
+    /// through the sRGB curve) differ by more than the threshold in any
+    /// channel and that lie on the same surface: the jumps
+    /// [`View::gradient_flags`] re-shades around, row by row. The sRGB codes
+    /// come from one table look-up per channel (no `powf`), the threshold is
+    /// tested on the codes first and the same-surface test (two surface
+    /// look-ups) only on the few pairs over it; nothing is allocated per
+    /// pixel.
+    pub fn gradient_pairs(&self, scene: &Scene, dense: &[Vec3], aa: AaParams) -> Vec<(usize, usize)> {
+        let (w, h) = (self.width() as usize, self.height() as usize);
+        let Some(reference) = reference_level(dense) else { return Vec::new() };
         let scale = Vec3::splat(1.0 / reference);
-        let display: Vec<Vec3> = dense.par_iter().map(|&l| Vec3::from_array(srgb8(l * scale).map(f32::from))).collect();
-        // Centre sample's surface per pixel: material and shading normal.
-        // The surface test runs only for pairs over the threshold (few), so
-        // the centre samples' surfaces are looked up there, not per pixel.
+        let codes: Vec<[u8; 3]> = dense.par_iter().map(|&l| srgb8(l * scale)).collect();
+        // Centre sample's surface per pixel: material and shading normal,
+        // looked up only for pairs over the threshold.
         let surface = |i: usize| centre_surface(scene, &self.gbuffer.samples[i][CENTRE_SAMPLE]);
         let same = |a: usize, b: usize| match (surface(a), surface(b)) {
             (Some((ma, na)), Some((mb, nb))) => ma == mb && na.dot(nb) >= SAME_SURFACE_COS,
             _ => false,
         };
-        mark_gradients(&display, w, h, aa.threshold, same)
+        let over = |a: usize, b: usize| {
+            let (x, y) = (codes[a], codes[b]);
+            (0..3).any(|c| f32::from(x[c].abs_diff(y[c])) > aa.threshold) && same(a, b)
+        };
+        neighbour_pairs(w, h, over)
     }
 
     /// The indirect buffer I_h,ε_A,i (eq. 3, 5) of a light from its photon
@@ -661,20 +683,57 @@ fn centre_surface(scene: &Scene, s: &PrimarySample) -> Option<(u32, Vec3)> {
 
 /// The light's reference level: the 99th percentile of the largest channel
 /// over its lit pixels; `None` when nothing is lit.
-fn reference_level(dense: &[Vec3]) -> Option<f32> {
-    let mut lit: Vec<f32> = dense.iter().map(|v| v.max_element()).filter(|&m| m > 0.0 && m.is_finite()).collect();
-    if lit.is_empty() {
+///
+/// The same value as selecting the k-th smallest of all lit values (the
+/// order statistic, [`slice::select_nth_unstable_by`]), found without
+/// copying the buffer: a parallel histogram of the values' top bits (the
+/// bit pattern of a positive float orders like the float), then the
+/// selection among the values of the one bucket that holds the k-th.
+pub fn reference_level(dense: &[Vec3]) -> Option<f32> {
+    const SHIFT: u32 = 20; // 8 exponent bits and 3 mantissa bits: 2048 buckets
+    const BUCKETS: usize = 1 << (31 - SHIFT);
+    let lit = |v: &Vec3| Some(v.max_element()).filter(|&m| m > 0.0 && m.is_finite());
+    let bucket = |m: f32| (m.to_bits() >> SHIFT) as usize;
+    let counts = dense
+        .par_chunks(4096)
+        .fold(
+            || vec![0u32; BUCKETS],
+            |mut c, chunk| {
+                for m in chunk.iter().filter_map(lit) {
+                    c[bucket(m)] += 1;
+                }
+                c
+            },
+        )
+        .reduce(
+            || vec![0u32; BUCKETS],
+            |mut a, b| {
+                a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+                a
+            },
+        );
+    let total: usize = counts.iter().map(|&c| c as usize).sum();
+    if total == 0 {
         return None;
     }
-    let i = ((lit.len() - 1) as f32 * AA_REFERENCE_PERCENTILE) as usize;
-    let (_, level, _) = lit.select_nth_unstable_by(i, f32::total_cmp);
+    let mut k = ((total - 1) as f32 * AA_REFERENCE_PERCENTILE) as usize;
+    let mut target = 0;
+    for (b, &c) in counts.iter().enumerate() {
+        if k < c as usize {
+            target = b;
+            break;
+        }
+        k -= c as usize;
+    }
+    let mut inside: Vec<f32> = dense.par_iter().filter_map(lit).filter(|&m| bucket(m) == target).collect();
+    let (_, level, _) = inside.select_nth_unstable_by(k, f32::total_cmp);
     Some(*level)
 }
 
 /// Marks pixels whose value differs from a right or lower neighbour with
 /// `comparable(a, b)` by more than the threshold in any channel, plus their
-/// 8 neighbours. Parallel over rows: first the pixels an edge touches, then
-/// every pixel with a touched pixel in its 3×3 neighbourhood.
+/// 8 neighbours. Parallel over rows: the pairs over the threshold (each
+/// tested once), then the 3×3 neighbourhood of each of their pixels.
 pub fn mark_gradients(
     display: &[Vec3],
     w: usize,
@@ -683,23 +742,44 @@ pub fn mark_gradients(
     comparable: impl Fn(usize, usize) -> bool + Sync,
 ) -> Vec<bool> {
     // The threshold first: `comparable` may be costly and is rarely needed.
-    let edge = |a: usize, b: usize| (display[b] - display[a]).abs().max_element() > threshold && comparable(a, b);
-    let touched: Vec<bool> = (0..w * h)
+    let over = |a: usize, b: usize| (display[b] - display[a]).abs().max_element() > threshold && comparable(a, b);
+    let mut flags = vec![false; w * h];
+    for (a, b) in neighbour_pairs(w, h, over) {
+        dilate(&mut flags, w, h, a);
+        dilate(&mut flags, w, h, b);
+    }
+    flags
+}
+
+/// Every pair (pixel, right neighbour) and (pixel, lower neighbour) of a
+/// `w`×`h` image for which `over` holds, row by row (parallel over rows;
+/// a row allocates only once it holds a pair).
+fn neighbour_pairs(w: usize, h: usize, over: impl Fn(usize, usize) -> bool + Sync) -> Vec<(usize, usize)> {
+    let rows: Vec<Vec<(usize, usize)>> = (0..h)
         .into_par_iter()
-        .map(|i| {
-            let (x, y) = (i % w, i / w);
-            (x + 1 < w && edge(i, i + 1))
-                || (y + 1 < h && edge(i, i + w))
-                || (x > 0 && edge(i - 1, i))
-                || (y > 0 && edge(i - w, i))
+        .map(|y| {
+            let mut pairs = Vec::new();
+            for x in 0..w {
+                let i = y * w + x;
+                if x + 1 < w && over(i, i + 1) {
+                    pairs.push((i, i + 1));
+                }
+                if y + 1 < h && over(i, i + w) {
+                    pairs.push((i, i + w));
+                }
+            }
+            pairs
         })
         .collect();
-    let mut flags = vec![false; w * h];
-    flags.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
-        for (x, f) in row.iter_mut().enumerate() {
-            *f = (y.saturating_sub(1)..(y + 2).min(h))
-                .any(|yy| (x.saturating_sub(1)..(x + 2).min(w)).any(|xx| touched[yy * w + xx]));
+    rows.concat()
+}
+
+/// Sets `flags` on pixel `i` of a `w`×`h` image and its 8 neighbours.
+pub fn dilate(flags: &mut [bool], w: usize, h: usize, i: usize) {
+    let (x, y) = (i % w, i / w);
+    for yy in y.saturating_sub(1)..(y + 2).min(h) {
+        for xx in x.saturating_sub(1)..(x + 2).min(w) {
+            flags[yy * w + xx] = true;
         }
-    });
-    flags
+    }
 }
