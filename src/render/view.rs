@@ -73,6 +73,28 @@ impl Sampling {
     }
 }
 
+/// A sharp specular material: Phong lobe of exponent ≥ [`GLINT_EXPONENT`]
+/// (see [`View::glint_pixels`]).
+pub fn is_sharp(m: &crate::scene::Material) -> bool {
+    m.specular.max_element() > 0.0 && m.exponent >= GLINT_EXPONENT
+}
+
+/// Which pixels an over-threshold neighbour pair marks for re-shading
+/// (issue 13, AA cost; the bench measures each, cost and error).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub enum AaMarking {
+    /// The two pixels of the pair: the jump lies between their centres, so
+    /// the edge crosses one of them or both.
+    #[default]
+    Pair,
+    /// The pair and the pixel beyond each, in the pair's direction (4 pixels
+    /// in a row across the edge).
+    Across,
+    /// Both pixels and their 8 neighbours (3×3 dilation: the paper's "the
+    /// current and the neighbouring pixels"; round 4's marking).
+    Dilated,
+}
+
 /// Adaptive anti-aliasing parameters (the same for every light: the decision
 /// is relative to each light's own buffer, see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -80,14 +102,33 @@ pub struct AaParams {
     /// Gradient threshold on the 0-255 scale, with the light's 99th-percentile
     /// pixel at 255 (paper: 15-25 on the displayed image).
     pub threshold: f32,
+    /// Which pixels a pair over the threshold marks.
+    pub marking: AaMarking,
+    /// Also mark the pixels that may hold the light's highlight on a sharp
+    /// specular surface ([`View::glint_pixels`]): a highlight smaller than a
+    /// pixel that the one shade per bin misses.
+    pub glints: bool,
 }
 
 impl AaParams {
-    /// Parameters with the given threshold (0-255 scale).
+    /// The renderer's parameters with the given threshold (0-255 scale):
+    /// [`AaMarking::Pair`] and highlight pairs.
     pub fn new(threshold: f32) -> Self {
-        Self { threshold }
+        Self { threshold, marking: AaMarking::Pair, glints: true }
+    }
+
+    /// Round 4's rule (the bench's "before"): 3×3 dilation, no highlight pairs.
+    pub fn round4(threshold: f32) -> Self {
+        Self { threshold, marking: AaMarking::Dilated, glints: false }
     }
 }
+
+/// Lowest Phong exponent for which [`View::glint_pixels`] looks for the
+/// light's highlight inside a pixel: a lobe of exponent 100 is ~7°
+/// wide at half height, spread over many pixels unless the surface curves
+/// sharply; the bundled stage's chrome, mirror, glass and polished floor
+/// use 10,000 (~0.7°), whose highlight on a thin tube is smaller than a pixel.
+pub const GLINT_EXPONENT: f32 = 100.0;
 
 /// Share of a light's lit pixels at or below its reference level (the level
 /// shown as 255 for the anti-aliasing decision): the 99th percentile, so a
@@ -101,6 +142,10 @@ pub struct ShadingSet {
     pub set: SampleSet,
     start: Vec<u32>,
     vertices: Vec<ShadingVertex>,
+    /// Pixels with a directly seen vertex on a sharp specular material
+    /// ([`is_sharp`]): the only ones [`View::glint_pixels`] tests; found
+    /// while expanding (the vertices are at hand), light-independent.
+    sharp_pixels: Vec<u32>,
 }
 
 impl ShadingSet {
@@ -229,30 +274,38 @@ impl View {
     /// Expands every pixel's camera paths for `set` (parallel over rows).
     pub fn expand_all(scene: &Scene, gbuffer: &GBuffer, set: SampleSet, limits: RecursionLimits) -> ShadingSet {
         let w = gbuffer.width as usize;
-        let rows: Vec<(Vec<u32>, Vec<ShadingVertex>)> = (0..gbuffer.height as usize)
+        let sharp: Vec<bool> = scene.materials.iter().map(is_sharp).collect();
+        let any_sharp = sharp.contains(&true);
+        let rows: Vec<(Vec<u32>, Vec<ShadingVertex>, Vec<u32>)> = (0..gbuffer.height as usize)
             .into_par_iter()
             .map(|y| {
                 let mut counts = Vec::with_capacity(w);
                 let mut verts = Vec::new();
+                let mut sharp_pixels = Vec::new();
                 for x in 0..w {
                     let before = verts.len();
                     expand_pixel(scene, gbuffer, y * w + x, set, limits, &mut verts);
                     counts.push((verts.len() - before) as u32);
+                    if any_sharp && verts[before..].iter().any(|v| v.depth == 0 && sharp[v.material as usize]) {
+                        sharp_pixels.push((y * w + x) as u32);
+                    }
                 }
-                (counts, verts)
+                (counts, verts, sharp_pixels)
             })
             .collect();
         let mut start = Vec::with_capacity(w * gbuffer.height as usize + 1);
         let mut vertices = Vec::with_capacity(rows.iter().map(|r| r.1.len()).sum());
+        let mut sharp_pixels = Vec::new();
         start.push(0u32);
-        for (counts, verts) in rows {
+        for (counts, verts, sharp) in rows {
+            sharp_pixels.extend(sharp);
             for c in counts {
                 let last = *start.last().unwrap_or(&0);
                 start.push(last + c);
             }
             vertices.extend(verts);
         }
-        ShadingSet { set, start, vertices }
+        ShadingSet { set, start, vertices, sharp_pixels }
     }
 
     /// Renders light `light`'s unit-intensity buffer I_h,ε_i (eq. 5). With
@@ -312,7 +365,7 @@ impl View {
         }
         let mut reshaded = 0;
         if let (Sampling::Adaptive, Some(aa)) = (self.sampling, aa) {
-            let flags = self.gradient_flags(scene, &dense, aa);
+            let flags = self.aa_flags(scene, light, &dense, aa);
             reshaded = self.reshade(scene, light, &mut dense, &flags);
         }
         if stop() {
@@ -341,20 +394,35 @@ impl View {
         flags.iter().filter(|&&f| f).count()
     }
 
-    /// The pixels adaptive anti-aliasing re-shades for a light whose base
-    /// buffer is `dense`: every pixel whose relative value (the light's
-    /// 99th-percentile pixel = 255, through the sRGB curve) differs from a
-    /// right or lower neighbour on the same surface by more than the
-    /// threshold in any channel, plus its 8 neighbours. Scale-free: `dense`
-    /// times any positive factor gives the same set.
-    pub fn gradient_flags(&self, scene: &Scene, dense: &[Vec3], aa: AaParams) -> Vec<bool> {
+    /// The pixels adaptive anti-aliasing re-shades for `light`, whose base
+    /// buffer is `dense` (what [`View::render_direct`] re-shades): the pixels
+    /// [`AaParams::marking`] marks for every pair of
+    /// [`View::gradient_pairs`] and, with [`AaParams::glints`], the pixels
+    /// of [`View::glint_pixels`]. Scale-free: neither exposure nor dimmer enters.
+    pub fn aa_flags(&self, scene: &Scene, light: &Light, dense: &[Vec3], aa: AaParams) -> Vec<bool> {
         let (w, h) = (self.width() as usize, self.height() as usize);
-        let mut flags = vec![false; w * h];
-        for (a, b) in self.gradient_pairs(scene, dense, aa) {
-            dilate(&mut flags, w, h, a);
-            dilate(&mut flags, w, h, b);
+        let Some(reference) = reference_level(dense) else { return vec![false; w * h] };
+        let codes = relative_codes(dense, reference);
+        let pairs = self.pairs_over(scene, &codes, aa.threshold);
+        let mut flags = mark_pairs(&pairs, w, h, aa.marking);
+        if aa.glints {
+            for i in self.glint_pixels(scene, light, &codes, reference, aa.threshold) {
+                match aa.marking {
+                    AaMarking::Dilated => dilate(&mut flags, w, h, i),
+                    AaMarking::Pair | AaMarking::Across => flags[i] = true,
+                }
+            }
         }
         flags
+    }
+
+    /// The light-free part of [`View::aa_flags`]: the pixels
+    /// [`AaParams::marking`] marks for every pair of [`View::gradient_pairs`]
+    /// (no highlight pairs). Scale-free: `dense` times any positive factor
+    /// gives the same set.
+    pub fn gradient_flags(&self, scene: &Scene, dense: &[Vec3], aa: AaParams) -> Vec<bool> {
+        let (w, h) = (self.width() as usize, self.height() as usize);
+        mark_pairs(&self.gradient_pairs(scene, dense, aa), w, h, aa.marking)
     }
 
     /// The neighbour pairs (pixel, right or lower neighbour) of `dense`
@@ -367,10 +435,13 @@ impl View {
     /// look-ups) only on the few pairs over it; nothing is allocated per
     /// pixel.
     pub fn gradient_pairs(&self, scene: &Scene, dense: &[Vec3], aa: AaParams) -> Vec<(usize, usize)> {
-        let (w, h) = (self.width() as usize, self.height() as usize);
         let Some(reference) = reference_level(dense) else { return Vec::new() };
-        let scale = Vec3::splat(1.0 / reference);
-        let codes: Vec<[u8; 3]> = dense.par_iter().map(|&l| srgb8(l * scale)).collect();
+        self.pairs_over(scene, &relative_codes(dense, reference), aa.threshold)
+    }
+
+    /// [`View::gradient_pairs`] from the relative codes.
+    fn pairs_over(&self, scene: &Scene, codes: &[[u8; 3]], threshold: f32) -> Vec<(usize, usize)> {
+        let (w, h) = (self.width() as usize, self.height() as usize);
         // Centre sample's surface per pixel: material and shading normal,
         // looked up only for pairs over the threshold.
         let surface = |i: usize| centre_surface(scene, &self.gbuffer.samples[i][CENTRE_SAMPLE]);
@@ -378,11 +449,78 @@ impl View {
             (Some((ma, na)), Some((mb, nb))) => ma == mb && na.dot(nb) >= SAME_SURFACE_COS,
             _ => false,
         };
-        let over = |a: usize, b: usize| {
-            let (x, y) = (codes[a], codes[b]);
-            (0..3).any(|c| f32::from(x[c].abs_diff(y[c])) > aa.threshold) && same(a, b)
-        };
+        let over = |a: usize, b: usize| codes_differ(codes[a], codes[b], threshold) && same(a, b);
         neighbour_pairs(w, h, over)
+    }
+
+    /// Pixels that may hold the light's highlight on a sharp specular
+    /// surface (Phong exponent ≥ [`GLINT_EXPONENT`]) brighter than the
+    /// pixel's own relative code by more than `threshold` (the light's
+    /// `reference` level = 255): a highlight smaller than a pixel, which the
+    /// one shade per bin misses and no neighbour jump shows (on the bundled
+    /// stage two such pixels on a chrome tube, black in the base and white
+    /// in the 9-sample and 81-sample pictures, held most of the error left
+    /// after round 4's re-shading).
+    ///
+    /// Only pixels that see such a surface directly are tested: at each of
+    /// their 9 G-buffer samples on it the unshadowed specular part of the
+    /// direct light, ρ_s (n + 2)/2π cos^n α · f_ε cos θ / d² (eq. 1's
+    /// specular term without the visibility test), is summed with weight
+    /// 1/9: what the 9-sample re-shading would add at most. No shadow ray
+    /// and no secondary ray. Scale-free: the value and the reference level
+    /// both come from the light.
+    pub fn glint_pixels(
+        &self,
+        scene: &Scene,
+        light: &Light,
+        codes: &[[u8; 3]],
+        reference: f32,
+        threshold: f32,
+    ) -> Vec<usize> {
+        let eye = self.gbuffer.camera.position;
+        let scale = 1.0 / reference;
+        let weight = 1.0 / SAMPLES_PER_PIXEL as f32;
+        self.shading
+            .sharp_pixels
+            .par_iter()
+            .map(|&i| i as usize)
+            .filter(|&i| {
+                let mut sum = Vec3::ZERO;
+                for s in &self.gbuffer.samples[i] {
+                    if s.triangle == NO_HIT {
+                        continue;
+                    }
+                    let material = &scene.materials[scene.material_of[s.triangle as usize] as usize];
+                    if !is_sharp(material) {
+                        continue;
+                    }
+                    let sp = scene.surface(&Hit { triangle: s.triangle, t: 0.0, u: s.u, v: s.v });
+                    let Some(dir) = (sp.position - eye).try_normalize() else { continue };
+                    let f = sp.facing(dir);
+                    let to = light.position - sp.position;
+                    let d2 = to.length_squared();
+                    let wi = to.normalize_or_zero();
+                    let cos = wi.dot(f.shading);
+                    if !(d2 > 1e-12 && d2.is_finite() && cos > 0.0 && wi.dot(f.geometric) > 0.0) {
+                        continue;
+                    }
+                    let m = material;
+                    let cos_alpha = (2.0 * cos * f.shading - wi).dot(-dir).max(0.0);
+                    // cos^n α < e^-40 (n (1 - cos α) > 40): nothing to see.
+                    if m.exponent * (1.0 - cos_alpha) > 40.0 {
+                        continue;
+                    }
+                    let e = light.pattern_toward(-wi);
+                    if e <= 0.0 {
+                        continue;
+                    }
+                    let lobe = (m.exponent + 2.0) * 0.5 * std::f32::consts::FRAC_1_PI * cos_alpha.powf(m.exponent);
+                    sum += m.specular * (lobe * e * cos / d2 * weight);
+                }
+                let c = srgb8(sum * scale);
+                (0..3).any(|k| f32::from(c[k]) - f32::from(codes[i][k]) > threshold)
+            })
+            .collect()
     }
 
     /// The indirect buffer I_h,ε_A,i (eq. 3, 5) of a light from its photon
@@ -731,9 +869,10 @@ pub fn reference_level(dense: &[Vec3]) -> Option<f32> {
 }
 
 /// Marks pixels whose value differs from a right or lower neighbour with
-/// `comparable(a, b)` by more than the threshold in any channel, plus their
-/// 8 neighbours. Parallel over rows: the pairs over the threshold (each
-/// tested once), then the 3×3 neighbourhood of each of their pixels.
+/// `comparable(a, b)` by more than the threshold in any channel, the way
+/// [`AaParams::new`] marks them ([`AaMarking::Pair`]: the two pixels of
+/// each such pair; what [`View::render_direct`] re-shades without its
+/// highlight pairs). Parallel over rows, each pair tested once.
 pub fn mark_gradients(
     display: &[Vec3],
     w: usize,
@@ -741,14 +880,65 @@ pub fn mark_gradients(
     threshold: f32,
     comparable: impl Fn(usize, usize) -> bool + Sync,
 ) -> Vec<bool> {
+    mark_gradients_with(display, w, h, threshold, comparable, AaParams::new(threshold).marking)
+}
+
+/// As [`mark_gradients`], marking the pixels `marking` marks.
+pub fn mark_gradients_with(
+    display: &[Vec3],
+    w: usize,
+    h: usize,
+    threshold: f32,
+    comparable: impl Fn(usize, usize) -> bool + Sync,
+    marking: AaMarking,
+) -> Vec<bool> {
     // The threshold first: `comparable` may be costly and is rarely needed.
     let over = |a: usize, b: usize| (display[b] - display[a]).abs().max_element() > threshold && comparable(a, b);
+    mark_pairs(&neighbour_pairs(w, h, over), w, h, marking)
+}
+
+/// The pixels `marking` marks for `pairs` (each a pixel and its right or
+/// lower neighbour) on a `w`×`h` image.
+pub fn mark_pairs(pairs: &[(usize, usize)], w: usize, h: usize, marking: AaMarking) -> Vec<bool> {
     let mut flags = vec![false; w * h];
-    for (a, b) in neighbour_pairs(w, h, over) {
-        dilate(&mut flags, w, h, a);
-        dilate(&mut flags, w, h, b);
+    for &(a, b) in pairs {
+        match marking {
+            AaMarking::Pair => {
+                flags[a] = true;
+                flags[b] = true;
+            }
+            AaMarking::Across => {
+                flags[a] = true;
+                flags[b] = true;
+                // b = a + 1 (right) or a + w (lower): one more each way.
+                let step = b - a;
+                let (ax, bx) = (a % w, b % w);
+                if a >= step && (step == w || ax > 0) {
+                    flags[a - step] = true;
+                }
+                if b + step < w * h && (step == w || bx + 1 < w) {
+                    flags[b + step] = true;
+                }
+            }
+            AaMarking::Dilated => {
+                dilate(&mut flags, w, h, a);
+                dilate(&mut flags, w, h, b);
+            }
+        }
     }
     flags
+}
+
+/// Whether two relative codes differ by more than `threshold` in any channel.
+fn codes_differ(x: [u8; 3], y: [u8; 3], threshold: f32) -> bool {
+    (0..3).any(|c| f32::from(x[c].abs_diff(y[c])) > threshold)
+}
+
+/// 8-bit sRGB codes of `dense` shown with `reference` as white (one table
+/// look-up per channel, no `powf`).
+fn relative_codes(dense: &[Vec3], reference: f32) -> Vec<[u8; 3]> {
+    let scale = Vec3::splat(1.0 / reference);
+    dense.par_iter().map(|&l| srgb8(l * scale)).collect()
 }
 
 /// Every pair (pixel, right neighbour) and (pixel, lower neighbour) of a
