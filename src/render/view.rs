@@ -123,6 +123,17 @@ impl AaParams {
     }
 }
 
+/// The renderer's gradient threshold (relative 0-255 codes, the light's
+/// 99th-percentile pixel = 255): the CLI's `--aa-threshold` default, the
+/// daemon's and the still renderer's. Chosen from the bench's error-versus-
+/// cost curve (`footlight bench --accuracy-only --accuracy-part aa`, issue
+/// 13): with pair marks and highlight pixels, 100 re-shades 0.30 % of the
+/// bundled stage's pixels at a display MSE of 5.9e-6 against 81 samples,
+/// against round 4's 1.97 % at 8.6e-6 with threshold 20 and 3×3 marks. On
+/// this scale 100 is a jump from 255 down to 13 % of the light's level,
+/// or from 0 up to it; the paper's 15-25 are steps of the displayed picture.
+pub const AA_THRESHOLD: f32 = 100.0;
+
 /// Lowest Phong exponent for which [`View::glint_pixels`] looks for the
 /// light's highlight inside a pixel: a lobe of exponent 100 is ~7°
 /// wide at half height, spread over many pixels unless the surface curves
