@@ -272,6 +272,27 @@ mod tests {
     }
 
     #[test]
+    fn one_triangle_pixel_is_one_bin_at_the_mean() {
+        // The single-triangle fast path: weight 1, the mean of the 9
+        // barycentrics summed in sample order, as the general loop sums them.
+        let s: [PrimarySample; SAMPLES_PER_PIXEL] =
+            std::array::from_fn(|i| PrimarySample { triangle: 5, u: 0.1 + 0.013 * i as f32, v: 0.3 - 0.007 * i as f32 });
+        let bins = bin_samples(&s);
+        assert_eq!(bins.as_slice().len(), 1);
+        let b = bins.as_slice()[0];
+        let (mut u, mut v) = (0.0f32, 0.0f32);
+        for x in &s {
+            u += x.u;
+            v += x.v;
+        }
+        assert_eq!((b.triangle, b.weight, b.u, b.v), (5, 1.0, u / 9.0, v / 9.0));
+        // One sample on another triangle: the general path, two bins.
+        let mut t = s;
+        t[8].triangle = 6;
+        assert_eq!(bin_samples(&t).as_slice().len(), 2);
+    }
+
+    #[test]
     fn offsets_form_a_centred_grid() {
         assert_eq!(sample_offset(CENTRE_SAMPLE), (0.5, 0.5));
         assert_eq!(sample_offset(0), (1.0 / 6.0, 1.0 / 6.0));

@@ -984,3 +984,46 @@ pub fn dilate(flags: &mut [bool], w: usize, h: usize, i: usize) {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reference_level_is_the_order_statistic() {
+        // The histogram selection against a plain sort, on values spread
+        // over many octaves with ties, zeros (unlit) and a NaN.
+        let mut seed = 7u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            seed as f32 / u32::MAX as f32
+        };
+        let mut dense: Vec<Vec3> =
+            (0..10_000).map(|_| Vec3::new(next(), next(), next()) * 10f32.powf(6.0 * next() - 3.0)).collect();
+        dense[5] = Vec3::ZERO;
+        dense[6] = Vec3::splat(f32::NAN);
+        dense[7..100].iter_mut().for_each(|v| *v = Vec3::splat(0.25));
+        let mut lit: Vec<f32> = dense.iter().map(|v| v.max_element()).filter(|&m| m > 0.0 && m.is_finite()).collect();
+        lit.sort_by(f32::total_cmp);
+        let k = ((lit.len() - 1) as f32 * AA_REFERENCE_PERCENTILE) as usize;
+        assert_eq!(reference_level(&dense), Some(lit[k]));
+        assert_eq!(reference_level(&[Vec3::ZERO; 4]), None);
+    }
+
+    #[test]
+    fn markings_mark_the_pair_the_row_across_or_the_3x3() {
+        // 5×4 image, one horizontal pair (6, 7) and one vertical pair (13, 18).
+        let (w, h) = (5, 4);
+        let pairs = [(6, 7), (13, 18)];
+        let set = |m| {
+            let f = mark_pairs(&pairs, w, h, m);
+            (0..w * h).filter(|&i| f[i]).collect::<Vec<_>>()
+        };
+        assert_eq!(set(AaMarking::Pair), vec![6, 7, 13, 18]);
+        assert_eq!(set(AaMarking::Across), vec![5, 6, 7, 8, 13, 18]);
+        // x 0-3 of rows 0-2 (12) and x 2-4 of rows 1-3 (9), 4 shared.
+        let dilated = set(AaMarking::Dilated);
+        assert_eq!(dilated.len(), 17);
+        assert!(dilated.contains(&0) && dilated.contains(&19) && !dilated.contains(&4));
+    }
+}
