@@ -159,10 +159,8 @@ fn chrome_balls() -> (footlight::scene::Scene, footlight::Light, footlight::scen
         let centre = Vec3::new(-1.8 + 0.6 * k as f32 + 0.013 * k as f32, 0.3 + 0.007 * k as f32, 0.05 * k as f32);
         let r = 0.25;
         let at = |i: usize, j: usize| {
-            let (theta, phi) = (
-                std::f32::consts::PI * i as f32 / rings as f32,
-                std::f32::consts::TAU * j as f32 / segments as f32,
-            );
+            let (theta, phi) =
+                (std::f32::consts::PI * i as f32 / rings as f32, std::f32::consts::TAU * j as f32 / segments as f32);
             Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
         };
         for i in 0..rings {

@@ -377,7 +377,15 @@ pub fn aa_breakdown(
     threshold: f32,
     repeats: usize,
 ) -> AaBreakdown {
-    aa_breakdown_with(scene, gbuffer, light, limits, repeats, crate::render::SampleSet::Binned, Decision::Now(AaParams::new(threshold)))
+    aa_breakdown_with(
+        scene,
+        gbuffer,
+        light,
+        limits,
+        repeats,
+        crate::render::SampleSet::Binned,
+        Decision::Now(AaParams::new(threshold)),
+    )
 }
 
 /// The anti-aliasing decision a breakdown times.
@@ -576,7 +584,10 @@ pub fn aa_cost(
             let aa = AaParams { marking, ..AaParams::new(t) };
             let shipped = aa == AaParams::new(threshold);
             variants.push((
-                format!("{}marks: {name} + highlight pairs, threshold {t}", if shipped { "after (shipped): " } else { "" }),
+                format!(
+                    "{}marks: {name} + highlight pairs, threshold {t}",
+                    if shipped { "after (shipped): " } else { "" }
+                ),
                 Sampling::Adaptive,
                 SampleSet::Binned,
                 Some(aa),

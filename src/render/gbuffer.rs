@@ -80,7 +80,8 @@ pub fn bin_samples(samples: &[PrimarySample; SAMPLES_PER_PIXEL]) -> Bins {
             v += s.v;
         }
         let n = SAMPLES_PER_PIXEL as f32;
-        items[0] = Bin { triangle: first, weight: n / n, u: u / n, v: v / n };
+        // weight 9 / 9 = 1 exactly, as the general loop computes it.
+        items[0] = Bin { triangle: first, weight: 1.0, u: u / n, v: v / n };
         return Bins { items, len: 1 };
     }
     let mut counts = [0u32; SAMPLES_PER_PIXEL];
@@ -137,9 +138,10 @@ pub fn surface_bins(scene: &Scene, samples: &[PrimarySample; SAMPLES_PER_PIXEL])
     }
     // A fixed array, not a Vec: this runs for every pixel on an edge.
     let surf: [Option<crate::scene::SurfacePoint>; SAMPLES_PER_PIXEL] = std::array::from_fn(|i| {
-        bins.as_slice().get(i).filter(|b| b.triangle != NO_HIT).map(|b| {
-            scene.surface(&crate::scene::Hit { triangle: b.triangle, t: 0.0, u: b.u, v: b.v })
-        })
+        bins.as_slice()
+            .get(i)
+            .filter(|b| b.triangle != NO_HIT)
+            .map(|b| scene.surface(&crate::scene::Hit { triangle: b.triangle, t: 0.0, u: b.u, v: b.v }))
     });
     let same = |a: usize, b: usize| match (&surf[a], &surf[b]) {
         (Some(p), Some(q)) => {
@@ -275,8 +277,11 @@ mod tests {
     fn one_triangle_pixel_is_one_bin_at_the_mean() {
         // The single-triangle fast path: weight 1, the mean of the 9
         // barycentrics summed in sample order, as the general loop sums them.
-        let s: [PrimarySample; SAMPLES_PER_PIXEL] =
-            std::array::from_fn(|i| PrimarySample { triangle: 5, u: 0.1 + 0.013 * i as f32, v: 0.3 - 0.007 * i as f32 });
+        let s: [PrimarySample; SAMPLES_PER_PIXEL] = std::array::from_fn(|i| PrimarySample {
+            triangle: 5,
+            u: 0.1 + 0.013 * i as f32,
+            v: 0.3 - 0.007 * i as f32,
+        });
         let bins = bin_samples(&s);
         assert_eq!(bins.as_slice().len(), 1);
         let b = bins.as_slice()[0];
