@@ -417,7 +417,7 @@ impl View {
         let pairs = self.pairs_over(scene, &codes, aa.threshold);
         let mut flags = mark_pairs(&pairs, w, h, aa.marking);
         if aa.glints {
-            for i in self.glint_pixels(scene, light, &codes, reference, aa.threshold) {
+            for i in self.glint_pixels(scene, light, dense, reference, aa.threshold) {
                 match aa.marking {
                     AaMarking::Dilated => dilate(&mut flags, w, h, i),
                     AaMarking::Pair | AaMarking::Across => flags[i] = true,
@@ -480,11 +480,16 @@ impl View {
     /// 1/9: what the 9-sample re-shading would add at most. No shadow ray
     /// and no secondary ray. Scale-free: the value and the reference level
     /// both come from the light.
+    ///
+    /// `dense` is the light's base buffer and `reference` its level
+    /// ([`reference_level`]); only the candidate pixels' values are read, so
+    /// a frame-sized buffer holding the light's values only where it lights
+    /// anything will do (as in `cells::whitted_together`).
     pub fn glint_pixels(
         &self,
         scene: &Scene,
         light: &Light,
-        codes: &[[u8; 3]],
+        dense: &[Vec3],
         reference: f32,
         threshold: f32,
     ) -> Vec<usize> {
@@ -528,8 +533,8 @@ impl View {
                     let lobe = (m.exponent + 2.0) * 0.5 * std::f32::consts::FRAC_1_PI * cos_alpha.powf(m.exponent);
                     sum += m.specular * (lobe * e * cos / d2 * weight);
                 }
-                let c = srgb8(sum * scale);
-                (0..3).any(|k| f32::from(c[k]) - f32::from(codes[i][k]) > threshold)
+                let (c, own) = (srgb8(sum * scale), srgb8(dense[i] * scale));
+                (0..3).any(|k| f32::from(c[k]) - f32::from(own[k]) > threshold)
             })
             .collect()
     }
