@@ -375,15 +375,20 @@ pub fn run(
         use sweeps::Decision;
         let bd = |set, d| sweeps::aa_breakdown_with(scene, &gbuffer, light, limits, repeats, set, d);
         breakdowns.push((
-            "before (R: triangle-ID bins, round 4's decision and 3×3 marks)".to_string(),
-            bd(SampleSet::TriangleBins, Decision::Round4(threshold)),
+            format!(
+                "before (R: triangle-ID bins, round 4's decision and 3×3 marks, threshold {})",
+                sweeps::ROUND4_THRESHOLD
+            ),
+            bd(SampleSet::TriangleBins, Decision::Round4(sweeps::ROUND4_THRESHOLD)),
         ));
         breakdowns.push((
-            "round 4 (surface bins, round 4's decision and 3×3 marks)".to_string(),
-            bd(SampleSet::Binned, Decision::Round4(threshold)),
+            format!("round 4 (surface bins, round 4's decision and 3×3 marks, threshold {})", sweeps::ROUND4_THRESHOLD),
+            bd(SampleSet::Binned, Decision::Round4(sweeps::ROUND4_THRESHOLD)),
         ));
         breakdowns.push((
-            "after (surface bins, one pass over the pairs, pair marks + highlight pairs)".to_string(),
+            format!(
+                "after (surface bins, one pass over the pairs, pair marks + highlight pixels, threshold {threshold})"
+            ),
             bd(SampleSet::Binned, Decision::Now(crate::render::AaParams::new(threshold))),
         ));
     }

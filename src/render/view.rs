@@ -413,8 +413,7 @@ impl View {
     pub fn aa_flags(&self, scene: &Scene, light: &Light, dense: &[Vec3], aa: AaParams) -> Vec<bool> {
         let (w, h) = (self.width() as usize, self.height() as usize);
         let Some(reference) = reference_level(dense) else { return vec![false; w * h] };
-        let codes = relative_codes(dense, reference);
-        let pairs = self.pairs_over(scene, &codes, aa.threshold);
+        let pairs = self.pairs_over(scene, dense, reference, aa.threshold);
         let mut flags = mark_pairs(&pairs, w, h, aa.marking);
         if aa.glints {
             for i in self.glint_pixels(scene, light, dense, reference, aa.threshold) {
@@ -447,12 +446,18 @@ impl View {
     /// pixel.
     pub fn gradient_pairs(&self, scene: &Scene, dense: &[Vec3], aa: AaParams) -> Vec<(usize, usize)> {
         let Some(reference) = reference_level(dense) else { return Vec::new() };
-        self.pairs_over(scene, &relative_codes(dense, reference), aa.threshold)
+        self.pairs_over(scene, dense, reference, aa.threshold)
     }
 
-    /// [`View::gradient_pairs`] from the relative codes.
-    fn pairs_over(&self, scene: &Scene, codes: &[[u8; 3]], threshold: f32) -> Vec<(usize, usize)> {
+    /// [`View::gradient_pairs`] with the light's reference level given. A
+    /// pair is tested on its codes only when its largest linear difference
+    /// could make a code step over the threshold ([`min_jump`]): on the
+    /// bundled stage at threshold 100 that leaves few pairs, and no code
+    /// buffer is built.
+    fn pairs_over(&self, scene: &Scene, dense: &[Vec3], reference: f32, threshold: f32) -> Vec<(usize, usize)> {
         let (w, h) = (self.width() as usize, self.height() as usize);
+        let scale = 1.0 / reference;
+        let least = min_jump(threshold) * reference;
         // Centre sample's surface per pixel: material and shading normal,
         // looked up only for pairs over the threshold.
         let surface = |i: usize| centre_surface(scene, &self.gbuffer.samples[i][CENTRE_SAMPLE]);
@@ -460,7 +465,11 @@ impl View {
             (Some((ma, na)), Some((mb, nb))) => ma == mb && na.dot(nb) >= SAME_SURFACE_COS,
             _ => false,
         };
-        let over = |a: usize, b: usize| codes_differ(codes[a], codes[b], threshold) && same(a, b);
+        let over = |a: usize, b: usize| {
+            (dense[a] - dense[b]).abs().max_element() >= least
+                && codes_differ(srgb8(dense[a] * scale), srgb8(dense[b] * scale), threshold)
+                && same(a, b)
+        };
         neighbour_pairs(w, h, over)
     }
 
@@ -950,11 +959,17 @@ fn codes_differ(x: [u8; 3], y: [u8; 3], threshold: f32) -> bool {
     (0..3).any(|c| f32::from(x[c].abs_diff(y[c])) > threshold)
 }
 
-/// 8-bit sRGB codes of `dense` shown with `reference` as white (one table
-/// look-up per channel, no `powf`).
-fn relative_codes(dense: &[Vec3], reference: f32) -> Vec<[u8; 3]> {
-    let scale = Vec3::splat(1.0 / reference);
-    dense.par_iter().map(|&l| srgb8(l * scale)).collect()
+/// The smallest linear difference (in units of the reference level) of two
+/// values whose relative codes ([`srgb8`]) can differ by more than
+/// `threshold`: the sRGB curve f is concave with f(0) = 0, so f(y) − f(x) ≤
+/// f(y − x) (also after clipping at 0 and 1), and the table's rounding adds
+/// at most one code and half a table step; a little less is returned, so
+/// no pair over the threshold is skipped.
+fn min_jump(threshold: f32) -> f32 {
+    let code = ((threshold - 1.0) / 255.0).clamp(0.0, 1.0);
+    // Inverse of the sRGB encoding.
+    let linear = if code <= 0.04045 { code / 12.92 } else { ((code + 0.055) / 1.055).powf(2.4) };
+    (0.999 * linear - 1.0 / 65535.0).max(0.0)
 }
 
 /// Every pair (pixel, right neighbour) and (pixel, lower neighbour) of a
@@ -1013,6 +1028,25 @@ mod tests {
         let k = ((lit.len() - 1) as f32 * AA_REFERENCE_PERCENTILE) as usize;
         assert_eq!(reference_level(&dense), Some(lit[k]));
         assert_eq!(reference_level(&[Vec3::ZERO; 4]), None);
+    }
+
+    #[test]
+    fn no_code_step_over_the_threshold_is_below_min_jump() {
+        // Every pair of values on a fine grid whose codes differ by more
+        // than the threshold is at least min_jump apart.
+        for t in [0.0f32, 5.0, 20.0, 100.0, 150.0, 254.0] {
+            let least = min_jump(t);
+            let n = 2000;
+            for i in 0..=n {
+                let x = i as f32 / n as f32;
+                for step in [least * 0.999, least * 0.5] {
+                    for y in [x + step, x - step] {
+                        let (a, b) = (srgb8(Vec3::splat(x)), srgb8(Vec3::splat(y)));
+                        assert!(!codes_differ(a, b, t), "threshold {t}: {x} and {y} differ by {:?} {:?}", a, b);
+                    }
+                }
+            }
+        }
     }
 
     #[test]
