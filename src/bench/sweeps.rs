@@ -585,7 +585,7 @@ pub fn aa_cost(
             let shipped = aa == AaParams::new(threshold);
             variants.push((
                 format!(
-                    "{}marks: {name} + highlight pairs, threshold {t}",
+                    "{}marks: {name} + highlight pixels, threshold {t}",
                     if shipped { "after (shipped): " } else { "" }
                 ),
                 Sampling::Adaptive,
@@ -594,13 +594,27 @@ pub fn aa_cost(
             ));
         }
     }
+    // Interleaved: every round times every variant once, so a change of
+    // load on the shared machine hits all of them alike; the median of
+    // 2 × `repeats` + 1 rounds is kept (the View is dropped outside the clock).
+    let rounds = 2 * repeats.max(1) + 1;
+    let mut times = vec![Vec::with_capacity(rounds); variants.len()];
+    let mut outs: Vec<(Vec<Vec3>, usize)> = vec![(Vec::new(), 0); variants.len()];
+    for _ in 0..rounds {
+        for (k, (_, sampling, set, aa)) in variants.iter().enumerate() {
+            let g = gbuffer.clone();
+            let t = std::time::Instant::now();
+            let v = View::from_gbuffer_with_set(scene, g, *sampling, *set, limits);
+            let out = v.render_direct(scene, light, *aa);
+            times[k].push(t.elapsed().as_secs_f64() * 1e3);
+            drop(v);
+            outs[k] = out;
+        }
+    }
     let mut rows: Vec<AaCostRow> = Vec::new();
-    for (name, sampling, set, aa) in variants {
-        let (ms, (dense, n)) = super::time_ms_with(
-            repeats,
-            || gbuffer.clone(),
-            |g| View::from_gbuffer_with_set(scene, g, sampling, set, limits).render_direct(scene, light, aa),
-        );
+    for ((name, ..), (mut t, (dense, n))) in variants.into_iter().zip(times.into_iter().zip(outs)) {
+        t.sort_by(f64::total_cmp);
+        let ms = t[t.len() / 2];
         let one_ms = rows.first().map_or(ms, |r| r.ms);
         rows.push(AaCostRow {
             variant: name,

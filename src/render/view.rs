@@ -112,12 +112,12 @@ pub struct AaParams {
 
 impl AaParams {
     /// The renderer's parameters with the given threshold (0-255 scale):
-    /// [`AaMarking::Pair`] and highlight pairs.
+    /// [`AaMarking::Pair`] and highlight pixels.
     pub fn new(threshold: f32) -> Self {
         Self { threshold, marking: AaMarking::Pair, glints: true }
     }
 
-    /// Round 4's rule (the bench's "before"): 3×3 dilation, no highlight pairs.
+    /// Round 4's rule (the bench's "before"): 3×3 dilation, no highlight pixels.
     pub fn round4(threshold: f32) -> Self {
         Self { threshold, marking: AaMarking::Dilated, glints: false }
     }
@@ -428,7 +428,7 @@ impl View {
 
     /// The light-free part of [`View::aa_flags`]: the pixels
     /// [`AaParams::marking`] marks for every pair of [`View::gradient_pairs`]
-    /// (no highlight pairs). Scale-free: `dense` times any positive factor
+    /// (no highlight pixels). Scale-free: `dense` times any positive factor
     /// gives the same set.
     pub fn gradient_flags(&self, scene: &Scene, dense: &[Vec3], aa: AaParams) -> Vec<bool> {
         let (w, h) = (self.width() as usize, self.height() as usize);
@@ -897,7 +897,7 @@ pub fn reference_level(dense: &[Vec3]) -> Option<f32> {
 /// `comparable(a, b)` by more than the threshold in any channel, the way
 /// [`AaParams::new`] marks them ([`AaMarking::Pair`]: the two pixels of
 /// each such pair; what [`View::render_direct`] re-shades without its
-/// highlight pairs). Parallel over rows, each pair tested once.
+/// highlight pixels). Parallel over rows, each pair tested once.
 pub fn mark_gradients(
     display: &[Vec3],
     w: usize,
