@@ -137,11 +137,23 @@ pub fn surface_bins(scene: &Scene, samples: &[PrimarySample; SAMPLES_PER_PIXEL])
         return bins;
     }
     // A fixed array, not a Vec: this runs for every pixel on an edge.
+    // Only bins of one material can merge: a bin's surface is looked up
+    // only when another bin shares its material (object outlines between
+    // two materials cost no look-up), and a pixel without such a pair keeps
+    // its bins at once.
+    let items = bins.as_slice();
+    let material: [Option<u32>; SAMPLES_PER_PIXEL] = std::array::from_fn(|i| {
+        items.get(i).filter(|b| b.triangle != NO_HIT).map(|b| scene.material_of[b.triangle as usize])
+    });
+    let paired = |i: usize| material[i].is_some() && (0..items.len()).any(|j| j != i && material[j] == material[i]);
+    if !(0..items.len()).any(paired) {
+        return bins;
+    }
     let surf: [Option<crate::scene::SurfacePoint>; SAMPLES_PER_PIXEL] = std::array::from_fn(|i| {
-        bins.as_slice()
-            .get(i)
-            .filter(|b| b.triangle != NO_HIT)
-            .map(|b| scene.surface(&crate::scene::Hit { triangle: b.triangle, t: 0.0, u: b.u, v: b.v }))
+        paired(i).then(|| {
+            let b = items[i];
+            scene.surface(&crate::scene::Hit { triangle: b.triangle, t: 0.0, u: b.u, v: b.v })
+        })
     });
     let same = |a: usize, b: usize| match (&surf[a], &surf[b]) {
         (Some(p), Some(q)) => {
