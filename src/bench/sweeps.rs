@@ -461,17 +461,16 @@ pub fn aa_breakdown_with(
 ) -> AaBreakdown {
     use std::time::Instant;
     let (w, h) = (gbuffer.width as usize, gbuffer.height as usize);
-    let (t_one, one) = super::time_ms_with(
-        repeats,
-        || gbuffer.clone(),
-        |g| {
-            let v = View::from_gbuffer(scene, g, Sampling::One, limits);
-            v.render_direct(scene, light, None);
-            v.shading.vertex_count()
-        },
-    );
-    let mut runs = Vec::new();
-    for _ in 0..repeats.max(1) {
+    // Interleaved with the 1-sample runs (see [`aa_cost`]); medians.
+    let (mut ones, mut one, mut runs) = (Vec::new(), 0, Vec::new());
+    for _ in 0..2 * repeats.max(1) + 1 {
+        let g = gbuffer.clone();
+        let t = Instant::now();
+        let v = View::from_gbuffer(scene, g, Sampling::One, limits);
+        v.render_direct(scene, light, None);
+        ones.push(t.elapsed().as_secs_f64() * 1e3);
+        one = v.shading.vertex_count();
+        drop(v);
         let g = gbuffer.clone();
         let t0 = Instant::now();
         let v = View::from_gbuffer_with_set(scene, g, Sampling::Adaptive, set, limits);
@@ -491,6 +490,8 @@ pub fn aa_breakdown_with(
     }
     runs.sort_by(|a, b| a.0.iter().sum::<f64>().total_cmp(&b.0.iter().sum::<f64>()));
     let (t, base, multi, n) = runs[runs.len() / 2];
+    ones.sort_by(f64::total_cmp);
+    let t_one = ones[ones.len() / 2];
     let pc = |x: f64| x / t_one * 100.0;
     AaBreakdown {
         one_sample_ms: t_one,
