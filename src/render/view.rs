@@ -6,8 +6,13 @@
 //! [`View::render_light`] produces one light's unit-intensity buffer
 //! I_h,ε_i (eq. 5) from it, with the paper's adaptive anti-aliasing of the
 //! illumination (section 3.4): where the value jumps by more than a threshold
-//! (0-255 scale) to a neighbour, the pixel and its 8 neighbours are re-shaded
-//! with all 9 samples. The paper compares displayed values; Footlight
+//! (0-255 scale) to a neighbour, the paper re-shades the pixel and its 8
+//! neighbours with all 9 samples; Footlight re-shades the two pixels of the
+//! jump ([`AaMarking`]) and, on sharp specular surfaces, the pixels whose 9
+//! samples would see the light's highlight ([`View::glint_pixels`]: a
+//! highlight smaller than a pixel shows no jump). The bench
+//! (`footlight bench --accuracy-only --accuracy-part aa`) measures both
+//! against 81 samples per pixel. The paper compares displayed values; Footlight
 //! compares the light's *own relative* values instead: the buffer is shown as
 //! if its brightest pixels (the 99th percentile) were display white, through
 //! the sRGB curve. That is a gradient relative to the light itself, so the
