@@ -371,12 +371,26 @@ pub fn run(
     let (mut aa, mut breakdowns) = (Vec::new(), Vec::new());
     if wants(Part::Aa) {
         aa = sweeps::aa_cost(scene, &gbuffer, light, k_full, &display, limits, threshold, repeats);
-        let bd = |set| sweeps::aa_breakdown_with_set(scene, &gbuffer, light, limits, threshold, repeats, set);
+        use crate::render::SampleSet;
+        use sweeps::Decision;
+        let bd = |set, d| sweeps::aa_breakdown_with(scene, &gbuffer, light, limits, repeats, set, d);
         breakdowns.push((
-            "before (triangle-ID bins, whole-path re-shading)".to_string(),
-            bd(crate::render::SampleSet::TriangleBins),
+            format!(
+                "before (R: triangle-ID bins, round 4's decision and 3×3 marks, threshold {})",
+                sweeps::ROUND4_THRESHOLD
+            ),
+            bd(SampleSet::TriangleBins, Decision::Round4(sweeps::ROUND4_THRESHOLD)),
         ));
-        breakdowns.push(("after (surface bins)".to_string(), bd(crate::render::SampleSet::Binned)));
+        breakdowns.push((
+            format!("round 4 (surface bins, round 4's decision and 3×3 marks, threshold {})", sweeps::ROUND4_THRESHOLD),
+            bd(SampleSet::Binned, Decision::Round4(sweeps::ROUND4_THRESHOLD)),
+        ));
+        breakdowns.push((
+            format!(
+                "after (surface bins, one pass over the pairs, pair marks + highlight pixels, threshold {threshold})"
+            ),
+            bd(SampleSet::Binned, Decision::Now(crate::render::AaParams::new(threshold))),
+        ));
     }
     let reference_passes = if size.0 < 400 { 16 } else { 48 };
     let profile = (wants(Part::Converge) || parts.contains(&Part::Profile)).then(|| {

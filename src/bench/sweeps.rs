@@ -8,6 +8,7 @@ use crate::render::buffer::LightBuffer;
 use crate::render::composite::composite_into;
 use crate::render::gbuffer::GBuffer;
 use crate::render::photon::{PhotonSettings, trace_photons};
+use crate::render::view::AaMarking;
 use crate::render::{AaParams, Display, RecursionLimits, Sampling, View};
 use crate::scene::Scene;
 use glam::Vec3;
@@ -261,7 +262,8 @@ pub fn display_rule_flags(dense: &[Vec3], w: usize, h: usize, display_scale: Vec
         .iter()
         .map(|&l| Vec3::from_array(crate::render::display::srgb8(l * display_scale).map(f32::from)))
         .collect();
-    crate::render::view::mark_gradients(&shown, w, h, threshold, |_, _| true)
+    use crate::render::view::{AaMarking, mark_gradients_with};
+    mark_gradients_with(&shown, w, h, threshold, |_, _| true, AaMarking::Dilated)
 }
 
 /// Cost and error of the old display-value rule (at the bench light's own
@@ -365,7 +367,8 @@ impl AaBreakdown {
     }
 }
 
-/// Times each step of adaptive anti-aliasing for `light` over `gbuffer`.
+/// Times each step of adaptive anti-aliasing for `light` over `gbuffer`
+/// (the renderer's decision, [`View::aa_flags`]).
 pub fn aa_breakdown(
     scene: &Scene,
     gbuffer: &GBuffer,
@@ -374,40 +377,110 @@ pub fn aa_breakdown(
     threshold: f32,
     repeats: usize,
 ) -> AaBreakdown {
-    aa_breakdown_with_set(scene, gbuffer, light, limits, threshold, repeats, crate::render::SampleSet::Binned)
+    aa_breakdown_with(
+        scene,
+        gbuffer,
+        light,
+        limits,
+        repeats,
+        crate::render::SampleSet::Binned,
+        Decision::Now(AaParams::new(threshold)),
+    )
 }
 
-/// As [`aa_breakdown`] with the base sample set given (the bench's "before"
-/// uses [`crate::render::SampleSet::TriangleBins`]).
-pub fn aa_breakdown_with_set(
+/// The anti-aliasing decision a breakdown times.
+#[derive(Clone, Copy, Debug)]
+pub enum Decision {
+    /// Round 4's implementation ([`round4_gradient_flags`]) at this threshold.
+    Round4(f32),
+    /// Today's [`View::aa_flags`] with these parameters.
+    Now(AaParams),
+}
+
+/// Round 4's decision, kept as the bench's "before" (the same pixels as
+/// [`View::gradient_flags`] with [`AaParams::round4`], the old way): the
+/// reference level by selecting among a copy of every lit value, the
+/// relative display values as a float buffer, every pixel's 4 neighbour
+/// pairs tested (each pair twice), then a 3×3 dilation pass over the image.
+pub fn round4_gradient_flags(view: &View, scene: &Scene, dense: &[Vec3], threshold: f32) -> Vec<bool> {
+    use crate::render::gbuffer::{CENTRE_SAMPLE, NO_HIT, SAME_SURFACE_COS};
+    use rayon::prelude::*;
+    let (w, h) = (view.width() as usize, view.height() as usize);
+    let mut lit: Vec<f32> = dense.iter().map(|v| v.max_element()).filter(|&m| m > 0.0 && m.is_finite()).collect();
+    if lit.is_empty() {
+        return vec![false; w * h];
+    }
+    let k = ((lit.len() - 1) as f32 * crate::render::view::AA_REFERENCE_PERCENTILE) as usize;
+    let (_, level, _) = lit.select_nth_unstable_by(k, f32::total_cmp);
+    let scale = Vec3::splat(1.0 / *level);
+    let display: Vec<Vec3> =
+        dense.par_iter().map(|&l| Vec3::from_array(crate::render::display::srgb8(l * scale).map(f32::from))).collect();
+    let surface = |i: usize| {
+        let s = &view.gbuffer.samples[i][CENTRE_SAMPLE];
+        (s.triangle != NO_HIT).then(|| {
+            let sp = scene.surface(&crate::scene::Hit { triangle: s.triangle, t: 0.0, u: s.u, v: s.v });
+            (sp.material, sp.shading_normal)
+        })
+    };
+    let same = |a: usize, b: usize| match (surface(a), surface(b)) {
+        (Some((ma, na)), Some((mb, nb))) => ma == mb && na.dot(nb) >= SAME_SURFACE_COS,
+        _ => false,
+    };
+    let edge = |a: usize, b: usize| (display[b] - display[a]).abs().max_element() > threshold && same(a, b);
+    let touched: Vec<bool> = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            (x + 1 < w && edge(i, i + 1))
+                || (y + 1 < h && edge(i, i + w))
+                || (x > 0 && edge(i - 1, i))
+                || (y > 0 && edge(i - w, i))
+        })
+        .collect();
+    let mut flags = vec![false; w * h];
+    flags.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
+        for (x, f) in row.iter_mut().enumerate() {
+            *f = (y.saturating_sub(1)..(y + 2).min(h))
+                .any(|yy| (x.saturating_sub(1)..(x + 2).min(w)).any(|xx| touched[yy * w + xx]));
+        }
+    });
+    flags
+}
+
+/// As [`aa_breakdown`] with the base sample set and the decision given
+/// (the bench's "before" uses [`crate::render::SampleSet::TriangleBins`]
+/// or [`Decision::Round4`]).
+pub fn aa_breakdown_with(
     scene: &Scene,
     gbuffer: &GBuffer,
     light: &Light,
     limits: RecursionLimits,
-    threshold: f32,
     repeats: usize,
     set: crate::render::SampleSet,
+    decision: Decision,
 ) -> AaBreakdown {
     use std::time::Instant;
     let (w, h) = (gbuffer.width as usize, gbuffer.height as usize);
-    let (t_one, one) = super::time_ms_with(
-        repeats,
-        || gbuffer.clone(),
-        |g| {
-            let v = View::from_gbuffer(scene, g, Sampling::One, limits);
-            v.render_direct(scene, light, None);
-            v.shading.vertex_count()
-        },
-    );
-    let mut runs = Vec::new();
-    for _ in 0..repeats.max(1) {
+    // Interleaved with the 1-sample runs (see [`aa_cost`]); medians.
+    let (mut ones, mut one, mut runs) = (Vec::new(), 0, Vec::new());
+    for _ in 0..2 * repeats.max(1) + 1 {
+        let g = gbuffer.clone();
+        let t = Instant::now();
+        let v = View::from_gbuffer(scene, g, Sampling::One, limits);
+        v.render_direct(scene, light, None);
+        ones.push(t.elapsed().as_secs_f64() * 1e3);
+        one = v.shading.vertex_count();
+        drop(v);
         let g = gbuffer.clone();
         let t0 = Instant::now();
         let v = View::from_gbuffer_with_set(scene, g, Sampling::Adaptive, set, limits);
         let t1 = Instant::now();
         let (mut dense, _) = v.render_direct(scene, light, None);
         let t2 = Instant::now();
-        let flags = v.gradient_flags(scene, &dense, AaParams::new(threshold));
+        let flags = match decision {
+            Decision::Round4(threshold) => round4_gradient_flags(&v, scene, &dense, threshold),
+            Decision::Now(aa) => v.aa_flags(scene, light, &dense, aa),
+        };
         let t3 = Instant::now();
         let n = v.reshade(scene, light, &mut dense, &flags);
         let t4 = Instant::now();
@@ -417,6 +490,8 @@ pub fn aa_breakdown_with_set(
     }
     runs.sort_by(|a, b| a.0.iter().sum::<f64>().total_cmp(&b.0.iter().sum::<f64>()));
     let (t, base, multi, n) = runs[runs.len() / 2];
+    ones.sort_by(f64::total_cmp);
+    let t_one = ones[ones.len() / 2];
     let pc = |x: f64| x / t_one * 100.0;
     AaBreakdown {
         one_sample_ms: t_one,
@@ -481,27 +556,69 @@ pub fn aa_cost(
     use crate::render::SampleSet;
     let (w, h) = (gbuffer.width as usize, gbuffer.height as usize);
     let reference = shown(&reference_81(scene, gbuffer, light, limits), k_full);
-    let variants: [(&str, Sampling, SampleSet, bool); 6] = [
-        ("1 sample", Sampling::One, SampleSet::Centre, false),
-        ("9 samples everywhere", Sampling::Nine, SampleSet::All, false),
-        ("before: triangle-ID bins only", Sampling::Geometry, SampleSet::TriangleBins, false),
-        ("before: triangle-ID bins + 9-sample re-shading", Sampling::Adaptive, SampleSet::TriangleBins, true),
-        ("after: surface bins only", Sampling::Geometry, SampleSet::Binned, false),
-        ("after: surface bins + 9-sample re-shading", Sampling::Adaptive, SampleSet::Binned, true),
+    let mut variants: Vec<(String, Sampling, SampleSet, Option<AaParams>)> = vec![
+        ("1 sample".into(), Sampling::One, SampleSet::Centre, None),
+        ("9 samples everywhere".into(), Sampling::Nine, SampleSet::All, None),
+        ("before: triangle-ID bins only".into(), Sampling::Geometry, SampleSet::TriangleBins, None),
+        (
+            format!("before (R): triangle-ID bins + 9-sample re-shading, 3×3 marks, threshold {ROUND4_THRESHOLD}"),
+            Sampling::Adaptive,
+            SampleSet::TriangleBins,
+            Some(AaParams::round4(ROUND4_THRESHOLD)),
+        ),
+        ("surface bins only".into(), Sampling::Geometry, SampleSet::Binned, None),
+        (
+            format!("round 4: surface bins + 9-sample re-shading, 3×3 marks, threshold {ROUND4_THRESHOLD}"),
+            Sampling::Adaptive,
+            SampleSet::Binned,
+            Some(AaParams::round4(ROUND4_THRESHOLD)),
+        ),
+        (
+            format!("round 4 + highlight pixels, threshold {ROUND4_THRESHOLD}"),
+            Sampling::Adaptive,
+            SampleSet::Binned,
+            Some(AaParams { glints: true, ..AaParams::round4(ROUND4_THRESHOLD) }),
+        ),
     ];
+    for (marking, name) in [(AaMarking::Across, "pair and the pixel beyond each"), (AaMarking::Pair, "pair")] {
+        for t in AA_CURVE_THRESHOLDS {
+            let aa = AaParams { marking, ..AaParams::new(t) };
+            let shipped = aa == AaParams::new(threshold);
+            variants.push((
+                format!(
+                    "{}marks: {name} + highlight pixels, threshold {t}",
+                    if shipped { "after (shipped): " } else { "" }
+                ),
+                Sampling::Adaptive,
+                SampleSet::Binned,
+                Some(aa),
+            ));
+        }
+    }
+    // Interleaved: every round times every variant once, so a change of
+    // load on the shared machine hits all of them alike; the median of
+    // 2 × `repeats` + 1 rounds is kept (the View is dropped outside the clock).
+    let rounds = 2 * repeats.max(1) + 1;
+    let mut times = vec![Vec::with_capacity(rounds); variants.len()];
+    let mut outs: Vec<(Vec<Vec3>, usize)> = vec![(Vec::new(), 0); variants.len()];
+    for _ in 0..rounds {
+        for (k, (_, sampling, set, aa)) in variants.iter().enumerate() {
+            let g = gbuffer.clone();
+            let t = std::time::Instant::now();
+            let v = View::from_gbuffer_with_set(scene, g, *sampling, *set, limits);
+            let out = v.render_direct(scene, light, *aa);
+            times[k].push(t.elapsed().as_secs_f64() * 1e3);
+            drop(v);
+            outs[k] = out;
+        }
+    }
     let mut rows: Vec<AaCostRow> = Vec::new();
-    for (name, sampling, set, adaptive) in variants {
-        let (ms, (dense, n)) = super::time_ms_with(
-            repeats,
-            || gbuffer.clone(),
-            |g| {
-                let v = View::from_gbuffer_with_set(scene, g, sampling, set, limits);
-                v.render_direct(scene, light, adaptive.then(|| AaParams::new(threshold)))
-            },
-        );
+    for ((name, ..), (mut t, (dense, n))) in variants.into_iter().zip(times.into_iter().zip(outs)) {
+        t.sort_by(f64::total_cmp);
+        let ms = t[t.len() / 2];
         let one_ms = rows.first().map_or(ms, |r| r.ms);
         rows.push(AaCostRow {
-            variant: name.into(),
+            variant: name,
             ms,
             cost_percent: ms / one_ms * 100.0,
             mse_vs_81: mse_display(&shown(&dense, k_full), &reference, display),
@@ -510,6 +627,14 @@ pub fn aa_cost(
     }
     rows
 }
+
+/// Round 4's (and the paper's) anti-aliasing threshold, for the bench's
+/// "before" rows (0-255; since round 4 on the light's relative scale).
+pub const ROUND4_THRESHOLD: f32 = 20.0;
+
+/// Thresholds of the bench's error-versus-cost curve of adaptive
+/// anti-aliasing (relative 0-255 codes).
+pub const AA_CURVE_THRESHOLDS: [f32; 5] = [20.0, 40.0, 60.0, 100.0, 150.0];
 
 /// Markdown table of [`aa_cost`] rows.
 pub fn aa_cost_markdown(rows: &[AaCostRow]) -> String {

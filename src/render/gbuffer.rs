@@ -70,6 +70,20 @@ impl Bins {
 pub fn bin_samples(samples: &[PrimarySample; SAMPLES_PER_PIXEL]) -> Bins {
     let empty = Bin { triangle: NO_HIT, weight: 0.0, u: 0.0, v: 0.0 };
     let mut items = [empty; SAMPLES_PER_PIXEL];
+    // Fast path: most pixels see one triangle only (the general loop below
+    // cost as much as expanding the pixel's path; same sums, same order).
+    let first = samples[0].triangle;
+    if samples.iter().all(|s| s.triangle == first) {
+        let (mut u, mut v) = (0.0f32, 0.0f32);
+        for s in samples {
+            u += s.u;
+            v += s.v;
+        }
+        let n = SAMPLES_PER_PIXEL as f32;
+        // weight 9 / 9 = 1 exactly, as the general loop computes it.
+        items[0] = Bin { triangle: first, weight: 1.0, u: u / n, v: v / n };
+        return Bins { items, len: 1 };
+    }
     let mut counts = [0u32; SAMPLES_PER_PIXEL];
     let mut len = 0;
     for s in samples {
@@ -122,14 +136,25 @@ pub fn surface_bins(scene: &Scene, samples: &[PrimarySample; SAMPLES_PER_PIXEL])
     if bins.len <= 1 {
         return bins;
     }
-    let surf: Vec<Option<crate::scene::SurfacePoint>> = bins
-        .as_slice()
-        .iter()
-        .map(|b| {
-            (b.triangle != NO_HIT)
-                .then(|| scene.surface(&crate::scene::Hit { triangle: b.triangle, t: 0.0, u: b.u, v: b.v }))
+    // A fixed array, not a Vec: this runs for every pixel on an edge.
+    // Only bins of one material can merge: a bin's surface is looked up
+    // only when another bin shares its material (object outlines between
+    // two materials cost no look-up), and a pixel without such a pair keeps
+    // its bins at once.
+    let items = bins.as_slice();
+    let material: [Option<u32>; SAMPLES_PER_PIXEL] = std::array::from_fn(|i| {
+        items.get(i).filter(|b| b.triangle != NO_HIT).map(|b| scene.material_of[b.triangle as usize])
+    });
+    let paired = |i: usize| material[i].is_some() && (0..items.len()).any(|j| j != i && material[j] == material[i]);
+    if !(0..items.len()).any(paired) {
+        return bins;
+    }
+    let surf: [Option<crate::scene::SurfacePoint>; SAMPLES_PER_PIXEL] = std::array::from_fn(|i| {
+        paired(i).then(|| {
+            let b = items[i];
+            scene.surface(&crate::scene::Hit { triangle: b.triangle, t: 0.0, u: b.u, v: b.v })
         })
-        .collect();
+    });
     let same = |a: usize, b: usize| match (&surf[a], &surf[b]) {
         (Some(p), Some(q)) => {
             let d = q.position - p.position;
@@ -258,6 +283,30 @@ mod tests {
         assert_eq!(s[2].triangle, NO_HIT);
         let total: f32 = s.iter().map(|b| b.weight).sum();
         assert!((total - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn one_triangle_pixel_is_one_bin_at_the_mean() {
+        // The single-triangle fast path: weight 1, the mean of the 9
+        // barycentrics summed in sample order, as the general loop sums them.
+        let s: [PrimarySample; SAMPLES_PER_PIXEL] = std::array::from_fn(|i| PrimarySample {
+            triangle: 5,
+            u: 0.1 + 0.013 * i as f32,
+            v: 0.3 - 0.007 * i as f32,
+        });
+        let bins = bin_samples(&s);
+        assert_eq!(bins.as_slice().len(), 1);
+        let b = bins.as_slice()[0];
+        let (mut u, mut v) = (0.0f32, 0.0f32);
+        for x in &s {
+            u += x.u;
+            v += x.v;
+        }
+        assert_eq!((b.triangle, b.weight, b.u, b.v), (5, 1.0, u / 9.0, v / 9.0));
+        // One sample on another triangle: the general path, two bins.
+        let mut t = s;
+        t[8].triangle = 6;
+        assert_eq!(bin_samples(&t).as_slice().len(), 2);
     }
 
     #[test]

@@ -52,7 +52,8 @@ pub struct RenderSettings {
     pub limits: RecursionLimits,
     /// Sampling mode (paper: adaptive).
     pub sampling: Sampling,
-    /// Anti-aliasing gradient threshold on a 0-255 scale (paper: 15-25).
+    /// Anti-aliasing gradient threshold on the light's relative 0-255 scale
+    /// ([`view::AA_THRESHOLD`]; paper: 15-25 on the displayed picture).
     pub aa_threshold: f32,
     /// Exposure and white balance.
     pub display: Display,
@@ -71,7 +72,7 @@ impl Default for RenderSettings {
             height: 500,
             limits: RecursionLimits::default(),
             sampling: Sampling::Adaptive,
-            aa_threshold: 20.0,
+            aa_threshold: view::AA_THRESHOLD,
             display: Display::default(),
             photons: Some(photon::PhotonSettings::default()),
             refine_passes: 0,

@@ -6,8 +6,13 @@
 //! [`View::render_light`] produces one light's unit-intensity buffer
 //! I_h,ε_i (eq. 5) from it, with the paper's adaptive anti-aliasing of the
 //! illumination (section 3.4): where the value jumps by more than a threshold
-//! (0-255 scale) to a neighbour, the pixel and its 8 neighbours are re-shaded
-//! with all 9 samples. The paper compares displayed values; Footlight
+//! (0-255 scale) to a neighbour, the paper re-shades the pixel and its 8
+//! neighbours with all 9 samples; Footlight re-shades the two pixels of the
+//! jump ([`AaMarking`]) and, on sharp specular surfaces, the pixels whose 9
+//! samples would see the light's highlight ([`View::glint_pixels`]: a
+//! highlight smaller than a pixel shows no jump). The bench
+//! (`footlight bench --accuracy-only --accuracy-part aa`) measures both
+//! against 81 samples per pixel. The paper compares displayed values; Footlight
 //! compares the light's *own relative* values instead: the buffer is shown as
 //! if its brightest pixels (the 99th percentile) were display white, through
 //! the sRGB curve. That is a gradient relative to the light itself, so the
@@ -73,6 +78,28 @@ impl Sampling {
     }
 }
 
+/// A sharp specular material: Phong lobe of exponent ≥ [`GLINT_EXPONENT`]
+/// (see [`View::glint_pixels`]).
+pub fn is_sharp(m: &crate::scene::Material) -> bool {
+    m.specular.max_element() > 0.0 && m.exponent >= GLINT_EXPONENT
+}
+
+/// Which pixels an over-threshold neighbour pair marks for re-shading
+/// (issue 13, AA cost; the bench measures each, cost and error).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub enum AaMarking {
+    /// The two pixels of the pair: the jump lies between their centres, so
+    /// the edge crosses one of them or both.
+    #[default]
+    Pair,
+    /// The pair and the pixel beyond each, in the pair's direction (4 pixels
+    /// in a row across the edge).
+    Across,
+    /// Both pixels and their 8 neighbours (3×3 dilation: the paper's "the
+    /// current and the neighbouring pixels"; round 4's marking).
+    Dilated,
+}
+
 /// Adaptive anti-aliasing parameters (the same for every light: the decision
 /// is relative to each light's own buffer, see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -80,14 +107,44 @@ pub struct AaParams {
     /// Gradient threshold on the 0-255 scale, with the light's 99th-percentile
     /// pixel at 255 (paper: 15-25 on the displayed image).
     pub threshold: f32,
+    /// Which pixels a pair over the threshold marks.
+    pub marking: AaMarking,
+    /// Also mark the pixels that may hold the light's highlight on a sharp
+    /// specular surface ([`View::glint_pixels`]): a highlight smaller than a
+    /// pixel that the one shade per bin misses.
+    pub glints: bool,
 }
 
 impl AaParams {
-    /// Parameters with the given threshold (0-255 scale).
+    /// The renderer's parameters with the given threshold (0-255 scale):
+    /// [`AaMarking::Pair`] and highlight pixels.
     pub fn new(threshold: f32) -> Self {
-        Self { threshold }
+        Self { threshold, marking: AaMarking::Pair, glints: true }
+    }
+
+    /// Round 4's rule (the bench's "before"): 3×3 dilation, no highlight pixels.
+    pub fn round4(threshold: f32) -> Self {
+        Self { threshold, marking: AaMarking::Dilated, glints: false }
     }
 }
+
+/// The renderer's gradient threshold (relative 0-255 codes, the light's
+/// 99th-percentile pixel = 255): the CLI's `--aa-threshold` default, the
+/// daemon's and the still renderer's. Chosen from the bench's error-versus-
+/// cost curve (`footlight bench --accuracy-only --accuracy-part aa`, issue
+/// 13): with pair marks and highlight pixels, 100 re-shades 0.30 % of the
+/// bundled stage's pixels at a display MSE of 5.9e-6 against 81 samples,
+/// against round 4's 1.97 % at 8.6e-6 with threshold 20 and 3×3 marks. On
+/// this scale 100 is a jump from 255 down to 13 % of the light's level,
+/// or from 0 up to it; the paper's 15-25 are steps of the displayed picture.
+pub const AA_THRESHOLD: f32 = 100.0;
+
+/// Lowest Phong exponent for which [`View::glint_pixels`] looks for the
+/// light's highlight inside a pixel: a lobe of exponent 100 is ~7°
+/// wide at half height, spread over many pixels unless the surface curves
+/// sharply; the bundled stage's chrome, mirror, glass and polished floor
+/// use 10,000 (~0.7°), whose highlight on a thin tube is smaller than a pixel.
+pub const GLINT_EXPONENT: f32 = 100.0;
 
 /// Share of a light's lit pixels at or below its reference level (the level
 /// shown as 255 for the anti-aliasing decision): the 99th percentile, so a
@@ -101,6 +158,10 @@ pub struct ShadingSet {
     pub set: SampleSet,
     start: Vec<u32>,
     vertices: Vec<ShadingVertex>,
+    /// Pixels with a directly seen vertex on a sharp specular material
+    /// ([`is_sharp`]): the only ones [`View::glint_pixels`] tests; found
+    /// while expanding (the vertices are at hand), light-independent.
+    sharp_pixels: Vec<u32>,
 }
 
 impl ShadingSet {
@@ -229,30 +290,38 @@ impl View {
     /// Expands every pixel's camera paths for `set` (parallel over rows).
     pub fn expand_all(scene: &Scene, gbuffer: &GBuffer, set: SampleSet, limits: RecursionLimits) -> ShadingSet {
         let w = gbuffer.width as usize;
-        let rows: Vec<(Vec<u32>, Vec<ShadingVertex>)> = (0..gbuffer.height as usize)
+        let sharp: Vec<bool> = scene.materials.iter().map(is_sharp).collect();
+        let any_sharp = sharp.contains(&true);
+        let rows: Vec<(Vec<u32>, Vec<ShadingVertex>, Vec<u32>)> = (0..gbuffer.height as usize)
             .into_par_iter()
             .map(|y| {
                 let mut counts = Vec::with_capacity(w);
                 let mut verts = Vec::new();
+                let mut sharp_pixels = Vec::new();
                 for x in 0..w {
                     let before = verts.len();
                     expand_pixel(scene, gbuffer, y * w + x, set, limits, &mut verts);
                     counts.push((verts.len() - before) as u32);
+                    if any_sharp && verts[before..].iter().any(|v| v.depth == 0 && sharp[v.material as usize]) {
+                        sharp_pixels.push((y * w + x) as u32);
+                    }
                 }
-                (counts, verts)
+                (counts, verts, sharp_pixels)
             })
             .collect();
         let mut start = Vec::with_capacity(w * gbuffer.height as usize + 1);
         let mut vertices = Vec::with_capacity(rows.iter().map(|r| r.1.len()).sum());
+        let mut sharp_pixels = Vec::new();
         start.push(0u32);
-        for (counts, verts) in rows {
+        for (counts, verts, sharp) in rows {
+            sharp_pixels.extend(sharp);
             for c in counts {
                 let last = *start.last().unwrap_or(&0);
                 start.push(last + c);
             }
             vertices.extend(verts);
         }
-        ShadingSet { set, start, vertices }
+        ShadingSet { set, start, vertices, sharp_pixels }
     }
 
     /// Renders light `light`'s unit-intensity buffer I_h,ε_i (eq. 5). With
@@ -312,7 +381,7 @@ impl View {
         }
         let mut reshaded = 0;
         if let (Sampling::Adaptive, Some(aa)) = (self.sampling, aa) {
-            let flags = self.gradient_flags(scene, &dense, aa);
+            let flags = self.aa_flags(scene, light, &dense, aa);
             reshaded = self.reshade(scene, light, &mut dense, &flags);
         }
         if stop() {
@@ -341,26 +410,147 @@ impl View {
         flags.iter().filter(|&&f| f).count()
     }
 
-    /// The pixels adaptive anti-aliasing re-shades for a light whose base
-    /// buffer is `dense`: every pixel whose relative value (the light's
-    /// 99th-percentile pixel = 255, through the sRGB curve) differs from a
-    /// right or lower neighbour on the same surface by more than the
-    /// threshold in any channel, plus its 8 neighbours. Scale-free: `dense`
-    /// times any positive factor gives the same set.
-    pub fn gradient_flags(&self, scene: &Scene, dense: &[Vec3], aa: AaParams) -> Vec<bool> {
+    /// The pixels adaptive anti-aliasing re-shades for `light`, whose base
+    /// buffer is `dense` (what [`View::render_direct`] re-shades): the pixels
+    /// [`AaParams::marking`] marks for every pair of
+    /// [`View::gradient_pairs`] and, with [`AaParams::glints`], the pixels
+    /// of [`View::glint_pixels`]. Scale-free: neither exposure nor dimmer enters.
+    pub fn aa_flags(&self, scene: &Scene, light: &Light, dense: &[Vec3], aa: AaParams) -> Vec<bool> {
         let (w, h) = (self.width() as usize, self.height() as usize);
         let Some(reference) = reference_level(dense) else { return vec![false; w * h] };
-        let scale = Vec3::splat(1.0 / reference);
-        let display: Vec<Vec3> = dense.par_iter().map(|&l| Vec3::from_array(srgb8(l * scale).map(f32::from))).collect();
-        // Centre sample's surface per pixel: material and shading normal.
-        // The surface test runs only for pairs over the threshold (few), so
-        // the centre samples' surfaces are looked up there, not per pixel.
+        let pairs = self.pairs_over(scene, dense, reference, aa.threshold);
+        let mut flags = mark_pairs(&pairs, w, h, aa.marking);
+        if aa.glints {
+            for i in self.glint_pixels(scene, light, dense, reference, aa.threshold) {
+                match aa.marking {
+                    AaMarking::Dilated => dilate(&mut flags, w, h, i),
+                    AaMarking::Pair | AaMarking::Across => flags[i] = true,
+                }
+            }
+        }
+        flags
+    }
+
+    /// The light-free part of [`View::aa_flags`]: the pixels
+    /// [`AaParams::marking`] marks for every pair of [`View::gradient_pairs`]
+    /// (no highlight pixels). Scale-free: `dense` times any positive factor
+    /// gives the same set.
+    pub fn gradient_flags(&self, scene: &Scene, dense: &[Vec3], aa: AaParams) -> Vec<bool> {
+        let (w, h) = (self.width() as usize, self.height() as usize);
+        mark_pairs(&self.gradient_pairs(scene, dense, aa), w, h, aa.marking)
+    }
+
+    /// The neighbour pairs (pixel, right or lower neighbour) of `dense`
+    /// whose relative values (the light's 99th-percentile pixel = 255,
+    /// through the sRGB curve) differ by more than the threshold in any
+    /// channel and that lie on the same surface: the jumps
+    /// [`View::gradient_flags`] re-shades around, row by row. The sRGB codes
+    /// come from one table look-up per channel (no `powf`), the threshold is
+    /// tested on the codes first and the same-surface test (two surface
+    /// look-ups) only on the few pairs over it; nothing is allocated per
+    /// pixel.
+    pub fn gradient_pairs(&self, scene: &Scene, dense: &[Vec3], aa: AaParams) -> Vec<(usize, usize)> {
+        let Some(reference) = reference_level(dense) else { return Vec::new() };
+        self.pairs_over(scene, dense, reference, aa.threshold)
+    }
+
+    /// [`View::gradient_pairs`] with the light's reference level given. A
+    /// pair is tested on its codes only when its largest linear difference
+    /// could make a code step over the threshold ([`min_jump`]): on the
+    /// bundled stage at threshold 100 that leaves few pairs, and no code
+    /// buffer is built.
+    fn pairs_over(&self, scene: &Scene, dense: &[Vec3], reference: f32, threshold: f32) -> Vec<(usize, usize)> {
+        let (w, h) = (self.width() as usize, self.height() as usize);
+        let scale = 1.0 / reference;
+        let least = min_jump(threshold) * reference;
+        // Centre sample's surface per pixel: material and shading normal,
+        // looked up only for pairs over the threshold.
         let surface = |i: usize| centre_surface(scene, &self.gbuffer.samples[i][CENTRE_SAMPLE]);
         let same = |a: usize, b: usize| match (surface(a), surface(b)) {
             (Some((ma, na)), Some((mb, nb))) => ma == mb && na.dot(nb) >= SAME_SURFACE_COS,
             _ => false,
         };
-        mark_gradients(&display, w, h, aa.threshold, same)
+        let over = |a: usize, b: usize| {
+            (dense[a] - dense[b]).abs().max_element() >= least
+                && codes_differ(srgb8(dense[a] * scale), srgb8(dense[b] * scale), threshold)
+                && same(a, b)
+        };
+        neighbour_pairs(w, h, over)
+    }
+
+    /// Pixels that may hold the light's highlight on a sharp specular
+    /// surface (Phong exponent ≥ [`GLINT_EXPONENT`]) brighter than the
+    /// pixel's own relative code by more than `threshold` (the light's
+    /// `reference` level = 255): a highlight smaller than a pixel, which the
+    /// one shade per bin misses and no neighbour jump shows (on the bundled
+    /// stage two such pixels on a chrome tube, black in the base and white
+    /// in the 9-sample and 81-sample pictures, held most of the error left
+    /// after round 4's re-shading).
+    ///
+    /// Only pixels that see such a surface directly are tested: at each of
+    /// their 9 G-buffer samples on it the unshadowed specular part of the
+    /// direct light, ρ_s (n + 2)/2π cos^n α · f_ε cos θ / d² (eq. 1's
+    /// specular term without the visibility test), is summed with weight
+    /// 1/9: what the 9-sample re-shading would add at most. No shadow ray
+    /// and no secondary ray. Scale-free: the value and the reference level
+    /// both come from the light.
+    ///
+    /// `dense` is the light's base buffer and `reference` its level
+    /// ([`reference_level`]); only the candidate pixels' values are read, so
+    /// a frame-sized buffer holding the light's values only where it lights
+    /// anything will do (as in `cells::whitted_together`).
+    pub fn glint_pixels(
+        &self,
+        scene: &Scene,
+        light: &Light,
+        dense: &[Vec3],
+        reference: f32,
+        threshold: f32,
+    ) -> Vec<usize> {
+        let eye = self.gbuffer.camera.position;
+        let scale = 1.0 / reference;
+        let weight = 1.0 / SAMPLES_PER_PIXEL as f32;
+        self.shading
+            .sharp_pixels
+            .par_iter()
+            .map(|&i| i as usize)
+            .filter(|&i| {
+                let mut sum = Vec3::ZERO;
+                for s in &self.gbuffer.samples[i] {
+                    if s.triangle == NO_HIT {
+                        continue;
+                    }
+                    let material = &scene.materials[scene.material_of[s.triangle as usize] as usize];
+                    if !is_sharp(material) {
+                        continue;
+                    }
+                    let sp = scene.surface(&Hit { triangle: s.triangle, t: 0.0, u: s.u, v: s.v });
+                    let Some(dir) = (sp.position - eye).try_normalize() else { continue };
+                    let f = sp.facing(dir);
+                    let to = light.position - sp.position;
+                    let d2 = to.length_squared();
+                    let wi = to.normalize_or_zero();
+                    let cos = wi.dot(f.shading);
+                    if !(d2 > 1e-12 && d2.is_finite() && cos > 0.0 && wi.dot(f.geometric) > 0.0) {
+                        continue;
+                    }
+                    let m = material;
+                    let cos_alpha = (2.0 * cos * f.shading - wi).dot(-dir).max(0.0);
+                    // cos^n α < e^-40 (n (1 - cos α) > 40): nothing to see.
+                    if m.exponent * (1.0 - cos_alpha) > 40.0 {
+                        continue;
+                    }
+                    let e = light.pattern_toward(-wi);
+                    if e <= 0.0 {
+                        continue;
+                    }
+                    let lobe = (m.exponent + 2.0) * 0.5 * std::f32::consts::FRAC_1_PI * cos_alpha.powf(m.exponent);
+                    sum += m.specular * (lobe * e * cos / d2 * weight);
+                }
+                let (c, own) = (srgb8(sum * scale), srgb8(dense[i] * scale));
+                (0..3).any(|k| f32::from(c[k]) - f32::from(own[k]) > threshold)
+            })
+            .collect()
     }
 
     /// The indirect buffer I_h,ε_A,i (eq. 3, 5) of a light from its photon
@@ -661,20 +851,58 @@ fn centre_surface(scene: &Scene, s: &PrimarySample) -> Option<(u32, Vec3)> {
 
 /// The light's reference level: the 99th percentile of the largest channel
 /// over its lit pixels; `None` when nothing is lit.
-fn reference_level(dense: &[Vec3]) -> Option<f32> {
-    let mut lit: Vec<f32> = dense.iter().map(|v| v.max_element()).filter(|&m| m > 0.0 && m.is_finite()).collect();
-    if lit.is_empty() {
+///
+/// The same value as selecting the k-th smallest of all lit values (the
+/// order statistic, [`slice::select_nth_unstable_by`]), found without
+/// copying the buffer: a parallel histogram of the values' top bits (the
+/// bit pattern of a positive float orders like the float), then the
+/// selection among the values of the one bucket that holds the k-th.
+pub fn reference_level(dense: &[Vec3]) -> Option<f32> {
+    const SHIFT: u32 = 20; // 8 exponent bits and 3 mantissa bits: 2048 buckets
+    const BUCKETS: usize = 1 << (31 - SHIFT);
+    let lit = |v: &Vec3| Some(v.max_element()).filter(|&m| m > 0.0 && m.is_finite());
+    let bucket = |m: f32| (m.to_bits() >> SHIFT) as usize;
+    let counts = dense
+        .par_chunks(4096)
+        .fold(
+            || vec![0u32; BUCKETS],
+            |mut c, chunk| {
+                for m in chunk.iter().filter_map(lit) {
+                    c[bucket(m)] += 1;
+                }
+                c
+            },
+        )
+        .reduce(
+            || vec![0u32; BUCKETS],
+            |mut a, b| {
+                a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+                a
+            },
+        );
+    let total: usize = counts.iter().map(|&c| c as usize).sum();
+    if total == 0 {
         return None;
     }
-    let i = ((lit.len() - 1) as f32 * AA_REFERENCE_PERCENTILE) as usize;
-    let (_, level, _) = lit.select_nth_unstable_by(i, f32::total_cmp);
+    let mut k = ((total - 1) as f32 * AA_REFERENCE_PERCENTILE) as usize;
+    let mut target = 0;
+    for (b, &c) in counts.iter().enumerate() {
+        if k < c as usize {
+            target = b;
+            break;
+        }
+        k -= c as usize;
+    }
+    let mut inside: Vec<f32> = dense.par_iter().filter_map(lit).filter(|&m| bucket(m) == target).collect();
+    let (_, level, _) = inside.select_nth_unstable_by(k, f32::total_cmp);
     Some(*level)
 }
 
 /// Marks pixels whose value differs from a right or lower neighbour with
-/// `comparable(a, b)` by more than the threshold in any channel, plus their
-/// 8 neighbours. Parallel over rows: first the pixels an edge touches, then
-/// every pixel with a touched pixel in its 3×3 neighbourhood.
+/// `comparable(a, b)` by more than the threshold in any channel, the way
+/// [`AaParams::new`] marks them ([`AaMarking::Pair`]: the two pixels of
+/// each such pair; what [`View::render_direct`] re-shades without its
+/// highlight pixels). Parallel over rows, each pair tested once.
 pub fn mark_gradients(
     display: &[Vec3],
     w: usize,
@@ -682,24 +910,164 @@ pub fn mark_gradients(
     threshold: f32,
     comparable: impl Fn(usize, usize) -> bool + Sync,
 ) -> Vec<bool> {
+    mark_gradients_with(display, w, h, threshold, comparable, AaParams::new(threshold).marking)
+}
+
+/// As [`mark_gradients`], marking the pixels `marking` marks.
+pub fn mark_gradients_with(
+    display: &[Vec3],
+    w: usize,
+    h: usize,
+    threshold: f32,
+    comparable: impl Fn(usize, usize) -> bool + Sync,
+    marking: AaMarking,
+) -> Vec<bool> {
     // The threshold first: `comparable` may be costly and is rarely needed.
-    let edge = |a: usize, b: usize| (display[b] - display[a]).abs().max_element() > threshold && comparable(a, b);
-    let touched: Vec<bool> = (0..w * h)
+    let over = |a: usize, b: usize| (display[b] - display[a]).abs().max_element() > threshold && comparable(a, b);
+    mark_pairs(&neighbour_pairs(w, h, over), w, h, marking)
+}
+
+/// The pixels `marking` marks for `pairs` (each a pixel and its right or
+/// lower neighbour) on a `w`×`h` image.
+pub fn mark_pairs(pairs: &[(usize, usize)], w: usize, h: usize, marking: AaMarking) -> Vec<bool> {
+    let mut flags = vec![false; w * h];
+    for &(a, b) in pairs {
+        match marking {
+            AaMarking::Pair => {
+                flags[a] = true;
+                flags[b] = true;
+            }
+            AaMarking::Across => {
+                flags[a] = true;
+                flags[b] = true;
+                // b = a + 1 (right) or a + w (lower): one more each way.
+                let step = b - a;
+                let (ax, bx) = (a % w, b % w);
+                if a >= step && (step == w || ax > 0) {
+                    flags[a - step] = true;
+                }
+                if b + step < w * h && (step == w || bx + 1 < w) {
+                    flags[b + step] = true;
+                }
+            }
+            AaMarking::Dilated => {
+                dilate(&mut flags, w, h, a);
+                dilate(&mut flags, w, h, b);
+            }
+        }
+    }
+    flags
+}
+
+/// Whether two relative codes differ by more than `threshold` in any channel.
+fn codes_differ(x: [u8; 3], y: [u8; 3], threshold: f32) -> bool {
+    (0..3).any(|c| f32::from(x[c].abs_diff(y[c])) > threshold)
+}
+
+/// The smallest linear difference (in units of the reference level) of two
+/// values whose relative codes ([`srgb8`]) can differ by more than
+/// `threshold`: the sRGB curve f is concave with f(0) = 0, so f(y) − f(x) ≤
+/// f(y − x) (also after clipping at 0 and 1), and the table's rounding adds
+/// at most one code and half a table step; a little less is returned, so
+/// no pair over the threshold is skipped.
+fn min_jump(threshold: f32) -> f32 {
+    let code = ((threshold - 1.0) / 255.0).clamp(0.0, 1.0);
+    // Inverse of the sRGB encoding.
+    let linear = if code <= 0.04045 { code / 12.92 } else { ((code + 0.055) / 1.055).powf(2.4) };
+    (0.999 * linear - 1.0 / 65535.0).max(0.0)
+}
+
+/// Every pair (pixel, right neighbour) and (pixel, lower neighbour) of a
+/// `w`×`h` image for which `over` holds, row by row (parallel over rows;
+/// a row allocates only once it holds a pair).
+fn neighbour_pairs(w: usize, h: usize, over: impl Fn(usize, usize) -> bool + Sync) -> Vec<(usize, usize)> {
+    let rows: Vec<Vec<(usize, usize)>> = (0..h)
         .into_par_iter()
-        .map(|i| {
-            let (x, y) = (i % w, i / w);
-            (x + 1 < w && edge(i, i + 1))
-                || (y + 1 < h && edge(i, i + w))
-                || (x > 0 && edge(i - 1, i))
-                || (y > 0 && edge(i - w, i))
+        .map(|y| {
+            let mut pairs = Vec::new();
+            for x in 0..w {
+                let i = y * w + x;
+                if x + 1 < w && over(i, i + 1) {
+                    pairs.push((i, i + 1));
+                }
+                if y + 1 < h && over(i, i + w) {
+                    pairs.push((i, i + w));
+                }
+            }
+            pairs
         })
         .collect();
-    let mut flags = vec![false; w * h];
-    flags.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
-        for (x, f) in row.iter_mut().enumerate() {
-            *f = (y.saturating_sub(1)..(y + 2).min(h))
-                .any(|yy| (x.saturating_sub(1)..(x + 2).min(w)).any(|xx| touched[yy * w + xx]));
+    rows.concat()
+}
+
+/// Sets `flags` on pixel `i` of a `w`×`h` image and its 8 neighbours.
+pub fn dilate(flags: &mut [bool], w: usize, h: usize, i: usize) {
+    let (x, y) = (i % w, i / w);
+    for yy in y.saturating_sub(1)..(y + 2).min(h) {
+        for xx in x.saturating_sub(1)..(x + 2).min(w) {
+            flags[yy * w + xx] = true;
         }
-    });
-    flags
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reference_level_is_the_order_statistic() {
+        // The histogram selection against a plain sort, on values spread
+        // over many octaves with ties, zeros (unlit) and a NaN.
+        let mut seed = 7u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            seed as f32 / u32::MAX as f32
+        };
+        let mut dense: Vec<Vec3> =
+            (0..10_000).map(|_| Vec3::new(next(), next(), next()) * 10f32.powf(6.0 * next() - 3.0)).collect();
+        dense[5] = Vec3::ZERO;
+        dense[6] = Vec3::splat(f32::NAN);
+        dense[7..100].iter_mut().for_each(|v| *v = Vec3::splat(0.25));
+        let mut lit: Vec<f32> = dense.iter().map(|v| v.max_element()).filter(|&m| m > 0.0 && m.is_finite()).collect();
+        lit.sort_by(f32::total_cmp);
+        let k = ((lit.len() - 1) as f32 * AA_REFERENCE_PERCENTILE) as usize;
+        assert_eq!(reference_level(&dense), Some(lit[k]));
+        assert_eq!(reference_level(&[Vec3::ZERO; 4]), None);
+    }
+
+    #[test]
+    fn no_code_step_over_the_threshold_is_below_min_jump() {
+        // Every pair of values on a fine grid whose codes differ by more
+        // than the threshold is at least min_jump apart.
+        for t in [0.0f32, 5.0, 20.0, 100.0, 150.0, 254.0] {
+            let least = min_jump(t);
+            let n = 2000;
+            for i in 0..=n {
+                let x = i as f32 / n as f32;
+                for step in [least * 0.999, least * 0.5] {
+                    for y in [x + step, x - step] {
+                        let (a, b) = (srgb8(Vec3::splat(x)), srgb8(Vec3::splat(y)));
+                        assert!(!codes_differ(a, b, t), "threshold {t}: {x} and {y} differ by {:?} {:?}", a, b);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn markings_mark_the_pair_the_row_across_or_the_3x3() {
+        // 5×4 image, one horizontal pair (6, 7) and one vertical pair (13, 18).
+        let (w, h) = (5, 4);
+        let pairs = [(6, 7), (13, 18)];
+        let set = |m| {
+            let f = mark_pairs(&pairs, w, h, m);
+            (0..w * h).filter(|&i| f[i]).collect::<Vec<_>>()
+        };
+        assert_eq!(set(AaMarking::Pair), vec![6, 7, 13, 18]);
+        assert_eq!(set(AaMarking::Across), vec![5, 6, 7, 8, 13, 18]);
+        // x 0-3 of rows 0-2 (12) and x 2-4 of rows 1-3 (9), 4 shared.
+        let dilated = set(AaMarking::Dilated);
+        assert_eq!(dilated.len(), 17);
+        assert!(dilated.contains(&0) && dilated.contains(&19) && !dilated.contains(&4));
+    }
 }
