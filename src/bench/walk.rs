@@ -452,7 +452,7 @@ pub fn profile(
             let (mut dense, _) = view.render_direct(scene, light, None);
             let shade_ms = ms(t);
             let t = Instant::now();
-            let flags = view.gradient_flags(scene, &dense, AaParams::new(settings.aa_threshold));
+            let flags = view.aa_flags(scene, light, &dense, AaParams::new(settings.aa_threshold));
             let reshaded = view.reshade(scene, light, &mut dense, &flags);
             let aa_ms = ms(t);
             let (mut trace_ms, mut irradiance_ms, mut indirect_ms, mut coarse_ms, mut interpolated) =

@@ -24,7 +24,7 @@ use super::buffer::{LightBuffer, TILE};
 use super::display::srgb8;
 use super::footprint::DirectQuality;
 use super::gbuffer::{CENTRE_SAMPLE, NO_HIT, SAME_SURFACE_COS};
-use super::view::{AA_REFERENCE_PERCENTILE, AaParams, Sampling, View, mark_gradients};
+use super::view::{AA_REFERENCE_PERCENTILE, AaMarking, AaParams, Sampling, View, dilate, mark_gradients_with};
 use super::whitted::direct;
 use crate::fixture::Light;
 use crate::scene::{Hit, Scene};
@@ -282,9 +282,10 @@ fn shade_union(
 }
 
 /// One light's adaptive anti-aliasing from its shaded tiles: the pixels
-/// [`View::gradient_flags`] would flag on the whole frame, found on the
-/// window of its lit tiles grown by 2 pixels (outside it every value is 0,
-/// so no gradient), then [`View::reshade`]. `dense` and `flags` are
+/// [`View::aa_flags`] would flag on the whole frame (neighbour pairs and
+/// sub-pixel highlights), found on the window of its lit tiles and
+/// highlights grown by 2 pixels (outside it every value is 0, so no
+/// gradient), then [`View::reshade`]. `dense` and `flags` are
 /// frame-sized scratch, all zero / false on entry and on return.
 #[allow(clippy::too_many_arguments)]
 fn anti_alias(
@@ -309,22 +310,32 @@ fn anti_alias(
         (x0, y0) = (x0.min(tx * TILE), y0.min(ty * TILE));
         (x1, y1) = (x1.max(((tx + 1) * TILE).min(w)), y1.max(((ty + 1) * TILE).min(h)));
     }
-    // The window: lit tiles plus 2 pixels (a flag reaches 1 pixel past an edge).
-    let (x0, y0, x1, y1) = (x0.saturating_sub(2), y0.saturating_sub(2), (x1 + 2).min(w), (y1 + 2).min(h));
-    let (ww, wh) = (x1 - x0, y1 - y0);
-    let global = |i: usize| (y0 + i / ww) * w + x0 + i % ww;
     // The light's reference level (99th percentile of its lit pixels): the
-    // lit pixels are all in its tiles, so the window sees every one.
+    // lit pixels are all in its tiles.
     let mut lit: Vec<f32> = tiles
         .iter()
         .flat_map(|(_, b)| b.iter().map(|v| v.max_element()))
         .filter(|&m| m > 0.0 && m.is_finite())
         .collect();
     let mut reshaded = 0;
+    let mut window = (x0.saturating_sub(2), y0.saturating_sub(2), (x1 + 2).min(w), (y1 + 2).min(h));
     if !lit.is_empty() {
         let k = ((lit.len() - 1) as f32 * AA_REFERENCE_PERCENTILE) as usize;
         let (_, level, _) = lit.select_nth_unstable_by(k, f32::total_cmp);
-        let scale = Vec3::splat(1.0 / *level);
+        let level = *level;
+        // Sub-pixel highlights ([`View::glint_pixels`]) may lie where the
+        // base shows nothing, outside the lit tiles: the window takes them in.
+        let glints = if aa.glints { view.glint_pixels(scene, light, dense, level, aa.threshold) } else { Vec::new() };
+        for &i in &glints {
+            let (x, y) = (i % w, i / w);
+            (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
+        }
+        // The window: lit tiles and glints plus 2 pixels (a mark reaches
+        // past an edge; outside it every value is 0, so no gradient).
+        let (x0, y0, x1, y1) = (x0.saturating_sub(2), y0.saturating_sub(2), (x1 + 2).min(w), (y1 + 2).min(h));
+        let (ww, wh) = (x1 - x0, y1 - y0);
+        let global = |i: usize| (y0 + i / ww) * w + x0 + i % ww;
+        let scale = Vec3::splat(1.0 / level);
         let display: Vec<Vec3> = (0..ww * wh)
             .into_par_iter()
             .map(|i| Vec3::from_array(srgb8(dense[global(i)] * scale).map(f32::from)))
@@ -340,14 +351,22 @@ fn anti_alias(
             (Some((ma, na)), Some((mb, nb))) => ma == mb && na.dot(nb) >= SAME_SURFACE_COS,
             _ => false,
         };
-        let local = mark_gradients(&display, ww, wh, aa.threshold, same);
+        let local = mark_gradients_with(&display, ww, wh, aa.threshold, same, aa.marking);
         for (i, f) in local.iter().enumerate() {
             flags[global(i)] = *f;
         }
+        for i in glints {
+            match aa.marking {
+                AaMarking::Dilated => dilate(flags, w, h, i),
+                AaMarking::Pair | AaMarking::Across => flags[i] = true,
+            }
+        }
         reshaded = view.reshade(scene, light, dense, flags);
+        window = (x0, y0, x1, y1);
     }
     // Pack the window (re-shading may light a pixel of a neighbouring tile),
     // and leave the scratch clean.
+    let (x0, y0, x1, y1) = window;
     let (tx0, ty0, tx1, ty1) = (x0 / TILE, y0 / TILE, x1.div_ceil(TILE), y1.div_ceil(TILE));
     let mut list = Vec::new();
     for ty in ty0..ty1 {
