@@ -22,6 +22,16 @@
 //! path tracer (`footlight bench --accuracy-only --accuracy-part
 //! indirect`): Lambert box 1.01e-2 unchanged, bundled stage 6.75e-2 →
 //! 6.93e-2 (variance 1.34e-2 → 1.41e-2).
+//!
+//! Re-blessed again 2026-12-01 (issue 13, AA cost), with the replay cue and
+//! gate images: adaptive anti-aliasing marks the two pixels of each
+//! neighbour pair over the threshold (100 on the light's relative scale)
+//! and the pixels that may hold a sub-pixel highlight on a sharp specular
+//! surface (`View::glint_pixels`), instead of every pair's 3×3 block at 20.
+//! Against the previous golden: default RMS 1.83/255, 1.16 % of values off
+//! by more than 8 (chrome highlights, shadow edges); gate RMS 4.19, 0.53 %;
+//! gate-mvr RMS 3.47, 0.27 %; chase frame RMS 0.51. Against a 9-sample
+//! render of the default patch the new default has RMS 1.72, the old 1.83.
 
 use crate::common::*;
 use footlight::render::RenderSettings;
