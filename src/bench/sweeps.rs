@@ -345,6 +345,12 @@ pub struct AaBreakdown {
     pub multi_bin_share: f64,
     /// Share of pixels re-shaded.
     pub reshaded_share: f64,
+    /// 1-sample shading alone (its view built outside the timer), ms.
+    pub one_shade_ms: f64,
+    /// Per light with the camera's paths shared (the view is built once
+    /// per camera for every light): base shading + decision + re-shading
+    /// over 1-sample shading, %.
+    pub per_light_percent: f64,
 }
 
 impl AaBreakdown {
@@ -353,7 +359,9 @@ impl AaBreakdown {
         format!(
             "\nWhere the adaptive cost goes, {label} (% of 1-sample expansion + shading = {:.1} ms): expansion {:.0} %, \
              shading {:.0} %, gradient decision {:.0} %, 9-sample re-shading {:.0} %. Vertices: {} (1 sample) vs {} \
-             (bins); {:.1} % of pixels hold more than one bin, {:.2} % re-shaded.\n",
+             (bins); {:.1} % of pixels hold more than one bin, {:.2} % re-shaded. Per light, the camera's paths \
+             shared by every light (built once per view): shading + decision + re-shading = {:.0} % of 1-sample \
+             shading ({:.1} ms).\n",
             self.one_sample_ms,
             self.expand_percent,
             self.shade_percent,
@@ -362,7 +370,9 @@ impl AaBreakdown {
             self.one_sample_vertices,
             self.base_vertices,
             self.multi_bin_share * 100.0,
-            self.reshaded_share * 100.0
+            self.reshaded_share * 100.0,
+            self.per_light_percent,
+            self.one_shade_ms
         )
     }
 }
@@ -462,13 +472,15 @@ pub fn aa_breakdown_with(
     use std::time::Instant;
     let (w, h) = (gbuffer.width as usize, gbuffer.height as usize);
     // Interleaved with the 1-sample runs (see [`aa_cost`]); medians.
-    let (mut ones, mut one, mut runs) = (Vec::new(), 0, Vec::new());
+    let (mut ones, mut one, mut runs, mut shades) = (Vec::new(), 0, Vec::new(), Vec::new());
     for _ in 0..2 * repeats.max(1) + 1 {
         let g = gbuffer.clone();
         let t = Instant::now();
         let v = View::from_gbuffer(scene, g, Sampling::One, limits);
+        let ts = Instant::now();
         v.render_direct(scene, light, None);
         ones.push(t.elapsed().as_secs_f64() * 1e3);
+        shades.push(ts.elapsed().as_secs_f64() * 1e3);
         one = v.shading.vertex_count();
         drop(v);
         let g = gbuffer.clone();
@@ -492,6 +504,8 @@ pub fn aa_breakdown_with(
     let (t, base, multi, n) = runs[runs.len() / 2];
     ones.sort_by(f64::total_cmp);
     let t_one = ones[ones.len() / 2];
+    shades.sort_by(f64::total_cmp);
+    let t_shade = shades[shades.len() / 2];
     let pc = |x: f64| x / t_one * 100.0;
     AaBreakdown {
         one_sample_ms: t_one,
@@ -503,6 +517,8 @@ pub fn aa_breakdown_with(
         base_vertices: base,
         multi_bin_share: multi as f64 / (w * h) as f64,
         reshaded_share: n as f64 / (w * h) as f64,
+        one_shade_ms: t_shade,
+        per_light_percent: (t[1] + t[2] + t[3]) / t_shade * 100.0,
     }
 }
 
