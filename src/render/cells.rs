@@ -95,14 +95,7 @@ impl PathBounds {
                     return true;
                 }
                 let Some((centre, radius)) = self.spheres[t] else { return false };
-                let d = centre - light.position;
-                let dist = d.length();
-                if !dist.is_finite() || dist <= radius || !axis.is_finite() {
-                    return true;
-                }
-                let angle = (d.dot(axis) / dist).clamp(-1.0, 1.0).acos();
-                let widen = (radius / dist).clamp(0.0, 1.0).asin();
-                angle <= cutoff + widen + 1e-4
+                super::footprint::sphere_may_meet_cone(centre, radius, light.position, axis, cutoff)
             })
             .collect()
     }

@@ -80,17 +80,26 @@ impl TileBounds {
             .enumerate()
             .filter_map(|(t, s)| {
                 let (centre, radius) = (*s)?;
-                let d = centre - light.position;
-                let dist = d.length();
-                if !dist.is_finite() || dist <= radius {
-                    return Some(t);
-                }
-                let angle = (d.dot(axis) / dist).clamp(-1.0, 1.0).acos();
-                let widen = (radius / dist).clamp(0.0, 1.0).asin();
-                (angle <= cutoff + widen + 1e-4).then_some(t)
+                sphere_may_meet_cone(centre, radius, light.position, axis, cutoff).then_some(t)
             })
             .collect()
     }
+}
+
+/// Whether the sphere (`centre`, `radius`) may reach into the cone of
+/// half-angle `cutoff` (radians) from `apex` along `axis`: false only when
+/// the sphere lies wholly outside it (angle to the axis beyond the cut-off
+/// plus the sphere's angular radius); true for a sphere around the apex or
+/// any non-finite input (conservative).
+pub(crate) fn sphere_may_meet_cone(centre: Vec3, radius: f32, apex: Vec3, axis: Vec3, cutoff: f32) -> bool {
+    let d = centre - apex;
+    let dist = d.length();
+    if !dist.is_finite() || dist <= radius || !axis.is_finite() {
+        return true;
+    }
+    let angle = (d.dot(axis) / dist).clamp(-1.0, 1.0).acos();
+    let widen = (radius / dist).clamp(0.0, 1.0).asin();
+    angle <= cutoff + widen + 1e-4
 }
 
 /// How finely a direct stage is shaded.

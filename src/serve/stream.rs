@@ -694,19 +694,7 @@ pub fn decode_bodies(b: &[u8]) -> Result<(u32, DecodedBodyTiles), DecodeError> {
     let want = tiles
         .checked_mul(4 + TILE * TILE * BODY_PIXEL_BYTES)
         .ok_or_else(|| DecodeError("tile count overflows".into()))?;
-    let raw = if b[1] & FLAG_DEFLATE != 0 {
-        let mut out = Vec::with_capacity(want.min(1 << 28));
-        flate2::read::DeflateDecoder::new(payload)
-            .take(want as u64 + 1)
-            .read_to_end(&mut out)
-            .map_err(|e| DecodeError(format!("DEFLATE: {e}")))?;
-        out
-    } else {
-        payload.to_vec()
-    };
-    if raw.len() != want {
-        return Err(DecodeError(format!("{} payload bytes for {tiles} body tiles (want {want})", raw.len())));
-    }
+    let raw = payload_bytes(b[1], payload, want, &format!("{tiles} body tiles"))?;
     let px = tiles * 4;
     (0..tiles)
         .map(|t| {
@@ -740,6 +728,26 @@ pub fn encode_picture(number: u64, png: &[u8]) -> Bytes {
 #[error("stream message: {0}")]
 pub struct DecodeError(String);
 
+/// A message's payload bytes: inflated when `flags` has [`FLAG_DEFLATE`]
+/// (never past `want` + 1 bytes), else as sent; an error naming `what`
+/// unless exactly `want` bytes result.
+fn payload_bytes(flags: u8, payload: &[u8], want: usize, what: &str) -> Result<Vec<u8>, DecodeError> {
+    let raw = if flags & FLAG_DEFLATE != 0 {
+        let mut out = Vec::with_capacity(want.min(1 << 28));
+        flate2::read::DeflateDecoder::new(payload)
+            .take(want as u64 + 1)
+            .read_to_end(&mut out)
+            .map_err(|e| DecodeError(format!("DEFLATE: {e}")))?;
+        out
+    } else {
+        payload.to_vec()
+    };
+    if raw.len() != want {
+        return Err(DecodeError(format!("{} payload bytes for {what} (want {want})", raw.len())));
+    }
+    Ok(raw)
+}
+
 fn u32_at(b: &[u8], at: usize) -> Result<u32, DecodeError> {
     b.get(at..at + 4)
         .map(|s| u32::from_le_bytes([s[0], s[1], s[2], s[3]]))
@@ -763,19 +771,7 @@ pub fn decode_buffer(b: &[u8], width: u32, height: u32) -> Result<(u32, u64, Lig
     let len = u32_at(b, 24)? as usize;
     let payload = b.get(28..28 + len).ok_or_else(|| DecodeError("payload shorter than its length".into()))?;
     let want = tiles.checked_mul(4 + TILE * TILE * 6).ok_or_else(|| DecodeError("tile count overflows".into()))?;
-    let raw = if b[1] & FLAG_DEFLATE != 0 {
-        let mut out = Vec::with_capacity(want.min(1 << 28));
-        flate2::read::DeflateDecoder::new(payload)
-            .take(want as u64 + 1)
-            .read_to_end(&mut out)
-            .map_err(|e| DecodeError(format!("DEFLATE: {e}")))?;
-        out
-    } else {
-        payload.to_vec()
-    };
-    if raw.len() != want {
-        return Err(DecodeError(format!("{} payload bytes for {tiles} tiles (want {want})", raw.len())));
-    }
+    let raw = payload_bytes(b[1], payload, want, &format!("{tiles} tiles"))?;
     let pixels = &raw[tiles * 4..];
     let list = (0..tiles)
         .map(|t| {
