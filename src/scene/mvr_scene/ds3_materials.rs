@@ -5,9 +5,9 @@
 //!
 //! Hand-written because the `ds3` crate (0.1.0), which reads the meshes,
 //! exposes only the material *names* (`Scene3ds::materials`,
-//! `Mesh3ds::material`), not the material chunks; no other maintained crate
-//! reads 3DS materials. The chunks read (3D Studio file format, as lib3ds
-//! and Assimp read it):
+//! `Mesh3ds::material`), not the material chunks (ds3 stays the mesh
+//! reader, chosen after checking crates.io: docs/mvr-gdtf.md). The chunks
+//! read (3D Studio file format, as lib3ds and Assimp read it):
 //!
 //! ```text
 //! MAIN 0x4D4D → EDIT3DS 0x3D3D → MAT_ENTRY 0xAFFF → MAT_NAME 0xA000 (C string)
