@@ -385,8 +385,8 @@ fn mvr_geometry_is_converted_once_from_millimetres_and_z_up() {
     // (2000, 0, 0) mm inside a GroupObject; a Support whose model is missing.
     let loaded = footlight::scene::load_mvr_scene(&venue()).expect("venue.mvr loads");
     let s = &loaded.scene;
-    // 2 floor + 3 x 12 truss + 12 cube + 12 stand-in.
-    assert_eq!(s.triangle_count(), 2 + 36 + 12 + 12, "{:?}", loaded.warnings);
+    // 2 floor + 3 x 12 truss + 12 cube + 2 panel + 2 sign (cube.3ds) + 12 stand-in.
+    assert_eq!(s.triangle_count(), 2 + 36 + 16 + 12, "{:?}", loaded.warnings);
     assert_eq!(loaded.objects, 6);
     // The 3DS cube: mm -> m, MVR x stays x, MVR z (up) -> stage y: it stands on
     // the floor (y 0..1 m) centred on x = 2 m, z = 0.
@@ -416,7 +416,8 @@ fn mvr_geometry_is_converted_once_from_millimetres_and_z_up() {
         loaded.warnings
     );
     assert!((top_at(s, -4.0, -2.0).unwrap() - 6.5).abs() < 1e-5);
-    assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
+    // And cube.3ds's sign names a texture map the archive lacks (its own test below).
+    assert_eq!(loaded.warnings.len(), 2, "{:?}", loaded.warnings);
     // The floor's base-colour texture comes from the GLB's binary chunk inside
     // the archive: factor 0.5 × a NEAREST 2×2 checker, sRGB 255 where x and z
     // share a sign, 64 elsewhere.
@@ -436,7 +437,7 @@ fn mvr_scene_budget_counts_every_instance() {
     let limits = ImportLimits { max_triangles: 20 };
     let err = match footlight::scene::mvr_scene::load_mvr_scene_with(&venue(), &limits) {
         Err(e) => e.to_string(),
-        Ok(_) => panic!("62 triangles loaded under a budget of 20"),
+        Ok(_) => panic!("66 triangles loaded under a budget of 20"),
     };
     assert!(err.contains("venue.mvr/") && err.contains("limit of"), "{err}");
 }
@@ -529,7 +530,7 @@ fn footlight_check_reports_the_mvr_scene() {
         (String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
     };
     let (out, err) = run("venue.mvr");
-    assert!(out.contains("scene of 6 object(s), 62 triangles"), "{out}");
+    assert!(out.contains("scene of 6 object(s), 66 triangles"), "{out}");
     assert!(err.contains("\"Hoist 1\"") && err.contains("chain_hoist.glb"), "{err}");
     // A rig without scene objects is lit on the bundled stage.
     let (out, _) = run("show150.mvr");
@@ -538,15 +539,23 @@ fn footlight_check_reports_the_mvr_scene() {
 
 #[test]
 fn mangled_3ds_files_never_panic() {
-    use footlight::scene::mvr_scene::{add_3ds, parse_3ds};
+    use footlight::scene::mvr_scene::{Materials3ds, add_3ds, materials_3ds, parse_3ds};
     let archive = footlight_mvr::archive::Archive::open(&venue()).unwrap();
     let cube = archive.get("cube.3ds").expect("cube.3ds in venue.mvr").to_vec();
     let label = Path::new("venue.mvr/cube.3ds");
     let limits = ImportLimits::default();
-    // The intact file: 12 triangles.
+    // The intact file: 12 cube + 2 panel + 2 sign triangles.
     let mut b = footlight::scene::SceneBuilder::new();
-    add_3ds(label, &parse_3ds(label, &cube).unwrap(), glam::DMat4::IDENTITY, 0, &mut b, &limits).unwrap();
-    assert_eq!(b.triangle_count(), 12);
+    add_3ds(
+        label,
+        &parse_3ds(label, &cube).unwrap(),
+        glam::DMat4::IDENTITY,
+        &Materials3ds::uniform(0),
+        &mut b,
+        &limits,
+    )
+    .unwrap();
+    assert_eq!(b.triangle_count(), 16);
     // Seeded mutations (bytes overwritten, truncations): an error or a
     // scene, never a panic; an index past the vertices is reported.
     let mut rng = crate::common::Rng(0x3D5);
@@ -566,7 +575,21 @@ fn mangled_3ds_files_never_panic() {
                 assert!(e.contains("cube.3ds"), "{e}");
                 errors += 1;
             }
-            Ok(m) => match add_3ds(label, &m, glam::DMat4::IDENTITY, 0, &mut b, &limits) {
+            // The material chunks of the same bytes: materials (or grey and a
+            // warning naming the file), never a panic, and the faces placed.
+            Ok(m) => match add_3ds(
+                label,
+                &m,
+                glam::DMat4::IDENTITY,
+                &{
+                    let mut warnings = Vec::new();
+                    let mats = materials_3ds(label, "cube.3ds", &bytes, &m, &archive, 0, &mut b, &mut warnings);
+                    assert!(warnings.iter().all(|w| w.contains("cube.3ds")), "{warnings:?}");
+                    mats
+                },
+                &mut b,
+                &limits,
+            ) {
                 Ok(()) => loaded += 1,
                 Err(e) => {
                     assert!(e.to_string().contains("cube.3ds"), "{e}");
@@ -576,6 +599,92 @@ fn mangled_3ds_files_never_panic() {
         }
     }
     assert!(errors > 100 && loaded > 100, "errors {errors}, loaded {loaded}");
+}
+
+/// venue.mvr's cube.3ds materials, as tools/gen_gdtf_mvr.py writes them
+/// (COLOR_24 bytes, gamma-corrected: sRGB-encoded).
+const CUBE_PAINT: [u8; 3] = [200, 60, 20];
+const PANEL_COLOUR: [u8; 3] = [90, 90, 200];
+const SIGN_COLOUR: [u8; 3] = [30, 160, 90];
+/// PANEL.PNG: 8×8 texels in 4×4 blocks, block (bx, by) from the top-left.
+const PANEL_BLOCKS: [[u8; 3]; 4] = [[255, 0, 0], [0, 200, 0], [30, 60, 255], [128, 128, 128]];
+
+#[test]
+fn three_ds_materials_give_their_colours_and_the_missing_map_a_warning() {
+    use glam::Vec3;
+    let loaded = footlight::scene::load_mvr_scene(&venue()).expect("venue.mvr loads");
+    let s = &loaded.scene;
+    let hit_down = |x: f32, z: f32| s.accel.intersect(Vec3::new(x, 20.0, z), Vec3::NEG_Y, f32::INFINITY).unwrap();
+    let rgb = |b: [u8; 3]| Vec3::from_array(b.map(srgb_byte));
+    // The cube (its MSH_MAT_GROUP nested in the face array, as real files
+    // have it): "Cube paint", sRGB → linear of its COLOR_24 bytes.
+    let h = hit_down(2.0, 0.0);
+    let m = &s.materials[s.material_of[h.triangle as usize] as usize];
+    assert!(m.name.contains("Cube paint"), "{}", m.name);
+    let got = s.diffuse_at(&s.surface(&h));
+    assert!((got - rgb(CUBE_PAINT)).abs().max_element() < 1e-6, "cube {got} vs {}", rgb(CUBE_PAINT));
+    assert!(m.base_texture.is_none());
+    // The sign's map sign.png is not in the archive: one warning naming it
+    // and the material, and its own colour.
+    let h = hit_down(0.5, 0.0);
+    assert!((20.0 - h.t - 0.5).abs() < 1e-5, "the sign at y 0.5: {}", 20.0 - h.t);
+    let got = s.diffuse_at(&s.surface(&h));
+    assert!((got - rgb(SIGN_COLOUR)).abs().max_element() < 1e-6, "sign {got} vs {}", rgb(SIGN_COLOUR));
+    let missing: Vec<_> = loaded.warnings.iter().filter(|w| w.contains("sign.png")).collect();
+    assert_eq!(missing.len(), 1, "{:?}", loaded.warnings);
+    assert!(missing[0].contains("\"Sign\"") && missing[0].contains("cube.3ds"), "{}", missing[0]);
+    // The panel's map PANEL.PNG is found (as panel.png, at the archive root):
+    // it replaces the colour PANEL_COLOUR.
+    let h = hit_down(3.25, -0.25);
+    let m = &s.materials[s.material_of[h.triangle as usize] as usize];
+    assert!(m.name.contains("Panel print") && m.base_texture.is_some(), "{}", m.name);
+    assert_ne!(s.diffuse_at(&s.surface(&h)), rgb(PANEL_COLOUR));
+}
+
+#[test]
+fn a_textured_3ds_face_shades_each_texel_as_its_albedo() {
+    use crate::common::{omni, view};
+    use footlight::render::view::Sampling;
+    use glam::Vec3;
+    // cube.3ds's panel: 1 m square facing up at y = 0.5, x 3..4, z -0.5..0.5;
+    // 3DS UVs u = x - 3, v = 0.5 - z (v up from the image's bottom), so the
+    // image's top-left block lies at x < 3.5, z < 0.
+    let loaded = footlight::scene::load_mvr_scene(&venue()).expect("venue.mvr loads");
+    let scene = &loaded.scene;
+    let light_pos = Vec3::new(3.6, 2.5, 0.1);
+    let cam =
+        footlight::scene::Camera::look_at(Vec3::new(3.5, 3.0, 0.01), Vec3::new(3.5, 0.5, 0.0), 30f32.to_radians());
+    let (w, h) = (48, 48);
+    let v = view(scene, cam, w, h, Sampling::One, 0);
+    let (buf, _) = v.render_light(scene, &omni(light_pos), None);
+    let mut seen = [0usize; 4];
+    for y in 0..h {
+        for x in 0..w {
+            let s = v.gbuffer.samples[(y * w + x) as usize][footlight::render::gbuffer::CENTRE_SAMPLE];
+            let Some(p) = v.gbuffer.position(scene, &s) else { continue };
+            let (u, t) = (p.x - 3.0, p.z + 0.5);
+            // On the panel, away from block edges (bilinear is exact there:
+            // a texel is 0.125 m) and from its rim (the texture repeats).
+            if (p.y - 0.5).abs() > 1e-3 || !(0.07..0.93).contains(&u) || !(0.07..0.93).contains(&t) {
+                continue;
+            }
+            if (u - 0.5).abs() < 0.07 || (t - 0.5).abs() < 0.07 {
+                continue;
+            }
+            let block = usize::from(u > 0.5) + 2 * usize::from(t > 0.5);
+            let rho = Vec3::from_array(PANEL_BLOCKS[block].map(srgb_byte));
+            let d = light_pos - p;
+            let e = d.y / d.length() / d.length_squared(); // 1 cd: E = cos θ / d²
+            let expected = rho / std::f32::consts::PI * e;
+            let got = buf.get(x, y);
+            assert!(
+                (got - expected).abs().max_element() <= 1e-4 * expected.max_element(),
+                "({x},{y}) block {block} at {p}: got {got}, expected {expected}"
+            );
+            seen[block] += 1;
+        }
+    }
+    assert!(seen.iter().all(|&n| n > 20), "every block checked: {seen:?}");
 }
 
 #[test]

@@ -994,6 +994,69 @@ def three_ds_bytes(positions, faces, name):
     return chunk(0x4D4D, chunk(0x0002, struct.pack("<I", 3)) + chunk(0x3D3D, obj))
 
 
+def png_rgb(width, height, pixel):
+    """8-bit RGB PNG; pixel(x, y) -> (r, g, b) bytes (sRGB-encoded), rows from the top."""
+    raw = b"".join(b"\x00" + b"".join(bytes(pixel(x, y)) for x in range(width)) for y in range(height))
+
+    def chunk(kind, data):
+        c = kind + data
+        return struct.pack(">I", len(data)) + c + struct.pack(">I", zlib.crc32(c) & 0xFFFFFFFF)
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b"")
+
+
+def three_ds_material(name, colour24=None, texmap=None):
+    """A 3DS MAT_ENTRY (0xAFFF): MAT_NAME (0xA000), MAT_DIFFUSE (0xA020) > COLOR_24 (0x0011, the
+    gamma-corrected bytes), MAT_TEXMAP (0xA200) > MAT_MAPNAME (0xA300)."""
+
+    def chunk(cid, payload):
+        return struct.pack("<HI", cid, 6 + len(payload)) + payload
+
+    body = chunk(0xA000, name.encode() + b"\0")
+    if colour24 is not None:
+        body += chunk(0xA020, chunk(0x0011, bytes(colour24)))
+    if texmap is not None:
+        body += chunk(0xA200, chunk(0x0030, struct.pack("<H", 100)) + chunk(0xA300, texmap.encode() + b"\0"))
+    return chunk(0xAFFF, body)
+
+
+def three_ds_scene(meshes, materials):
+    """A 3DS file with materials: meshes are (name, positions, faces, uvs or None, material name);
+    the material is assigned as real exporters do, a MSH_MAT_GROUP (0x4130) nested in the
+    FACE_ARRAY (0x4120) naming every face; TEX_VERTS (0x4140) carry the UVs (3DS: v up from the
+    image's bottom edge)."""
+
+    def chunk(cid, payload):
+        return struct.pack("<HI", cid, 6 + len(payload)) + payload
+
+    objects = b""
+    for name, positions, faces, uvs, material in meshes:
+        verts = struct.pack("<H", len(positions)) + b"".join(struct.pack("<3f", *p) for p in positions)
+        group = material.encode() + b"\0" + struct.pack("<H", len(faces)) + b"".join(struct.pack("<H", i) for i in range(len(faces)))
+        tris = struct.pack("<H", len(faces)) + b"".join(struct.pack("<4H", a, b, c, 0) for a, b, c in faces) + chunk(0x4130, group)
+        tex = chunk(0x4140, struct.pack("<H", len(uvs)) + b"".join(struct.pack("<2f", *t) for t in uvs)) if uvs else b""
+        objects += chunk(0x4000, name.encode() + b"\0" + chunk(0x4100, chunk(0x4110, verts) + tex + chunk(0x4120, tris)))
+    return chunk(0x4D4D, chunk(0x0002, struct.pack("<I", 3)) + chunk(0x3D3D, b"".join(materials) + objects))
+
+
+# venue.mvr's cube.3ds materials (known answers in tests/scene_import.rs).
+CUBE_PAINT = (200, 60, 20)  # COLOR_24 of the cube
+PANEL_COLOUR = (90, 90, 200)  # COLOR_24 of the panel, replaced by its map PANEL.PNG
+SIGN_COLOUR = (30, 160, 90)  # COLOR_24 of the sign, whose map sign.png is not in the archive
+# PANEL.PNG: 8x8 texels in four 4x4 blocks (bilinear sampling is exact away from block edges):
+# block (bx, by) from the top-left has colour PANEL_BLOCKS[bx + 2 * by].
+PANEL_BLOCKS = [(255, 0, 0), (0, 200, 0), (30, 60, 255), (128, 128, 128)]
+
+
+def quad_3ds(x0, x1, z_mm):
+    """A horizontal 1000 mm square at MVR-frame height z_mm, x in [x0, x1], y in [-500, 500],
+    facing +z (up), with 3DS UVs u = (x - x0)/1000, v = (y + 500)/1000."""
+    v = [(x0, -500.0, z_mm), (x1, -500.0, z_mm), (x1, 500.0, z_mm), (x0, 500.0, z_mm)]
+    uv = [((x - x0) / 1000.0, (y + 500.0) / 1000.0) for x, y, _ in v]
+    return v, [(0, 1, 2), (0, 2, 3)], uv
+
+
 def venue_mvr():
     """venue.mvr: the MVR's geometry is the scene (known answers in tests/scene_import.rs).
 
@@ -1003,7 +1066,11 @@ def venue_mvr():
     * truss.glb: a 2 m x 0.3 m x 0.3 m box along glTF x (12 triangles), a Symdef instanced by 3
       Truss objects at MVR (-2500 + 2500 k, 2000, 6000) mm -> stage x = -2.5 + 2.5k, y = 6, z = -2 m;
     * cube.3ds: a 1000 mm cube x, y in [-500, 500], z in [0, 1000] mm (MVR frame, Z up) at
-      MVR (2000, 0, 0) mm inside a GroupObject -> stage x in [1.5, 2.5], y in [0, 1], z in [-0.5, 0.5];
+      MVR (2000, 0, 0) mm inside a GroupObject -> stage x in [1.5, 2.5], y in [0, 1], z in [-0.5, 0.5],
+      material "Cube paint" (COLOR_24 CUBE_PAINT); in the same file two 1 m squares facing up at
+      500 mm: "panel" (x 1000..2000 mm -> stage x 3..4, y 0.5, z -0.5..0.5) in "Panel print" with
+      the map PANEL.PNG (panel.png at the archive root, PANEL_BLOCKS) and UVs, and "sign"
+      (x -2000..-1000 mm -> stage x 0..1) in "Sign", whose map sign.png the archive lacks;
     * a Support naming chain_hoist.glb, which the archive does not hold -> a stand-in cube + warning;
     * one Spot fixture (the show's one light), 7 m above the stage centre.
     """
@@ -1035,7 +1102,19 @@ def venue_mvr():
         "Footlight@Spot.gdtf": gdtf_bytes("Footlight@Spot.gdtf"),
         "floor.glb": glb_bytes(floor_v, floor_t, (0.5, 0.5, 0.5), "floor", (checker, floor_uv)),
         "truss.glb": glb_bytes(truss_v, truss_t, (0.2, 0.2, 0.2), "truss"),
-        "cube.3ds": three_ds_bytes(cube_v, cube_t, "cube"),
+        "cube.3ds": three_ds_scene(
+            [
+                ("cube", cube_v, cube_t, None, "Cube paint"),
+                ("panel", *quad_3ds(1000.0, 2000.0, 500.0), "Panel print"),
+                ("sign", *quad_3ds(-2000.0, -1000.0, 500.0), "Sign"),
+            ],
+            [
+                three_ds_material("Cube paint", CUBE_PAINT),
+                three_ds_material("Panel print", PANEL_COLOUR, "PANEL.PNG"),
+                three_ds_material("Sign", SIGN_COLOUR, "sign.png"),
+            ],
+        ),
+        "panel.png": png_rgb(8, 8, lambda x, y: PANEL_BLOCKS[x // 4 + 2 * (y // 4)]),
     }
     return zip_bytes(entries)
 

@@ -14,7 +14,11 @@
 //!   converted like a world point, `C · p / 1000` (C: Z up → Y up, −90°
 //!   about X), then placed by `stage_matrix(world)`. The vertices of a 3DS
 //!   file are stored in its world frame (its mesh matrix only records how
-//!   they were placed), so the mesh matrix is not applied again.
+//!   they were placed), so the mesh matrix is not applied again. Their
+//!   materials ([`ds3_materials`]: diffuse colour, diffuse texture map) become
+//!   Lambert materials, made once per file; a map is looked up in the archive
+//!   beside the `.3ds`, then at its root. Each face takes the material of its
+//!   face group (`MSH_MAT_GROUP`), else the mesh's, else a grey stand-in.
 //! * A model the archive does not hold, or cannot be read, becomes a
 //!   primitive stand-in: a 0.5 m grey cube at the object's origin
 //!   (estimated size; MVR gives no dimensions for a scene object), with a
@@ -23,11 +27,14 @@
 //! The whole import shares one triangle budget ([`ImportLimits`]), counted
 //! over every instance of every model.
 
-use super::{ImportLimits, Material, Scene, SceneBuilder, SceneError};
+pub mod ds3_materials;
+
+use super::{ImportLimits, Material, Scene, SceneBuilder, SceneError, Texture};
 use footlight_mvr::mvr::{Mvr, ObjectKind, stage_matrix};
-use glam::{DMat4, Mat4, Vec3};
+use glam::{DMat4, Mat4, Vec2, Vec3};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Edge of the stand-in cube for a missing model, metres (estimated: the
 /// size of a flight case; MVR gives no dimensions for a scene object).
@@ -58,8 +65,8 @@ pub fn load_mvr_scene_with(path: &Path, limits: &ImportLimits) -> Result<MvrScen
     // The scene description's own warnings (bad matrices…) come with the patch (`load_mvr`).
     let mut warnings: Vec<String> = Vec::new();
     // 3DS files are parsed once, however often they are instanced.
-    let mut parsed_3ds: BTreeMap<String, Result<ds3::Scene3ds, String>> = BTreeMap::new();
-    let mut material_3ds: BTreeMap<String, u32> = BTreeMap::new();
+    // Their materials too: shared by every instance of the file.
+    let mut parsed_3ds: BTreeMap<String, Result<(ds3::Scene3ds, Materials3ds), String>> = BTreeMap::new();
     let mut non_finite_normals = 0usize;
     let mut objects = 0usize;
     for object in &mvr.scene.objects {
@@ -93,16 +100,20 @@ pub fn load_mvr_scene_with(path: &Path, limits: &ImportLimits) -> Result<MvrScen
                         e => Ok(e.to_string()),
                     })
             } else if lower.ends_with(".3ds") {
-                let parsed = parsed_3ds.entry(file.clone()).or_insert_with(|| parse_3ds(&label, bytes));
+                let parsed = parsed_3ds.entry(file.clone()).or_insert_with(|| {
+                    parse_3ds(&label, bytes).map(|model| {
+                        let grey = builder.add_material(Material::lambert(
+                            &format!("{file} (3DS mesh without a material)"),
+                            Vec3::splat(0.6),
+                        ));
+                        let materials =
+                            materials_3ds(&label, file, bytes, &model, &mvr.archive, grey, &mut builder, &mut warnings);
+                        (model, materials)
+                    })
+                });
                 match parsed {
-                    Ok(model) => {
-                        let material = *material_3ds.entry(file.clone()).or_insert_with(|| {
-                            builder.add_material(Material::lambert(
-                                &format!("{file} (3DS, no colour read)"),
-                                Vec3::splat(0.6),
-                            ))
-                        });
-                        add_3ds(&label, model, *world, material, &mut builder, &budget).map_err(|e| match e {
+                    Ok((model, materials)) => {
+                        add_3ds(&label, model, *world, materials, &mut builder, &budget).map_err(|e| match e {
                             e @ SceneError::Budget { .. } => Err(e),
                             e => Ok(e.to_string()),
                         })
@@ -150,14 +161,136 @@ pub fn parse_3ds(label: &Path, bytes: &[u8]) -> Result<ds3::Scene3ds, String> {
     ds3::parse(bytes).map_err(|e| format!("{}: not a readable 3DS file: {e}", label.display()))
 }
 
+/// The scene materials of one 3DS file's materials, made once per file and
+/// shared by all its instances ([`materials_3ds`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Materials3ds {
+    /// For a mesh without a material, or naming one the file does not
+    /// define: the grey stand-in.
+    pub fallback: u32,
+    /// By 3DS material name: the scene material, and whether it has a
+    /// base-colour texture (then the mesh's texture coordinates are passed).
+    pub by_name: BTreeMap<String, (u32, bool)>,
+    /// Per mesh (`ds3`'s order): its face groups, which take precedence over
+    /// `Mesh3ds::material` face by face.
+    pub face_groups: Vec<Vec<ds3_materials::FaceGroup>>,
+}
+
+impl Materials3ds {
+    /// Every mesh in `material`, untextured.
+    pub fn uniform(material: u32) -> Self {
+        Self { fallback: material, by_name: BTreeMap::new(), face_groups: Vec::new() }
+    }
+
+    fn of(&self, name: Option<&str>) -> (u32, bool) {
+        name.and_then(|n| self.by_name.get(n)).copied().unwrap_or((self.fallback, false))
+    }
+
+    /// Mesh `index`'s material per face: its face groups, else the mesh's
+    /// material (`ds3`), else the fallback.
+    fn per_face(&self, index: usize, mesh: &ds3::Mesh3ds) -> Vec<(u32, bool)> {
+        let mut out = vec![self.of(mesh.material.as_deref()); mesh.faces.len()];
+        for g in self.face_groups.get(index).into_iter().flatten() {
+            let m = self.of(Some(&g.material));
+            for &f in &g.faces {
+                if let Some(slot) = out.get_mut(usize::from(f)) {
+                    *slot = m;
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The materials of the 3DS file `file` (bytes `bytes`, parsed as `model`;
+/// `label` names it in messages) as Lambert scene materials in `builder`:
+/// each with its diffuse colour ([`ds3_materials`]; grey 0.6 without one),
+/// or, when its diffuse texture map is in `archive` (beside the `.3ds`, else
+/// at the archive's root; PNG or JPEG), white × that texture: the map
+/// replaces the colour, as in 3ds Max at the map's default 100 % amount (the
+/// amount is not read). A map the archive lacks or cannot decode, unreadable
+/// material chunks, and a textured mesh without texture coordinates each
+/// add one warning to `warnings`; `fallback` is the grey stand-in for meshes
+/// without a material.
+#[allow(clippy::too_many_arguments)]
+pub fn materials_3ds(
+    label: &Path,
+    file: &str,
+    bytes: &[u8],
+    model: &ds3::Scene3ds,
+    archive: &footlight_mvr::archive::Archive,
+    fallback: u32,
+    builder: &mut SceneBuilder,
+    warnings: &mut Vec<String>,
+) -> Materials3ds {
+    let mut out = Materials3ds::uniform(fallback);
+    let chunks = match ds3_materials::read_materials(bytes) {
+        Ok(m) => m,
+        Err(e) => {
+            warnings
+                .push(format!("{}: its material chunks are unreadable ({e}); its meshes are grey", label.display()));
+            return out;
+        }
+    };
+    let folder = file.rfind('/').map_or("", |i| &file[..=i]);
+    out.face_groups = chunks.face_groups;
+    for m in chunks.materials {
+        if out.by_name.contains_key(&m.name) {
+            continue;
+        }
+        let colour = m.diffuse.map_or(Vec3::splat(0.6), Vec3::from);
+        let mut material = Material::lambert(&format!("{file}: {}", m.name), colour);
+        if let Some(map) = &m.texture_map {
+            let name = map.replace('\\', "/");
+            let found = archive.get(&format!("{folder}{name}")).or_else(|| archive.get(&name));
+            match found.map(|b| Texture::decode_image(map, b)) {
+                Some(Ok(t)) => {
+                    material.diffuse = Vec3::ONE;
+                    material.base_texture = Some(Arc::new(t));
+                }
+                Some(Err(e)) => warnings.push(format!(
+                    "{}: material {:?}: its texture map {map:?} is {e}; its diffuse colour is used",
+                    label.display(),
+                    m.name
+                )),
+                None => warnings.push(format!(
+                    "{}: material {:?} names the texture map {map:?}, which the archive does not contain; its \
+                     diffuse colour is used",
+                    label.display(),
+                    m.name
+                )),
+            }
+        }
+        let textured = material.base_texture.is_some();
+        out.by_name.insert(m.name, (builder.add_material(material), textured));
+    }
+    let bare: Vec<&str> = model
+        .meshes
+        .iter()
+        .enumerate()
+        .filter(|(i, mesh)| mesh.uvs.len() != mesh.vertices.len() && out.per_face(*i, mesh).iter().any(|m| m.1))
+        .map(|(_, mesh)| mesh.name.as_str())
+        .collect();
+    if !bare.is_empty() {
+        warnings.push(format!(
+            "{}: textured mesh(es) {bare:?} have no texture coordinates; they read texel (0, 0)",
+            label.display()
+        ));
+    }
+    out
+}
+
 /// A 3DS model's triangles (MVR frame: millimetres, Z up) placed by the MVR
-/// world matrix `world` (millimetres); face indices are checked here (an
-/// index past the vertices is an error naming the mesh and face).
+/// world matrix `world` (millimetres), each face in its material from
+/// `materials` (with its texture coordinates when that material is
+/// textured: 3DS puts v = 0 at the image's bottom, the scene's textures at
+/// its top, so v becomes 1 − v); face indices are checked here (an index
+/// past the vertices is an error naming the mesh and face).
 pub fn add_3ds(
     label: &Path,
     model: &ds3::Scene3ds,
     world: DMat4,
-    material: u32,
+    materials: &Materials3ds,
     builder: &mut SceneBuilder,
     budget: &ImportLimits,
 ) -> Result<(), SceneError> {
@@ -167,8 +300,11 @@ pub fn add_3ds(
     }
     let placement = stage_matrix(world).as_mat4() * z_up_to_y_up() * Mat4::from_scale(Vec3::splat(1e-3));
     let flip = glam::Mat3::from_mat4(placement).determinant() < 0.0;
-    for mesh in &model.meshes {
+    for (mi, mesh) in model.meshes.iter().enumerate() {
+        let per_face = materials.per_face(mi, mesh);
         let vertices: Vec<Vec3> = mesh.vertices.iter().map(|&v| placement.transform_point3(Vec3::from(v))).collect();
+        let uvs: Option<Vec<Vec2>> = (mesh.uvs.len() == vertices.len() && per_face.iter().any(|m| m.1))
+            .then(|| mesh.uvs.iter().map(|&[u, v]| Vec2::new(u, 1.0 - v)).collect());
         for (fi, face) in mesh.faces.iter().enumerate() {
             let [a, b, c] = face.map(usize::from);
             let (Some(&pa), Some(&pb), Some(&pc)) = (vertices.get(a), vertices.get(b), vertices.get(c)) else {
@@ -181,8 +317,14 @@ pub fn add_3ds(
                     ),
                 });
             };
-            let t = if flip { [pa, pc, pb] } else { [pa, pb, pc] };
-            builder.add_triangle(t, None, material);
+            let (material, textured) = per_face[fi];
+            // Same length as the vertices, so the indices are in range.
+            let [ta, tb, tc] = match &uvs {
+                Some(t) if textured => [t[a], t[b], t[c]],
+                _ => [Vec2::ZERO; 3],
+            };
+            let (p, uv) = if flip { ([pa, pc, pb], [ta, tc, tb]) } else { ([pa, pb, pc], [ta, tb, tc]) };
+            builder.add_triangle_uv(p, None, uv, material);
         }
     }
     Ok(())
