@@ -246,6 +246,10 @@ impl Emitter {
             Some(s) if s > 0.0 && s.is_finite() => s,
             _ => xyz.y as f32,
         };
+        // A luminance past f32's range (absurd measured energies): no share.
+        if !share.is_finite() {
+            return None;
+        }
         let measured = Some(Arc::new(MeasuredSpectrum { spectrum: unit_y, xyz: xyz / xyz.y }));
         Some(Self { name: name.into(), share, level: 1.0, chroma, proxy: metamer(chroma), measured })
     }
@@ -672,6 +676,8 @@ pub(crate) mod tests {
         assert!(Emitter::from_spectrum("dark", &Sampled::constant(0.0), None).is_none());
         assert!(Emitter::from_spectrum("nan", &Sampled::constant(f64::NAN), None).is_none());
         assert!(Emitter::from_spectrum("neg", &Sampled::constant(-1.0), None).is_none());
+        // Energies so large that their luminance leaves f32: no share, no emitter.
+        assert!(Emitter::from_spectrum("huge", &Sampled::constant(1e300), None).is_none());
         // Noise below zero counts as zero: the same colour as the clean line.
         let noisy = Sampled::from_fn(|nm| r.at(nm) - if (nm as i64) % 7 == 0 { 1e-3 } else { 0.0 });
         let clean = Sampled::from_fn(|nm| (r.at(nm) - if (nm as i64) % 7 == 0 { 1e-3 } else { 0.0 }).max(0.0));
