@@ -248,32 +248,9 @@ fn cells_built_together_equal_cells_built_alone() {
     use footlight::render::build::{BuildSettings, Cancel, LightBuild};
     use footlight::render::cells::{PathBounds, direct_together, whitted_together};
     use footlight::render::view::AaParams;
-    let import = footlight_mvr::load_mvr(&root().join("tests/data/mvr/features.mvr")).unwrap();
-    let mut lights: Vec<_> = import.patch.fixtures.iter().filter(|f| f.id == 301).map(|f| f.light.clone()).collect();
-    assert_eq!(lights.len(), 8);
+    let (scene, cam, mut lights) = bar_stage();
     let centre = lights[3].position;
-    let mut b = SceneBuilder::new();
-    let m = lambert(&mut b, 0.5);
-    floor(&mut b, 30.0, 0.0, m);
-    cube(&mut b, Vec3::new(centre.x - 0.3, 0.0, centre.z - 0.3), Vec3::new(centre.x + 0.3, 0.8, centre.z + 0.3), m);
-    let mut mirror = footlight::scene::Material::lambert("mirror", Vec3::splat(0.1));
-    mirror.k_r = Vec3::splat(0.7);
-    let mirror = b.add_material(mirror);
-    let z = centre.z - 3.0;
-    b.add_quad(
-        Vec3::new(centre.x - 6.0, 0.0, z),
-        Vec3::new(centre.x + 6.0, 0.0, z),
-        Vec3::new(centre.x + 6.0, 6.0, z),
-        Vec3::new(centre.x - 6.0, 6.0, z),
-        mirror,
-    );
-    let scene = b.build();
     lights.push(footlight::Light::aimed(centre, centre + Vec3::Y, lights[0].beam.clone()));
-    let cam = Camera::look_at(
-        Vec3::new(centre.x, 5.0, centre.z + 9.0),
-        Vec3::new(centre.x, 0.5, centre.z),
-        60f32.to_radians(),
-    );
     let (w, h) = (80, 56);
     let v = view(&scene, cam, w, h, Sampling::Adaptive, 2);
     assert!(v.shading.vertices().iter().any(|x| x.depth > 0), "the mirror is seen");

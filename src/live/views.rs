@@ -878,7 +878,6 @@ pub fn preview_in_haze(
     let scale = scale.max(1);
     let (sw, sh) = (width.div_ceil(scale).max(1), height.div_ceil(scale).max(1));
     let lit: Vec<(&Light, Vec3)> = lights.iter().copied().filter(|(_, k)| k.max_element() > 0.0).collect();
-    let primary = RecursionLimits { max_depth: 0, ..RecursionLimits::default() };
     let n = (sw * sh) as usize;
     let dirs: Vec<Vec3> = (0..n)
         .map(|i| camera.direction((i % sw as usize) as f32 + 0.5, (i / sw as usize) as f32 + 0.5, sw, sh))
@@ -896,19 +895,9 @@ pub fn preview_in_haze(
             let Some(hit) = &hits[i] else { continue };
             let p = cam + dirs[i] * hit.t;
             let cam_path = sigma_t * medium.length_inside(cam, p);
-            vertices.clear();
-            expand(scene, scene.surface(hit), dirs[i], Vec3::ONE, primary, &mut vertices);
-            *out = vertices
-                .iter()
-                .map(|v| {
-                    lit.iter()
-                        .map(|(light, k)| {
-                            let kappa_s = cam_path + sigma_tl * medium.length_inside(p, light.position);
-                            *k * v.weight * crate::render::whitted::direct(scene, light, v) * (-d * kappa_s).exp()
-                        })
-                        .sum::<Vec3>()
-                })
-                .sum();
+            *out = shade_surface(scene, hit, dirs[i], &lit, &mut vertices, |light| {
+                (-d * (cam_path + sigma_tl * medium.length_inside(p, light.position))).exp()
+            });
         }
     });
     // Beams: on a grid of every PREVIEW_HAZE_STEP-th pixel of the reduced
@@ -960,6 +949,31 @@ pub fn preview_in_haze(
     upscale(&small, sw, sh, width, height, scale)
 }
 
+/// One preview pixel's surface: the direct light of each of `lit` (with
+/// its k_i) at the directly seen point of `hit` along `dir`, no recursion,
+/// each light's term times `dim(light)` (the haze's transmittance, 1 in
+/// clear air). `vertices` is scratch.
+fn shade_surface(
+    scene: &Scene,
+    hit: &crate::scene::Hit,
+    dir: Vec3,
+    lit: &[(&Light, Vec3)],
+    vertices: &mut Vec<crate::render::whitted::ShadingVertex>,
+    dim: impl Fn(&Light) -> f32,
+) -> Vec3 {
+    let primary = RecursionLimits { max_depth: 0, ..RecursionLimits::default() };
+    vertices.clear();
+    expand(scene, scene.surface(hit), dir, Vec3::ONE, primary, vertices);
+    vertices
+        .iter()
+        .map(|v| {
+            lit.iter()
+                .map(|(light, k)| *k * v.weight * crate::render::whitted::direct(scene, light, v) * dim(light))
+                .sum::<Vec3>()
+        })
+        .sum()
+}
+
 /// Replicates the reduced `sw`×`sh` picture to `width`×`height`.
 fn upscale(small: &[Vec3], sw: u32, sh: u32, width: u32, height: u32, scale: u32) -> Vec<Vec3> {
     let mut full = vec![Vec3::ZERO; (width * height) as usize];
@@ -984,23 +998,13 @@ fn preview_clear(
     let scale = scale.max(1);
     let (sw, sh) = (width.div_ceil(scale).max(1), height.div_ceil(scale).max(1));
     let lit: Vec<(&Light, Vec3)> = lights.iter().copied().filter(|(_, k)| k.max_element() > 0.0).collect();
-    let primary = RecursionLimits { max_depth: 0, ..RecursionLimits::default() };
     let mut small = vec![Vec3::ZERO; (sw * sh) as usize];
     small.par_chunks_mut(sw as usize).enumerate().for_each(|(y, row)| {
         let mut vertices = Vec::new();
         for (x, out) in row.iter_mut().enumerate() {
             let dir = camera.direction(x as f32 + 0.5, y as f32 + 0.5, sw, sh);
             let Some(hit) = scene.accel.intersect(camera.position, dir, f32::INFINITY) else { continue };
-            vertices.clear();
-            expand(scene, scene.surface(&hit), dir, Vec3::ONE, primary, &mut vertices);
-            *out = vertices
-                .iter()
-                .map(|v| {
-                    lit.iter()
-                        .map(|(light, k)| *k * v.weight * crate::render::whitted::direct(scene, light, v))
-                        .sum::<Vec3>()
-                })
-                .sum();
+            *out = shade_surface(scene, &hit, dir, &lit, &mut vertices, |_| 1.0);
         }
     });
     upscale(&small, sw, sh, width, height, scale)
