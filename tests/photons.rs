@@ -276,18 +276,7 @@ fn refinement_never_shows_a_worse_picture() {
     let cam = Camera::look_at(Vec3::new(0.0, 0.0, 1.9), Vec3::new(0.0, -0.5, -2.0), 80f32.to_radians());
     let v = view(&scene, cam, 20, 12, Sampling::One, 0);
     // One diffuse vertex per pixel (weight 1): the reference picture is ρ/π · E.
-    let reference: Vec<f32> = (0..20 * 12)
-        .map(|i| {
-            v.shading
-                .pixel(i)
-                .iter()
-                .map(|vx| {
-                    let e = indirect_irradiance(&scene, &light, vx.position, vx.normal, 4000, 7000 + i as u64).x;
-                    vx.weight.x * rho * std::f32::consts::FRAC_1_PI * e
-                })
-                .sum()
-        })
-        .collect();
+    let reference = lambert_reference(&scene, &light, &v, rho, 4000, 7000);
     let photons = settings(3_000, 21);
     let build_settings = BuildSettings { photons: Some(photons), refine_passes: 12, ..BuildSettings::default() };
     let mut build = LightBuild::new(light.clone(), 0, build_settings, Cancel::never());
@@ -347,18 +336,7 @@ fn refinement_from_a_coarse_start_never_shows_a_worse_picture() {
     let cam = Camera::look_at(Vec3::new(0.0, 0.0, 1.9), Vec3::new(0.0, -0.5, -2.0), 80f32.to_radians());
     let (w, h) = (48, 30);
     let v = view(&scene, cam, w, h, Sampling::One, 0);
-    let reference: Vec<f32> = (0..(w * h) as usize)
-        .map(|i| {
-            v.shading
-                .pixel(i)
-                .iter()
-                .map(|vx| {
-                    let e = indirect_irradiance(&scene, &light, vx.position, vx.normal, 2000, 9100 + i as u64).x;
-                    vx.weight.x * rho * std::f32::consts::FRAC_1_PI * e
-                })
-                .sum()
-        })
-        .collect();
+    let reference = lambert_reference(&scene, &light, &v, rho, 2000, 9100);
     let photons = settings(3_000, 23);
     let build_settings = BuildSettings { photons: Some(photons), refine_passes: 12, ..BuildSettings::default() };
     let new_build = |from_coarse: bool| {
@@ -449,4 +427,29 @@ fn photon_trace_stops_at_the_next_chunk_when_cancelled() {
     let b = footlight::render::photon::trace_photons(&scene, &light, &small);
     assert_eq!(a.emitted, b.emitted);
     assert_eq!(a.global.len(), b.global.len());
+}
+
+/// The path-traced picture of a Lambert scene seen with one diffuse vertex
+/// per pixel: ρ/π · E(x) per vertex (`indirect_irradiance` with `samples`
+/// paths, seed `seed + pixel`), summed over each pixel's vertices.
+fn lambert_reference(
+    scene: &footlight::scene::Scene,
+    light: &Light,
+    v: &footlight::render::View,
+    rho: f32,
+    samples: usize,
+    seed: u64,
+) -> Vec<f32> {
+    (0..(v.width() * v.height()) as usize)
+        .map(|i| {
+            v.shading
+                .pixel(i)
+                .iter()
+                .map(|vx| {
+                    let e = indirect_irradiance(scene, light, vx.position, vx.normal, samples, seed + i as u64).x;
+                    vx.weight.x * rho * std::f32::consts::FRAC_1_PI * e
+                })
+                .sum()
+        })
+        .collect()
 }
