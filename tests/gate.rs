@@ -270,28 +270,8 @@ fn jpeg_base_colour_texture_loads_through_gltf() {
     let d = std::env::temp_dir().join(format!("footlight-jpeg-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
     std::fs::write(d.join("checker.jpg"), checker_jpeg()).unwrap();
-    let pos: [[f32; 3]; 4] = [[-1.0, 0.0, -1.0], [1.0, 0.0, -1.0], [1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]];
-    let uv: [[f32; 2]; 4] = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
-    let idx: [u16; 6] = [0, 2, 1, 0, 3, 2];
-    let mut bin: Vec<u8> = pos.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
-    bin.extend(uv.iter().flatten().flat_map(|f| f.to_le_bytes()));
-    bin.extend(idx.iter().flat_map(|i| i.to_le_bytes()));
-    std::fs::write(d.join("plane.bin"), &bin).unwrap();
-    let json = r#"{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],
-        "meshes":[{"primitives":[{"attributes":{"POSITION":0,"TEXCOORD_0":1},"indices":2,"material":0}]}],
-        "materials":[{"pbrMetallicRoughness":{"baseColorFactor":[1,1,1,1],"metallicFactor":0,"roughnessFactor":1,
-            "baseColorTexture":{"index":0}}}],
-        "textures":[{"source":0,"sampler":0}],"samplers":[{"magFilter":9728,"minFilter":9728}],
-        "images":[{"uri":"checker.jpg","mimeType":"image/jpeg"}],
-        "accessors":[
-          {"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,-1],"max":[1,0,1]},
-          {"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"},
-          {"bufferView":2,"componentType":5123,"count":6,"type":"SCALAR"}],
-        "bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":48},{"buffer":0,"byteOffset":48,"byteLength":32},
-          {"buffer":0,"byteOffset":80,"byteLength":12}],
-        "buffers":[{"byteLength":92,"uri":"plane.bin"}]}"#;
-    std::fs::write(d.join("plane.gltf"), json).unwrap();
-    let scene = footlight::scene::load(&d.join("plane.gltf")).expect("textured plane loads");
+    let plane = crate::common::textured_plane_gltf(&d, "plane.gltf", "checker.jpg", 1.0);
+    let scene = footlight::scene::load(&plane).expect("textured plane loads");
     let texture = scene.materials.iter().find_map(|m| m.base_texture.clone()).expect("the JPEG texture is used");
     assert_eq!(texture.size(), (24, 16));
     for (by, row) in JPEG_BLOCKS.iter().enumerate() {

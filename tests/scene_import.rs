@@ -464,29 +464,8 @@ fn a_textured_plane_shades_each_texel_as_its_albedo() {
         img.put_pixel(i as u32 % 2, i as u32 / 2, image::Rgb(*t));
     }
     img.save(d.join("checker.png")).unwrap();
-    let pos: [[f32; 3]; 4] = [[-1.0, 0.0, -1.0], [1.0, 0.0, -1.0], [1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]];
-    let uv: [[f32; 2]; 4] = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
-    let idx: [u16; 6] = [0, 2, 1, 0, 3, 2];
-    let mut bin: Vec<u8> = pos.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
-    bin.extend(uv.iter().flatten().flat_map(|f| f.to_le_bytes()));
-    bin.extend(idx.iter().flat_map(|i| i.to_le_bytes()));
-    let json = format!(
-        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
-        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"material":0}}]}}],
-        "materials":[{{"pbrMetallicRoughness":{{"baseColorFactor":[0.8,0.8,0.8,1],"metallicFactor":0,"roughnessFactor":1,
-            "baseColorTexture":{{"index":0}}}}}}],
-        "textures":[{{"source":0,"sampler":0}}],"samplers":[{{"magFilter":9728,"minFilter":9728}}],
-        "images":[{{"uri":"checker.png"}}],
-        "accessors":[
-          {{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,-1],"max":[1,0,1]}},
-          {{"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"}},
-          {{"bufferView":2,"componentType":5123,"count":6,"type":"SCALAR"}}],
-        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":32}},
-          {{"buffer":0,"byteOffset":80,"byteLength":12}}],
-        "buffers":[{{"byteLength":92,"uri":"{}"}}]}}"#,
-        data_uri(&bin)
-    );
-    let scene = load(&write(&d, "textured.gltf", &json)).expect("textured plane loads");
+    let scene = load(&crate::common::textured_plane_gltf(&d, "textured.gltf", "checker.png", 0.8))
+        .expect("textured plane loads");
     assert!(scene.materials[1].base_texture.is_some());
     let light_pos = Vec3::new(0.2, 2.0, 0.1);
     let cam = footlight::scene::Camera::look_at(Vec3::new(0.0, 4.0, 0.01), Vec3::ZERO, 40f32.to_radians());
@@ -504,14 +483,7 @@ fn a_textured_plane_shades_each_texel_as_its_albedo() {
             }
             let texel = usize::from(p.x > 0.0) + 2 * usize::from(p.z > 0.0);
             let rho = Vec3::from_array(texels[texel].map(srgb_byte)) * 0.8;
-            let d = light_pos - p;
-            let e = d.y / d.length() / d.length_squared(); // 1 cd: E = cos θ / d²
-            let expected = rho / std::f32::consts::PI * e;
-            let got = buf.get(x, y);
-            assert!(
-                (got - expected).abs().max_element() <= 1e-4 * expected.max_element(),
-                "({x},{y}) texel {texel} at {p}: got {got}, expected {expected}"
-            );
+            assert_lambert_under_1cd(buf.get(x, y), rho, light_pos, p, &format!("({x},{y}) texel {texel}"));
             seen[texel] += 1;
         }
     }
@@ -673,14 +645,7 @@ fn a_textured_3ds_face_shades_each_texel_as_its_albedo() {
             }
             let block = usize::from(u > 0.5) + 2 * usize::from(t > 0.5);
             let rho = Vec3::from_array(PANEL_BLOCKS[block].map(srgb_byte));
-            let d = light_pos - p;
-            let e = d.y / d.length() / d.length_squared(); // 1 cd: E = cos θ / d²
-            let expected = rho / std::f32::consts::PI * e;
-            let got = buf.get(x, y);
-            assert!(
-                (got - expected).abs().max_element() <= 1e-4 * expected.max_element(),
-                "({x},{y}) block {block} at {p}: got {got}, expected {expected}"
-            );
+            assert_lambert_under_1cd(buf.get(x, y), rho, light_pos, p, &format!("({x},{y}) block {block}"));
             seen[block] += 1;
         }
     }
@@ -789,4 +754,16 @@ fn render_bodies_draws_the_rig_over_the_still() {
         }
     }
     assert!(changed >= 3 * 4, "{changed} channel values changed");
+}
+
+/// `got` is a Lambert surface of albedo `rho` at `p` (normal +y) under a
+/// 1 cd point light at `light`: ρ/π · E with E = cos θ / d², within 1e-4.
+fn assert_lambert_under_1cd(got: glam::Vec3, rho: glam::Vec3, light: glam::Vec3, p: glam::Vec3, what: &str) {
+    let d = light - p;
+    let e = d.y / d.length() / d.length_squared();
+    let expected = rho / std::f32::consts::PI * e;
+    assert!(
+        (got - expected).abs().max_element() <= 1e-4 * expected.max_element(),
+        "{what} at {p}: got {got}, expected {expected}"
+    );
 }

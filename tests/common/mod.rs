@@ -120,3 +120,35 @@ pub fn art_dmx(port_address: u16, sequence: u8, slots: &[u8; 512]) -> Vec<u8> {
     p.extend_from_slice(slots);
     p
 }
+
+/// Writes `dir/plane.bin` and `dir/<name>`: a glTF 2 m plane at y = 0 (uv
+/// (0, 0) at (−1, 0, −1), u along +x, v along +z) whose matte material has
+/// base-colour factor `factor` and the texture `image` (a file beside it,
+/// NEAREST sampling). Returns the glTF's path.
+pub fn textured_plane_gltf(dir: &std::path::Path, name: &str, image: &str, factor: f32) -> PathBuf {
+    let pos: [[f32; 3]; 4] = [[-1.0, 0.0, -1.0], [1.0, 0.0, -1.0], [1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]];
+    let uv: [[f32; 2]; 4] = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    let idx: [u16; 6] = [0, 2, 1, 0, 3, 2];
+    let mut bin: Vec<u8> = pos.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
+    bin.extend(uv.iter().flatten().flat_map(|f| f.to_le_bytes()));
+    bin.extend(idx.iter().flat_map(|i| i.to_le_bytes()));
+    std::fs::write(dir.join("plane.bin"), &bin).unwrap();
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"material":0}}]}}],
+        "materials":[{{"pbrMetallicRoughness":{{"baseColorFactor":[{factor},{factor},{factor},1],"metallicFactor":0,"roughnessFactor":1,
+            "baseColorTexture":{{"index":0}}}}}}],
+        "textures":[{{"source":0,"sampler":0}}],"samplers":[{{"magFilter":9728,"minFilter":9728}}],
+        "images":[{{"uri":"{image}"}}],
+        "accessors":[
+          {{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,-1],"max":[1,0,1]}},
+          {{"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"}},
+          {{"bufferView":2,"componentType":5123,"count":6,"type":"SCALAR"}}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":32}},
+          {{"buffer":0,"byteOffset":80,"byteLength":12}}],
+        "buffers":[{{"byteLength":92,"uri":"plane.bin"}}]}}"#
+    );
+    let path = dir.join(name);
+    std::fs::write(&path, json).unwrap();
+    path
+}
