@@ -21,13 +21,11 @@
 //! `footlight bench --pixels-only` times both.
 
 use super::buffer::{LightBuffer, TILE};
-use super::display::srgb8;
 use super::footprint::DirectQuality;
-use super::gbuffer::{CENTRE_SAMPLE, NO_HIT, SAME_SURFACE_COS};
-use super::view::{AA_REFERENCE_PERCENTILE, AaMarking, AaParams, Sampling, View, dilate, mark_gradients_with};
+use super::view::{AA_REFERENCE_PERCENTILE, AaMarking, AaParams, LitWindow, Sampling, View, dilate, mark_pairs_into};
 use super::whitted::direct;
 use crate::fixture::Light;
-use crate::scene::{Hit, Scene};
+use crate::scene::Scene;
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -326,28 +324,8 @@ fn anti_alias(
         // The window: lit tiles and glints plus 2 pixels (a mark reaches
         // past an edge; outside it every value is 0, so no gradient).
         let (x0, y0, x1, y1) = (x0.saturating_sub(2), y0.saturating_sub(2), (x1 + 2).min(w), (y1 + 2).min(h));
-        let (ww, wh) = (x1 - x0, y1 - y0);
-        let global = |i: usize| (y0 + i / ww) * w + x0 + i % ww;
-        let scale = Vec3::splat(1.0 / level);
-        let display: Vec<Vec3> = (0..ww * wh)
-            .into_par_iter()
-            .map(|i| Vec3::from_array(srgb8(dense[global(i)] * scale).map(f32::from)))
-            .collect();
-        let surface = |i: usize| {
-            let s = &view.gbuffer.samples[i][CENTRE_SAMPLE];
-            (s.triangle != NO_HIT).then(|| {
-                let sp = scene.surface(&Hit { triangle: s.triangle, t: 0.0, u: s.u, v: s.v });
-                (sp.material, sp.shading_normal)
-            })
-        };
-        let same = |a: usize, b: usize| match (surface(global(a)), surface(global(b))) {
-            (Some((ma, na)), Some((mb, nb))) => ma == mb && na.dot(nb) >= SAME_SURFACE_COS,
-            _ => false,
-        };
-        let local = mark_gradients_with(&display, ww, wh, aa.threshold, same, aa.marking);
-        for (i, f) in local.iter().enumerate() {
-            flags[global(i)] = *f;
-        }
+        let pairs = view.pairs_over(scene, dense, level, aa.threshold, LitWindow { x0, x1, y0, y1 });
+        mark_pairs_into(flags, &pairs, w, h, aa.marking);
         for i in glints {
             match aa.marking {
                 AaMarking::Dilated => dilate(flags, w, h, i),

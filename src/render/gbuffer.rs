@@ -66,22 +66,34 @@ impl Bins {
     }
 }
 
+/// The one bin of a pixel whose 9 samples all hit one triangle (most
+/// pixels), or `None`: the same bin [`bin_samples`] and [`surface_bins`]
+/// return for it (same sums in the same order), without building the
+/// 9-slot [`Bins`] (copying it cost as much as expanding the pixel's path).
+#[inline]
+pub fn single_bin(samples: &[PrimarySample; SAMPLES_PER_PIXEL]) -> Option<Bin> {
+    let first = samples[0].triangle;
+    if !samples.iter().all(|s| s.triangle == first) {
+        return None;
+    }
+    let (mut u, mut v) = (0.0f32, 0.0f32);
+    for s in samples {
+        u += s.u;
+        v += s.v;
+    }
+    let n = SAMPLES_PER_PIXEL as f32;
+    // weight 9 / 9 = 1 exactly, as the general loop computes it.
+    Some(Bin { triangle: first, weight: 1.0, u: u / n, v: v / n })
+}
+
 /// Groups 9 samples by triangle id (order of first appearance).
 pub fn bin_samples(samples: &[PrimarySample; SAMPLES_PER_PIXEL]) -> Bins {
     let empty = Bin { triangle: NO_HIT, weight: 0.0, u: 0.0, v: 0.0 };
     let mut items = [empty; SAMPLES_PER_PIXEL];
     // Fast path: most pixels see one triangle only (the general loop below
     // cost as much as expanding the pixel's path; same sums, same order).
-    let first = samples[0].triangle;
-    if samples.iter().all(|s| s.triangle == first) {
-        let (mut u, mut v) = (0.0f32, 0.0f32);
-        for s in samples {
-            u += s.u;
-            v += s.v;
-        }
-        let n = SAMPLES_PER_PIXEL as f32;
-        // weight 9 / 9 = 1 exactly, as the general loop computes it.
-        items[0] = Bin { triangle: first, weight: 1.0, u: u / n, v: v / n };
+    if let Some(bin) = single_bin(samples) {
+        items[0] = bin;
         return Bins { items, len: 1 };
     }
     let mut counts = [0u32; SAMPLES_PER_PIXEL];

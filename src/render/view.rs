@@ -27,7 +27,9 @@
 use super::buffer::LightBuffer;
 use super::display::srgb8;
 use super::gbuffer::PrimarySample;
-use super::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT, SAME_SURFACE_COS, SAMPLES_PER_PIXEL, bin_samples, surface_bins};
+use super::gbuffer::{
+    CENTRE_SAMPLE, GBuffer, NO_HIT, SAME_SURFACE_COS, SAMPLES_PER_PIXEL, bin_samples, single_bin, surface_bins,
+};
 use super::photon::{PhotonMaps, Progressive};
 use super::whitted::{RecursionLimits, ShadingVertex, direct, expand};
 use crate::fixture::Light;
@@ -417,8 +419,8 @@ impl View {
     /// of [`View::glint_pixels`]. Scale-free: neither exposure nor dimmer enters.
     pub fn aa_flags(&self, scene: &Scene, light: &Light, dense: &[Vec3], aa: AaParams) -> Vec<bool> {
         let (w, h) = (self.width() as usize, self.height() as usize);
-        let Some(reference) = reference_level(dense) else { return vec![false; w * h] };
-        let pairs = self.pairs_over(scene, dense, reference, aa.threshold);
+        let Some((reference, window)) = reference_in_window(dense, w, h) else { return vec![false; w * h] };
+        let pairs = self.pairs_over(scene, dense, reference, aa.threshold, window);
         let mut flags = mark_pairs(&pairs, w, h, aa.marking);
         if aa.glints {
             for i in self.glint_pixels(scene, light, dense, reference, aa.threshold) {
@@ -450,16 +452,31 @@ impl View {
     /// look-ups) only on the few pairs over it; nothing is allocated per
     /// pixel.
     pub fn gradient_pairs(&self, scene: &Scene, dense: &[Vec3], aa: AaParams) -> Vec<(usize, usize)> {
-        let Some(reference) = reference_level(dense) else { return Vec::new() };
-        self.pairs_over(scene, dense, reference, aa.threshold)
+        let (w, h) = (self.width() as usize, self.height() as usize);
+        let Some((reference, window)) = reference_in_window(dense, w, h) else { return Vec::new() };
+        self.pairs_over(scene, dense, reference, aa.threshold, window)
     }
 
     /// [`View::gradient_pairs`] with the light's reference level given. A
     /// pair is tested on its codes only when its largest linear difference
     /// could make a code step over the threshold ([`min_jump`]): on the
     /// bundled stage at threshold 100 that leaves few pairs, and no code
-    /// buffer is built.
-    fn pairs_over(&self, scene: &Scene, dense: &[Vec3], reference: f32, threshold: f32) -> Vec<(usize, usize)> {
+    /// buffer is built. Only the pairs touching `window` ([`lit_window`]:
+    /// every non-zero pixel lies inside) are tested: outside it both values
+    /// are 0, so no pair there is over the threshold.
+    ///
+    /// Over a binned base the two pixels must lie on one surface (the bins
+    /// anti-alias geometry edges already); over a 1-sample base
+    /// ([`SampleSet::Centre`], the bench's "no bins" rows) every pair is
+    /// compared, geometry edges included.
+    pub(crate) fn pairs_over(
+        &self,
+        scene: &Scene,
+        dense: &[Vec3],
+        reference: f32,
+        threshold: f32,
+        window: LitWindow,
+    ) -> Vec<(usize, usize)> {
         let (w, h) = (self.width() as usize, self.height() as usize);
         let scale = 1.0 / reference;
         let least = min_jump(threshold) * reference;
@@ -470,12 +487,13 @@ impl View {
             (Some((ma, na)), Some((mb, nb))) => ma == mb && na.dot(nb) >= SAME_SURFACE_COS,
             _ => false,
         };
+        let across_surfaces = self.shading.set == SampleSet::Centre;
         let over = |a: usize, b: usize| {
             (dense[a] - dense[b]).abs().max_element() >= least
                 && codes_differ(srgb8(dense[a] * scale), srgb8(dense[b] * scale), threshold)
-                && same(a, b)
+                && (across_surfaces || same(a, b))
         };
-        neighbour_pairs(w, h, over)
+        neighbour_pairs(w, h, window, over)
     }
 
     /// Pixels that may hold the light's highlight on a sharp specular
@@ -823,13 +841,14 @@ pub fn expand_pixel(
             let s = samples[CENTRE_SAMPLE];
             one(s.triangle, s.u, s.v, 1.0);
         }
-        SampleSet::Binned => {
-            for b in surface_bins(scene, samples).as_slice() {
+        SampleSet::Binned | SampleSet::TriangleBins => {
+            // Most pixels see one triangle: its bin without the 9-slot array.
+            if let Some(b) = single_bin(samples) {
                 one(b.triangle, b.u, b.v, b.weight);
+                return;
             }
-        }
-        SampleSet::TriangleBins => {
-            for b in bin_samples(samples).as_slice() {
+            let bins = if set == SampleSet::Binned { surface_bins(scene, samples) } else { bin_samples(samples) };
+            for b in bins.as_slice() {
                 one(b.triangle, b.u, b.v, b.weight);
             }
         }
@@ -924,13 +943,20 @@ pub fn mark_gradients_with(
 ) -> Vec<bool> {
     // The threshold first: `comparable` may be costly and is rarely needed.
     let over = |a: usize, b: usize| (display[b] - display[a]).abs().max_element() > threshold && comparable(a, b);
-    mark_pairs(&neighbour_pairs(w, h, over), w, h, marking)
+    mark_pairs(&neighbour_pairs(w, h, LitWindow::full(w, h), over), w, h, marking)
 }
 
 /// The pixels `marking` marks for `pairs` (each a pixel and its right or
 /// lower neighbour) on a `w`×`h` image.
 pub fn mark_pairs(pairs: &[(usize, usize)], w: usize, h: usize, marking: AaMarking) -> Vec<bool> {
     let mut flags = vec![false; w * h];
+    mark_pairs_into(&mut flags, pairs, w, h, marking);
+    flags
+}
+
+/// As [`mark_pairs`], setting the marks in `flags` (a frame-sized buffer;
+/// marks already set stay).
+pub fn mark_pairs_into(flags: &mut [bool], pairs: &[(usize, usize)], w: usize, h: usize, marking: AaMarking) {
     for &(a, b) in pairs {
         match marking {
             AaMarking::Pair => {
@@ -951,12 +977,11 @@ pub fn mark_pairs(pairs: &[(usize, usize)], w: usize, h: usize, marking: AaMarki
                 }
             }
             AaMarking::Dilated => {
-                dilate(&mut flags, w, h, a);
-                dilate(&mut flags, w, h, b);
+                dilate(flags, w, h, a);
+                dilate(flags, w, h, b);
             }
         }
     }
-    flags
 }
 
 /// Whether two relative codes differ by more than `threshold` in any channel.
@@ -977,15 +1002,70 @@ fn min_jump(threshold: f32) -> f32 {
     (0.999 * linear - 1.0 / 65535.0).max(0.0)
 }
 
+/// The smallest rectangle of a `w`×`h` image holding every non-zero pixel
+/// of `dense` (a light lights a part of the picture: a spot's pool, a
+/// wash's half of the stage): columns `x0..x1`, rows `y0..y1`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LitWindow {
+    /// First column holding a non-zero pixel.
+    pub x0: usize,
+    /// One past the last such column.
+    pub x1: usize,
+    /// First row holding a non-zero pixel.
+    pub y0: usize,
+    /// One past the last such row.
+    pub y1: usize,
+}
+
+impl LitWindow {
+    /// The whole `w`×`h` image.
+    pub fn full(w: usize, h: usize) -> Self {
+        Self { x0: 0, x1: w, y0: 0, y1: h }
+    }
+}
+
+/// The [`LitWindow`] of `dense` (`None` when every pixel is 0). A NaN
+/// pixel counts as non-zero, as everywhere else the decision looks.
+pub fn lit_window(dense: &[Vec3], w: usize, h: usize) -> Option<LitWindow> {
+    let rows: Vec<Option<(usize, usize)>> = dense[..w * h]
+        .par_chunks(w.max(1))
+        .map(|row| {
+            let first = row.iter().position(|v| *v != Vec3::ZERO)?;
+            let last = row.iter().rposition(|v| *v != Vec3::ZERO)?;
+            Some((first, last + 1))
+        })
+        .collect();
+    let y0 = rows.iter().position(Option::is_some)?;
+    let y1 = rows.iter().rposition(Option::is_some)? + 1;
+    let (x0, x1) = rows.iter().flatten().fold((w, 0), |(a, b), &(f, l)| (a.min(f), b.max(l)));
+    Some(LitWindow { x0, x1, y0, y1 })
+}
+
+/// The light's reference level ([`reference_level`]) and its
+/// [`LitWindow`], the level found among the window's rows only (every lit
+/// pixel is there: the same value as over the whole image).
+pub fn reference_in_window(dense: &[Vec3], w: usize, h: usize) -> Option<(f32, LitWindow)> {
+    let window = lit_window(dense, w, h)?;
+    Some((reference_level(&dense[window.y0 * w..window.y1 * w])?, window))
+}
+
 /// Every pair (pixel, right neighbour) and (pixel, lower neighbour) of a
-/// `w`×`h` image for which `over` holds, row by row (parallel over rows;
-/// a row allocates only once it holds a pair).
-fn neighbour_pairs(w: usize, h: usize, over: impl Fn(usize, usize) -> bool + Sync) -> Vec<(usize, usize)> {
-    let rows: Vec<Vec<(usize, usize)>> = (0..h)
+/// `w`×`h` image that touches `window` and for which `over` holds, row by
+/// row (parallel over rows; a row allocates only once it holds a pair).
+/// The pairs reaching one pixel out of the window (a lit edge pixel and
+/// its dark neighbour) are included.
+fn neighbour_pairs(
+    w: usize,
+    h: usize,
+    window: LitWindow,
+    over: impl Fn(usize, usize) -> bool + Sync,
+) -> Vec<(usize, usize)> {
+    let (x0, x1) = (window.x0.saturating_sub(1), window.x1.min(w));
+    let rows: Vec<Vec<(usize, usize)>> = (window.y0.saturating_sub(1)..window.y1.min(h))
         .into_par_iter()
         .map(|y| {
             let mut pairs = Vec::new();
-            for x in 0..w {
+            for x in x0..x1 {
                 let i = y * w + x;
                 if x + 1 < w && over(i, i + 1) {
                     pairs.push((i, i + 1));
@@ -1069,5 +1149,37 @@ mod tests {
         let dilated = set(AaMarking::Dilated);
         assert_eq!(dilated.len(), 17);
         assert!(dilated.contains(&0) && dilated.contains(&19) && !dilated.contains(&4));
+    }
+
+    #[test]
+    fn pairs_inside_the_lit_window_are_the_pairs_of_the_whole_image() {
+        // A 37×23 image, dark but for a few patches (one touching the right
+        // edge, one a NaN); the window holds every non-zero pixel, and the
+        // pairs found in it are those of a scan over the whole image.
+        let (w, h) = (37, 23);
+        let mut dense = vec![Vec3::ZERO; w * h];
+        let mut seed = 11u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            seed as f32 / u32::MAX as f32
+        };
+        for (x, y) in [(9, 5), (10, 5), (20, 14), (36, 8), (12, 17)] {
+            dense[y * w + x] = Vec3::new(next(), next(), next());
+        }
+        dense[17 * w + 13] = Vec3::splat(f32::NAN);
+        let window = lit_window(&dense, w, h).unwrap();
+        assert_eq!(window, LitWindow { x0: 9, x1: 37, y0: 5, y1: 18 });
+        for (i, v) in dense.iter().enumerate() {
+            let (x, y) = (i % w, i / w);
+            let inside = (window.x0..window.x1).contains(&x) && (window.y0..window.y1).contains(&y);
+            assert!(inside || *v == Vec3::ZERO, "pixel ({x}, {y}) is lit outside the window");
+        }
+        let over = |a: usize, b: usize| (dense[a] - dense[b]).abs().max_element() > 0.05;
+        let all = neighbour_pairs(w, h, LitWindow::full(w, h), over);
+        assert!(all.len() >= 12, "the patches make pairs with their dark neighbours: {}", all.len());
+        assert_eq!(neighbour_pairs(w, h, window, over), all);
+        let (level, same_window) = reference_in_window(&dense, w, h).unwrap();
+        assert_eq!((Some(level), same_window), (reference_level(&dense), window));
+        assert_eq!(lit_window(&[Vec3::ZERO; 6], 3, 2), None);
     }
 }
