@@ -33,6 +33,10 @@ pub struct AccuracyReport {
     pub aa: Vec<sweeps::AaCostRow>,
     /// Where the adaptive cost goes, before and after.
     pub breakdowns: Vec<(String, sweeps::AaBreakdown)>,
+    /// The whole picture's error (direct + indirect) with and without bins.
+    pub picture: Vec<sweeps::AaPictureRow>,
+    /// Interleaved rounds behind each AA time ([`sweeps::aa_rounds`]).
+    pub aa_rounds: usize,
     /// A moved light's published pictures over time, with their error.
     pub converge: Vec<ConvergeRow>,
     /// Passes behind the converged reference.
@@ -368,7 +372,7 @@ pub fn run(
     let limits = RecursionLimits::default();
     let threshold = crate::render::RenderSettings::default().aa_threshold;
     let gbuffer = GBuffer::build(scene, camera, size.0, size.1);
-    let (mut aa, mut breakdowns) = (Vec::new(), Vec::new());
+    let (mut aa, mut breakdowns, mut picture) = (Vec::new(), Vec::new(), Vec::new());
     if wants(Part::Aa) {
         aa = sweeps::aa_cost(scene, &gbuffer, light, k_full, &display, limits, threshold, repeats);
         use crate::render::SampleSet;
@@ -391,6 +395,11 @@ pub fn run(
             ),
             bd(SampleSet::Binned, Decision::Now(crate::render::AaParams::new(threshold))),
         ));
+        breakdowns.push((
+            format!("no bins (1 sample, every pair re-shaded with 9 samples, pair marks + highlight pixels, threshold {threshold})"),
+            bd(SampleSet::Centre, Decision::Now(crate::render::AaParams::new(threshold))),
+        ));
+        picture = sweeps::aa_picture(scene, &gbuffer, light, k_full, &display, limits, threshold);
     }
     let reference_passes = if size.0 < 400 { 16 } else { 48 };
     let profile = (wants(Part::Converge) || parts.contains(&Part::Profile)).then(|| {
@@ -413,7 +422,17 @@ pub fn run(
     };
     let indirect =
         if wants(Part::Indirect) { indirect_rows(scene_path, light, camera, size.0 < 400)? } else { Vec::new() };
-    Ok(AccuracyReport { size, aa, breakdowns, converge, reference_passes, profile, indirect })
+    Ok(AccuracyReport {
+        size,
+        aa,
+        breakdowns,
+        picture,
+        aa_rounds: sweeps::aa_rounds(repeats),
+        converge,
+        reference_passes,
+        profile,
+        indirect,
+    })
 }
 
 /// The indirect term's error at the paper's settings (CI-sized with `quick`).
@@ -446,13 +465,20 @@ impl AccuracyReport {
     pub fn markdown(&self) -> String {
         let mut s = format!(
             "## Accuracy round (issue 13): anti-aliasing cost and error\n\n{}×{}, first patch light, depth 5. \
-             Cost = expansion + shading (+ re-shading) / 1-sample expansion + shading; error = display-space MSE \
-             against 81 samples per pixel (9-sample renderer at 3× size, box-filtered).\n\n",
-            self.size.0, self.size.1
+             Cost = expansion + shading (+ re-shading) / 1-sample expansion + shading, the fastest of {} interleaved \
+             rounds; error = display-space MSE against 81 samples per pixel (9-sample renderer at 3× size, \
+             box-filtered).\n\n",
+            self.size.0, self.size.1, self.aa_rounds
         );
         s += &sweeps::aa_cost_markdown(&self.aa);
         for (label, b) in &self.breakdowns {
             s += &b.sentence(label);
+        }
+        if !self.picture.is_empty() {
+            s += "\nThe whole picture of the light (direct + indirect, the same photon maps, paper's settings) against \
+                  81 samples per pixel: the indirect term is evaluated on the base sample set, so without bins its \
+                  geometry edges stay aliased.\n\n";
+            s += &sweeps::aa_picture_markdown(&self.picture);
         }
         s += &format!(
             "\n## Moved light: time to the converged picture (issue 13)\n\n{}×{}, paper's settings (50,000 photons, 150 \
