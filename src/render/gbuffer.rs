@@ -148,38 +148,46 @@ pub fn surface_bins(scene: &Scene, samples: &[PrimarySample; SAMPLES_PER_PIXEL])
     if bins.len <= 1 {
         return bins;
     }
-    // A fixed array, not a Vec: this runs for every pixel on an edge.
-    // Only bins of one material can merge: a bin's surface is looked up
-    // only when another bin shares its material (object outlines between
-    // two materials cost no look-up), and a pixel without such a pair keeps
-    // its bins at once.
+    // Fixed arrays, not Vecs: this runs for every pixel on an edge (a
+    // fifth of them). Only bins of one material can merge: a bin's surface
+    // is looked up only when another bin shares its material (object
+    // outlines between two materials cost no look-up), and a pixel without
+    // such a pair keeps its bins at once. The surfaces are kept as three
+    // plain vector arrays: nine `Option<SurfacePoint>`s cost more to
+    // build and copy than the look-ups themselves.
     let items = bins.as_slice();
-    let material: [Option<u32>; SAMPLES_PER_PIXEL] = std::array::from_fn(|i| {
-        items.get(i).filter(|b| b.triangle != NO_HIT).map(|b| scene.material_of[b.triangle as usize])
-    });
-    let paired = |i: usize| material[i].is_some() && (0..items.len()).any(|j| j != i && material[j] == material[i]);
-    if !(0..items.len()).any(paired) {
+    let n = items.len();
+    let mut material = [NO_HIT; SAMPLES_PER_PIXEL];
+    for (m, b) in material.iter_mut().zip(items) {
+        if b.triangle != NO_HIT {
+            *m = scene.material_of[b.triangle as usize];
+        }
+    }
+    let paired = |i: usize| material[i] != NO_HIT && (0..n).any(|j| j != i && material[j] == material[i]);
+    if !(0..n).any(paired) {
         return bins;
     }
-    let surf: [Option<crate::scene::SurfacePoint>; SAMPLES_PER_PIXEL] = std::array::from_fn(|i| {
-        paired(i).then(|| {
-            let b = items[i];
-            scene.surface(&crate::scene::Hit { triangle: b.triangle, t: 0.0, u: b.u, v: b.v })
-        })
-    });
-    let same = |a: usize, b: usize| match (&surf[a], &surf[b]) {
-        (Some(p), Some(q)) => {
-            let d = q.position - p.position;
-            let len = d.length();
-            p.material == q.material
-                && p.shading_normal.dot(q.shading_normal) >= SAME_SURFACE_COS
-                && p.geometric_normal.dot(d).abs() <= SAME_SURFACE_PLANE * len
-                && q.geometric_normal.dot(d).abs() <= SAME_SURFACE_PLANE * len
+    let (mut position, mut shading, mut geometric) =
+        ([Vec3::ZERO; SAMPLES_PER_PIXEL], [Vec3::ZERO; SAMPLES_PER_PIXEL], [Vec3::ZERO; SAMPLES_PER_PIXEL]);
+    let mut looked_up = [false; SAMPLES_PER_PIXEL];
+    for i in (0..n).filter(|&i| paired(i)) {
+        let b = items[i];
+        let sp = scene.surface(&crate::scene::Hit { triangle: b.triangle, t: 0.0, u: b.u, v: b.v });
+        (position[i], shading[i], geometric[i], looked_up[i]) =
+            (sp.position, sp.shading_normal, sp.geometric_normal, true);
+    }
+    let same = |a: usize, b: usize| {
+        if !(looked_up[a] && looked_up[b]) {
+            return false;
         }
-        _ => false,
+        let d = position[b] - position[a];
+        let len = d.length();
+        material[a] == material[b]
+            && shading[a].dot(shading[b]) >= SAME_SURFACE_COS
+            && geometric[a].dot(d).abs() <= SAME_SURFACE_PLANE * len
+            && geometric[b].dot(d).abs() <= SAME_SURFACE_PLANE * len
     };
     // Group leader of every bin (the first bin of its group).
-    let n = bins.len;
     let mut leader = [0usize; SAMPLES_PER_PIXEL];
     for i in 0..n {
         leader[i] = (0..i).find(|&j| leader[j] == j && same(i, j)).unwrap_or(i);
