@@ -566,9 +566,18 @@ pub struct AaCostRow {
 /// The 81-sample reference of one light's direct buffer: the 9-sample
 /// renderer at 3w×3h (a 9×9 sample grid per pixel), box-filtered down.
 pub fn reference_81(scene: &Scene, gbuffer: &GBuffer, light: &Light, limits: RecursionLimits) -> Vec<Vec3> {
-    let (w, h) = (gbuffer.width as usize, gbuffer.height as usize);
-    let big = View::build(scene, gbuffer.camera, 3 * w as u32, 3 * h as u32, Sampling::Nine, limits);
-    let (dense, _) = big.render_direct(scene, light, None);
+    let big = view_81(scene, gbuffer, limits);
+    box_down_3x(&big.render_direct(scene, light, None).0, gbuffer.width as usize, gbuffer.height as usize)
+}
+
+/// The 9-sample view at 3× the size of `gbuffer` (81 samples per pixel
+/// once box-filtered down with [`box_down_3x`]).
+fn view_81(scene: &Scene, gbuffer: &GBuffer, limits: RecursionLimits) -> View {
+    View::build(scene, gbuffer.camera, 3 * gbuffer.width, 3 * gbuffer.height, Sampling::Nine, limits)
+}
+
+/// A 3w×3h image box-filtered down to w×h (each pixel the mean of its 3×3).
+fn box_down_3x(dense: &[Vec3], w: usize, h: usize) -> Vec<Vec3> {
     let mut out = vec![Vec3::ZERO; w * h];
     for (i, o) in out.iter_mut().enumerate() {
         let (x, y) = (i % w, i / w);
@@ -715,17 +724,9 @@ pub fn aa_picture(
     use crate::render::SampleSet;
     let (w, h) = (gbuffer.width as usize, gbuffer.height as usize);
     let maps = trace_photons(scene, light, &PhotonSettings::default());
-    let big = View::build(scene, gbuffer.camera, 3 * w as u32, 3 * h as u32, Sampling::Nine, limits);
-    let down = |d: &[Vec3]| -> Vec<Vec3> {
-        (0..w * h)
-            .map(|i| {
-                let (x, y) = (i % w, i / w);
-                (0..9).map(|j| d[(3 * y + j / 3) * 3 * w + 3 * x + j % 3] * k_full / 9.0).sum()
-            })
-            .collect()
-    };
-    let ref_direct = down(&big.render_direct(scene, light, None).0);
-    let ref_indirect = down(&big.render_indirect(scene, &maps));
+    let big = view_81(scene, gbuffer, limits);
+    let ref_direct = shown(&box_down_3x(&big.render_direct(scene, light, None).0, w, h), k_full);
+    let ref_indirect = shown(&box_down_3x(&big.render_indirect(scene, &maps), w, h), k_full);
     drop(big);
     let sum = |a: &[Vec3], b: &[Vec3]| -> Vec<Vec3> { a.iter().zip(b).map(|(x, y)| *x + *y).collect() };
     let ref_picture = sum(&ref_direct, &ref_indirect);
