@@ -157,6 +157,15 @@ pub struct RigHaze {
     /// compositor's worst frame in haze), ms; and the same without haze
     /// (each light's knot 1 alone standing in for its surface buffer).
     pub composite_ms: (f64, f64),
+    /// A hazer change on the CPU compositor with every light's knots kept
+    /// as layers ([`crate::render::composite::Compositor::update_layers`]:
+    /// new weights, the kept sums recombined and encoded), ms (median of 5,
+    /// the density moving between ½ and 1).
+    pub hazer_change_ms: f64,
+    /// Every fader changed at once on the same compositor (k of every light
+    /// in every layer, weights kept: both kept sums recomposed, then
+    /// recombined and encoded), ms (median of 3).
+    pub layered_faders_ms: f64,
     /// The live composite at that density (knot weights only) against an
     /// exact rebuild of every beam there, all lights at k = 1: (rel. L1,
     /// max/peak) with the daemon's knot weights, then with
@@ -344,6 +353,15 @@ impl HazeReport {
                 1e3 / r.composite_ms.0.max(1e-9),
                 r.composite_ms.1,
                 1e3 / r.composite_ms.1.max(1e-9)
+            );
+            s += &format!(
+                "    600-fixture rig hazer change on the CPU compositor (knots kept as layers, weights only) at {}×{}: {:.0} ms ({:.1} Hz); every fader changed on it: {:.0} ms ({:.1} Hz)\n",
+                r.width,
+                r.height,
+                r.hazer_change_ms,
+                1e3 / r.hazer_change_ms.max(1e-9),
+                r.layered_faders_ms,
+                1e3 / r.layered_faders_ms.max(1e-9)
             );
             for (tau, mib, rel, max) in &r.tail {
                 s += &format!(
@@ -705,6 +723,37 @@ fn run_rig(scene: &Scene, camera: Camera, lights: &[Light], medium: &Medium) -> 
     let (hazy_ms, _) = super::time_ms(3, || crate::render::composite::composite(&refs, &ks, w, h));
     let ones: Vec<&LightBuffer> = kept.iter().map(|k| &k[1]).collect();
     let (clear_ms, _) = super::time_ms(3, || crate::render::composite::composite(&ones, &ks[..ones.len()], w, h));
+    // The daemon's way (`live::clock::frame_layers`): the knots as layers
+    // of the CPU compositor, a hazer change re-weights the kept sums.
+    let empty_surface = LightBuffer::empty(w, h);
+    let surface = &empty_surface;
+    let layers_at = |level: f32| -> Vec<_> {
+        (0..3)
+            .flat_map(|j| {
+                kept.iter().map(move |k| crate::render::composite::CompositeInput {
+                    buffer: if j == 0 { surface } else { &k[j - 1] },
+                    generation: 0,
+                    k: Vec3::splat(level),
+                })
+            })
+            .collect()
+    };
+    let layers = layers_at(1.0);
+    let mut compositor = crate::render::composite::Compositor::new(w, h, crate::render::Display::default());
+    compositor.update_layers(&layers, &crate::render::media::knot_weights(0.75));
+    let mut step = 0;
+    let (hazer_change_ms, _) = super::time_ms(5, || {
+        step += 1;
+        let d = if step % 2 == 0 { 0.7 } else { 0.8 };
+        compositor.update_layers(&layers, &crate::render::media::knot_weights(d))
+    });
+    let faded = layers_at(0.9);
+    let weights = crate::render::media::knot_weights(0.75);
+    let (layered_faders_ms, _) = super::time_ms(3, || {
+        step += 1;
+        compositor.update_layers(if step % 2 == 0 { &layers } else { &faded }, &weights)
+    });
+    drop((layers, faded));
     drop(kept);
     let grey = |v: &[Vec3]| v.iter().map(|p| p.x).collect::<Vec<f32>>();
     // Surfaces are empty: the knot 0 adds nothing, whatever its weight.
@@ -742,6 +791,8 @@ fn run_rig(scene: &Scene, camera: Camera, lights: &[Light], medium: &Medium) -> 
         tail,
         density: RIG_DENSITY,
         composite_ms: (hazy_ms, clear_ms),
+        hazer_change_ms,
+        layered_faders_ms,
         reweighting_error,
     }
 }

@@ -149,22 +149,44 @@ pub fn frame_entries<'a>(
     inputs: &[LightInput],
     density: Option<f32>,
 ) -> Vec<CompositeInput<'a>> {
-    let w = density.map_or([1.0, 0.0, 0.0], crate::render::media::knot_weights);
+    let (mut entries, weights) = frame_layers(published, inputs, density);
+    let n = published.len().min(inputs.len()).max(1);
+    for (e, i) in entries.iter_mut().zip(0..) {
+        e.k *= weights[i / n];
+    }
+    entries
+}
+
+/// The entries of [`frame_entries`] as layers for
+/// [`crate::render::composite::Compositor::update_layers`]: every light's
+/// surface buffer, then (in haze) its buffers at the knots ½ and 1, each
+/// with k_i itself; and the layers' weights (1 without haze, w_j(d) in
+/// haze). A hazer change is then new weights only: the CPU compositor
+/// recombines its three kept sums instead of recomposing every buffer.
+pub fn frame_layers<'a>(
+    published: &'a [Published],
+    inputs: &[LightInput],
+    density: Option<f32>,
+) -> (Vec<CompositeInput<'a>>, Vec<f32>) {
     let surface = published.iter().zip(inputs).map(|(p, input)| CompositeInput {
         buffer: &p.buffer,
         generation: p.generation,
-        k: input.k * w[0],
+        k: input.k,
     });
     let haze = density.into_iter().flat_map(|_| {
         (0..2).flat_map(move |j| {
             published.iter().zip(inputs).map(move |(p, input)| CompositeInput {
                 buffer: &p.hazy[j],
                 generation: p.generation,
-                k: input.k * w[j + 1],
+                k: input.k,
             })
         })
     });
-    surface.chain(haze).collect()
+    let weights = match density {
+        Some(d) => crate::render::media::knot_weights(d).to_vec(),
+        None => vec![1.0],
+    };
+    (surface.chain(haze).collect(), weights)
 }
 
 /// The buffers of [`frame_entries`] with their generations, shared.
@@ -348,8 +370,15 @@ impl FrameClock {
                 }
             }
         }
-        let update =
-            if gpu_rgb.is_none() && !gpu_pending { self.compositor.update(&lights) } else { UpdateStats::default() };
+        let update = match (gpu_rgb.is_none() && !gpu_pending, density) {
+            (false, _) => UpdateStats::default(),
+            (true, None) => self.compositor.update(&lights),
+            // In haze the knots are layers: a hazer change recombines them.
+            (true, Some(_)) => {
+                let (layers, weights) = frame_layers(&published, &inputs, density);
+                self.compositor.update_layers(&layers, &weights)
+            }
+        };
         let intensity = inputs.iter().map(|input| luminance(input.k)).collect();
         let k = Arc::new(lights.iter().map(|l| l.k).collect());
         let buffers = Arc::new(frame_buffers(&published, density));

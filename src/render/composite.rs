@@ -10,7 +10,10 @@
 //! buffer) cover, so one fader move costs the area its beam lights, not the
 //! whole rig. Tiles are recomposed from scratch (never by adding a delta), so
 //! repeated updates cannot drift. Work is skipped where it cannot contribute:
-//! lights with k_i = 0 and tiles a light does not reach.
+//! lights with k_i = 0 and tiles a light does not reach. In haze,
+//! [`Compositor::update_layers`] keeps one such sum per density knot, so a
+//! hazer change (new knot weights) recombines the sums instead of
+//! recomposing every light.
 
 use super::buffer::{LightBuffer, TILE};
 use super::display::Display;
@@ -97,13 +100,73 @@ pub struct Compositor {
     srgb: Vec<u8>,
     /// Per light: last k, last generation, and the tiles its buffer covered.
     seen: Vec<(Vec3, u64, Vec<u32>)>,
+    /// The layer sums of [`Compositor::update_layers`] (haze knots), when in use.
+    layers: Option<LayerSums>,
+}
+
+/// What [`Compositor::update_layers`] keeps between frames.
+struct LayerSums {
+    /// Lights per layer.
+    lights: usize,
+    /// The weights the frame was last combined with.
+    weights: Vec<f32>,
+    /// Per layer, Σ_i k_i ⊙ buffer_i of its lights; `None` while its weight
+    /// is 0 (then it is not kept up to date, and rebuilt when it is needed).
+    sums: Vec<Option<Vec<Vec3>>>,
+}
+
+/// The tiles a light's buffer covers (its occupied tiles), as tile indices.
+fn covered_tiles(buffer: &LightBuffer, tiles_x: usize, n_tiles: usize) -> Vec<u32> {
+    (0..n_tiles as u32).filter(|&t| buffer.tile(t as usize % tiles_x, t as usize / tiles_x).is_some()).collect()
+}
+
+/// Marks in `dirty` the tiles that `lights` changed since `seen` (their old
+/// and new tiles where k or the buffer changed) and brings `seen` up to
+/// date; returns how many lights changed. NaN in `seen` counts as a change.
+fn mark_changes(
+    lights: &[CompositeInput],
+    seen: &mut [(Vec3, u64, Vec<u32>)],
+    tiles_x: usize,
+    dirty: &mut [bool],
+) -> usize {
+    let n_tiles = dirty.len();
+    let mut changed = 0;
+    for (l, (k, generation, covered)) in lights.iter().zip(seen.iter_mut()) {
+        // NaN != NaN: the first update always counts as a change.
+        if *k == l.k && *generation == l.generation {
+            continue;
+        }
+        changed += 1;
+        // The tiles the light's old buffer covered need recomposing too;
+        // its tile list is rebuilt only when the buffer was replaced.
+        for &t in covered.iter() {
+            dirty[t as usize] = true;
+        }
+        if *generation != l.generation {
+            *covered = covered_tiles(l.buffer, tiles_x, n_tiles);
+            for &t in covered.iter() {
+                dirty[t as usize] = true;
+            }
+        }
+        *k = l.k;
+        *generation = l.generation;
+    }
+    changed
 }
 
 impl Compositor {
     /// A black frame of `width`×`height`.
     pub fn new(width: u32, height: u32, display: Display) -> Self {
         let n = (width * height) as usize;
-        Self { width, height, display, linear: vec![Vec3::ZERO; n], srgb: vec![0; n * 3], seen: Vec::new() }
+        Self {
+            width,
+            height,
+            display,
+            linear: vec![Vec3::ZERO; n],
+            srgb: vec![0; n * 3],
+            seen: Vec::new(),
+            layers: None,
+        }
     }
 
     /// The display settings the sRGB pixels are encoded with.
@@ -146,34 +209,13 @@ impl Compositor {
         let tiles_y = (self.height as usize).div_ceil(TILE);
         let n_tiles = tiles_x * tiles_y;
         let mut dirty = vec![false; n_tiles];
-        let mut changed = 0;
-        let full = self.seen.len() != lights.len();
+        // Coming from layers, every entry is new.
+        let full = self.layers.take().is_some() || self.seen.len() != lights.len();
         if full {
             dirty.fill(true);
             self.seen = lights.iter().map(|_| (Vec3::NAN, u64::MAX, Vec::new())).collect();
         }
-        for (l, (k, generation, covered)) in lights.iter().zip(self.seen.iter_mut()) {
-            // NaN != NaN: the first update always counts as a change.
-            if *k == l.k && *generation == l.generation {
-                continue;
-            }
-            changed += 1;
-            // The tiles the light's old buffer covered need recomposing too;
-            // its tile list is rebuilt only when the buffer was replaced.
-            for &t in covered.iter() {
-                dirty[t as usize] = true;
-            }
-            if *generation != l.generation {
-                *covered = (0..n_tiles as u32)
-                    .filter(|&t| l.buffer.tile(t as usize % tiles_x, t as usize / tiles_x).is_some())
-                    .collect();
-                for &t in covered.iter() {
-                    dirty[t as usize] = true;
-                }
-            }
-            *k = l.k;
-            *generation = l.generation;
-        }
+        let changed = mark_changes(lights, &mut self.seen, tiles_x, &mut dirty);
         let tiles = dirty.iter().filter(|&&d| d).count();
         if tiles == 0 {
             return UpdateStats { tiles, changed_lights: changed };
@@ -201,6 +243,114 @@ impl Compositor {
                     accumulate_tile(&active, tx, ty, w, band);
                     for r in 0..rows {
                         let px = r * w + x0;
+                        display.to_srgb8_into(&band[px..px + cols], &mut band_srgb[px * 3..(px + cols) * 3]);
+                    }
+                }
+            },
+        );
+        UpdateStats { tiles, changed_lights: changed }
+    }
+
+    /// Brings the frame up to date with lights in weighted layers: I = Σ_j
+    /// w_j Σ_i k_i ⊙ buffer_ij. `lights` holds `weights.len()` blocks of the
+    /// same number of entries (block j is layer j, entry i the same light in
+    /// every block); their k are the layer's own (unweighted). Used for haze,
+    /// whose density knots are the layers (`live::clock::frame_layers`): each
+    /// layer's sum is kept, tile-incrementally as in [`Compositor::update`],
+    /// so a hazer change (new weights, same k) only recombines the sums,
+    /// O(pixels), instead of recomposing every light's buffers. A layer of
+    /// weight 0 is not kept up to date; it is rebuilt (one full composite
+    /// of that layer) when its weight becomes non-zero.
+    pub fn update_layers(&mut self, lights: &[CompositeInput], weights: &[f32]) -> UpdateStats {
+        let w = self.width as usize;
+        let tiles_x = w.div_ceil(TILE);
+        let n_tiles = tiles_x * (self.height as usize).div_ceil(TILE);
+        let layers = weights.len().max(1);
+        let per_layer = lights.len() / layers;
+        assert_eq!(per_layer * layers, lights.len(), "one block of lights per layer");
+        let fresh = !matches!(&self.layers, Some(l) if l.lights == per_layer && l.sums.len() == layers)
+            || self.seen.len() != lights.len();
+        if fresh {
+            self.layers =
+                Some(LayerSums { lights: per_layer, weights: vec![f32::NAN; layers], sums: vec![None; layers] });
+            self.seen = lights.iter().map(|_| (Vec3::NAN, u64::MAX, Vec::new())).collect();
+        }
+        let Some(state) = self.layers.as_mut() else { return UpdateStats::default() };
+        let (width, height) = (self.width, self.height);
+        // Recombine every tile after a weight change or a rebuilt layer.
+        let mut all = false;
+        let mut dirty = vec![false; n_tiles];
+        let mut changed = 0;
+        for (j, &wj) in weights.iter().enumerate() {
+            let block = &lights[j * per_layer..(j + 1) * per_layer];
+            let seen = &mut self.seen[j * per_layer..(j + 1) * per_layer];
+            if wj != state.weights[j] && !(wj == 0.0 && state.weights[j] == 0.0) {
+                all = true;
+                changed += block.len();
+            }
+            if wj == 0.0 {
+                state.sums[j] = None;
+                continue;
+            }
+            let buffers: Vec<&LightBuffer> = block.iter().map(|l| l.buffer).collect();
+            let k: Vec<Vec3> = block.iter().map(|l| l.k).collect();
+            let Some(sum) = state.sums[j].as_mut() else {
+                // Not kept while its weight was 0: one full composite.
+                let mut sum = vec![Vec3::ZERO; w * height as usize];
+                composite_into(&buffers, &k, width, height, &mut sum);
+                for (l, s) in block.iter().zip(seen.iter_mut()) {
+                    *s = (l.k, l.generation, covered_tiles(l.buffer, tiles_x, n_tiles));
+                }
+                state.sums[j] = Some(sum);
+                all = true;
+                continue;
+            };
+            let mut layer_dirty = vec![false; n_tiles];
+            let moved = mark_changes(block, seen, tiles_x, &mut layer_dirty);
+            if !all {
+                changed += moved;
+            }
+            let count = layer_dirty.iter().filter(|&&d| d).count();
+            if count * 2 > n_tiles {
+                composite_into(&buffers, &k, width, height, sum);
+            } else if count > 0 {
+                let active = active_lights(&buffers, &k);
+                sum.par_chunks_mut(w * TILE).enumerate().for_each(|(ty, band)| {
+                    let rows = band.len() / w.max(1);
+                    for tx in (0..tiles_x).filter(|tx| layer_dirty[ty * tiles_x + tx]) {
+                        let (x0, cols) = (tx * TILE, TILE.min(w - tx * TILE));
+                        for r in 0..rows {
+                            band[r * w + x0..r * w + x0 + cols].fill(Vec3::ZERO);
+                        }
+                        accumulate_tile(&active, tx, ty, w, band);
+                    }
+                });
+            }
+            dirty.iter_mut().zip(&layer_dirty).for_each(|(d, l)| *d |= *l);
+        }
+        state.weights = weights.to_vec();
+        let tiles = if all { n_tiles } else { dirty.iter().filter(|&&d| d).count() };
+        if tiles == 0 {
+            return UpdateStats { tiles, changed_lights: changed };
+        }
+        // I = Σ_j w_j S_j over the layers that count (in layer order).
+        let live: Vec<(f32, &[Vec3])> = weights
+            .iter()
+            .zip(&state.sums)
+            .filter_map(|(&wj, s)| s.as_deref().filter(|_| wj != 0.0).map(|s| (wj, s)))
+            .collect();
+        let display = self.display;
+        self.linear.par_chunks_mut(w * TILE).zip(self.srgb.par_chunks_mut(w * TILE * 3)).enumerate().for_each(
+            |(ty, (band, band_srgb))| {
+                let rows = band.len() / w.max(1);
+                let start = ty * TILE * w;
+                for tx in (0..tiles_x).filter(|tx| all || dirty[ty * tiles_x + tx]) {
+                    let (x0, cols) = (tx * TILE, TILE.min(w - tx * TILE));
+                    for r in 0..rows {
+                        let px = r * w + x0;
+                        for (p, out) in band[px..px + cols].iter_mut().enumerate() {
+                            *out = live.iter().fold(Vec3::ZERO, |acc, (wj, s)| acc + *wj * s[start + px + p]);
+                        }
                         display.to_srgb8_into(&band[px..px + cols], &mut band_srgb[px * 3..(px + cols) * 3]);
                     }
                 }
@@ -303,6 +453,74 @@ mod tests {
             CompositeInput { buffer: &ba, generation: 0, k: k[0] },
             CompositeInput { buffer: &empty, generation: 1, k: k[1] },
         ]);
+        assert_eq!(c.linear(), &composite(&[&ba], &k[..1], w, h)[..]);
+    }
+
+    /// Layers (haze knots): the kept sums, recombined with new weights,
+    /// equal a full composite of every entry with k_i w_j; a k change
+    /// recomposes only its tiles; a layer whose weight was 0 is rebuilt
+    /// when it comes back; one layer of weight 1 is that layer's sum exactly.
+    #[test]
+    fn layers_recombine_like_a_weighted_full_composite() {
+        let (w, h) = (50u32, 40u32);
+        let (ba, bb) = buffers(w, h);
+        let bc =
+            LightBuffer::from_dense(w, h, &(0..w * h).map(|i| Vec3::new(0.0, (i % 7) as f32, 1.0)).collect::<Vec<_>>());
+        // Layer j, light i: the buffers of the 3 knots of 2 lights.
+        let layer_buffers = [[&ba, &bb], [&bc, &bb], [&ba, &bc]];
+        let display = Display::for_white_lux(50.0);
+        let mut c = Compositor::new(w, h, display);
+        let entries = |k: [Vec3; 2], generation: u64| -> Vec<CompositeInput> {
+            layer_buffers
+                .iter()
+                .flat_map(|pair| pair.iter().zip(k).map(move |(b, k)| CompositeInput { buffer: b, generation, k }))
+                .collect()
+        };
+        let full = |k: [Vec3; 2], weights: [f32; 3]| {
+            let refs: Vec<&LightBuffer> = layer_buffers.iter().flatten().copied().collect();
+            let ks: Vec<Vec3> = weights.iter().flat_map(|wj| k.map(|k| k * *wj)).collect();
+            composite(&refs, &ks, w, h)
+        };
+        let close = |got: &[Vec3], want: &[Vec3]| {
+            for (i, (a, b)) in got.iter().zip(want).enumerate() {
+                assert!(
+                    (*a - *b).abs().max_element() <= 1e-5 * b.abs().max_element().max(1.0),
+                    "pixel {i}: {a} vs {b}"
+                );
+            }
+        };
+        let mut k = [Vec3::splat(0.01), Vec3::splat(2.0)];
+        let all_tiles = 4 * 3;
+        let first = c.update_layers(&entries(k, 0), &[0.5, 0.5, 0.0]);
+        assert_eq!(first.tiles, all_tiles);
+        close(c.linear(), &full(k, [0.5, 0.5, 0.0]));
+        // Light b's fader: only layer 0's single lit tile of bb and layer 1's
+        // (the same tile) change; the kept layers are not recomposed.
+        k[1] = Vec3::splat(3.0);
+        let s = c.update_layers(&entries(k, 0), &[0.5, 0.5, 0.0]);
+        assert_eq!((s.tiles, s.changed_lights), (1, 2));
+        close(c.linear(), &full(k, [0.5, 0.5, 0.0]));
+        assert_eq!(c.srgb8(), &display.to_srgb8(c.linear())[..]);
+        // A hazer change: weights only, every tile recombined; layer 2 (weight 0 so far) rebuilt.
+        let s = c.update_layers(&entries(k, 0), &[0.0, 0.4, 0.6]);
+        assert_eq!(s.tiles, all_tiles);
+        assert!(s.changed_lights > 0);
+        close(c.linear(), &full(k, [0.0, 0.4, 0.6]));
+        // Light a's fader while layer 0 is not kept, then back to the
+        // first weights: layer 0 is rebuilt with the new k.
+        k[0] = Vec3::splat(0.2);
+        c.update_layers(&entries(k, 0), &[0.0, 0.4, 0.6]);
+        close(c.linear(), &full(k, [0.0, 0.4, 0.6]));
+        c.update_layers(&entries(k, 0), &[0.5, 0.5, 0.0]);
+        close(c.linear(), &full(k, [0.5, 0.5, 0.0]));
+        // Nothing changed: nothing recomposed.
+        assert_eq!(c.update_layers(&entries(k, 0), &[0.5, 0.5, 0.0]), UpdateStats { tiles: 0, changed_lights: 0 });
+        // One layer at weight 1 is exactly its sum (a rebuilt buffer: new generation).
+        c.update_layers(&entries(k, 1), &[0.0, 0.0, 1.0]);
+        assert_eq!(c.linear(), &composite(&[&ba, &bc], &k, w, h)[..]);
+        // Back to plain updates: everything recomposed from the entries given.
+        let plain = [CompositeInput { buffer: &ba, generation: 0, k: k[0] }];
+        assert_eq!(c.update(&plain).tiles, all_tiles);
         assert_eq!(c.linear(), &composite(&[&ba], &k[..1], w, h)[..]);
     }
 }
