@@ -154,23 +154,9 @@ fn chrome_balls() -> (footlight::scene::Scene, footlight::Light, footlight::scen
         ..Material::lambert("chrome", Vec3::ZERO)
     });
     // UV spheres with smooth normals, at a few sub-pixel offsets.
-    let (rings, segments) = (24, 48);
     for k in 0..7 {
         let centre = Vec3::new(-1.8 + 0.6 * k as f32 + 0.013 * k as f32, 0.3 + 0.007 * k as f32, 0.05 * k as f32);
-        let r = 0.25;
-        let at = |i: usize, j: usize| {
-            let (theta, phi) =
-                (std::f32::consts::PI * i as f32 / rings as f32, std::f32::consts::TAU * j as f32 / segments as f32);
-            Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
-        };
-        for i in 0..rings {
-            for j in 0..segments {
-                let n = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
-                let p = n.map(|x| centre + x * r);
-                b.add_triangle([p[0], p[1], p[2]], Some([n[0], n[1], n[2]]), chrome);
-                b.add_triangle([p[0], p[2], p[3]], Some([n[0], n[2], n[3]]), chrome);
-            }
-        }
+        b.add_uv_sphere(centre, 0.25, 24, 48, chrome);
     }
     let light = omni(Vec3::new(0.4, 3.0, 2.5));
     let cam = footlight::scene::Camera::look_at(Vec3::new(0.0, 1.2, 6.0), Vec3::new(0.0, 0.3, 0.0), 40f32.to_radians());

@@ -1317,24 +1317,8 @@ mod tests {
             exponent: 10_000.0,
             ..Material::lambert("chrome", Vec3::ZERO)
         });
-        let (rings, segments) = (16, 32);
         for k in 0..5 {
-            let centre = Vec3::new(-1.6 + 0.8 * k as f32, 0.3, 0.1 * k as f32);
-            let at = |i: usize, j: usize| {
-                let (t, p) = (
-                    std::f32::consts::PI * i as f32 / rings as f32,
-                    std::f32::consts::TAU * j as f32 / segments as f32,
-                );
-                Vec3::new(t.sin() * p.cos(), t.cos(), t.sin() * p.sin())
-            };
-            for i in 0..rings {
-                for j in 0..segments {
-                    let n = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
-                    let p = n.map(|x| centre + x * 0.25);
-                    b.add_triangle([p[0], p[1], p[2]], Some([n[0], n[1], n[2]]), chrome);
-                    b.add_triangle([p[0], p[2], p[3]], Some([n[0], n[2], n[3]]), chrome);
-                }
-            }
+            b.add_uv_sphere(Vec3::new(-1.6 + 0.8 * k as f32, 0.3, 0.1 * k as f32), 0.25, 16, 32, chrome);
         }
         let scene = b.build();
         let camera = Camera::look_at(Vec3::new(0.0, 1.2, 6.0), Vec3::new(0.0, 0.3, 0.0), 40f32.to_radians());

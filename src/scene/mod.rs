@@ -260,6 +260,25 @@ impl SceneBuilder {
         self.add_triangle([a, c, d], None, material);
     }
 
+    /// Adds a UV sphere of `rings` × `segments` quads (two triangles each,
+    /// pole quads degenerate into one) with smooth normals, the poles on
+    /// the y axis.
+    pub fn add_uv_sphere(&mut self, centre: Vec3, radius: f32, rings: usize, segments: usize, material: u32) {
+        let at = |i: usize, j: usize| {
+            let theta = std::f32::consts::PI * i as f32 / rings as f32;
+            let phi = std::f32::consts::TAU * j as f32 / segments as f32;
+            Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
+        };
+        for i in 0..rings {
+            for j in 0..segments {
+                let n = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
+                let p = n.map(|x| centre + x * radius);
+                self.add_triangle([p[0], p[1], p[2]], Some([n[0], n[1], n[2]]), material);
+                self.add_triangle([p[0], p[2], p[3]], Some([n[0], n[2], n[3]]), material);
+            }
+        }
+    }
+
     /// Drops every triangle whose three vertices (in any order) equal an
     /// earlier triangle's, bit for bit; keeps the first one's material.
     fn drop_duplicates(&mut self) {
