@@ -149,12 +149,15 @@ pub fn frame_entries<'a>(
     inputs: &[LightInput],
     density: Option<f32>,
 ) -> Vec<CompositeInput<'a>> {
-    let (mut entries, weights) = frame_layers(published, inputs, density);
-    let n = published.len().min(inputs.len()).max(1);
-    for (e, i) in entries.iter_mut().zip(0..) {
-        e.k *= weights[i / n];
-    }
-    entries
+    let (layers, weights) = frame_layers(published, inputs, density);
+    weighted(&layers, &weights)
+}
+
+/// [`frame_layers`]' entries with their layer's weight folded into k_i
+/// (the flat eq. 5 entries of [`frame_entries`]).
+fn weighted<'a>(layers: &[CompositeInput<'a>], weights: &[f32]) -> Vec<CompositeInput<'a>> {
+    let n = (layers.len() / weights.len().max(1)).max(1);
+    layers.iter().zip(0..).map(|(e, i)| CompositeInput { k: e.k * weights[i / n], ..*e }).collect()
 }
 
 /// The entries of [`frame_entries`] as layers for
@@ -355,7 +358,10 @@ impl FrameClock {
             self.number += 1;
             return frame;
         }
-        let lights = frame_entries(&published, &inputs, density);
+        // The layers once: flat weighted entries for the GPU and the frame,
+        // the layers themselves for the CPU compositor in haze.
+        let (layers, weights) = frame_layers(&published, &inputs, density);
+        let lights = weighted(&layers, &weights);
         // The GPU path never waits: it submits this frame and takes the
         // newest finished readback (None: keep showing the last picture).
         let mut gpu_rgb = None;
@@ -374,10 +380,7 @@ impl FrameClock {
             (false, _) => UpdateStats::default(),
             (true, None) => self.compositor.update(&lights),
             // In haze the knots are layers: a hazer change recombines them.
-            (true, Some(_)) => {
-                let (layers, weights) = frame_layers(&published, &inputs, density);
-                self.compositor.update_layers(&layers, &weights)
-            }
+            (true, Some(_)) => self.compositor.update_layers(&layers, &weights),
         };
         let intensity = inputs.iter().map(|input| luminance(input.k)).collect();
         let k = Arc::new(lights.iter().map(|l| l.k).collect());
