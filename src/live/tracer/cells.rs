@@ -115,6 +115,13 @@ impl Cells {
     }
 }
 
+/// The cells of light `index`'s fixture when they may be built together
+/// (batching on, two cells or more); `None`: the caller builds it alone.
+fn batch_group(s: &Shared, index: usize) -> Option<Range<usize>> {
+    let group = s.cells.group(index);
+    (s.settings.batch_cells && group.len() >= 2).then_some(group)
+}
+
 /// True once every token of `cancels` fired: the pass stops.
 fn all_fired(cancels: &[Cancel]) -> bool {
     cancels.iter().all(Cancel::fired)
@@ -125,13 +132,7 @@ fn all_fired(cancels: &[Cancel]) -> bool {
 /// moving for cells in motion). False (nothing
 /// done) when fewer than two cells are due: the caller builds `index` alone.
 pub(super) fn direct_batch(s: &Shared, index: usize) -> bool {
-    if !s.settings.batch_cells {
-        return false;
-    }
-    let group = s.cells.group(index);
-    if group.len() < 2 {
-        return false;
-    }
+    let Some(group) = batch_group(s, index) else { return false };
     // Due: a request waits; in motion or not (the quality of its stage).
     let due = |j: usize| {
         let st = s.slots[j].state.lock().expect("slot lock");
@@ -179,13 +180,7 @@ pub(super) fn direct_batch(s: &Shared, index: usize) -> bool {
 /// cell of its fixture whose build waits for its Whitted stage. False
 /// (nothing done) when fewer than two are: the caller goes on alone.
 pub(super) fn whitted_batch(s: &Shared, index: usize) -> bool {
-    if !s.settings.batch_cells {
-        return false;
-    }
-    let group = s.cells.group(index);
-    if group.len() < 2 {
-        return false;
-    }
+    let Some(group) = batch_group(s, index) else { return false };
     let now = Instant::now();
     let due = |j: usize| {
         let st = s.slots[j].state.lock().expect("slot lock");
