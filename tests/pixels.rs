@@ -405,6 +405,44 @@ fn bar_stage() -> (footlight::scene::Scene, Camera, Vec<footlight::Light>) {
     (b.build(), cam, lights)
 }
 
+/// [`bar_stage`] for the live tracer: the shared scene, an adaptive view of
+/// `w`×`h` (depth 2), the 8 cells, and build settings without photons or
+/// refinement.
+fn bar_live(
+    w: u32,
+    h: u32,
+) -> (
+    std::sync::Arc<footlight::scene::Scene>,
+    std::sync::Arc<footlight::render::View>,
+    Vec<footlight::Light>,
+    footlight::render::build::BuildSettings,
+) {
+    let (scene, cam, lights) = bar_stage();
+    let scene = std::sync::Arc::new(scene);
+    let v = std::sync::Arc::new(view(&scene, cam, w, h, Sampling::Adaptive, 2));
+    let build = footlight::render::build::BuildSettings { photons: None, refine_passes: 0, ..Default::default() };
+    (scene, v, lights, build)
+}
+
+/// A tracer over the bar's cells (one fixture, id 301) with every cell
+/// requested at once, as at start-up.
+fn bar_tracer(
+    scene: &std::sync::Arc<footlight::scene::Scene>,
+    v: &std::sync::Arc<footlight::render::View>,
+    lights: &[footlight::Light],
+    settings: footlight::live::TracerSettings,
+) -> footlight::live::Tracer {
+    let n = lights.len();
+    let tracer = footlight::live::Tracer::new(scene.clone(), v.clone(), n, settings);
+    tracer.set_groups(&vec![Some(301); n]);
+    tracer.set_paused(true);
+    for (i, l) in lights.iter().enumerate() {
+        tracer.request(i, l.clone(), 1.0);
+    }
+    tracer.set_paused(false);
+    tracer
+}
+
 /// The live tracer builds a bar's cells together (issue 14:
 /// `Tracer::set_groups` from the fixture ids): at start-up the 8 cells of
 /// fixture 301 get their direct stages in one pass and their Whitted
@@ -421,15 +459,12 @@ fn bar_stage() -> (footlight::scene::Scene, Camera, Vec<footlight::Light>) {
 #[test]
 fn live_tracer_builds_a_bars_cells_together() {
     use footlight::live::{Stage, Tracer, TracerSettings};
-    use footlight::render::build::{BuildSettings, Cancel, LightBuild};
+    use footlight::render::build::{Cancel, LightBuild};
     use footlight::render::footprint::DirectQuality;
     use std::sync::Arc;
     use std::time::{Duration, Instant};
-    let (scene, cam, lights) = bar_stage();
+    let (scene, v, lights, build) = bar_live(64, 44);
     let n = lights.len();
-    let scene = Arc::new(scene);
-    let v = Arc::new(view(&scene, cam, 64, 44, Sampling::Adaptive, 2));
-    let build = BuildSettings { photons: None, refine_passes: 0, ..BuildSettings::default() };
     let direct_alone = |i: usize, l: &footlight::Light, q: DirectQuality| {
         LightBuild::new(l.clone(), i, build, Cancel::never()).direct(&scene, &v, q).unwrap().0
     };
@@ -451,17 +486,7 @@ fn live_tracer_builds_a_bars_cells_together() {
             std::thread::sleep(Duration::from_millis(5));
         }
     };
-    let start = |settings: TracerSettings| {
-        let tracer = Tracer::new(scene.clone(), v.clone(), n, settings);
-        tracer.set_groups(&vec![Some(301); n]);
-        // Every cell due at once, as at start-up.
-        tracer.set_paused(true);
-        for (i, l) in lights.iter().enumerate() {
-            tracer.request(i, l.clone(), 1.0);
-        }
-        tracer.set_paused(false);
-        tracer
-    };
+    let start = |settings: TracerSettings| bar_tracer(&scene, &v, &lights, settings);
     let all_at = |stage: Stage| move |t: &Tracer| (0..t.len()).all(|i| t.published(i).stage == stage);
 
     // Direct stages: the cells never settle, so they stay at their direct stage.
@@ -515,7 +540,8 @@ fn live_tracer_builds_a_bars_cells_together() {
         assert_eq!(tracer.published(i).generation, generations[i], "cell {i} was not rebuilt");
     }
     // A view change rebuilds the whole bar: together again, for the new view.
-    let cam2 = Camera::look_at(cam.position + Vec3::new(2.0, 1.0, -1.0), lights[3].position - Vec3::Y * 6.0, 0.9);
+    let cam2 =
+        Camera::look_at(v.gbuffer.camera.position + Vec3::new(2.0, 1.0, -1.0), lights[3].position - Vec3::Y * 6.0, 0.9);
     let v2 = Arc::new(view(&scene, cam2, 64, 44, Sampling::Adaptive, 2));
     let generations: Vec<u64> = (0..n).map(|i| tracer.published(i).generation).collect();
     tracer.set_view(v2.clone(), &[]);
@@ -552,22 +578,12 @@ fn live_tracer_builds_a_bars_cells_together() {
 #[test]
 fn a_cell_moved_during_a_pass_is_never_published_stale() {
     use footlight::live::{Stage, Tracer, TracerSettings};
-    use footlight::render::build::{BuildSettings, Cancel, LightBuild};
-    use std::sync::Arc;
+    use footlight::render::build::{Cancel, LightBuild};
     use std::time::{Duration, Instant};
-    let (scene, cam, lights) = bar_stage();
+    let (scene, v, lights, build) = bar_live(160, 112);
     let n = lights.len();
-    let scene = Arc::new(scene);
-    let v = Arc::new(view(&scene, cam, 160, 112, Sampling::Adaptive, 2));
-    let build = BuildSettings { photons: None, refine_passes: 0, ..BuildSettings::default() };
     let settings = TracerSettings { threads: 2, build, settle: Duration::ZERO, ..TracerSettings::default() };
-    let tracer = Tracer::new(scene.clone(), v.clone(), n, settings);
-    tracer.set_groups(&vec![Some(301); n]);
-    tracer.set_paused(true);
-    for (i, l) in lights.iter().enumerate() {
-        tracer.request(i, l.clone(), 1.0);
-    }
-    tracer.set_paused(false);
+    let tracer = bar_tracer(&scene, &v, &lights, settings);
     let t = Instant::now();
     while !(0..n).all(|i| tracer.published(i).stage != Stage::Queued) {
         assert!(t.elapsed() < Duration::from_secs(120), "no direct pass");
