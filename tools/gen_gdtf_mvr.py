@@ -569,17 +569,21 @@ def emitters_xml(spectra=True):
     return el("Emitters", out)
 
 
+def led_can(emitters, **lamp):
+    """Physical description, models and geometry of an LED can (a body with a
+    lens beam 0.2 m in front, 6500 K wash) around `emitters`; `lamp` gives the
+    beam's power, flux and angles."""
+    physical = [emitters, el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
+    models = [model("Body", 0.3, 0.3, 0.35, "Conventional"), model("Lens", 0.01, 0.2, 0.2, "Cylinder")]
+    attrs = dict(LampType="LED", PowerConsumption=lamp["PowerConsumption"], LuminousFlux=lamp["LuminousFlux"], ColorTemperature="6500",
+                 BeamAngle=lamp["BeamAngle"], FieldAngle=lamp["FieldAngle"], BeamRadius="0.1", BeamType="Wash")
+    tree = el("Geometry", [beam("Front", "Lens", m4(0, 0, -0.2), **attrs)], Name="Can", Model="Body", Position=m4())
+    return physical, models, tree
+
+
 def wash():
     used = ["Dimmer", "ColorAdd_R", "ColorAdd_G", "ColorAdd_B", "ColorAdd_W", "Zoom", "Shutter1", "Shutter1Strobe"]
-    physical = [emitters_xml(), el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
-    models = [model("Body", 0.3, 0.3, 0.35, "Conventional"), model("Lens", 0.01, 0.2, 0.2, "Cylinder")]
-    tree = el(
-        "Geometry",
-        [beam("Front", "Lens", m4(0, 0, -0.2), LampType="LED", PowerConsumption="300", LuminousFlux="8000", ColorTemperature="6500", BeamAngle="30", FieldAngle="45", BeamRadius="0.1", BeamType="Wash")],
-        Name="Can",
-        Model="Body",
-        Position=m4(),
-    )
+    physical, models, tree = led_can(emitters_xml(), PowerConsumption="300", LuminousFlux="8000", BeamAngle="30", FieldAngle="45")
     rgbw = [("ColorAdd_R", "Red"), ("ColorAdd_G", "Green"), ("ColorAdd_B", "Blue"), ("ColorAdd_W", "White")]
     ch8 = [simple("Front", [1], "Dimmer")]
     for k, (a, e) in enumerate(rgbw):
@@ -736,15 +740,7 @@ def spectral_led():
             half_li, half = SPECTRAL_GREEN_HALF
             meas.insert(0, el("Measurement", spectral_points(half), Physical="50", LuminousIntensity=str(half_li), InterpolationTo="Linear"))
         emitters.append(el("Emitter", meas, Name=name, Color=xyy, DominantWaveLength=str(dwl)))
-    physical = [el("Emitters", emitters), el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
-    models = [model("Body", 0.3, 0.3, 0.35, "Conventional"), model("Lens", 0.01, 0.2, 0.2, "Cylinder")]
-    tree = el(
-        "Geometry",
-        [beam("Front", "Lens", m4(0, 0, -0.2), LampType="LED", PowerConsumption="250", LuminousFlux="6000", ColorTemperature="6500", BeamAngle="25", FieldAngle="40", BeamRadius="0.1", BeamType="Wash")],
-        Name="Can",
-        Model="Body",
-        Position=m4(),
-    )
+    physical, models, tree = led_can(el("Emitters", emitters), PowerConsumption="250", LuminousFlux="6000", BeamAngle="25", FieldAngle="40")
     rgbw = [("ColorAdd_R", "Red"), ("ColorAdd_G", "Green"), ("ColorAdd_B", "Blue"), ("ColorAdd_W", "White")]
     ch = [simple("Front", [1], "Dimmer")]
     for k, (a, e) in enumerate(rgbw):
