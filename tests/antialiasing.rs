@@ -92,9 +92,12 @@ fn surface_bins_merge_tessellation_edges_but_keep_geometry_edges() {
     let v = view(&scene, cam, 160, 100, Sampling::Geometry, 0);
     let floor_tris = [0u32, 1];
     let (mut diagonal, mut outline) = (0, 0);
-    for s in &v.gbuffer.samples {
+    for (i, s) in v.gbuffer.samples.iter().enumerate() {
         let tri = bin_samples(s);
         let surf = surface_bins(&scene, s);
+        // The bins the G-buffer found when it traced the samples (what the
+        // view shades) are these, bit for bit.
+        assert_eq!(v.gbuffer.bins(i), surf.as_slice(), "pixel {i}");
         let total: f32 = surf.as_slice().iter().map(|b| b.weight).sum();
         assert!((total - 1.0).abs() < 1e-6, "weights sum to {total}");
         let tris: Vec<u32> = tri.as_slice().iter().map(|b| b.triangle).collect();

@@ -228,6 +228,12 @@ pub struct GBuffer {
     pub camera: Camera,
     /// Row-major, 9 samples per pixel.
     pub samples: Vec<[PrimarySample; SAMPLES_PER_PIXEL]>,
+    /// Every pixel's [`surface_bins`], found once with the samples: the
+    /// paper's preprocessing of the intersection buffer (section 3.4, "for
+    /// each pixel, intersections are binned"; section 4.2 counts it with the
+    /// primary intersections). Pixel i owns `bins[bin_start[i]..bin_start[i + 1]]`.
+    bins: Vec<Bin>,
+    bin_start: Vec<u32>,
 }
 
 impl GBuffer {
@@ -235,18 +241,48 @@ impl GBuffer {
     pub fn build(scene: &Scene, camera: Camera, width: u32, height: u32) -> Self {
         let (w, h) = (width.max(1), height.max(1));
         let mut samples = vec![[PrimarySample::MISS; SAMPLES_PER_PIXEL]; (w * h) as usize];
-        samples.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
-            for (x, px) in row.iter_mut().enumerate() {
-                for (s, out) in px.iter_mut().enumerate() {
-                    let (ox, oy) = sample_offset(s);
-                    let dir = camera.direction(x as f32 + ox, y as f32 + oy, w, h);
-                    if let Some(hit) = scene.accel.intersect(camera.position, dir, f32::INFINITY) {
-                        *out = PrimarySample { triangle: hit.triangle, u: hit.u, v: hit.v };
+        // Each row's bins are found right after its samples (still in cache).
+        let rows: Vec<(Vec<u32>, Vec<Bin>)> = samples
+            .par_chunks_mut(w as usize)
+            .enumerate()
+            .map(|(y, row)| {
+                let (mut counts, mut bins) = (Vec::with_capacity(row.len()), Vec::with_capacity(row.len()));
+                for (x, px) in row.iter_mut().enumerate() {
+                    for (s, out) in px.iter_mut().enumerate() {
+                        let (ox, oy) = sample_offset(s);
+                        let dir = camera.direction(x as f32 + ox, y as f32 + oy, w, h);
+                        if let Some(hit) = scene.accel.intersect(camera.position, dir, f32::INFINITY) {
+                            *out = PrimarySample { triangle: hit.triangle, u: hit.u, v: hit.v };
+                        }
                     }
+                    let before = bins.len();
+                    match single_bin(px) {
+                        Some(b) => bins.push(b),
+                        None => bins.extend_from_slice(surface_bins(scene, px).as_slice()),
+                    }
+                    counts.push((bins.len() - before) as u32);
                 }
+                (counts, bins)
+            })
+            .collect();
+        let mut bin_start = Vec::with_capacity(samples.len() + 1);
+        let mut bins = Vec::with_capacity(rows.iter().map(|r| r.1.len()).sum());
+        bin_start.push(0u32);
+        for (counts, row_bins) in rows {
+            for c in counts {
+                let last = *bin_start.last().unwrap_or(&0);
+                bin_start.push(last + c);
             }
-        });
-        Self { width: w, height: h, camera, samples }
+            bins.extend(row_bins);
+        }
+        Self { width: w, height: h, camera, samples, bins, bin_start }
+    }
+
+    /// The bins pixel `index` is shaded with ([`surface_bins`] of its
+    /// samples, found by [`GBuffer::build`]).
+    #[inline]
+    pub fn bins(&self, index: usize) -> &[Bin] {
+        &self.bins[self.bin_start[index] as usize..self.bin_start[index + 1] as usize]
     }
 
     /// Traces only the centre sample of every pixel: the single-sample ray
@@ -272,8 +308,8 @@ impl GBuffer {
     }
 
     /// Share of pixels shaded with more than one bin of [`surface_bins`].
-    pub fn multi_bin_share(&self, scene: &Scene) -> f64 {
-        let n = self.samples.par_iter().filter(|s| surface_bins(scene, s).len > 1).count();
+    pub fn multi_bin_share(&self) -> f64 {
+        let n = (0..self.samples.len()).into_par_iter().filter(|&i| self.bins(i).len() > 1).count();
         n as f64 / self.samples.len().max(1) as f64
     }
 

@@ -27,9 +27,7 @@
 use super::buffer::LightBuffer;
 use super::display::srgb8;
 use super::gbuffer::PrimarySample;
-use super::gbuffer::{
-    CENTRE_SAMPLE, GBuffer, NO_HIT, SAME_SURFACE_COS, SAMPLES_PER_PIXEL, bin_samples, single_bin, surface_bins,
-};
+use super::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT, SAME_SURFACE_COS, SAMPLES_PER_PIXEL, bin_samples, single_bin};
 use super::photon::{PhotonMaps, Progressive};
 use super::whitted::{RecursionLimits, ShadingVertex, direct, expand};
 use crate::fixture::Light;
@@ -184,11 +182,11 @@ impl ShadingSet {
 
     /// Number of bins pixel `index` is shaded with in this set (1 for
     /// [`SampleSet::Centre`], 9 for [`SampleSet::All`]).
-    pub fn bins_of(&self, scene: &Scene, gbuffer: &GBuffer, index: usize) -> usize {
+    pub fn bins_of(&self, gbuffer: &GBuffer, index: usize) -> usize {
         match self.set {
             SampleSet::Centre => 1,
             SampleSet::All => SAMPLES_PER_PIXEL,
-            SampleSet::Binned => surface_bins(scene, &gbuffer.samples[index]).as_slice().len(),
+            SampleSet::Binned => gbuffer.bins(index).len(),
             SampleSet::TriangleBins => bin_samples(&gbuffer.samples[index]).as_slice().len(),
         }
     }
@@ -444,16 +442,20 @@ impl View {
     /// seen points was measured (issue 13) and doubled the error on the
     /// bundled stage, whose shadow edges show in the glossy floor and glass.
     pub fn reshade(&self, scene: &Scene, light: &Light, dense: &mut [Vec3], flags: &[bool]) -> usize {
-        let w = self.width() as usize;
-        dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-            let mut scratch = Vec::new();
-            for (x, out) in row.iter_mut().enumerate() {
-                if flags[y * w + x] {
-                    *out = shade(scene, light, self.nine_samples(scene, y * w + x, &mut scratch));
-                }
-            }
-        });
-        flags.iter().filter(|&&f| f).count()
+        // Over the list of flagged pixels, not over rows: they gather in the
+        // few rows a light's edges cross, and splitting rows between the
+        // workers left one of two idle for most of the pass (1,192 pixels
+        // of the bundled stage: 6.7 → 4.2 ms).
+        let flagged: Vec<usize> = flags.iter().enumerate().filter(|(_, f)| **f).map(|(i, _)| i).collect();
+        let values: Vec<Vec3> = flagged
+            .par_iter()
+            .with_min_len(8)
+            .map_init(Vec::new, |scratch, &i| shade(scene, light, self.nine_samples(scene, i, scratch)))
+            .collect();
+        for (&i, value) in flagged.iter().zip(values) {
+            dense[i] = value;
+        }
+        flagged.len()
     }
 
     /// The pixels adaptive anti-aliasing re-shades for `light`, whose base
@@ -953,14 +955,18 @@ pub fn expand_pixel(
             let s = samples[CENTRE_SAMPLE];
             one(s.triangle, s.u, s.v, 1.0);
         }
-        SampleSet::Binned | SampleSet::TriangleBins => {
+        SampleSet::Binned => {
+            for b in gbuffer.bins(index) {
+                one(b.triangle, b.u, b.v, b.weight);
+            }
+        }
+        SampleSet::TriangleBins => {
             // Most pixels see one triangle: its bin without the 9-slot array.
             if let Some(b) = single_bin(samples) {
                 one(b.triangle, b.u, b.v, b.weight);
                 return;
             }
-            let bins = if set == SampleSet::Binned { surface_bins(scene, samples) } else { bin_samples(samples) };
-            for b in bins.as_slice() {
+            for b in bin_samples(samples).as_slice() {
                 one(b.triangle, b.u, b.v, b.weight);
             }
         }
