@@ -278,6 +278,13 @@ impl GBuffer {
         Self { width: w, height: h, camera, samples, bins, bin_start }
     }
 
+    /// Memory held by the samples and the bins.
+    pub fn bytes(&self) -> usize {
+        std::mem::size_of_val(&self.samples[..])
+            + std::mem::size_of_val(&self.bins[..])
+            + std::mem::size_of_val(&self.bin_start[..])
+    }
+
     /// The bins pixel `index` is shaded with ([`surface_bins`] of its
     /// samples, found by [`GBuffer::build`]).
     #[inline]

@@ -310,10 +310,10 @@ impl View {
         self.tile_bounds.get_or_init(|| super::footprint::TileBounds::build(self))
     }
 
-    /// Memory held: G-buffer samples, camera-path vertices and the cached
-    /// 9-sample expansions (what a view cache counts against its budget).
+    /// Memory held: G-buffer samples and bins, camera-path vertices and the
+    /// cached 9-sample expansions (what a view cache counts against its budget).
     pub fn bytes(&self) -> usize {
-        std::mem::size_of_val(&self.gbuffer.samples[..])
+        self.gbuffer.bytes()
             + std::mem::size_of_val(self.shading.vertices())
             + (self.gbuffer.samples.len() + 1) * std::mem::size_of::<u32>()
             + self.nine_cache.len() * std::mem::size_of::<OnceLock<Box<[ShadingVertex]>>>()
