@@ -135,11 +135,97 @@ fn reshaded_pixels_equal_nine_samples_in_a_lambert_scene() {
     let nine = render_eq1(&scene, &v.gbuffer, &lights, &[Vec3::ONE], SampleSet::All, limits);
     let binned = render_eq1(&scene, &v.gbuffer, &lights, &[Vec3::ONE], SampleSet::Binned, limits);
     assert!(n > 50 && n < base.len() / 4, "{n} pixels re-shaded");
+    let corners = corner_renders(&scene, &v.gbuffer, &lights, limits);
+    let (changed, kept) = check_reshaded(&adaptive, &base, &flags, &[], &nine, &binned, &corners);
+    assert!(changed > 20 && kept > 0, "{changed} pixels took 9 samples, {kept} kept their base at the corners");
+    // Round 4's whole re-shading: every marked pixel is the 9-sample render.
+    let whole = AaParams { corners_first: false, ..aa };
+    let (adaptive, _) = v.render_direct(&scene, &light, Some(whole));
+    let every = (0..base.len()).filter(|&i| flags[i]).collect::<Vec<_>>();
+    assert_eq!(check_reshaded(&adaptive, &base, &flags, &every, &nine, &binned, &corners).1, 0);
+}
+
+/// The value of each corner sample (0, 2, 6, 8 of the 3×3 grid) of every
+/// pixel, from the independent eq. 1 renderer: a G-buffer whose 9 samples
+/// are all that corner, rendered with all 9.
+fn corner_renders(
+    scene: &footlight::scene::Scene,
+    gbuffer: &footlight::render::gbuffer::GBuffer,
+    lights: &[footlight::Light],
+    limits: footlight::render::RecursionLimits,
+) -> Vec<Vec<Vec3>> {
+    use footlight::render::reference::render_eq1;
+    use footlight::render::view::SampleSet;
+    [0, 2, 6, 8]
+        .iter()
+        .map(|&s| {
+            let mut g = gbuffer.clone();
+            for px in g.samples.iter_mut() {
+                *px = [px[s]; 9];
+            }
+            render_eq1(scene, &g, lights, &[Vec3::ONE], SampleSet::All, limits)
+        })
+        .collect()
+}
+
+/// What the re-shaded pixels must be, from independent renders: an
+/// unmarked pixel is the eq. 1 binned render; a highlight pixel the 9-sample
+/// render; any other marked pixel exactly its base value when each of its 4
+/// corner samples (`corners`, [`corner_renders`]) lies within
+/// `CORNER_AGREEMENT` codes of it (the light's relative codes, reference
+/// level = 255), else the 9-sample render (a pixel within one code of the
+/// limit may be either). All within 1e-5 of the peak. Returns how many
+/// marked pixels took the 9-sample value where it differs from the base,
+/// and how many kept their base while their 9-sample value differs.
+fn check_reshaded(
+    adaptive: &[Vec3],
+    base: &[Vec3],
+    flags: &[bool],
+    highlights: &[usize],
+    nine: &[Vec3],
+    binned: &[Vec3],
+    corners: &[Vec<Vec3>],
+) -> (usize, usize) {
+    use footlight::render::display::srgb8;
+    use footlight::render::view::{CORNER_AGREEMENT, reference_level};
     let scale = nine.iter().map(|x| x.max_element()).fold(0.0f32, f32::max);
+    let near = |a: Vec3, b: Vec3| (a - b).abs().max_element() <= 1e-5 * scale;
+    let level = reference_level(base).unwrap();
+    let code = |x: Vec3| srgb8(x / level);
+    let (mut changed, mut kept) = (0, 0);
     for i in 0..base.len() {
-        let want = if flags[i] { nine[i] } else { binned[i] };
-        assert!((adaptive[i] - want).abs().max_element() <= 1e-5 * scale, "pixel {i}: {} vs {}", adaptive[i], want);
+        if !flags[i] {
+            assert!(near(adaptive[i], binned[i]), "pixel {i}: {} vs binned {}", adaptive[i], binned[i]);
+            continue;
+        }
+        let took_nine = near(adaptive[i], nine[i]);
+        if highlights.contains(&i) {
+            assert!(took_nine, "highlight pixel {i}: {} vs 9 samples {}", adaptive[i], nine[i]);
+        } else {
+            let own = code(base[i]);
+            let off = corners
+                .iter()
+                .flat_map(|c| {
+                    let c = code(c[i]);
+                    (0..3).map(move |k| (f32::from(c[k]) - f32::from(own[k])).abs())
+                })
+                .fold(0.0f32, f32::max);
+            if off <= CORNER_AGREEMENT - 1.0 {
+                assert_eq!(adaptive[i], base[i], "pixel {i}: corners within {off} codes, not its base");
+            } else if off > CORNER_AGREEMENT + 1.0 {
+                assert!(took_nine, "pixel {i}: corners {off} codes off, {} vs 9 samples {}", adaptive[i], nine[i]);
+            }
+        }
+        if !near(nine[i], base[i]) {
+            if took_nine {
+                changed += 1;
+            } else {
+                assert_eq!(adaptive[i], base[i], "pixel {i}: neither its 9 samples {} nor its base", nine[i]);
+                kept += 1;
+            }
+        }
     }
+    (changed, kept)
 }
 
 /// Chrome balls (Phong exponent 10,000, no mirror recursion) on a Lambert
@@ -179,12 +265,13 @@ fn sub_pixel_highlights_are_re_shaded_with_nine_samples() {
     use footlight::render::RecursionLimits;
     use footlight::render::display::srgb8;
     use footlight::render::reference::render_eq1;
-    use footlight::render::view::{SampleSet, reference_level};
+    use footlight::render::view::{CORNER_AGREEMENT, SampleSet, reference_level};
     let (scene, light, cam) = chrome_balls();
     let v = view(&scene, cam, 160, 100, Sampling::Adaptive, 5);
     let aa = AaParams::new(footlight::render::view::AA_THRESHOLD);
     let (base, _) = v.render_direct(&scene, &light, None);
-    let flags = v.aa_flags(&scene, &light, &base, aa);
+    let decision = v.aa_decision(&scene, &light, &base, aa);
+    let flags = decision.flags.clone();
     let jumps_only = v.gradient_flags(&scene, &base, aa);
     let (adaptive, n) = v.render_direct(&scene, &light, Some(aa));
     assert_eq!(n, flags.iter().filter(|&&f| f).count());
@@ -203,10 +290,50 @@ fn sub_pixel_highlights_are_re_shaded_with_nine_samples() {
     for &i in &hidden {
         assert!(flags[i], "pixel {i}: 9 samples {} vs binned {}, not re-shaded", nine[i], binned[i]);
     }
-    let scale = nine.iter().map(|x| x.max_element()).fold(0.0f32, f32::max);
-    for i in 0..base.len() {
-        let want = if flags[i] { nine[i] } else { binned[i] };
-        assert!((adaptive[i] - want).abs().max_element() <= 1e-5 * scale, "pixel {i}: {} vs {}", adaptive[i], want);
+    // Every hidden highlight takes its 9 samples, never its base (which is
+    // more than 100 codes darker).
+    let peak = nine.iter().map(|x| x.max_element()).fold(0.0f32, f32::max);
+    for &i in &hidden {
+        assert!(
+            (adaptive[i] - nine[i]).abs().max_element() <= 1e-5 * peak,
+            "pixel {i}: {} vs {}",
+            adaptive[i],
+            nine[i]
+        );
+    }
+    let corners = corner_renders(&scene, &v.gbuffer, &lights, limits);
+    check_reshaded(&adaptive, &base, &flags, &decision.highlights, &nine, &binned, &corners);
+    // Highlights between the corners: from these light positions some
+    // highlight pixels' 4 corner samples agree with the base (within the
+    // corner agreement) while their 9 samples are brighter by more than
+    // the threshold. They take all 9 samples: kept at the corners, they
+    // would lose the highlight.
+    for k in [9, 12] {
+        let a = k as f32 * 0.7;
+        let light = omni(Vec3::new(2.5 * a.cos(), 2.0 + 0.05 * k as f32, 2.5 * a.sin() + 1.0));
+        let lights = [light.clone()];
+        let (base, _) = v.render_direct(&scene, &light, None);
+        let decision = v.aa_decision(&scene, &light, &base, aa);
+        let (adaptive, _) = v.render_direct(&scene, &light, Some(aa));
+        let nine = render_eq1(&scene, &v.gbuffer, &lights, &[Vec3::ONE], SampleSet::All, limits);
+        let binned = render_eq1(&scene, &v.gbuffer, &lights, &[Vec3::ONE], SampleSet::Binned, limits);
+        let corners = corner_renders(&scene, &v.gbuffer, &lights, limits);
+        check_reshaded(&adaptive, &base, &decision.flags, &decision.highlights, &nine, &binned, &corners);
+        let level = reference_level(&base).unwrap();
+        let code = |x: Vec3| srgb8(x / level);
+        let steps = |a: Vec3, b: Vec3| {
+            let (a, b) = (code(a), code(b));
+            [0, 1, 2].map(|c| f32::from(a[c]) - f32::from(b[c]))
+        };
+        let between = decision
+            .highlights
+            .iter()
+            .filter(|&&i| {
+                steps(nine[i], base[i]).iter().any(|&d| d > aa.threshold)
+                    && corners.iter().all(|c| steps(c[i], base[i]).iter().all(|d| d.abs() < CORNER_AGREEMENT))
+            })
+            .count();
+        assert!(between > 0, "light {k}: no highlight between the corners");
     }
 }
 

@@ -296,7 +296,10 @@ pub fn aa_rules(
                 let v = View::from_gbuffer(scene, g, Sampling::Adaptive, limits);
                 let (mut dense, _) = v.render_direct(scene, light, None);
                 let f = flags(&v, &dense);
-                let n = v.reshade(scene, light, &mut dense, &f);
+                // Every rule of this table re-shades its pixels whole (as
+                // round 4 did), so the rows differ only in the decision.
+                let how = crate::render::view::Reshading { flags: &f, whole: &[], corners_first: None };
+                let n = v.reshade(scene, light, &mut dense, how);
                 (dense, n)
             },
         );
@@ -507,12 +510,16 @@ pub fn aa_breakdown_with(
         let t1 = Instant::now();
         let (mut dense, _) = v.render_direct(scene, light, None);
         let t2 = Instant::now();
-        let flags = match decision {
-            Decision::Round4(threshold) => round4_gradient_flags(&v, scene, &dense, threshold),
-            Decision::Now(aa) => v.aa_flags(scene, light, &dense, aa),
+        let decision = match decision {
+            Decision::Round4(threshold) => crate::render::view::AaDecision {
+                flags: round4_gradient_flags(&v, scene, &dense, threshold),
+                highlights: Vec::new(),
+                level: None,
+            },
+            Decision::Now(aa) => v.aa_decision(scene, light, &dense, aa),
         };
         let t3 = Instant::now();
-        let n = v.reshade(scene, light, &mut dense, &flags);
+        let n = v.reshade(scene, light, &mut dense, decision.reshading());
         let t4 = Instant::now();
         let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
         let multi = (0..w * h).filter(|&i| v.shading.bins_of(&v.gbuffer, i) > 1).count();

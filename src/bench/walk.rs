@@ -452,8 +452,8 @@ pub fn profile(
             let (mut dense, _) = view.render_direct(scene, light, None);
             let shade_ms = ms(t);
             let t = Instant::now();
-            let flags = view.aa_flags(scene, light, &dense, AaParams::new(settings.aa_threshold));
-            let reshaded = view.reshade(scene, light, &mut dense, &flags);
+            let decision = view.aa_decision(scene, light, &dense, AaParams::new(settings.aa_threshold));
+            let reshaded = view.reshade(scene, light, &mut dense, decision.reshading());
             let aa_ms = ms(t);
             let (mut trace_ms, mut irradiance_ms, mut indirect_ms, mut coarse_ms, mut interpolated) =
                 (0.0, 0.0, 0.0, 0.0, 0.0);
