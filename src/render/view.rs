@@ -8,9 +8,11 @@
 //! illumination (section 3.4): where the value jumps by more than a threshold
 //! (0-255 scale) to a neighbour, the paper re-shades the pixel and its 8
 //! neighbours with all 9 samples; Footlight re-shades the two pixels of the
-//! jump ([`AaMarking`]) and, on sharp specular surfaces, the pixels whose 9
-//! samples would see the light's highlight ([`View::glint_pixels`]: a
-//! highlight smaller than a pixel shows no jump). The bench
+//! jump ([`AaMarking`]), each corners first (a pixel whose 4 corner samples
+//! agree with its base value keeps it: the jump lies in the other pixel,
+//! [`Reshading`]), and, on sharp specular surfaces, with all 9 samples the
+//! pixels whose 9 samples would see the light's highlight
+//! ([`View::glint_pixels`]: a highlight smaller than a pixel shows no jump). The bench
 //! (`footlight bench --accuracy-only --accuracy-part aa`) measures both
 //! against 81 samples per pixel. The paper compares displayed values; Footlight
 //! compares the light's *own relative* values instead: the buffer is shown as
