@@ -12,8 +12,9 @@
 //! agree with its base value keeps it: the jump lies in the other pixel,
 //! [`Reshading`]), and, on sharp specular surfaces, with all 9 samples the
 //! pixels whose 9 samples would see the light's highlight
-//! ([`View::glint_pixels`]: a highlight smaller than a pixel shows no jump). The bench
-//! (`footlight bench --accuracy-only --accuracy-part aa`) measures both
+//! ([`View::glint_pixels`]: a highlight smaller than a pixel shows no
+//! jump). The bench (`footlight bench --accuracy-only --accuracy-part aa`)
+//! measures both
 //! against 81 samples per pixel. The paper compares displayed values; Footlight
 //! compares the light's *own relative* values instead: the buffer is shown as
 //! if its brightest pixels (the 99th percentile) were display white, through
@@ -188,7 +189,7 @@ const CORNERS_FIRST: [usize; SAMPLES_PER_PIXEL] = [0, 2, 6, 8, 1, 3, 4, 5, 7];
 /// A pixel's 9-sample camera paths in [`CORNERS_FIRST`] order, with each
 /// sample's number of vertices.
 struct NinePaths {
-    counts: [u16; SAMPLES_PER_PIXEL],
+    counts: [u32; SAMPLES_PER_PIXEL],
     vertices: Box<[ShadingVertex]>,
 }
 
@@ -582,7 +583,7 @@ impl View {
             let c = srgb8(corner * (SAMPLES_PER_PIXEL as f32 * scale));
             (0..3).all(|k| (f32::from(c[k]) - f32::from(own[k])).abs() <= CORNER_AGREEMENT)
         };
-        let corners = |counts: &[u16; SAMPLES_PER_PIXEL], vertices: &[ShadingVertex]| {
+        let corners = |counts: &[u32; SAMPLES_PER_PIXEL], vertices: &[ShadingVertex]| {
             let mut at = 0;
             let mut sums = [Vec3::ZERO; 4];
             for (sum, &n) in sums.iter_mut().zip(counts) {
@@ -599,7 +600,7 @@ impl View {
             return sums.iter().sum::<Vec3>() + shade(scene, light, &paths.vertices[at..]);
         }
         scratch.clear();
-        let mut counts = [0u16; SAMPLES_PER_PIXEL];
+        let mut counts = [0u32; SAMPLES_PER_PIXEL];
         self.expand_samples(scene, index, &CORNERS_FIRST[..4], &mut counts[..4], scratch);
         let (sums, at) = corners(&counts, scratch);
         if sums.iter().all(|&c| agrees(c)) {
@@ -1043,12 +1044,12 @@ impl View {
         scene: &Scene,
         index: usize,
         scratch: &'a mut Vec<ShadingVertex>,
-    ) -> ([u16; SAMPLES_PER_PIXEL], &'a [ShadingVertex]) {
+    ) -> ([u32; SAMPLES_PER_PIXEL], &'a [ShadingVertex]) {
         if let Some(paths) = self.nine_cache[index].get() {
             return (paths.counts, &paths.vertices);
         }
         scratch.clear();
-        let mut counts = [0u16; SAMPLES_PER_PIXEL];
+        let mut counts = [0u32; SAMPLES_PER_PIXEL];
         self.expand_samples(scene, index, &CORNERS_FIRST, &mut counts, scratch);
         match self.cache_nine(index, counts, scratch) {
             Some(paths) => (paths.counts, &paths.vertices),
@@ -1063,14 +1064,14 @@ impl View {
         scene: &Scene,
         index: usize,
         samples: &[usize],
-        counts: &mut [u16],
+        counts: &mut [u32],
         out: &mut Vec<ShadingVertex>,
     ) {
         for (&s, count) in samples.iter().zip(counts) {
             let before = out.len();
             let p = self.gbuffer.samples[index][s];
             expand_sample(scene, &self.gbuffer, p, 1.0 / SAMPLES_PER_PIXEL as f32, self.limits, out);
-            *count = u16::try_from(out.len() - before).unwrap_or(u16::MAX);
+            *count = u32::try_from(out.len() - before).unwrap_or(u32::MAX);
         }
     }
 
@@ -1079,7 +1080,7 @@ impl View {
     fn cache_nine(
         &self,
         index: usize,
-        counts: [u16; SAMPLES_PER_PIXEL],
+        counts: [u32; SAMPLES_PER_PIXEL],
         vertices: &[ShadingVertex],
     ) -> Option<&NinePaths> {
         let bytes = std::mem::size_of_val(vertices);
