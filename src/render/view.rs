@@ -279,7 +279,7 @@ pub struct View {
     /// 9-sample expansions of pixels some light re-shaded, kept for the
     /// next light or rebuild that re-shades the same pixel (its secondary
     /// rays are the expensive part and depend only on the camera).
-    nine_cache: Vec<OnceLock<NinePaths>>,
+    nine_cache: Vec<OnceLock<Box<NinePaths>>>,
     nine_cache_bytes: AtomicUsize,
     /// Per-tile bounds of the directly seen vertices, built on first use
     /// (footprint-culled direct stages, [`super::footprint`]).
@@ -381,7 +381,7 @@ impl View {
         self.gbuffer.bytes()
             + std::mem::size_of_val(self.shading.vertices())
             + (self.gbuffer.samples.len() + 1) * std::mem::size_of::<u32>()
-            + self.nine_cache.len() * std::mem::size_of::<OnceLock<NinePaths>>()
+            + self.nine_cache.len() * std::mem::size_of::<OnceLock<Box<NinePaths>>>()
             + self.nine_cache_bytes.load(Ordering::Relaxed).min(NINE_SAMPLE_CACHE_BYTES)
             + self.glint_bounds.get().map_or(0, |b| std::mem::size_of_val(&b[..]))
     }
@@ -580,8 +580,10 @@ impl View {
         let own = srgb8(base * scale);
         let agrees = |corner: Vec3| {
             // Each sample carries weight 1/9: its own value is 9× its sum.
+            // A NaN or infinite corner never agrees: all 9 samples are
+            // shaded and the pixel shows it, as without corners first.
             let c = srgb8(corner * (SAMPLES_PER_PIXEL as f32 * scale));
-            (0..3).all(|k| (f32::from(c[k]) - f32::from(own[k])).abs() <= CORNER_AGREEMENT)
+            corner.is_finite() && (0..3).all(|k| (f32::from(c[k]) - f32::from(own[k])).abs() <= CORNER_AGREEMENT)
         };
         let corners = |counts: &[u32; SAMPLES_PER_PIXEL], vertices: &[ShadingVertex]| {
             let mut at = 0;
@@ -1083,9 +1085,11 @@ impl View {
         counts: [u32; SAMPLES_PER_PIXEL],
         vertices: &[ShadingVertex],
     ) -> Option<&NinePaths> {
-        let bytes = std::mem::size_of_val(vertices);
+        let bytes = std::mem::size_of::<NinePaths>() + std::mem::size_of_val(vertices);
         if self.nine_cache_bytes.fetch_add(bytes, Ordering::Relaxed) + bytes <= NINE_SAMPLE_CACHE_BYTES {
-            return Some(self.nine_cache[index].get_or_init(|| NinePaths { counts, vertices: vertices.into() }));
+            let paths =
+                self.nine_cache[index].get_or_init(|| Box::new(NinePaths { counts, vertices: vertices.into() }));
+            return Some(paths);
         }
         self.nine_cache_bytes.fetch_sub(bytes, Ordering::Relaxed);
         None
