@@ -23,7 +23,7 @@
 use super::buffer::{LightBuffer, TILE};
 use super::footprint::DirectQuality;
 use super::view::{
-    AA_REFERENCE_PERCENTILE, AaMarking, AaParams, LitWindow, Reshading, Sampling, View, dilate, mark_pairs_into,
+    AA_REFERENCE_PERCENTILE, AaParams, LitWindow, Reshading, Sampling, View, mark_highlights_into, mark_pairs_into,
 };
 use super::whitted::direct;
 use crate::fixture::Light;
@@ -328,12 +328,7 @@ fn anti_alias(
         let (x0, y0, x1, y1) = (x0.saturating_sub(2), y0.saturating_sub(2), (x1 + 2).min(w), (y1 + 2).min(h));
         let pairs = view.pairs_over(scene, dense, level, aa.threshold, LitWindow { x0, x1, y0, y1 });
         mark_pairs_into(flags, &pairs, w, h, aa.marking);
-        for &i in &glints {
-            match aa.marking {
-                AaMarking::Dilated => dilate(flags, w, h, i),
-                AaMarking::Pair | AaMarking::Across => flags[i] = true,
-            }
-        }
+        mark_highlights_into(flags, &glints, w, h, aa.marking);
         let how = Reshading { flags, whole: &glints, corners_first: aa.corners_first.then_some(level) };
         reshaded = view.reshade(scene, light, dense, how);
         window = (x0, y0, x1, y1);

@@ -552,12 +552,7 @@ impl View {
         let mut flags = mark_pairs(&pairs, w, h, aa.marking);
         let highlights =
             if aa.glints { self.glint_pixels(scene, light, dense, reference, aa.threshold) } else { Vec::new() };
-        for &i in &highlights {
-            match aa.marking {
-                AaMarking::Dilated => dilate(&mut flags, w, h, i),
-                AaMarking::Pair | AaMarking::Across => flags[i] = true,
-            }
-        }
+        mark_highlights_into(&mut flags, &highlights, w, h, aa.marking);
         AaDecision { flags, highlights, level: aa.corners_first.then_some(reference) }
     }
 
@@ -1282,6 +1277,17 @@ pub fn mark_pairs_into(flags: &mut [bool], pairs: &[(usize, usize)], w: usize, h
                 dilate(flags, w, h, a);
                 dilate(flags, w, h, b);
             }
+        }
+    }
+}
+
+/// Marks the highlight pixels ([`View::glint_pixels`]) in `flags` for
+/// `marking`: the pixel itself, or with [`AaMarking::Dilated`] its 3×3 block.
+pub fn mark_highlights_into(flags: &mut [bool], highlights: &[usize], w: usize, h: usize, marking: AaMarking) {
+    for &i in highlights {
+        match marking {
+            AaMarking::Dilated => dilate(flags, w, h, i),
+            AaMarking::Pair | AaMarking::Across => flags[i] = true,
         }
     }
 }
