@@ -313,18 +313,6 @@ impl GBuffer {
     pub fn position(&self, scene: &Scene, s: &PrimarySample) -> Option<Vec3> {
         (s.triangle != NO_HIT).then(|| scene.point_on(s.triangle, s.u, s.v))
     }
-
-    /// Share of pixels shaded with more than one bin of [`surface_bins`].
-    pub fn multi_bin_share(&self) -> f64 {
-        let n = (0..self.samples.len()).into_par_iter().filter(|&i| self.bins(i).len() > 1).count();
-        n as f64 / self.samples.len().max(1) as f64
-    }
-
-    /// Average number of bins per pixel (1 = no pixel straddles an edge).
-    pub fn mean_bins(&self) -> f32 {
-        let total: usize = self.samples.iter().map(|s| bin_samples(s).len).sum();
-        total as f32 / self.samples.len().max(1) as f32
-    }
 }
 
 #[cfg(test)]
