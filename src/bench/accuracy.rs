@@ -37,6 +37,14 @@ pub struct AccuracyReport {
     pub picture: Vec<sweeps::AaPictureRow>,
     /// Interleaved rounds behind each AA time ([`sweeps::aa_rounds`]).
     pub aa_rounds: usize,
+    /// Per camera, outside the cost (the paper's intersection buffer,
+    /// section 3.4): the G-buffer's build (9 primary rays per pixel, the
+    /// bins and the highlight bounds), ms, median of 3; `None` when the
+    /// AA part was not run.
+    pub gbuffer_ms: Option<f64>,
+    /// Of it, finding the highlight bounds again alone, ms (median of 3),
+    /// and how many pixels hold one.
+    pub highlight_bounds: Option<(f64, usize)>,
     /// A moved light's published pictures over time, with their error.
     pub converge: Vec<ConvergeRow>,
     /// Passes behind the converged reference.
@@ -373,7 +381,11 @@ pub fn run(
     let threshold = crate::render::RenderSettings::default().aa_threshold;
     let gbuffer = GBuffer::build(scene, camera, size.0, size.1);
     let (mut aa, mut breakdowns, mut picture) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut gbuffer_ms, mut highlight_bounds) = (None, None);
     if wants(Part::Aa) {
+        gbuffer_ms = Some(super::time_ms(3, || GBuffer::build(scene, camera, size.0, size.1)).0);
+        let (ms, n) = super::time_ms(3, || gbuffer.find_highlight_bounds(scene));
+        highlight_bounds = Some((ms, n));
         aa = sweeps::aa_cost(scene, &gbuffer, light, k_full, &display, limits, threshold, repeats);
         use crate::render::SampleSet;
         use sweeps::Decision;
@@ -428,6 +440,8 @@ pub fn run(
         breakdowns,
         picture,
         aa_rounds: sweeps::aa_rounds(repeats),
+        gbuffer_ms,
+        highlight_bounds,
         converge,
         reference_passes,
         profile,
@@ -471,6 +485,14 @@ impl AccuracyReport {
             self.size.0, self.size.1, self.aa_rounds
         );
         s += &sweeps::aa_cost_markdown(&self.aa);
+        if let (Some(g), Some((b, n))) = (self.gbuffer_ms, self.highlight_bounds) {
+            s += &format!(
+                "\nPer camera, outside the cost (the paper's intersection buffer, section 3.4; every light on the \
+                 view shares it): the G-buffer, 9 primary rays per pixel with the surface bins and the highlight \
+                 bounds, {g:.1} ms; of it the highlight bounds of the {n} pixels that see a sharp specular surface \
+                 {b:.1} ms.\n"
+            );
+        }
         for (label, b) in &self.breakdowns {
             s += &b.sentence(label);
         }

@@ -551,14 +551,16 @@ pub fn aa_breakdown_with(
     }
 }
 
-/// Rounds the anti-aliasing timings take for `repeats` (4 × `repeats` + 1),
+/// Rounds the anti-aliasing timings take for `repeats` (8 × `repeats` + 1),
 /// of which the fastest is kept: on the 2-core VM one of the two worker
 /// threads loses its core to other work in about a third of the runs
 /// (the 1-sample pass then takes ~1.5× as long), and a median of 7 rounds
 /// landed in either mode from run to run (1-sample 24-32 ms, ratios ±25
-/// points); the fastest is each variant's undisturbed cost.
+/// points); the fastest is each variant's undisturbed cost. 13 rounds
+/// (4 × `repeats` + 1, before 2026-12-01's second session) still moved
+/// single rows by up to 10 points from run to run.
 pub fn aa_rounds(repeats: usize) -> usize {
-    4 * repeats.max(1) + 1
+    8 * repeats.max(1) + 1
 }
 
 /// Anti-aliasing cost and error of one sampling variant (issue 13, accuracy

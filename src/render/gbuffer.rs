@@ -8,6 +8,7 @@
 //! = mean position), weighted by its share of the 9 samples. Pixel-edge
 //! geometry is anti-aliased this way at the cost of one shade per triangle.
 
+use super::view::is_sharp;
 use crate::scene::{Camera, Scene};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -217,6 +218,95 @@ pub fn surface_bins(scene: &Scene, samples: &[PrimarySample; SAMPLES_PER_PIXEL])
     Bins { items, len }
 }
 
+/// Where a pixel's samples on sharp specular surfaces can show a light's
+/// highlight, independent of the light: the samples lie within `radius` of
+/// `centre`, their mirror directions (the view ray reflected about the
+/// shading normal) within `spread` radians of `mirror`, and no sample's
+/// Phong lobe reaches further than `lobe` radians from its mirror
+/// direction (cos^n α ≥ e^-40, the cut of [`crate::render::View::glint_pixels`], with the
+/// smallest exponent of the pixel's samples).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct GlintBound {
+    centre: Vec3,
+    radius: f32,
+    mirror: Vec3,
+    spread: f32,
+    lobe: f32,
+}
+
+/// Angle added to [`GlintBound`]'s test for the rounding of the f32 dot
+/// products and arc cosines behind it (their error near cos = 1 is ~5e-4
+/// rad); a pixel is skipped only when it misses by more.
+const GLINT_BOUND_MARGIN: f32 = 0.01;
+
+impl GlintBound {
+    /// Whether no sample of the pixel can be within its lobe of the
+    /// direction to a light at `light`: the direction from any sample to
+    /// the light is within asin(radius / distance) of the one from
+    /// `centre`, each mirror direction within `spread` of `mirror`, so every
+    /// sample's angle α is at least the centre's angle less both.
+    pub(crate) fn misses(&self, light: Vec3) -> bool {
+        let to = light - self.centre;
+        let d = to.length();
+        // Inside the samples' ball (or NaN): no bound.
+        if d.is_nan() || d <= self.radius {
+            return false;
+        }
+        let theta = (to / d).dot(self.mirror).clamp(-1.0, 1.0).acos();
+        theta - (self.radius / d).asin() - self.spread - self.lobe > GLINT_BOUND_MARGIN
+    }
+}
+
+/// The [`GlintBound`] of one pixel's samples on sharp specular materials
+/// seen from `eye` (`sharp[m]`: material m is sharp, [`is_sharp`]): `None`
+/// when no sample is on one; a bound that never misses when a sample
+/// gives no usable direction.
+fn glint_bound(
+    scene: &Scene,
+    eye: Vec3,
+    sharp: &[bool],
+    samples: &[PrimarySample; SAMPLES_PER_PIXEL],
+) -> Option<GlintBound> {
+    let never = GlintBound { centre: eye, radius: f32::INFINITY, mirror: Vec3::Z, spread: 0.0, lobe: 0.0 };
+    let mut points = [(Vec3::ZERO, Vec3::ZERO); SAMPLES_PER_PIXEL];
+    let (mut n, mut lowest, mut usable, mut any) = (0, f32::INFINITY, true, false);
+    for s in samples.iter().filter(|s| s.triangle != NO_HIT) {
+        let material = scene.material_of[s.triangle as usize];
+        if !sharp[material as usize] {
+            continue;
+        }
+        any = true;
+        let sp = scene.surface(&crate::scene::Hit { triangle: s.triangle, t: 0.0, u: s.u, v: s.v });
+        let Some(dir) = (sp.position - eye).try_normalize() else {
+            usable = false;
+            continue;
+        };
+        let f = sp.facing(dir);
+        // The view ray mirrored about the shading normal: a highlight's
+        // cos α is the light direction's cosine to it.
+        let mirror = (dir - 2.0 * dir.dot(f.shading) * f.shading).normalize_or_zero();
+        usable &= mirror.is_finite() && mirror != Vec3::ZERO && sp.position.is_finite();
+        points[n] = (sp.position, mirror);
+        n += 1;
+        lowest = lowest.min(scene.materials[material as usize].exponent);
+    }
+    if !any {
+        return None;
+    }
+    let points = &points[..n];
+    Some(match points.iter().map(|p| p.1).sum::<Vec3>().try_normalize() {
+        Some(mirror) if usable && n > 0 => {
+            let centre = points.iter().map(|p| p.0).sum::<Vec3>() / n as f32;
+            let radius = points.iter().map(|p| p.0.distance(centre)).fold(0.0f32, f32::max);
+            let nearest = points.iter().map(|p| p.1.dot(mirror)).fold(1.0f32, f32::min);
+            // cos^n α ≥ e^-40 ⟺ α ≤ acos(1 − 40/n), widest for the lowest n.
+            let lobe = (1.0 - 40.0 / lowest).clamp(-1.0, 1.0).acos();
+            GlintBound { centre, radius, mirror, spread: nearest.clamp(-1.0, 1.0).acos(), lobe }
+        }
+        _ => never,
+    })
+}
+
 /// The 9 primary samples of every pixel for one camera.
 #[derive(Clone)]
 pub struct GBuffer {
@@ -234,6 +324,14 @@ pub struct GBuffer {
     /// primary intersections). Pixel i owns `bins[bin_start[i]..bin_start[i + 1]]`.
     bins: Vec<Bin>,
     bin_start: Vec<u32>,
+    /// The pixels with a sample on a sharp specular material ([`is_sharp`]),
+    /// ascending, and each one's [`GlintBound`]: preprocessing of the
+    /// intersection buffer like the bins (light-free), so that the
+    /// highlight test of adaptive anti-aliasing
+    /// ([`crate::render::View::glint_pixels`]) evaluates a light only where
+    /// a pixel's bound does not rule it out, from the first light on.
+    sharp_pixels: Vec<u32>,
+    glint_bounds: Vec<GlintBound>,
 }
 
 impl GBuffer {
@@ -241,12 +339,18 @@ impl GBuffer {
     pub fn build(scene: &Scene, camera: Camera, width: u32, height: u32) -> Self {
         let (w, h) = (width.max(1), height.max(1));
         let mut samples = vec![[PrimarySample::MISS; SAMPLES_PER_PIXEL]; (w * h) as usize];
-        // Each row's bins are found right after its samples (still in cache).
-        let rows: Vec<(Vec<u32>, Vec<Bin>)> = samples
+        let sharp: Vec<bool> = scene.materials.iter().map(is_sharp).collect();
+        let any_sharp = sharp.contains(&true);
+        // Each row's bins and highlight bounds are found right after its
+        // samples (still in cache).
+        // Per row: bin counts per pixel, the bins, the sharp pixels' bounds.
+        type Row = (Vec<u32>, Vec<Bin>, Vec<(u32, GlintBound)>);
+        let rows: Vec<Row> = samples
             .par_chunks_mut(w as usize)
             .enumerate()
             .map(|(y, row)| {
                 let (mut counts, mut bins) = (Vec::with_capacity(row.len()), Vec::with_capacity(row.len()));
+                let mut glints = Vec::new();
                 for (x, px) in row.iter_mut().enumerate() {
                     for (s, out) in px.iter_mut().enumerate() {
                         let (ox, oy) = sample_offset(s);
@@ -261,28 +365,60 @@ impl GBuffer {
                         None => bins.extend_from_slice(surface_bins(scene, px).as_slice()),
                     }
                     counts.push((bins.len() - before) as u32);
+                    if any_sharp && let Some(bound) = glint_bound(scene, camera.position, &sharp, px) {
+                        glints.push(((y * w as usize + x) as u32, bound));
+                    }
                 }
-                (counts, bins)
+                (counts, bins, glints)
             })
             .collect();
         let mut bin_start = Vec::with_capacity(samples.len() + 1);
         let mut bins = Vec::with_capacity(rows.iter().map(|r| r.1.len()).sum());
+        let (mut sharp_pixels, mut glint_bounds) = (Vec::new(), Vec::new());
         bin_start.push(0u32);
-        for (counts, row_bins) in rows {
+        for (counts, row_bins, glints) in rows {
+            for (i, bound) in glints {
+                sharp_pixels.push(i);
+                glint_bounds.push(bound);
+            }
             for c in counts {
                 let last = *bin_start.last().unwrap_or(&0);
                 bin_start.push(last + c);
             }
             bins.extend(row_bins);
         }
-        Self { width: w, height: h, camera, samples, bins, bin_start }
+        Self { width: w, height: h, camera, samples, bins, bin_start, sharp_pixels, glint_bounds }
     }
 
-    /// Memory held by the samples and the bins.
+    /// Memory held by the samples, the bins and the highlight bounds.
     pub fn bytes(&self) -> usize {
         std::mem::size_of_val(&self.samples[..])
             + std::mem::size_of_val(&self.bins[..])
             + std::mem::size_of_val(&self.bin_start[..])
+            + std::mem::size_of_val(&self.sharp_pixels[..])
+            + std::mem::size_of_val(&self.glint_bounds[..])
+    }
+
+    /// The pixels with a sample on a sharp specular material
+    /// ([`is_sharp`]), ascending: the only ones the highlight test of
+    /// adaptive anti-aliasing looks at.
+    pub fn sharp_pixels(&self) -> &[u32] {
+        &self.sharp_pixels
+    }
+
+    /// The [`GlintBound`] of each of [`GBuffer::sharp_pixels`].
+    pub(crate) fn highlight_bounds(&self) -> &[GlintBound] {
+        &self.glint_bounds
+    }
+
+    /// Finds the highlight bounds again from the samples, in parallel, and
+    /// returns how many pixels hold one: what [`GBuffer::build`] spends on
+    /// them, for the bench to time (build finds them row by row with the
+    /// bins).
+    pub fn find_highlight_bounds(&self, scene: &Scene) -> usize {
+        let sharp: Vec<bool> = scene.materials.iter().map(is_sharp).collect();
+        let eye = self.camera.position;
+        self.samples.par_iter().filter_map(|px| glint_bound(scene, eye, &sharp, px)).count()
     }
 
     /// The bins pixel `index` is shaded with ([`surface_bins`] of its

@@ -223,10 +223,6 @@ pub struct ShadingSet {
     pub set: SampleSet,
     start: Vec<u32>,
     vertices: Vec<ShadingVertex>,
-    /// Pixels with a directly seen vertex on a sharp specular material
-    /// ([`is_sharp`]): the only ones [`View::glint_pixels`] tests; found
-    /// while expanding (the vertices are at hand), light-independent.
-    sharp_pixels: Vec<u32>,
 }
 
 impl ShadingSet {
@@ -284,48 +280,6 @@ pub struct View {
     /// Per-tile bounds of the directly seen vertices, built on first use
     /// (footprint-culled direct stages, [`super::footprint`]).
     tile_bounds: OnceLock<super::footprint::TileBounds>,
-    /// Per pixel of `shading.sharp_pixels`, where its samples' mirror
-    /// directions point, built on first use ([`View::glint_pixels`]).
-    glint_bounds: OnceLock<Vec<GlintBound>>,
-}
-
-/// Where a pixel's samples on sharp specular surfaces can show a light's
-/// highlight, independent of the light: the samples lie within `radius` of
-/// `centre`, their mirror directions (the view ray reflected about the
-/// shading normal) within `spread` radians of `mirror`, and no sample's
-/// Phong lobe reaches further than `lobe` radians from its mirror
-/// direction (cos^n α ≥ e^-40, the cut of [`View::glint_pixels`], with the
-/// smallest exponent of the pixel's samples).
-#[derive(Clone, Copy, Debug)]
-struct GlintBound {
-    centre: Vec3,
-    radius: f32,
-    mirror: Vec3,
-    spread: f32,
-    lobe: f32,
-}
-
-/// Angle added to [`GlintBound`]'s test for the rounding of the f32 dot
-/// products and arc cosines behind it (their error near cos = 1 is ~5e-4
-/// rad); a pixel is skipped only when it misses by more.
-const GLINT_BOUND_MARGIN: f32 = 0.01;
-
-impl GlintBound {
-    /// Whether no sample of the pixel can be within its lobe of the
-    /// direction to a light at `light`: the direction from any sample to
-    /// the light is within asin(radius / distance) of the one from
-    /// `centre`, each mirror direction within `spread` of `mirror`, so every
-    /// sample's angle α is at least the centre's angle less both.
-    fn misses(&self, light: Vec3) -> bool {
-        let to = light - self.centre;
-        let d = to.length();
-        // Inside the samples' ball (or NaN): no bound.
-        if d.is_nan() || d <= self.radius {
-            return false;
-        }
-        let theta = (to / d).dot(self.mirror).clamp(-1.0, 1.0).acos();
-        theta - (self.radius / d).asin() - self.spread - self.lobe > GLINT_BOUND_MARGIN
-    }
 }
 
 impl View {
@@ -366,7 +320,6 @@ impl View {
             nine_cache,
             nine_cache_bytes: AtomicUsize::new(0),
             tile_bounds: OnceLock::new(),
-            glint_bounds: OnceLock::new(),
         }
     }
 
@@ -383,7 +336,6 @@ impl View {
             + (self.gbuffer.samples.len() + 1) * std::mem::size_of::<u32>()
             + self.nine_cache.len() * std::mem::size_of::<OnceLock<Box<NinePaths>>>()
             + self.nine_cache_bytes.load(Ordering::Relaxed).min(NINE_SAMPLE_CACHE_BYTES)
-            + self.glint_bounds.get().map_or(0, |b| std::mem::size_of_val(&b[..]))
     }
 
     /// Image width.
@@ -399,38 +351,30 @@ impl View {
     /// Expands every pixel's camera paths for `set` (parallel over rows).
     pub fn expand_all(scene: &Scene, gbuffer: &GBuffer, set: SampleSet, limits: RecursionLimits) -> ShadingSet {
         let w = gbuffer.width as usize;
-        let sharp: Vec<bool> = scene.materials.iter().map(is_sharp).collect();
-        let any_sharp = sharp.contains(&true);
-        let rows: Vec<(Vec<u32>, Vec<ShadingVertex>, Vec<u32>)> = (0..gbuffer.height as usize)
+        let rows: Vec<(Vec<u32>, Vec<ShadingVertex>)> = (0..gbuffer.height as usize)
             .into_par_iter()
             .map(|y| {
                 let mut counts = Vec::with_capacity(w);
                 let mut verts = Vec::new();
-                let mut sharp_pixels = Vec::new();
                 for x in 0..w {
                     let before = verts.len();
                     expand_pixel(scene, gbuffer, y * w + x, set, limits, &mut verts);
                     counts.push((verts.len() - before) as u32);
-                    if any_sharp && verts[before..].iter().any(|v| v.depth == 0 && sharp[v.material as usize]) {
-                        sharp_pixels.push((y * w + x) as u32);
-                    }
                 }
-                (counts, verts, sharp_pixels)
+                (counts, verts)
             })
             .collect();
         let mut start = Vec::with_capacity(w * gbuffer.height as usize + 1);
         let mut vertices = Vec::with_capacity(rows.iter().map(|r| r.1.len()).sum());
-        let mut sharp_pixels = Vec::new();
         start.push(0u32);
-        for (counts, verts, sharp) in rows {
-            sharp_pixels.extend(sharp);
+        for (counts, verts) in rows {
             for c in counts {
                 let last = *start.last().unwrap_or(&0);
                 start.push(last + c);
             }
             vertices.extend(verts);
         }
-        ShadingSet { set, start, vertices, sharp_pixels }
+        ShadingSet { set, start, vertices }
     }
 
     /// Renders light `light`'s unit-intensity buffer I_h,ε_i (eq. 5). With
@@ -724,63 +668,30 @@ impl View {
             let (c, own) = (srgb8(sum * scale), srgb8(dense[i] * scale));
             (0..3).any(|k| f32::from(c[k]) - f32::from(own[k]) > threshold)
         };
-        let candidates = &self.shading.sharp_pixels;
-        match self.glint_bounds.get() {
-            Some(bounds) => candidates
-                .par_iter()
-                .zip(bounds.par_iter())
-                .filter(|(_, b)| !(bounded && b.misses(light.position)))
-                .map(|(&i, _)| i as usize)
-                .filter(|&i| shows(i, self.pixel_highlight(scene, light, i).0))
-                .collect(),
-            None => {
-                // The first light on this view: every candidate is tested,
-                // and its bound comes with the same surface look-ups.
-                let (found, bounds): (Vec<Option<usize>>, Vec<GlintBound>) = candidates
-                    .par_iter()
-                    .map(|&i| {
-                        let (sum, bound) = self.pixel_highlight(scene, light, i as usize);
-                        (shows(i as usize, sum).then_some(i as usize), bound)
-                    })
-                    .unzip();
-                let _ = self.glint_bounds.set(bounds);
-                found.into_iter().flatten().collect()
-            }
-        }
+        // The bounds are light-free and come with the G-buffer
+        // ([`GBuffer::highlight_bounds`]): only the pixels whose bound does
+        // not miss the light evaluate its highlight (the evaluation, with
+        // the light's beam pattern at each sample, costs ~5 ms over every
+        // candidate of the bundled stage; the bounds' test ~0.4 ms).
+        let (candidates, bounds) = (self.gbuffer.sharp_pixels(), self.gbuffer.highlight_bounds());
+        candidates
+            .par_iter()
+            .zip(bounds.par_iter())
+            .filter(|(_, b)| !(bounded && b.misses(light.position)))
+            .map(|(&i, _)| i as usize)
+            .filter(|&i| shows(i, self.pixel_highlight(scene, light, i)))
+            .collect()
     }
 
-    /// Pixel `i`'s highlight for `light` (the unshadowed specular part of
-    /// the direct light summed over its 9 samples on sharp surfaces, weight
-    /// 1/9) and its [`GlintBound`] (a bound that never misses when it has
-    /// no usable sample).
-    fn pixel_highlight(&self, scene: &Scene, light: &Light, i: usize) -> (Vec3, GlintBound) {
+    /// Pixel `i`'s highlight for `light`: the unshadowed specular part of
+    /// the direct light summed over its 9 samples on sharp surfaces, weight 1/9.
+    fn pixel_highlight(&self, scene: &Scene, light: &Light, i: usize) -> Vec3 {
         let eye = self.gbuffer.camera.position;
         let weight = 1.0 / SAMPLES_PER_PIXEL as f32;
-        let never = GlintBound { centre: eye, radius: f32::INFINITY, mirror: Vec3::Z, spread: 0.0, lobe: 0.0 };
         let mut sum = Vec3::ZERO;
-        let mut points = [(Vec3::ZERO, Vec3::ZERO); SAMPLES_PER_PIXEL];
-        let (mut n, mut lowest, mut usable) = (0, f32::INFINITY, true);
-        for s in &self.gbuffer.samples[i] {
-            if s.triangle == NO_HIT {
-                continue;
-            }
-            let m = &scene.materials[scene.material_of[s.triangle as usize] as usize];
-            if !is_sharp(m) {
-                continue;
-            }
-            let sp = scene.surface(&Hit { triangle: s.triangle, t: 0.0, u: s.u, v: s.v });
-            let Some(dir) = (sp.position - eye).try_normalize() else {
-                usable = false;
-                continue;
-            };
+        for (sp, m) in self.sharp_samples(scene, i) {
+            let Some(dir) = (sp.position - eye).try_normalize() else { continue };
             let f = sp.facing(dir);
-            // The view ray mirrored about the shading normal: cos α below
-            // is the light direction's cosine to it.
-            let mirror = (dir - 2.0 * dir.dot(f.shading) * f.shading).normalize_or_zero();
-            usable &= mirror.is_finite() && mirror != Vec3::ZERO && sp.position.is_finite();
-            points[n] = (sp.position, mirror);
-            n += 1;
-            lowest = lowest.min(m.exponent);
             let to = light.position - sp.position;
             let d2 = to.length_squared();
             let wi = to.normalize_or_zero();
@@ -800,19 +711,20 @@ impl View {
             let lobe = (m.exponent + 2.0) * 0.5 * std::f32::consts::FRAC_1_PI * cos_alpha.powf(m.exponent);
             sum += m.specular * (lobe * e * cos / d2 * weight);
         }
-        let points = &points[..n];
-        let bound = match points.iter().map(|p| p.1).sum::<Vec3>().try_normalize() {
-            Some(mirror) if usable && n > 0 => {
-                let centre = points.iter().map(|p| p.0).sum::<Vec3>() / n as f32;
-                let radius = points.iter().map(|p| p.0.distance(centre)).fold(0.0f32, f32::max);
-                let nearest = points.iter().map(|p| p.1.dot(mirror)).fold(1.0f32, f32::min);
-                // cos^n α ≥ e^-40 ⟺ α ≤ acos(1 − 40/n), widest for the lowest n.
-                let lobe = (1.0 - 40.0 / lowest).clamp(-1.0, 1.0).acos();
-                GlintBound { centre, radius, mirror, spread: nearest.clamp(-1.0, 1.0).acos(), lobe }
-            }
-            _ => never,
-        };
-        (sum, bound)
+        sum
+    }
+
+    /// The surface points of pixel `i`'s G-buffer samples on sharp
+    /// specular materials ([`is_sharp`]), with their materials.
+    fn sharp_samples<'s>(
+        &'s self,
+        scene: &'s Scene,
+        i: usize,
+    ) -> impl Iterator<Item = (crate::scene::SurfacePoint, &'s crate::scene::Material)> + 's {
+        self.gbuffer.samples[i].iter().filter(|s| s.triangle != NO_HIT).filter_map(move |s| {
+            let m = &scene.materials[scene.material_of[s.triangle as usize] as usize];
+            is_sharp(m).then(|| (scene.surface(&Hit { triangle: s.triangle, t: 0.0, u: s.u, v: s.v }), m))
+        })
     }
 
     /// The indirect buffer I_h,ε_A,i (eq. 3, 5) of a light from its photon
@@ -1519,6 +1431,18 @@ mod tests {
         let scene = b.build();
         let camera = Camera::look_at(Vec3::new(0.0, 1.2, 6.0), Vec3::new(0.0, 0.3, 0.0), 40f32.to_radians());
         let view = View::build(&scene, camera, 160, 100, Sampling::Adaptive, RecursionLimits::default());
+        // The G-buffer's candidates are the pixels whose binned camera paths
+        // start on a sharp surface (the set the expansion listed before the
+        // bounds moved to the G-buffer).
+        let sharp: Vec<u32> = (0..view.shading.start.len() - 1)
+            .filter(|&i| {
+                view.shading.pixel(i).iter().any(|v| v.depth == 0 && is_sharp(&scene.materials[v.material as usize]))
+            })
+            .map(|i| i as u32)
+            .collect();
+        assert!(sharp.len() > 100, "the spheres cover pixels: {}", sharp.len());
+        assert_eq!(view.gbuffer.sharp_pixels(), &sharp[..]);
+        assert_eq!(view.gbuffer.highlight_bounds().len(), sharp.len());
         let (mut found, mut skipped, mut candidates) = (0, 0, 0);
         for k in 0..16 {
             let angle = std::f32::consts::TAU * k as f32 / 16.0;
@@ -1530,7 +1454,7 @@ mod tests {
             let every = view.glint_pixels_among(&scene, &light, &dense, level, AA_THRESHOLD, false);
             assert_eq!(bounded, every, "light {k} at {at}");
             found += every.len();
-            let bounds = view.glint_bounds.get().expect("built by the first call");
+            let bounds = view.gbuffer.highlight_bounds();
             skipped += bounds.iter().filter(|b| b.misses(light.position)).count();
             candidates += bounds.len();
         }
