@@ -174,13 +174,23 @@ pub fn direct(scene: &Scene, light: &Light, v: &ShadingVertex) -> Vec3 {
     if f_e <= 0.0 {
         return Vec3::ZERO;
     }
+    let m = &scene.materials[v.material as usize];
+    let brdf = m.brdf_with(v.diffuse, v.normal, wi, v.wo);
+    let scale = f_e * cos / dist2;
+    // A zero BRDF lights nothing, shadowed or not: no shadow ray (a mirror
+    // or chrome vertex, ρ_d = 0 and Phong exponent 10,000, has cos^n α = 0
+    // in f32 once the light is ~8° off its mirror direction, i.e. almost
+    // always). The same value as after the test: 0 · a finite scale; a NaN
+    // BRDF or an infinite scale still takes the test and shows as before.
+    if brdf == Vec3::ZERO && scale.is_finite() {
+        return Vec3::ZERO;
+    }
     let origin = offset_origin(v.position, v.geometric_normal);
     let shadow_len = (light.position - origin).length() * (1.0 - 1e-5);
     if scene.accel.occluded(origin, wi, shadow_len) {
         return Vec3::ZERO;
     }
-    let m = &scene.materials[v.material as usize];
-    m.brdf_with(v.diffuse, v.normal, wi, v.wo) * (f_e * cos / dist2)
+    brdf * scale
 }
 
 #[cfg(test)]
@@ -200,6 +210,60 @@ mod tests {
         assert!(refract(Vec3::new(steep.sin(), -steep.cos(), 0.0), n, 1.5).is_none());
         // Normal incidence passes straight through.
         assert!((refract(Vec3::NEG_Y, n, 1.0 / 1.5).unwrap() - Vec3::NEG_Y).length() < 1e-6);
+    }
+
+    #[test]
+    fn chrome_lights_only_near_its_mirror_direction_and_only_unshadowed() {
+        use crate::fixture::{Beam, SpotBeam};
+        use crate::scene::{Material, SceneBuilder};
+        // A chrome vertex at the origin (ρ_d = 0, ρ_s = 0.9, n = 10,000)
+        // under a spot at (1, 1, 0), with and without a black card between.
+        let build = |card: bool| {
+            let mut b = SceneBuilder::new();
+            let black = b.add_material(Material::lambert("black", Vec3::ZERO));
+            let chrome = b.add_material(Material {
+                specular: Vec3::splat(0.9),
+                exponent: 10_000.0,
+                ..Material::lambert("chrome", Vec3::ZERO)
+            });
+            let (a, c) = (Vec3::new(-0.5, 0.0, -0.5), Vec3::new(0.5, 0.0, 0.5));
+            b.add_quad(a, Vec3::new(c.x, 0.0, a.z), c, Vec3::new(a.x, 0.0, c.z), chrome);
+            if card {
+                // Across the segment to the light at its midpoint.
+                let m = Vec3::new(0.5, 0.5, 0.0);
+                let (u, w) = (Vec3::new(0.2, -0.2, 0.0), Vec3::new(0.0, 0.0, 0.2));
+                b.add_quad(m - u - w, m + u - w, m + u + w, m - u + w, black);
+            }
+            (b.build(), chrome)
+        };
+        let at = Vec3::new(1.0, 1.0, 0.0);
+        let light = Light::aimed(at, Vec3::ZERO, Beam::Spot(SpotBeam::from_beam_field(40.0, 60.0)));
+        let wi = at.normalize();
+        let vertex = |chrome: u32, wo: Vec3| ShadingVertex {
+            position: Vec3::ZERO,
+            normal: Vec3::Y,
+            geometric_normal: Vec3::Y,
+            wo,
+            material: chrome,
+            diffuse: Vec3::ZERO,
+            weight: Vec3::ONE,
+            depth: 0,
+        };
+        let mirror = Vec3::new(-1.0, 1.0, 0.0).normalize();
+        // 20° off the mirror direction: cos^10000 20° is 0 in f32.
+        let off = glam::Quat::from_rotation_z(20f32.to_radians()) * mirror;
+        let (open, chrome) = build(false);
+        let (shut, _) = build(true);
+        // Phong's specular lobe at α = 0: ρ_s (n + 2) / 2π · f_ε cos θ / d².
+        let f_e = light.pattern_toward(-wi);
+        assert!(f_e > 0.9, "on the beam axis: {f_e}");
+        let expected = 0.9 * 10_002.0 / std::f32::consts::TAU * f_e * wi.y / 2.0;
+        let lit = direct(&open, &light, &vertex(chrome, mirror));
+        // cos α rounds to 1 − ~6e-8 in f32, and cos^10000 α to 1 − ~6e-4.
+        assert!((lit.x / expected - 1.0).abs() < 1e-3 && lit.x == lit.y && lit.y == lit.z, "{lit} vs {expected}");
+        assert_eq!(direct(&shut, &light, &vertex(chrome, mirror)), Vec3::ZERO, "the card shadows the highlight");
+        assert_eq!(direct(&open, &light, &vertex(chrome, off)), Vec3::ZERO, "no highlight 20° off the mirror");
+        assert_eq!(direct(&shut, &light, &vertex(chrome, off)), Vec3::ZERO);
     }
 
     #[test]
