@@ -421,20 +421,27 @@ impl View {
     ) -> Option<(Vec<Vec3>, usize)> {
         let (w, h) = (self.width() as usize, self.height() as usize);
         let mut dense = vec![Vec3::ZERO; w * h];
-        dense.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-            if stop() {
-                return;
-            }
-            for (x, out) in row.iter_mut().enumerate() {
-                *out = shade(scene, light, self.shading.pixel(y * w + x));
-            }
-        });
+        // Each row's lit span comes with its shading (the decision reads
+        // only the lit spans: no pass over the dark part of the picture).
+        let spans: RowSpans = dense
+            .par_chunks_mut(w)
+            .enumerate()
+            .map(|(y, row)| {
+                if stop() {
+                    return None;
+                }
+                for (x, out) in row.iter_mut().enumerate() {
+                    *out = shade(scene, light, self.shading.pixel(y * w + x));
+                }
+                row_span(row)
+            })
+            .collect();
         if stop() {
             return None;
         }
         let mut reshaded = 0;
         if let (Sampling::Adaptive, Some(aa)) = (self.sampling, aa) {
-            let decision = self.aa_decision(scene, light, &dense, aa);
+            let decision = self.aa_decision_in(scene, light, &dense, &spans, aa);
             reshaded = self.reshade(scene, light, &mut dense, decision.reshading());
         }
         if stop() {
@@ -488,8 +495,21 @@ impl View {
     /// of [`View::glint_pixels`] (which take all 9 samples at once).
     /// Scale-free: neither exposure nor dimmer enters.
     pub fn aa_decision(&self, scene: &Scene, light: &Light, dense: &[Vec3], aa: AaParams) -> AaDecision {
+        let w = self.width() as usize;
+        self.aa_decision_in(scene, light, dense, &row_spans(&dense[..w * self.height() as usize], w), aa)
+    }
+
+    /// [`View::aa_decision`] with the base buffer's [`RowSpans`] given.
+    fn aa_decision_in(
+        &self,
+        scene: &Scene,
+        light: &Light,
+        dense: &[Vec3],
+        spans: &[Option<(usize, usize)>],
+        aa: AaParams,
+    ) -> AaDecision {
         let (w, h) = (self.width() as usize, self.height() as usize);
-        let Some((reference, window)) = reference_in_window(dense, w, h) else {
+        let Some((reference, window)) = reference_in_spans(dense, w, spans) else {
             return AaDecision { flags: vec![false; w * h], highlights: Vec::new(), level: None };
         };
         let pairs = self.pairs_over(scene, dense, reference, aa.threshold, window);
@@ -1086,16 +1106,22 @@ fn centre_surface(scene: &Scene, s: &PrimarySample) -> Option<(u32, Vec3)> {
 /// bit pattern of a positive float orders like the float), then the
 /// selection among the values of the one bucket that holds the k-th.
 pub fn reference_level(dense: &[Vec3]) -> Option<f32> {
+    level_over(&dense.chunks(4096).collect::<Vec<_>>())
+}
+
+/// [`reference_level`] over the lit pixels of `parts` (the rows' lit spans,
+/// [`row_spans`], or chunks of a whole buffer): outside them every value is 0.
+fn level_over(parts: &[&[Vec3]]) -> Option<f32> {
     const SHIFT: u32 = 20; // 8 exponent bits and 3 mantissa bits: 2048 buckets
     const BUCKETS: usize = 1 << (31 - SHIFT);
     let lit = |v: &Vec3| Some(v.max_element()).filter(|&m| m > 0.0 && m.is_finite());
     let bucket = |m: f32| (m.to_bits() >> SHIFT) as usize;
-    let counts = dense
-        .par_chunks(4096)
+    let counts = parts
+        .par_iter()
         .fold(
             || vec![0u32; BUCKETS],
-            |mut c, chunk| {
-                for m in chunk.iter().filter_map(lit) {
+            |mut c, part| {
+                for m in part.iter().filter_map(lit) {
                     c[bucket(m)] += 1;
                 }
                 c
@@ -1121,7 +1147,8 @@ pub fn reference_level(dense: &[Vec3]) -> Option<f32> {
         }
         k -= c as usize;
     }
-    let mut inside: Vec<f32> = dense.par_iter().filter_map(lit).filter(|&m| bucket(m) == target).collect();
+    let mut inside: Vec<f32> =
+        parts.par_iter().flat_map_iter(|part| part.iter().filter_map(lit).filter(|&m| bucket(m) == target)).collect();
     let (_, level, _) = inside.select_nth_unstable_by(k, f32::total_cmp);
     Some(*level)
 }
@@ -1244,29 +1271,51 @@ impl LitWindow {
     }
 }
 
+/// Each row's lit span: the columns from its first to one past its last
+/// non-zero pixel (`None` for a dark row). A NaN pixel counts as non-zero,
+/// as everywhere else the decision looks.
+pub type RowSpans = Vec<Option<(usize, usize)>>;
+
+/// The [`RowSpans`] of a `w`-wide `dense` buffer (one pass; the shading
+/// pass of [`View::render_direct`] finds them as it writes the rows).
+pub fn row_spans(dense: &[Vec3], w: usize) -> RowSpans {
+    dense.par_chunks(w.max(1)).map(row_span).collect()
+}
+
+/// One row's lit span ([`RowSpans`]).
+fn row_span(row: &[Vec3]) -> Option<(usize, usize)> {
+    let first = row.iter().position(|v| *v != Vec3::ZERO)?;
+    let last = row.iter().rposition(|v| *v != Vec3::ZERO)?;
+    Some((first, last + 1))
+}
+
 /// The [`LitWindow`] of `dense` (`None` when every pixel is 0). A NaN
 /// pixel counts as non-zero, as everywhere else the decision looks.
 pub fn lit_window(dense: &[Vec3], w: usize, h: usize) -> Option<LitWindow> {
-    let rows: Vec<Option<(usize, usize)>> = dense[..w * h]
-        .par_chunks(w.max(1))
-        .map(|row| {
-            let first = row.iter().position(|v| *v != Vec3::ZERO)?;
-            let last = row.iter().rposition(|v| *v != Vec3::ZERO)?;
-            Some((first, last + 1))
-        })
-        .collect();
-    let y0 = rows.iter().position(Option::is_some)?;
-    let y1 = rows.iter().rposition(Option::is_some)? + 1;
-    let (x0, x1) = rows.iter().flatten().fold((w, 0), |(a, b), &(f, l)| (a.min(f), b.max(l)));
+    window_of(&row_spans(&dense[..w * h], w), w)
+}
+
+/// The [`LitWindow`] holding every row's lit span.
+fn window_of(spans: &[Option<(usize, usize)>], w: usize) -> Option<LitWindow> {
+    let y0 = spans.iter().position(Option::is_some)?;
+    let y1 = spans.iter().rposition(Option::is_some)? + 1;
+    let (x0, x1) = spans.iter().flatten().fold((w, 0), |(a, b), &(f, l)| (a.min(f), b.max(l)));
     Some(LitWindow { x0, x1, y0, y1 })
 }
 
 /// The light's reference level ([`reference_level`]) and its
-/// [`LitWindow`], the level found among the window's rows only (every lit
-/// pixel is there: the same value as over the whole image).
+/// [`LitWindow`], the level found among the rows' lit spans only (every
+/// lit pixel is there: the same value as over the whole image).
 pub fn reference_in_window(dense: &[Vec3], w: usize, h: usize) -> Option<(f32, LitWindow)> {
-    let window = lit_window(dense, w, h)?;
-    Some((reference_level(&dense[window.y0 * w..window.y1 * w])?, window))
+    reference_in_spans(dense, w, &row_spans(&dense[..w * h], w))
+}
+
+/// [`reference_in_window`] with the rows' lit spans given.
+fn reference_in_spans(dense: &[Vec3], w: usize, spans: &[Option<(usize, usize)>]) -> Option<(f32, LitWindow)> {
+    let window = window_of(spans, w)?;
+    let parts: Vec<&[Vec3]> =
+        spans.iter().enumerate().filter_map(|(y, s)| s.map(|(a, b)| &dense[y * w + a..y * w + b])).collect();
+    Some((level_over(&parts)?, window))
 }
 
 /// Every pair (pixel, right neighbour) and (pixel, lower neighbour) of a
