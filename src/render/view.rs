@@ -421,8 +421,10 @@ impl View {
     ) -> Option<(Vec<Vec3>, usize)> {
         let (w, h) = (self.width() as usize, self.height() as usize);
         let mut dense = vec![Vec3::ZERO; w * h];
-        // Each row's lit span comes with its shading (the decision reads
-        // only the lit spans: no pass over the dark part of the picture).
+        // Each row's lit span comes with its shading when anti-aliasing
+        // follows (the decision reads only the lit spans: no pass over the
+        // dark part of the picture).
+        let decide = matches!((self.sampling, aa), (Sampling::Adaptive, Some(_)));
         let spans: RowSpans = dense
             .par_chunks_mut(w)
             .enumerate()
@@ -433,7 +435,7 @@ impl View {
                 for (x, out) in row.iter_mut().enumerate() {
                     *out = shade(scene, light, self.shading.pixel(y * w + x));
                 }
-                row_span(row)
+                if decide { row_span(row) } else { None }
             })
             .collect();
         if stop() {
