@@ -115,7 +115,7 @@ impl Daemon {
     }
 
     fn frame(&self) -> image::RgbImage {
-        image::load_from_memory(&http_get(self.http, "/api/frame.png").1).unwrap().to_rgb8()
+        png_after_now(self.http)
     }
 }
 

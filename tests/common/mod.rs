@@ -109,6 +109,37 @@ pub fn http_get(addr: std::net::SocketAddr, path: &str) -> (String, Vec<u8>) {
     (head, body)
 }
 
+/// The daemon's picture (`/api/frame.png`, RGB8) of a frame begun after
+/// this call: two past the frame `/api/status` reports now (the next one
+/// may be under way already), read until two reads agree (the PNG of a
+/// picture that did not change keeps the number of the frame that first
+/// showed it, and a read can get an encoding still under way of an older
+/// picture). A loaded machine can lag the frame clock by more than any
+/// fixed sleep, and an older frame shows an older build or display.
+pub fn png_after_now(addr: std::net::SocketAddr) -> image::RgbImage {
+    use std::time::{Duration, Instant};
+    let frame = || -> u64 {
+        let status: serde_json::Value = serde_json::from_slice(&http_get(addr, "/api/status").1).unwrap();
+        status["frame"].as_u64().expect("status has the frame number")
+    };
+    let after = frame();
+    let t = Instant::now();
+    while frame() < after + 2 {
+        assert!(t.elapsed() < Duration::from_secs(30), "no frame after {after}");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let read = || image::load_from_memory(&http_get(addr, "/api/frame.png").1).unwrap().to_rgb8();
+    let mut last = read();
+    loop {
+        let now = read();
+        if now == last {
+            return now;
+        }
+        assert!(t.elapsed() < Duration::from_secs(30), "the picture never settled");
+        last = now;
+    }
+}
+
 /// An ArtDmx packet (Art-Net 4, protocol 14) for 15-bit `port_address`
 /// carrying all 512 `slots`, built from the spec's field table.
 pub fn art_dmx(port_address: u16, sequence: u8, slots: &[u8; 512]) -> Vec<u8> {
