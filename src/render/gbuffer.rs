@@ -257,26 +257,28 @@ impl GlintBound {
     }
 }
 
+/// The surface points of a pixel's samples on sharp specular materials
+/// ([`is_sharp`]), with their materials: what the highlight bounds and the
+/// highlight test of adaptive anti-aliasing look at.
+pub(crate) fn sharp_samples<'s>(
+    scene: &'s Scene,
+    samples: &'s [PrimarySample; SAMPLES_PER_PIXEL],
+) -> impl Iterator<Item = (crate::scene::SurfacePoint, &'s crate::scene::Material)> + 's {
+    samples.iter().filter(|s| s.triangle != NO_HIT).filter_map(move |s| {
+        let m = &scene.materials[scene.material_of[s.triangle as usize] as usize];
+        is_sharp(m).then(|| (scene.surface(&crate::scene::Hit { triangle: s.triangle, t: 0.0, u: s.u, v: s.v }), m))
+    })
+}
+
 /// The [`GlintBound`] of one pixel's samples on sharp specular materials
-/// seen from `eye` (`sharp[m]`: material m is sharp, [`is_sharp`]): `None`
-/// when no sample is on one; a bound that never misses when a sample
-/// gives no usable direction.
-fn glint_bound(
-    scene: &Scene,
-    eye: Vec3,
-    sharp: &[bool],
-    samples: &[PrimarySample; SAMPLES_PER_PIXEL],
-) -> Option<GlintBound> {
+/// seen from `eye`: `None` when no sample is on one; a bound that never
+/// misses when a sample gives no usable direction.
+fn glint_bound(scene: &Scene, eye: Vec3, samples: &[PrimarySample; SAMPLES_PER_PIXEL]) -> Option<GlintBound> {
     let never = GlintBound { centre: eye, radius: f32::INFINITY, mirror: Vec3::Z, spread: 0.0, lobe: 0.0 };
     let mut points = [(Vec3::ZERO, Vec3::ZERO); SAMPLES_PER_PIXEL];
     let (mut n, mut lowest, mut usable, mut any) = (0, f32::INFINITY, true, false);
-    for s in samples.iter().filter(|s| s.triangle != NO_HIT) {
-        let material = scene.material_of[s.triangle as usize];
-        if !sharp[material as usize] {
-            continue;
-        }
+    for (sp, m) in sharp_samples(scene, samples) {
         any = true;
-        let sp = scene.surface(&crate::scene::Hit { triangle: s.triangle, t: 0.0, u: s.u, v: s.v });
         let Some(dir) = (sp.position - eye).try_normalize() else {
             usable = false;
             continue;
@@ -288,7 +290,7 @@ fn glint_bound(
         usable &= mirror.is_finite() && mirror != Vec3::ZERO && sp.position.is_finite();
         points[n] = (sp.position, mirror);
         n += 1;
-        lowest = lowest.min(scene.materials[material as usize].exponent);
+        lowest = lowest.min(m.exponent);
     }
     if !any {
         return None;
@@ -325,13 +327,12 @@ pub struct GBuffer {
     bins: Vec<Bin>,
     bin_start: Vec<u32>,
     /// The pixels with a sample on a sharp specular material ([`is_sharp`]),
-    /// ascending, and each one's [`GlintBound`]: preprocessing of the
+    /// ascending, each with its [`GlintBound`]: preprocessing of the
     /// intersection buffer like the bins (light-free), so that the
     /// highlight test of adaptive anti-aliasing
     /// ([`crate::render::View::glint_pixels`]) evaluates a light only where
     /// a pixel's bound does not rule it out, from the first light on.
-    sharp_pixels: Vec<u32>,
-    glint_bounds: Vec<GlintBound>,
+    glint_bounds: Vec<(u32, GlintBound)>,
 }
 
 impl GBuffer {
@@ -339,8 +340,7 @@ impl GBuffer {
     pub fn build(scene: &Scene, camera: Camera, width: u32, height: u32) -> Self {
         let (w, h) = (width.max(1), height.max(1));
         let mut samples = vec![[PrimarySample::MISS; SAMPLES_PER_PIXEL]; (w * h) as usize];
-        let sharp: Vec<bool> = scene.materials.iter().map(is_sharp).collect();
-        let any_sharp = sharp.contains(&true);
+        let any_sharp = scene.materials.iter().any(is_sharp);
         // Each row's bins and highlight bounds are found right after its
         // samples (still in cache).
         // Per row: bin counts per pixel, the bins, the sharp pixels' bounds.
@@ -365,7 +365,7 @@ impl GBuffer {
                         None => bins.extend_from_slice(surface_bins(scene, px).as_slice()),
                     }
                     counts.push((bins.len() - before) as u32);
-                    if any_sharp && let Some(bound) = glint_bound(scene, camera.position, &sharp, px) {
+                    if any_sharp && let Some(bound) = glint_bound(scene, camera.position, px) {
                         glints.push(((y * w as usize + x) as u32, bound));
                     }
                 }
@@ -374,20 +374,17 @@ impl GBuffer {
             .collect();
         let mut bin_start = Vec::with_capacity(samples.len() + 1);
         let mut bins = Vec::with_capacity(rows.iter().map(|r| r.1.len()).sum());
-        let (mut sharp_pixels, mut glint_bounds) = (Vec::new(), Vec::new());
+        let mut glint_bounds = Vec::new();
         bin_start.push(0u32);
         for (counts, row_bins, glints) in rows {
-            for (i, bound) in glints {
-                sharp_pixels.push(i);
-                glint_bounds.push(bound);
-            }
+            glint_bounds.extend(glints);
             for c in counts {
                 let last = *bin_start.last().unwrap_or(&0);
                 bin_start.push(last + c);
             }
             bins.extend(row_bins);
         }
-        Self { width: w, height: h, camera, samples, bins, bin_start, sharp_pixels, glint_bounds }
+        Self { width: w, height: h, camera, samples, bins, bin_start, glint_bounds }
     }
 
     /// Memory held by the samples, the bins and the highlight bounds.
@@ -395,19 +392,13 @@ impl GBuffer {
         std::mem::size_of_val(&self.samples[..])
             + std::mem::size_of_val(&self.bins[..])
             + std::mem::size_of_val(&self.bin_start[..])
-            + std::mem::size_of_val(&self.sharp_pixels[..])
             + std::mem::size_of_val(&self.glint_bounds[..])
     }
 
     /// The pixels with a sample on a sharp specular material
-    /// ([`is_sharp`]), ascending: the only ones the highlight test of
-    /// adaptive anti-aliasing looks at.
-    pub fn sharp_pixels(&self) -> &[u32] {
-        &self.sharp_pixels
-    }
-
-    /// The [`GlintBound`] of each of [`GBuffer::sharp_pixels`].
-    pub(crate) fn highlight_bounds(&self) -> &[GlintBound] {
+    /// ([`is_sharp`]), ascending, each with its [`GlintBound`]: the only
+    /// pixels the highlight test of adaptive anti-aliasing looks at.
+    pub(crate) fn highlight_bounds(&self) -> &[(u32, GlintBound)] {
         &self.glint_bounds
     }
 
@@ -416,9 +407,8 @@ impl GBuffer {
     /// them, for the bench to time (build finds them row by row with the
     /// bins).
     pub fn find_highlight_bounds(&self, scene: &Scene) -> usize {
-        let sharp: Vec<bool> = scene.materials.iter().map(is_sharp).collect();
         let eye = self.camera.position;
-        self.samples.par_iter().filter_map(|px| glint_bound(scene, eye, &sharp, px)).count()
+        self.samples.par_iter().filter_map(|px| glint_bound(scene, eye, px)).count()
     }
 
     /// The bins pixel `index` is shaded with ([`surface_bins`] of its

@@ -30,7 +30,9 @@
 use super::buffer::LightBuffer;
 use super::display::srgb8;
 use super::gbuffer::PrimarySample;
-use super::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT, SAME_SURFACE_COS, SAMPLES_PER_PIXEL, bin_samples, single_bin};
+use super::gbuffer::{
+    CENTRE_SAMPLE, GBuffer, NO_HIT, SAME_SURFACE_COS, SAMPLES_PER_PIXEL, bin_samples, sharp_samples, single_bin,
+};
 use super::photon::{PhotonMaps, Progressive};
 use super::whitted::{RecursionLimits, ShadingVertex, direct, expand};
 use crate::fixture::Light;
@@ -424,7 +426,7 @@ impl View {
         // Each row's lit span comes with its shading when anti-aliasing
         // follows (the decision reads only the lit spans: no pass over the
         // dark part of the picture).
-        let decide = matches!((self.sampling, aa), (Sampling::Adaptive, Some(_)));
+        let aa = aa.filter(|_| self.sampling == Sampling::Adaptive);
         let spans: RowSpans = dense
             .par_chunks_mut(w)
             .enumerate()
@@ -435,14 +437,14 @@ impl View {
                 for (x, out) in row.iter_mut().enumerate() {
                     *out = shade(scene, light, self.shading.pixel(y * w + x));
                 }
-                if decide { row_span(row) } else { None }
+                if aa.is_some() { row_span(row) } else { None }
             })
             .collect();
         if stop() {
             return None;
         }
         let mut reshaded = 0;
-        if let (Sampling::Adaptive, Some(aa)) = (self.sampling, aa) {
+        if let Some(aa) = aa {
             let decision = self.aa_decision_in(scene, light, &dense, &spans, aa);
             reshaded = self.reshade(scene, light, &mut dense, decision.reshading());
         }
@@ -660,8 +662,7 @@ impl View {
     /// a frame-sized buffer holding the light's values only where it lights
     /// anything will do (as in `cells::whitted_together`).
     ///
-    /// A pixel whose highlight bound (found with the G-buffer,
-    /// [`GBuffer::sharp_pixels`]) shows the light outside every sample's
+    /// A pixel whose highlight bound (found with the G-buffer) shows the light outside every sample's
     /// lobe is skipped without a look-up: the same pixels, at a fraction of
     /// the cost (a unit test compares the two).
     pub fn glint_pixels(
@@ -696,12 +697,11 @@ impl View {
         // not miss the light evaluate its highlight (the evaluation, with
         // the light's beam pattern at each sample, costs ~5 ms over every
         // candidate of the bundled stage; the bounds' test ~0.4 ms).
-        let (candidates, bounds) = (self.gbuffer.sharp_pixels(), self.gbuffer.highlight_bounds());
-        candidates
+        self.gbuffer
+            .highlight_bounds()
             .par_iter()
-            .zip(bounds.par_iter())
             .filter(|(_, b)| !(bounded && b.misses(light.position)))
-            .map(|(&i, _)| i as usize)
+            .map(|&(i, _)| i as usize)
             .filter(|&i| shows(i, self.pixel_highlight(scene, light, i)))
             .collect()
     }
@@ -712,7 +712,7 @@ impl View {
         let eye = self.gbuffer.camera.position;
         let weight = 1.0 / SAMPLES_PER_PIXEL as f32;
         let mut sum = Vec3::ZERO;
-        for (sp, m) in self.sharp_samples(scene, i) {
+        for (sp, m) in sharp_samples(scene, &self.gbuffer.samples[i]) {
             let Some(dir) = (sp.position - eye).try_normalize() else { continue };
             let f = sp.facing(dir);
             let to = light.position - sp.position;
@@ -735,19 +735,6 @@ impl View {
             sum += m.specular * (lobe * e * cos / d2 * weight);
         }
         sum
-    }
-
-    /// The surface points of pixel `i`'s G-buffer samples on sharp
-    /// specular materials ([`is_sharp`]), with their materials.
-    fn sharp_samples<'s>(
-        &'s self,
-        scene: &'s Scene,
-        i: usize,
-    ) -> impl Iterator<Item = (crate::scene::SurfacePoint, &'s crate::scene::Material)> + 's {
-        self.gbuffer.samples[i].iter().filter(|s| s.triangle != NO_HIT).filter_map(move |s| {
-            let m = &scene.materials[scene.material_of[s.triangle as usize] as usize];
-            is_sharp(m).then(|| (scene.surface(&Hit { triangle: s.triangle, t: 0.0, u: s.u, v: s.v }), m))
-        })
     }
 
     /// The indirect buffer I_h,ε_A,i (eq. 3, 5) of a light from its photon
@@ -1493,8 +1480,8 @@ mod tests {
             .map(|i| i as u32)
             .collect();
         assert!(sharp.len() > 100, "the spheres cover pixels: {}", sharp.len());
-        assert_eq!(view.gbuffer.sharp_pixels(), &sharp[..]);
-        assert_eq!(view.gbuffer.highlight_bounds().len(), sharp.len());
+        let candidates: Vec<u32> = view.gbuffer.highlight_bounds().iter().map(|c| c.0).collect();
+        assert_eq!(candidates, sharp);
         let (mut found, mut skipped, mut candidates) = (0, 0, 0);
         for k in 0..16 {
             let angle = std::f32::consts::TAU * k as f32 / 16.0;
@@ -1507,7 +1494,7 @@ mod tests {
             assert_eq!(bounded, every, "light {k} at {at}");
             found += every.len();
             let bounds = view.gbuffer.highlight_bounds();
-            skipped += bounds.iter().filter(|b| b.misses(light.position)).count();
+            skipped += bounds.iter().filter(|(_, b)| b.misses(light.position)).count();
             candidates += bounds.len();
         }
         assert!(found >= 16, "the lights show highlights: {found}");
