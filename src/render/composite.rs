@@ -243,7 +243,7 @@ impl Compositor {
                     accumulate_tile(&active, tx, ty, w, band);
                     for r in 0..rows {
                         let px = r * w + x0;
-                        display.to_srgb8_into(&band[px..px + cols], &mut band_srgb[px * 3..(px + cols) * 3]);
+                        display.encode_span(&band[px..px + cols], &mut band_srgb[px * 3..(px + cols) * 3]);
                     }
                 }
             },
@@ -351,7 +351,7 @@ impl Compositor {
                         for (p, out) in band[px..px + cols].iter_mut().enumerate() {
                             *out = live.iter().fold(Vec3::ZERO, |acc, (wj, s)| acc + *wj * s[start + px + p]);
                         }
-                        display.to_srgb8_into(&band[px..px + cols], &mut band_srgb[px * 3..(px + cols) * 3]);
+                        display.encode_span(&band[px..px + cols], &mut band_srgb[px * 3..(px + cols) * 3]);
                     }
                 }
             },

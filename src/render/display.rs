@@ -87,29 +87,41 @@ impl Display {
         out
     }
 
-    /// As [`Display::to_srgb8`], into an existing RGB8 buffer (3 bytes per pixel).
+    /// As [`Display::to_srgb8`], into an existing RGB8 buffer (3 bytes per
+    /// pixel), in parallel over chunks of 4096 pixels.
     pub fn to_srgb8_into(&self, linear: &[Vec3], out: &mut [u8]) {
         use rayon::prelude::*;
+        assert_eq!(out.len(), linear.len() * 3, "output size");
+        out.par_chunks_mut(3 * 4096).zip(linear.par_chunks(4096)).for_each(|(o, l)| self.encode_span(l, o));
+    }
+
+    /// As [`Display::to_srgb8_into`], on the calling thread: for the short
+    /// spans (one tile row) the incremental compositor encodes from inside
+    /// its own parallel pass, where a parallel iterator per span cost more
+    /// than the encoding (one fader: 3,904 spans of 16 pixels).
+    pub fn encode_span(&self, linear: &[Vec3], out: &mut [u8]) {
         assert_eq!(out.len(), linear.len() * 3, "output size");
         let max = (SRGB_LUT_SIZE - 1) as f32;
         let s = self.scale() * max;
         let (scale, rolloff) = (self.scale(), self.rolloff);
         let lut = srgb_lut();
-        out.par_chunks_mut(3 * 4096).zip(linear.par_chunks(4096)).for_each(|(o, l)| {
-            for (px, v) in o.chunks_exact_mut(3).zip(l) {
-                // Without a roll-off: one multiply into the table's index
-                // (the bits the GPU and browser shaders reproduce).
-                let x = match rolloff {
-                    None => *v * s,
-                    Some(r) => r.apply(*v * scale) * max,
-                };
-                let idx = x.clamp(Vec3::ZERO, Vec3::splat(max)) + 0.5;
-                // NaN casts to 0: never reached for checked buffers, and never a panic.
-                px[0] = lut[idx.x as usize];
-                px[1] = lut[idx.y as usize];
-                px[2] = lut[idx.z as usize];
-            }
-        });
+        // Index into the table: the clamped value + 0.5 lies in [0.5,
+        // 65535.5], so the cast to u16 (which truncates, saturates and
+        // maps NaN to 0) is the table index and needs no bounds check.
+        let code = |x: f32| lut[x as u16 as usize];
+        let put = |px: &mut [u8], x: Vec3| {
+            let idx = x.clamp(Vec3::ZERO, Vec3::splat(max)) + 0.5;
+            // NaN goes to 0: never reached for checked buffers, and never a panic.
+            px[0] = code(idx.x);
+            px[1] = code(idx.y);
+            px[2] = code(idx.z);
+        };
+        match rolloff {
+            // Without a roll-off: one multiply into the table's index (the
+            // bits the GPU and browser shaders reproduce).
+            None => out.chunks_exact_mut(3).zip(linear).for_each(|(px, v)| put(px, *v * s)),
+            Some(r) => out.chunks_exact_mut(3).zip(linear).for_each(|(px, v)| put(px, r.apply(*v * scale) * max)),
+        }
     }
 }
 
@@ -204,16 +216,18 @@ pub fn srgb8(display_linear: Vec3) -> [u8; 3] {
     let lut = srgb_lut();
     let max = (SRGB_LUT_SIZE - 1) as f32;
     let idx = (display_linear * max).clamp(Vec3::ZERO, Vec3::splat(max)) + 0.5;
-    [lut[idx.x as usize], lut[idx.y as usize], lut[idx.z as usize]]
+    [lut[idx.x as u16 as usize], lut[idx.y as u16 as usize], lut[idx.z as u16 as usize]]
 }
 
 /// Linear [0, 1] in 65536 steps to 8-bit sRGB.
-fn srgb_lut() -> &'static [u8] {
-    static LUT: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+fn srgb_lut() -> &'static [u8; SRGB_LUT_SIZE] {
+    static LUT: std::sync::OnceLock<Box<[u8; SRGB_LUT_SIZE]>> = std::sync::OnceLock::new();
     LUT.get_or_init(|| {
-        (0..SRGB_LUT_SIZE)
-            .map(|i| (srgb_encode(Vec3::splat(i as f32 / (SRGB_LUT_SIZE - 1) as f32)).x * 255.0 + 0.5) as u8)
-            .collect()
+        let mut lut = Box::new([0u8; SRGB_LUT_SIZE]);
+        for (i, code) in lut.iter_mut().enumerate() {
+            *code = (srgb_encode(Vec3::splat(i as f32 / (SRGB_LUT_SIZE - 1) as f32)).x * 255.0 + 0.5) as u8;
+        }
+        lut
     })
 }
 
