@@ -101,26 +101,15 @@ impl Display {
     /// than the encoding (one fader: 3,904 spans of 16 pixels).
     pub fn encode_span(&self, linear: &[Vec3], out: &mut [u8]) {
         assert_eq!(out.len(), linear.len() * 3, "output size");
-        let max = (SRGB_LUT_SIZE - 1) as f32;
-        let s = self.scale() * max;
+        let s = self.scale() * LUT_MAX;
         let (scale, rolloff) = (self.scale(), self.rolloff);
         let lut = srgb_lut();
-        // Index into the table: the clamped value + 0.5 lies in [0.5,
-        // 65535.5], so the cast to u16 (which truncates, saturates and
-        // maps NaN to 0) is the table index and needs no bounds check.
-        let code = |x: f32| lut[x as u16 as usize];
-        let put = |px: &mut [u8], x: Vec3| {
-            let idx = x.clamp(Vec3::ZERO, Vec3::splat(max)) + 0.5;
-            // NaN goes to 0: never reached for checked buffers, and never a panic.
-            px[0] = code(idx.x);
-            px[1] = code(idx.y);
-            px[2] = code(idx.z);
-        };
+        let pixels = out.chunks_exact_mut(3).zip(linear);
         match rolloff {
             // Without a roll-off: one multiply into the table's index (the
             // bits the GPU and browser shaders reproduce).
-            None => out.chunks_exact_mut(3).zip(linear).for_each(|(px, v)| put(px, *v * s)),
-            Some(r) => out.chunks_exact_mut(3).zip(linear).for_each(|(px, v)| put(px, r.apply(*v * scale) * max)),
+            None => pixels.for_each(|(px, v)| px.copy_from_slice(&lut_codes(lut, *v * s))),
+            Some(r) => pixels.for_each(|(px, v)| px.copy_from_slice(&lut_codes(lut, r.apply(*v * scale) * LUT_MAX))),
         }
     }
 }
@@ -210,12 +199,23 @@ impl Display {
 
 const SRGB_LUT_SIZE: usize = 1 << 16;
 
+/// The largest index into the sRGB table.
+const LUT_MAX: f32 = (SRGB_LUT_SIZE - 1) as f32;
+
 /// 8-bit sRGB code values of a display-linear colour (1 = white), through
 /// the same table as [`Display::to_srgb8`].
 pub fn srgb8(display_linear: Vec3) -> [u8; 3] {
-    let lut = srgb_lut();
-    let max = (SRGB_LUT_SIZE - 1) as f32;
-    let idx = (display_linear * max).clamp(Vec3::ZERO, Vec3::splat(max)) + 0.5;
+    lut_codes(srgb_lut(), display_linear * LUT_MAX)
+}
+
+/// The table's codes for a colour already scaled to its index range
+/// (display-linear × [`LUT_MAX`]): the one rounding rule every encoder
+/// here shares. The clamped value + 0.5 lies in [0.5, 65535.5], so the
+/// cast to u16 (which truncates, saturates and maps NaN to 0) is the index
+/// and needs no bounds check. NaN gives code 0: never reached for checked
+/// buffers, and never a panic.
+fn lut_codes(lut: &[u8; SRGB_LUT_SIZE], x: Vec3) -> [u8; 3] {
+    let idx = x.clamp(Vec3::ZERO, Vec3::splat(LUT_MAX)) + 0.5;
     [lut[idx.x as u16 as usize], lut[idx.y as u16 as usize], lut[idx.z as u16 as usize]]
 }
 
@@ -225,7 +225,7 @@ fn srgb_lut() -> &'static [u8; SRGB_LUT_SIZE] {
     LUT.get_or_init(|| {
         let mut lut = Box::new([0u8; SRGB_LUT_SIZE]);
         for (i, code) in lut.iter_mut().enumerate() {
-            *code = (srgb_encode(Vec3::splat(i as f32 / (SRGB_LUT_SIZE - 1) as f32)).x * 255.0 + 0.5) as u8;
+            *code = (srgb_encode(Vec3::splat(i as f32 / LUT_MAX)).x * 255.0 + 0.5) as u8;
         }
         lut
     })

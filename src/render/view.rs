@@ -662,9 +662,10 @@ impl View {
     /// a frame-sized buffer holding the light's values only where it lights
     /// anything will do (as in `cells::whitted_together`).
     ///
-    /// A pixel whose highlight bound (found with the G-buffer) shows the light outside every sample's
-    /// lobe is skipped without a look-up: the same pixels, at a fraction of
-    /// the cost (a unit test compares the two).
+    /// A pixel whose highlight bound (found with the G-buffer) shows the
+    /// light outside every sample's lobe is skipped without a look-up: the
+    /// same pixels, at a fraction of the cost (a unit test compares the
+    /// two).
     pub fn glint_pixels(
         &self,
         scene: &Scene,
