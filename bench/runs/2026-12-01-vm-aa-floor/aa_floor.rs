@@ -10,6 +10,8 @@
 //!                                       (run with RAYON_NUM_THREADS=1 for one thread)
 //!   aa_floor bins                       vertices per depth and material
 //!   aa_floor borrow                     minor matte bins taken from a neighbour
+//!   aa_floor light                      one light's lit curtain pixels, vertices,
+//!                                       bins-only and shipped MSE R (FL_FIXTURE=n)
 use footlight::bench::mse_display;
 use footlight::bench::sweeps::reference_81;
 use footlight::fixture::Light;
@@ -36,7 +38,8 @@ impl Setup {
         let patch = footlight_mvr::load_patch(&root.join("patch/paper-rig.toml")).unwrap();
         let camera = patch.camera.map(|c| Camera::look_at(c.position, c.look_at, c.fov_y)).or(scene.camera).unwrap();
         let g = GBuffer::build(&scene, camera, 800, 500);
-        let f = &patch.fixtures[0];
+        // FL_FIXTURE=n: the n-th patch light (0-based; default the bench's first).
+        let f = &patch.fixtures[std::env::var("FL_FIXTURE").ok().and_then(|x| x.parse().ok()).unwrap_or(0)];
         Self { g, limits: RecursionLimits::default(), light: f.light.clone(), kf: f.k_full(), scene }
     }
     fn view(&self, s: Sampling) -> View {
@@ -212,6 +215,23 @@ fn main() {
             }
         }
         "borrow" => borrow(&s),
+        "light" => {
+            let reference = s.reference();
+            let v = s.view(Sampling::Adaptive);
+            let (base, _) = v.render_direct(scene, light, None);
+            let (shipped, n) = v.render_direct(scene, light, Some(aa));
+            let on_curtain = |i: usize| {
+                let t = s.g.samples[i][4].triangle;
+                t != NO_HIT && scene.materials[scene.material_of[t as usize] as usize].name.contains("curtain")
+            };
+            let curtain = (0..base.len()).filter(|&i| base[i].max_element() > 0.0 && on_curtain(i)).count();
+            println!(
+                "lit curtain px {curtain}; vertices {}; bins only MSE R {:.3e}; shipped {:.3e} ({n} re-shaded)",
+                v.shading.vertex_count(),
+                s.mse(&base, &reference),
+                s.mse(&shipped, &reference)
+            );
+        }
         other => panic!("unknown probe {other}"),
     }
 }
