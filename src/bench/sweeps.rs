@@ -574,10 +574,24 @@ pub struct AaCostRow {
     pub ms: f64,
     /// `ms` / 1-sample expansion + shading, %.
     pub cost_percent: f64,
+    /// The same ratio round by round (this variant's time over the 1-sample
+    /// time of the same round, %): first quartile, median, third quartile
+    /// over the [`aa_rounds`]. The spread is how far one run's
+    /// `cost_percent` can move with the load of a shared machine.
+    pub per_round_percent: [f64; 3],
     /// Display-space MSE (R, G, B) against the 81-sample reference.
     pub mse_vs_81: [f64; 3],
     /// Share of pixels re-shaded.
     pub reshaded_share: f64,
+}
+
+/// First quartile, median and third quartile of `values` (nearest rank;
+/// NaN for an empty slice).
+fn quartiles(values: &[f64]) -> [f64; 3] {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let at = |q: f64| v.get(((v.len() as f64 - 1.0) * q).round() as usize).copied().unwrap_or(f64::NAN);
+    [at(0.25), at(0.5), at(0.75)]
 }
 
 /// The 81-sample reference of one light's direct buffer: the 9-sample
@@ -689,8 +703,10 @@ pub fn aa_cost(
             outs[k] = out;
         }
     }
+    let one_sample = times[0].clone();
     let mut rows: Vec<AaCostRow> = Vec::new();
     for ((name, ..), (mut t, (dense, n))) in variants.into_iter().zip(times.into_iter().zip(outs)) {
+        let per_round: Vec<f64> = t.iter().zip(&one_sample).map(|(x, one)| x / one * 100.0).collect();
         t.sort_by(f64::total_cmp);
         let ms = t[0];
         let one_ms = rows.first().map_or(ms, |r| r.ms);
@@ -698,6 +714,7 @@ pub fn aa_cost(
             variant: name,
             ms,
             cost_percent: ms / one_ms * 100.0,
+            per_round_percent: quartiles(&per_round),
             mse_vs_81: mse_display(&shown(&dense, k_full), &reference, display),
             reshaded_share: n as f64 / (w * h) as f64,
         });
@@ -810,11 +827,12 @@ pub const AA_CURVE_THRESHOLDS: [f32; 5] = [20.0, 40.0, 60.0, 100.0, 150.0];
 /// Markdown table of [`aa_cost`] rows.
 pub fn aa_cost_markdown(rows: &[AaCostRow]) -> String {
     let mut s = String::from(
-        "| sampling | ms | cost / 1 sample | MSE vs 81 samples R | G | B | re-shaded |\n|---|---:|---:|---:|---:|---:|---:|\n",
+        "| sampling | ms | cost / 1 sample | round by round: median (quartiles) | MSE vs 81 samples R | G | B | re-shaded |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
+        let [q1, median, q3] = r.per_round_percent;
         s += &format!(
-            "| {} | {:.1} | {:.0} % | {:.2e} | {:.2e} | {:.2e} | {:.2} % |\n",
+            "| {} | {:.1} | {:.0} % | {median:.0} % ({q1:.0}-{q3:.0}) | {:.2e} | {:.2e} | {:.2e} | {:.2} % |\n",
             r.variant,
             r.ms,
             r.cost_percent,
@@ -825,4 +843,16 @@ pub fn aa_cost_markdown(rows: &[AaCostRow]) -> String {
         );
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::quartiles;
+
+    #[test]
+    fn quartiles_are_nearest_rank_order_statistics() {
+        assert_eq!(quartiles(&[5.0, 1.0, 3.0, 2.0, 4.0]), [2.0, 3.0, 4.0]);
+        assert_eq!(quartiles(&[7.0]), [7.0, 7.0, 7.0]);
+        assert!(quartiles(&[]).iter().all(|q| q.is_nan()));
+    }
 }

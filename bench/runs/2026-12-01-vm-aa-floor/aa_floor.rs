@@ -12,6 +12,12 @@
 //!   aa_floor borrow                     minor matte bins taken from a neighbour
 //!   aa_floor light                      one light's lit curtain pixels, vertices,
 //!                                       bins-only and shipped MSE R (FL_FIXTURE=n)
+//!   aa_floor recon                      marked pixels filtered from the base (a 3×3
+//!                                       weighted mean) instead of re-shaded, by class
+//!   aa_floor warm                       re-shading on a fresh view, then again with
+//!                                       the 9-sample paths it cached (its shading part)
+//!   aa_floor loop1 | loopa              60 fresh views, 1 sample / shipped adaptive
+//!                                       (for `perf record` and `perf stat`)
 use footlight::bench::mse_display;
 use footlight::bench::sweeps::reference_81;
 use footlight::fixture::Light;
@@ -215,6 +221,35 @@ fn main() {
             }
         }
         "borrow" => borrow(&s),
+        "recon" => recon(&s),
+        "loop1" | "loopa" => {
+            let (sampling, a) = if args[0] == "loop1" { (Sampling::One, None) } else { (Sampling::Adaptive, Some(aa)) };
+            let mut best = f64::INFINITY;
+            for _ in 0..60 {
+                let g = s.g.clone();
+                let t = Instant::now();
+                let v = View::from_gbuffer(scene, g, sampling, s.limits);
+                std::hint::black_box(v.render_direct(scene, light, a));
+                best = best.min(ms(t));
+            }
+            println!("{} fastest {best:.2} ms", args[0]);
+        }
+        "warm" => {
+            let v0 = s.view(Sampling::Adaptive);
+            let (dense0, _) = v0.render_direct(scene, light, None);
+            let mut best = [f64::INFINITY; 2];
+            for _ in 0..15 {
+                let v = s.view(Sampling::Adaptive);
+                let decision = v.aa_decision(scene, light, &dense0, aa);
+                for k in 0..2 {
+                    let mut dense = dense0.clone();
+                    let t = Instant::now();
+                    v.reshade(scene, light, &mut dense, decision.reshading());
+                    best[k] = best[k].min(ms(t));
+                }
+            }
+            println!("re-shading cold {:.2} ms, warm cache {:.2} ms", best[0], best[1]);
+        }
         "light" => {
             let reference = s.reference();
             let v = s.view(Sampling::Adaptive);
@@ -306,6 +341,63 @@ fn borrow(s: &Setup) {
             let decision = v2.aa_decision(scene, light, &d, AaParams::new(t));
             let n = v2.reshade(scene, light, &mut d, decision.reshading());
             println!("threshold {t}, {name}: {n} re-shaded, MSE R {:.3e}", s.mse(&d, &reference));
+        }
+    }
+}
+
+/// Image-space reconstruction of marked pixels (probe): which subsets must be
+/// re-shaded and which can be filtered from the base.
+fn recon(s: &Setup) {
+    let (scene, light) = (&s.scene, &s.light);
+    let (w, h) = (800usize, 500usize);
+    let reference = s.reference();
+    let v = s.view(Sampling::Adaptive);
+    let (base, _) = v.render_direct(scene, light, None);
+    let th: f32 = std::env::var("FL_T").ok().and_then(|x| x.parse().ok()).unwrap_or(100.0);
+    let d = v.aa_decision(scene, light, &base, AaParams::new(th));
+    let flags = d.flags.clone();
+    let marked: Vec<usize> = (0..w * h).filter(|&i| flags[i]).collect();
+    let spec: Vec<bool> = (0..w * h).map(|i| s.specular(i)).collect();
+    // Full 9-sample value of every marked pixel (shipped re-shading).
+    let mut nine = base.clone();
+    v.reshade(scene, light, &mut nine, Reshading { flags: &flags, whole: &d.highlights, corners_first: d.level });
+    println!("marked {} (specular {}), highlights {}", marked.len(), marked.iter().filter(|&&i| spec[i]).count(), d.highlights.len());
+    println!("bins only {:.3e}; shipped {:.3e}", s.mse(&base, &reference), s.mse(&nine, &reference));
+    let tent = |img: &[Vec3], i: usize, wc: f32, we: f32, wd: f32| -> Vec3 {
+        let (x, y) = ((i % w) as i64, (i / w) as i64);
+        let mut acc = Vec3::ZERO;
+        let mut wsum = 0.0;
+        for dy in -1i64..=1 {
+            for dx in -1i64..=1 {
+                let (qx, qy) = (x + dx, y + dy);
+                if qx < 0 || qy < 0 || qx >= w as i64 || qy >= h as i64 { continue; }
+                let q = qy as usize * w + qx as usize;
+                let wt = match dx.abs() + dy.abs() { 0 => wc, 1 => we, _ => wd };
+                acc += wt * img[q];
+                wsum += wt;
+            }
+        }
+        acc / wsum
+    };
+    let cases: [(&str, fn(bool, bool) -> u8); 5] = [
+        ("highlights 9, rest base", |hl, _| if hl { 2 } else { 0 }),
+        ("highlights 9, rest filtered", |hl, _| if hl { 2 } else { 1 }),
+        ("highlights+matte 9, specular filtered", |hl, sp| if hl || !sp { 2 } else { 1 }),
+        ("highlights+specular 9, matte filtered", |hl, sp| if hl || sp { 2 } else { 1 }),
+        ("highlights+matte 9, specular base", |hl, sp| if hl || !sp { 2 } else { 0 }),
+    ];
+    for (wc, we, wd) in [(4.0, 2.0, 1.0), (1.0, 1.0, 1.0), (2.0, 1.0, 0.0), (8.0, 2.0, 1.0)] {
+        for (name, rule) in cases {
+            let mut out = base.clone();
+            let mut n9 = 0;
+            for &i in &marked {
+                match rule(d.highlights.contains(&i), spec[i]) {
+                    2 => { out[i] = nine[i]; n9 += 1; }
+                    1 => out[i] = tent(&base, i, wc, we, wd),
+                    _ => {}
+                }
+            }
+            println!("tent {wc}/{we}/{wd} {name}: {n9} at 9 samples, MSE R {:.3e}", s.mse(&out, &reference));
         }
     }
 }
