@@ -79,7 +79,7 @@ fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let s = Setup::new();
     let (scene, light) = (&s.scene, &s.light);
-    let aa = AaParams::new(100.0);
+    let aa = AaParams::new(std::env::var("FL_T").ok().and_then(|x| x.parse().ok()).unwrap_or(100.0));
     match args[0].as_str() {
         "reshade" => {
             let reference = s.reference();
