@@ -481,8 +481,8 @@ impl AccuracyReport {
             "## Accuracy round (issue 13): anti-aliasing cost and error\n\n{}×{}, first patch light, depth 5. \
              Cost = expansion + shading (+ re-shading) / 1-sample expansion + shading, the fastest of {} interleaved \
              rounds (and, round by round, over the same round's 1-sample time: the median and quartiles show \
-             how far the load of the machine moves one run's figure); error = display-space MSE against 81 samples per pixel (9-sample renderer at 3× size, \
-             box-filtered).\n\n",
+             how far the load of the machine moves one run's figure); error = display-space MSE against 81 \
+             samples per pixel (9-sample renderer at 3× size, box-filtered).\n\n",
             self.size.0, self.size.1, self.aa_rounds
         );
         s += &sweeps::aa_cost_markdown(&self.aa);

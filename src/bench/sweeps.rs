@@ -585,13 +585,13 @@ pub struct AaCostRow {
     pub reshaded_share: f64,
 }
 
-/// First quartile, median and third quartile of `values` (nearest rank;
-/// NaN for an empty slice).
+/// First quartile, median and third quartile of `values` (nearest rank,
+/// [`crate::live::daemon::percentile`]; NaN for an empty slice).
 fn quartiles(values: &[f64]) -> [f64; 3] {
-    let mut v = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    let at = |q: f64| v.get(((v.len() as f64 - 1.0) * q).round() as usize).copied().unwrap_or(f64::NAN);
-    [at(0.25), at(0.5), at(0.75)]
+    if values.is_empty() {
+        return [f64::NAN; 3];
+    }
+    [0.25, 0.5, 0.75].map(|q| crate::live::daemon::percentile(values.iter().copied(), q))
 }
 
 /// The 81-sample reference of one light's direct buffer: the 9-sample
