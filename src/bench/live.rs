@@ -4,6 +4,7 @@
 //! first direct-light frame and to the converged frame.
 
 use crate::Light;
+use crate::live::daemon::median;
 use crate::live::{Stage, Tracer, TracerSettings};
 use crate::render::composite::{CompositeInput, Compositor, composite_into};
 use crate::render::photon::PhotonSettings;
@@ -55,11 +56,6 @@ pub struct LiveReport {
     pub composite: Vec<CompositeRow>,
     /// Geometry change latency at the bench picture size.
     pub latency: Latency,
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 /// Runs the daemon measurements.

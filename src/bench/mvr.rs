@@ -24,6 +24,7 @@
 //! first picture of every light of the whole show (the direct stages).
 
 use crate::fixture::FixtureState;
+use crate::live::daemon::median;
 use crate::render::composite::{CompositeInput, Compositor};
 use crate::render::{Display, LightBuffer, RecursionLimits, Sampling, View};
 use crate::scene::{Camera, Scene};
@@ -67,11 +68,6 @@ impl MvrReport {
             self.strobe_changed_per_frame
         ) + &self.pixels.as_ref().map(PixelReport::lines).unwrap_or_default()
     }
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
 /// Runs the MVR measurements: import `show` `repeats` times, then 120

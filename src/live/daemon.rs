@@ -720,3 +720,9 @@ pub fn percentile(values: impl Iterator<Item = f64>, q: f64) -> f64 {
     let rank = ((q.clamp(0.0, 1.0) * v.len() as f64).ceil() as usize).clamp(1, v.len());
     v[rank - 1]
 }
+
+/// The median of `values` by the same nearest-rank rule as [`percentile`]
+/// (the lower middle value of an even count; 0 when there are none).
+pub fn median(values: Vec<f64>) -> f64 {
+    percentile(values.into_iter(), 0.5)
+}
