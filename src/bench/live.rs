@@ -41,7 +41,9 @@ pub struct Latency {
     pub whitted_ms: f64,
     /// Request to the photon-mapped stage, ms.
     pub photons_ms: f64,
-    /// Request to the converged buffer (progressive passes done), ms.
+    /// Request to the last of the daemon's progressive passes, ms (a pass
+    /// count; the error-judged time to the converged picture is
+    /// `bench::accuracy`'s `converge` part).
     pub converged_ms: f64,
     /// Progressive passes counted as converged.
     pub refine_passes: u32,

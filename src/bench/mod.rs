@@ -327,7 +327,8 @@ impl Report {
         let l = &self.live;
         s += &format!(
             "\n## Daemon\n\nGeometry change of one light at {}×{}: first direct-light frame after {:.0} ms, mirrors/glass/AA \
-             after {:.0} ms, photon-mapped after {:.0} ms, converged ({} progressive passes) after {:.0} ms.\n\n\
+             after {:.0} ms, photon-mapped after {:.0} ms, all {} progressive passes done after {:.0} ms (the time to the \
+             converged picture, judged by its error, is the accuracy section's: `--accuracy-part converge`).\n\n\
              Composite per frame (GPU: {}):\n\n| lights | size | CPU full (ms) | CPU one fader (ms) | GPU (ms) |\n|---:|---|---:|---:|---:|\n",
             self.width,
             self.height,
