@@ -23,11 +23,17 @@ const ART_PORTS: usize = 8;
 const SACN_STREAMS: usize = 8;
 
 /// `cases` cases from a fixed seed, so every CI run tries the same inputs
-/// (the brief: seed every RNG). `PROPTEST_RNG_SEED=<n>` tries another seed
-/// by hand: `PROPTEST_RNG_SEED=7 cargo test -p footlight-dmx --test main fuzz`.
+/// (the brief: seed every RNG). proptest's own `PROPTEST_RNG_SEED=<n>`
+/// (read by its default config) tries another seed by hand:
+/// `PROPTEST_RNG_SEED=7 cargo test -p footlight-dmx --test main fuzz`.
 fn seeded(cases: u32) -> ProptestConfig {
-    let seed = std::env::var("PROPTEST_RNG_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0x466f_6f74_6c69_6768);
-    ProptestConfig { cases, rng_seed: proptest::test_runner::RngSeed::Fixed(seed), ..ProptestConfig::default() }
+    use proptest::test_runner::RngSeed;
+    let default = ProptestConfig::default();
+    let rng_seed = match default.rng_seed {
+        RngSeed::Random => RngSeed::Fixed(0x466f_6f74_6c69_6768),
+        chosen => chosen,
+    };
+    ProptestConfig { cases, rng_seed, ..default }
 }
 
 fn valid_artnet() -> impl Strategy<Value = Vec<u8>> {
