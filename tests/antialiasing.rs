@@ -232,7 +232,7 @@ fn reshaded_pixels_equal_nine_samples_in_a_lambert_scene() {
     let nine = render_eq1(&scene, &v.gbuffer, &lights, &[Vec3::ONE], SampleSet::All, limits);
     let binned = render_eq1(&scene, &v.gbuffer, &lights, &[Vec3::ONE], SampleSet::Binned, limits);
     assert!(n > 50 && n < base.len() / 4, "{n} pixels re-shaded");
-    let corners = corner_renders(&scene, &v.gbuffer, &lights, limits);
+    let corners = CornerProbes::new(&scene, &v, &lights, limits, &base, aa);
     let (changed, kept) = check_reshaded(&adaptive, &base, &flags, &[], &nine, &binned, &corners);
     assert!(changed > 20 && kept > 0, "{changed} pixels took 9 samples, {kept} kept their base at the corners");
     // Round 4's whole re-shading: every marked pixel is the 9-sample render.
@@ -240,6 +240,42 @@ fn reshaded_pixels_equal_nine_samples_in_a_lambert_scene() {
     let (adaptive, _) = v.render_direct(&scene, &light, Some(whole));
     let every = (0..base.len()).filter(|&i| flags[i]).collect::<Vec<_>>();
     assert_eq!(check_reshaded(&adaptive, &base, &flags, &every, &nine, &binned, &corners).1, 0);
+}
+
+/// Each pixel's 4 corner samples ([`corner_renders`]) and which of them it
+/// probes ([`facing_masks`], from the light's pairs over the threshold).
+struct CornerProbes {
+    values: Vec<Vec<Vec3>>,
+    facing: Vec<u8>,
+}
+
+impl CornerProbes {
+    fn new(
+        scene: &footlight::scene::Scene,
+        v: &footlight::render::View,
+        lights: &[footlight::Light],
+        limits: footlight::render::RecursionLimits,
+        base: &[Vec3],
+        aa: AaParams,
+    ) -> Self {
+        let facing = facing_masks(&v.gradient_pairs(scene, base, aa), base.len());
+        Self { values: corner_renders(scene, &v.gbuffer, lights, limits), facing }
+    }
+}
+
+/// Which of the 4 corner samples (bit j: the j-th of 0, 2, 6, 8 of the
+/// row-major 3×3 grid) each pixel probes first: for every neighbour pair
+/// over the threshold, the two corners of each pixel on the side facing
+/// the other; all 4 for a pixel in no pair.
+fn facing_masks(pairs: &[(usize, usize)], n: usize) -> Vec<u8> {
+    let mut mask = vec![0u8; n];
+    for &(a, b) in pairs {
+        let (right, left, down, up) = (0b1010, 0b0101, 0b1100, 0b0011);
+        let (ma, mb) = if b == a + 1 { (right, left) } else { (down, up) };
+        mask[a] |= ma;
+        mask[b] |= mb;
+    }
+    mask.iter().map(|&m| if m == 0 { 0b1111 } else { m }).collect()
 }
 
 /// The value of each corner sample (0, 2, 6, 8 of the 3×3 grid) of every
@@ -267,8 +303,9 @@ fn corner_renders(
 
 /// What the re-shaded pixels must be, from independent renders: an
 /// unmarked pixel is the eq. 1 binned render; a highlight pixel the 9-sample
-/// render; any other marked pixel exactly its base value when each of its 4
-/// corner samples (`corners`, [`corner_renders`]) lies within
+/// render; any other marked pixel exactly its base value when each of its
+/// corner samples that face its pairs' partners (`corners`,
+/// [`corner_renders`], chosen by `facing`, [`facing_masks`]) lies within
 /// `CORNER_AGREEMENT` codes of it (the light's relative codes, reference
 /// level = 255), else the 9-sample render (a pixel within one code of the
 /// limit may be either). All within 1e-5 of the peak. Returns how many
@@ -281,7 +318,7 @@ fn check_reshaded(
     highlights: &[usize],
     nine: &[Vec3],
     binned: &[Vec3],
-    corners: &[Vec<Vec3>],
+    corners: &CornerProbes,
 ) -> (usize, usize) {
     use footlight::render::display::srgb8;
     use footlight::render::view::{CORNER_AGREEMENT, reference_level};
@@ -300,9 +337,13 @@ fn check_reshaded(
             assert!(took_nine, "highlight pixel {i}: {} vs 9 samples {}", adaptive[i], nine[i]);
         } else {
             let own = code(base[i]);
+            // Only the corners that face the pixel's pairs' partners.
             let off = corners
+                .values
                 .iter()
-                .flat_map(|c| {
+                .enumerate()
+                .filter(|(j, _)| corners.facing[i] & (1 << j) != 0)
+                .flat_map(|(_, c)| {
                     let c = code(c[i]);
                     (0..3).map(move |k| (f32::from(c[k]) - f32::from(own[k])).abs())
                 })
@@ -398,7 +439,7 @@ fn sub_pixel_highlights_are_re_shaded_with_nine_samples() {
             nine[i]
         );
     }
-    let corners = corner_renders(&scene, &v.gbuffer, &lights, limits);
+    let corners = CornerProbes::new(&scene, &v, &lights, limits, &base, aa);
     check_reshaded(&adaptive, &base, &flags, &decision.highlights, &nine, &binned, &corners);
     // Highlights between the corners: from these light positions some
     // highlight pixels' 4 corner samples agree with the base (within the
@@ -414,7 +455,7 @@ fn sub_pixel_highlights_are_re_shaded_with_nine_samples() {
         let (adaptive, _) = v.render_direct(&scene, &light, Some(aa));
         let nine = render_eq1(&scene, &v.gbuffer, &lights, &[Vec3::ONE], SampleSet::All, limits);
         let binned = render_eq1(&scene, &v.gbuffer, &lights, &[Vec3::ONE], SampleSet::Binned, limits);
-        let corners = corner_renders(&scene, &v.gbuffer, &lights, limits);
+        let corners = CornerProbes::new(&scene, &v, &lights, limits, &base, aa);
         check_reshaded(&adaptive, &base, &decision.flags, &decision.highlights, &nine, &binned, &corners);
         let level = reference_level(&base).unwrap();
         let code = |x: Vec3| srgb8(x / level);
@@ -427,7 +468,7 @@ fn sub_pixel_highlights_are_re_shaded_with_nine_samples() {
             .iter()
             .filter(|&&i| {
                 steps(nine[i], base[i]).iter().any(|&d| d > aa.threshold)
-                    && corners.iter().all(|c| steps(c[i], base[i]).iter().all(|d| d.abs() < CORNER_AGREEMENT))
+                    && corners.values.iter().all(|c| steps(c[i], base[i]).iter().all(|d| d.abs() < CORNER_AGREEMENT))
             })
             .count();
         assert!(between > 0, "light {k}: no highlight between the corners");

@@ -298,7 +298,7 @@ pub fn aa_rules(
                 let f = flags(&v, &dense);
                 // Every rule of this table re-shades its pixels whole (as
                 // round 4 did), so the rows differ only in the decision.
-                let how = crate::render::view::Reshading { flags: &f, whole: &[], corners_first: None };
+                let how = crate::render::view::Reshading { flags: &f, whole: &[], corners_first: None, facing: &[] };
                 let n = v.reshade(scene, light, &mut dense, how);
                 (dense, n)
             },
@@ -515,6 +515,7 @@ pub fn aa_breakdown_with(
                 flags: round4_gradient_flags(&v, scene, &dense, threshold),
                 highlights: Vec::new(),
                 level: None,
+                facing: Vec::new(),
             },
             Decision::Now(aa) => v.aa_decision(scene, light, &dense, aa),
         };

@@ -23,7 +23,8 @@
 use super::buffer::{LightBuffer, TILE};
 use super::footprint::DirectQuality;
 use super::view::{
-    AA_REFERENCE_PERCENTILE, AaParams, LitWindow, Reshading, Sampling, View, mark_highlights_into, mark_pairs_into,
+    AA_REFERENCE_PERCENTILE, AaParams, LitWindow, Reshading, Sampling, View, facing_corners, mark_highlights_into,
+    mark_pairs_into,
 };
 use super::whitted::direct;
 use crate::fixture::Light;
@@ -329,7 +330,9 @@ fn anti_alias(
         let pairs = view.pairs_over(scene, dense, level, aa.threshold, LitWindow { x0, x1, y0, y1 });
         mark_pairs_into(flags, &pairs, w, h, aa.marking);
         mark_highlights_into(flags, &glints, w, h, aa.marking);
-        let how = Reshading { flags, whole: &glints, corners_first: aa.corners_first.then_some(level) };
+        let facing = if aa.corners_first { facing_corners(&pairs, w) } else { Vec::new() };
+        let how =
+            Reshading { flags, whole: &glints, corners_first: aa.corners_first.then_some(level), facing: &facing };
         reshaded = view.reshade(scene, light, dense, how);
         window = (x0, y0, x1, y1);
     }
