@@ -621,10 +621,22 @@ impl View {
             *slot = s;
         }
         if let Some(paths) = self.nine_cache[index].get() {
+            // The same sums in the same order as a fresh expansion (below),
+            // so a rebuild from the cache gives the same buffer bit for bit.
             let ranges = paths.ranges();
-            let agree = probed > 0
-                && order[..probed].iter().all(|&s| agrees(shade(scene, light, &paths.vertices[ranges[s].clone()])));
-            return if agree { base } else { shade(scene, light, &paths.vertices) };
+            let path = |s: usize| &paths.vertices[ranges[s].clone()];
+            let mut sum = Vec3::ZERO;
+            let mut agree = probed > 0;
+            for &s in &order[..probed] {
+                let value = shade(scene, light, path(s));
+                agree &= agrees(value);
+                sum += value;
+            }
+            if agree {
+                return base;
+            }
+            let rest = order[probed..].iter().flat_map(|&s| path(s));
+            return sum + rest.map(|v| v.weight * direct(scene, light, v)).sum::<Vec3>();
         }
         scratch.clear();
         let mut counts = [0u32; SAMPLES_PER_PIXEL];
