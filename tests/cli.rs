@@ -231,7 +231,12 @@ fn the_binarys_run_routes_artnet_and_stops_cleanly_on_sigterm() {
     let warned = loop {
         let s = status();
         let w = s["warnings"].to_string();
-        if w.contains("Port-Address 9") {
+        // The warning may show after the first of the 3 packets: wait for
+        // all 3 to be counted too (the status is read while they arrive).
+        let counted = s["input"]["unpatched"]
+            .as_array()
+            .is_some_and(|u| u.iter().any(|u| u["input"]["universe"] == 9 && u["packets"] == 3));
+        if w.contains("Port-Address 9") && counted {
             break s;
         }
         assert!(t.elapsed() < std::time::Duration::from_secs(30), "no unpatched warning: {s}");
