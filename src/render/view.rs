@@ -198,7 +198,7 @@ const CORNERS_FIRST: [usize; SAMPLES_PER_PIXEL] = [0, 2, 6, 8, 1, 3, 4, 5, 7];
 
 /// All 4 corners in a [`facing_corners`] mask (bit j: sample
 /// `CORNERS_FIRST[j]`).
-pub const ALL_CORNERS: u8 = 0b1111;
+const ALL_CORNERS: u8 = 0b1111;
 
 /// The corner samples of each pair's pixels that face the pair's other
 /// pixel, as masks over the 4 corners (bit j: sample `CORNERS_FIRST[j]`;
@@ -611,27 +611,29 @@ impl View {
             let c = srgb8(corner * (SAMPLES_PER_PIXEL as f32 * scale));
             corner.is_finite() && (0..3).all(|k| (f32::from(c[k]) - f32::from(own[k])).abs() <= CORNER_AGREEMENT)
         };
-        // The probed corners first, then the other corners and the rest.
-        let mut order = [0usize; SAMPLES_PER_PIXEL];
-        let probed = (0..4).filter(|j| mask & (1 << j) != 0).count();
-        let corners = (0..4).filter(|j| mask & (1 << j) != 0).chain((0..4).filter(|j| mask & (1 << j) == 0));
-        for (slot, s) in
-            order.iter_mut().zip(corners.map(|j| CORNERS_FIRST[j]).chain(CORNERS_FIRST[4..].iter().copied()))
-        {
-            *slot = s;
+        // The probed corners first (bit j: CORNERS_FIRST[j]), then the
+        // other corners and the rest.
+        let mut corners = [0, 1, 2, 3];
+        corners.sort_by_key(|j| mask & (1 << j) == 0);
+        let mut order = CORNERS_FIRST;
+        for (slot, j) in order.iter_mut().zip(corners) {
+            *slot = CORNERS_FIRST[j];
         }
+        let probed = mask.count_ones() as usize;
+        // The probed paths' sum and whether each agrees with the base: the
+        // same sums in the same order from the cache as from a fresh
+        // expansion, so a rebuild from the cache is the same buffer bit
+        // for bit.
+        let probe = |paths: &mut dyn Iterator<Item = &[ShadingVertex]>| {
+            paths.fold((Vec3::ZERO, probed > 0), |(sum, agree), path| {
+                let value = shade(scene, light, path);
+                (sum + value, agree && agrees(value))
+            })
+        };
         if let Some(paths) = self.nine_cache[index].get() {
-            // The same sums in the same order as a fresh expansion (below),
-            // so a rebuild from the cache gives the same buffer bit for bit.
             let ranges = paths.ranges();
             let path = |s: usize| &paths.vertices[ranges[s].clone()];
-            let mut sum = Vec3::ZERO;
-            let mut agree = probed > 0;
-            for &s in &order[..probed] {
-                let value = shade(scene, light, path(s));
-                agree &= agrees(value);
-                sum += value;
-            }
+            let (sum, agree) = probe(&mut order[..probed].iter().map(|&s| path(s)));
             if agree {
                 return base;
             }
@@ -641,15 +643,13 @@ impl View {
         scratch.clear();
         let mut counts = [0u32; SAMPLES_PER_PIXEL];
         self.expand_samples(scene, index, &order[..probed], &mut counts[..probed], scratch);
-        let mut at = 0;
-        let mut sum = Vec3::ZERO;
-        let mut agree = probed > 0;
-        for &n in &counts[..probed] {
-            let value = shade(scene, light, &scratch[at..at + n as usize]);
-            agree &= agrees(value);
-            sum += value;
-            at += n as usize;
-        }
+        let at: usize = counts[..probed].iter().map(|&n| n as usize).sum();
+        let mut paths = counts[..probed].iter().scan(0, |start, &n| {
+            let path = &scratch[*start..*start + n as usize];
+            *start += n as usize;
+            Some(path)
+        });
+        let (sum, agree) = probe(&mut paths);
         if agree {
             return base;
         }
