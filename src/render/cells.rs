@@ -327,7 +327,7 @@ fn anti_alias(
         // The window: lit tiles and glints plus 2 pixels (a mark reaches
         // past an edge; outside it every value is 0, so no gradient).
         let (x0, y0, x1, y1) = (x0.saturating_sub(2), y0.saturating_sub(2), (x1 + 2).min(w), (y1 + 2).min(h));
-        let pairs = view.pairs_over(scene, dense, level, aa.threshold, LitWindow { x0, x1, y0, y1 });
+        let pairs = view.pairs_over(scene, dense, level, aa.threshold, &LitWindow { x0, x1, y0, y1 }.spans(h));
         mark_pairs_into(flags, &pairs, w, h, aa.marking);
         mark_highlights_into(flags, &glints, w, h, aa.marking);
         let facing = if aa.corners_first { facing_corners(&pairs, w) } else { Vec::new() };

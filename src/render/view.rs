@@ -34,8 +34,9 @@ use super::gbuffer::{
     CENTRE_SAMPLE, GBuffer, NO_HIT, SAME_SURFACE_COS, SAMPLES_PER_PIXEL, bin_samples, sharp_samples, single_bin,
 };
 use super::photon::{PhotonMaps, Progressive};
-use super::whitted::{RecursionLimits, ShadingVertex, direct, expand};
+use super::whitted::{RecursionLimits, ShadingVertex, direct, direct_hinted, expand};
 use crate::fixture::Light;
+use crate::scene::bvh::OccluderHint;
 use crate::scene::{Camera, Hit, Scene};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -493,10 +494,23 @@ impl View {
                 if stop() {
                     return None;
                 }
-                for (x, out) in row.iter_mut().enumerate() {
-                    *out = shade(scene, light, self.shading.pixel(y * w + x));
+                let pixel = |x: usize| shade(scene, light, self.shading.pixel(y * w + x));
+                if aa.is_none() {
+                    for (x, out) in row.iter_mut().enumerate() {
+                        *out = pixel(x);
+                    }
+                    return None;
                 }
-                if aa.is_some() { row_span(row) } else { None }
+                // The row's lit span ([`row_span`]'s rule: a NaN counts as
+                // lit), found as the row is written.
+                let mut span: Option<(usize, usize)> = None;
+                for (x, out) in row.iter_mut().enumerate() {
+                    *out = pixel(x);
+                    if *out != Vec3::ZERO {
+                        span = Some((span.map_or(x, |s| s.0), x + 1));
+                    }
+                }
+                span
             })
             .collect();
         if stop() {
@@ -533,12 +547,19 @@ impl View {
         let values: Vec<Vec3> = flagged
             .par_iter()
             .with_min_len(8)
-            .map_init(Vec::new, |scratch, &i| match how.corners_first {
-                Some(level) if whole.binary_search(&i).is_err() => {
-                    let mask = how.facing.binary_search_by_key(&i, |f| f.0).map_or(ALL_CORNERS, |k| how.facing[k].1);
-                    self.corners_first(scene, light, i, base[i], CornerProbe { level, mask }, scratch)
+            .map_init(Vec::new, |scratch, &i| {
+                // One occluder hint per pixel: its samples' shadow rays are
+                // often blocked by one triangle (the same values; a hint per
+                // pixel keeps the order of the tests fixed).
+                let hint = &mut OccluderHint::default();
+                match how.corners_first {
+                    Some(level) if whole.binary_search(&i).is_err() => {
+                        let mask =
+                            how.facing.binary_search_by_key(&i, |f| f.0).map_or(ALL_CORNERS, |k| how.facing[k].1);
+                        self.corners_first(scene, light, i, base[i], CornerProbe { level, mask }, scratch, hint)
+                    }
+                    _ => shade_hinted(scene, light, self.nine_paths(scene, i, scratch).1, hint),
                 }
-                _ => shade(scene, light, self.nine_paths(scene, i, scratch).1),
             })
             .collect();
         for (&i, value) in flagged.iter().zip(values) {
@@ -573,10 +594,10 @@ impl View {
         aa: AaParams,
     ) -> AaDecision {
         let (w, h) = (self.width() as usize, self.height() as usize);
-        let Some((reference, window)) = reference_in_spans(dense, w, spans) else {
+        let Some((reference, _)) = reference_in_spans(dense, w, spans) else {
             return AaDecision { flags: vec![false; w * h], highlights: Vec::new(), level: None, facing: Vec::new() };
         };
-        let pairs = self.pairs_over(scene, dense, reference, aa.threshold, window);
+        let pairs = self.pairs_over(scene, dense, reference, aa.threshold, spans);
         let mut flags = mark_pairs(&pairs, w, h, aa.marking);
         let highlights =
             if aa.glints { self.glint_pixels(scene, light, dense, reference, aa.threshold) } else { Vec::new() };
@@ -600,6 +621,7 @@ impl View {
         base: Vec3,
         probe: CornerProbe,
         scratch: &mut Vec<ShadingVertex>,
+        hint: &mut OccluderHint,
     ) -> Vec3 {
         let CornerProbe { level, mask } = probe;
         let scale = 1.0 / level;
@@ -624,9 +646,9 @@ impl View {
         // same sums in the same order from the cache as from a fresh
         // expansion, so a rebuild from the cache is the same buffer bit
         // for bit.
-        let probe = |paths: &mut dyn Iterator<Item = &[ShadingVertex]>| {
+        let mut probe = |paths: &mut dyn Iterator<Item = &[ShadingVertex]>| {
             paths.fold((Vec3::ZERO, probed > 0), |(sum, agree), path| {
-                let value = shade(scene, light, path);
+                let value = shade_hinted(scene, light, path, hint);
                 (sum + value, agree && agrees(value))
             })
         };
@@ -638,7 +660,7 @@ impl View {
                 return base;
             }
             let rest = order[probed..].iter().flat_map(|&s| path(s));
-            return sum + rest.map(|v| v.weight * direct(scene, light, v)).sum::<Vec3>();
+            return sum + rest.map(|v| v.weight * direct_hinted(scene, light, v, hint)).sum::<Vec3>();
         }
         scratch.clear();
         let mut counts = [0u32; SAMPLES_PER_PIXEL];
@@ -654,7 +676,7 @@ impl View {
             return base;
         }
         self.expand_samples(scene, index, &order[probed..], &mut counts[probed..], scratch);
-        let value = sum + shade(scene, light, &scratch[at..]);
+        let value = sum + shade_hinted(scene, light, &scratch[at..], hint);
         self.cache_nine(index, order, counts, scratch);
         value
     }
@@ -679,17 +701,19 @@ impl View {
     /// pixel.
     pub fn gradient_pairs(&self, scene: &Scene, dense: &[Vec3], aa: AaParams) -> Vec<(usize, usize)> {
         let (w, h) = (self.width() as usize, self.height() as usize);
-        let Some((reference, window)) = reference_in_window(dense, w, h) else { return Vec::new() };
-        self.pairs_over(scene, dense, reference, aa.threshold, window)
+        let spans = row_spans(&dense[..w * h], w);
+        let Some((reference, _)) = reference_in_spans(dense, w, &spans) else { return Vec::new() };
+        self.pairs_over(scene, dense, reference, aa.threshold, &spans)
     }
 
     /// [`View::gradient_pairs`] with the light's reference level given. A
     /// pair is tested on its codes only when its largest linear difference
     /// could make a code step over the threshold ([`min_jump`]): on the
     /// bundled stage at threshold 100 that leaves few pairs, and no code
-    /// buffer is built. Only the pairs touching `window` ([`lit_window`]:
-    /// every non-zero pixel lies inside) are tested: outside it both values
-    /// are 0, so no pair there is over the threshold.
+    /// buffer is built. Only the pairs touching a row's lit span in `spans`
+    /// (one entry per image row, [`RowSpans`]: every non-zero pixel lies
+    /// inside; a [`LitWindow::spans`] will do) are tested: outside them both
+    /// values are 0, so no pair there is over the threshold.
     ///
     /// Over a binned base the two pixels must lie on one surface (the bins
     /// anti-alias geometry edges already); over a 1-sample base
@@ -701,7 +725,7 @@ impl View {
         dense: &[Vec3],
         reference: f32,
         threshold: f32,
-        window: LitWindow,
+        spans: &[Option<(usize, usize)>],
     ) -> Vec<(usize, usize)> {
         let (w, h) = (self.width() as usize, self.height() as usize);
         let scale = 1.0 / reference;
@@ -719,7 +743,7 @@ impl View {
                 && codes_differ(srgb8(dense[a] * scale), srgb8(dense[b] * scale), threshold)
                 && (across_surfaces || same(a, b))
         };
-        neighbour_pairs(w, h, window, over)
+        neighbour_pairs(w, h, spans, over)
     }
 
     /// Pixels that may hold the light's highlight on a sharp specular
@@ -1102,6 +1126,12 @@ fn shade(scene: &Scene, light: &Light, vertices: &[ShadingVertex]) -> Vec3 {
     vertices.iter().map(|v| v.weight * direct(scene, light, v)).sum()
 }
 
+/// [`shade`] with the shadow rays' [`OccluderHint`] kept across calls (the
+/// samples of one re-shaded pixel): the same sum, in the same order.
+fn shade_hinted(scene: &Scene, light: &Light, vertices: &[ShadingVertex], hint: &mut OccluderHint) -> Vec3 {
+    vertices.iter().map(|v| v.weight * direct_hinted(scene, light, v, hint)).sum()
+}
+
 /// Appends the camera-path vertices of pixel `index` for sample set `set`.
 pub fn expand_pixel(
     scene: &Scene,
@@ -1253,7 +1283,7 @@ pub fn mark_gradients_with(
 ) -> Vec<bool> {
     // The threshold first: `comparable` may be costly and is rarely needed.
     let over = |a: usize, b: usize| (display[b] - display[a]).abs().max_element() > threshold && comparable(a, b);
-    mark_pairs(&neighbour_pairs(w, h, LitWindow::full(w, h), over), w, h, marking)
+    mark_pairs(&neighbour_pairs(w, h, &LitWindow::full(w, h).spans(h), over), w, h, marking)
 }
 
 /// The pixels `marking` marks for `pairs` (each a pixel and its right or
@@ -1343,6 +1373,12 @@ impl LitWindow {
     pub fn full(w: usize, h: usize) -> Self {
         Self { x0: 0, x1: w, y0: 0, y1: h }
     }
+
+    /// The window as the [`RowSpans`] of an image `h` rows high: columns
+    /// `x0..x1` in each of its rows, nothing in the others.
+    pub fn spans(self, h: usize) -> RowSpans {
+        (0..h).map(|y| (self.y0..self.y1).contains(&y).then_some((self.x0, self.x1))).collect()
+    }
 }
 
 /// Each row's lit span: the columns from its first to one past its last
@@ -1393,27 +1429,45 @@ fn reference_in_spans(dense: &[Vec3], w: usize, spans: &[Option<(usize, usize)>]
 }
 
 /// Every pair (pixel, right neighbour) and (pixel, lower neighbour) of a
-/// `w`×`h` image that touches `window` and for which `over` holds, row by
-/// row (parallel over rows; a row allocates only once it holds a pair).
-/// The pairs reaching one pixel out of the window (a lit edge pixel and
-/// its dark neighbour) are included.
+/// `w`×`h` image that touches a row's lit span in `spans` (one entry per
+/// row, [`RowSpans`]) and for which `over` holds, row by row and within a
+/// row from left to right, each pixel's right pair before its lower one
+/// (parallel over rows; a row allocates only once it holds a pair). The
+/// pairs reaching one pixel out of a span (a lit edge pixel and its dark
+/// neighbour) are included. `over` must be false for two dark (zero)
+/// pixels: the pairs outside every span are not tested.
 fn neighbour_pairs(
     w: usize,
     h: usize,
-    window: LitWindow,
+    spans: &[Option<(usize, usize)>],
     over: impl Fn(usize, usize) -> bool + Sync,
 ) -> Vec<(usize, usize)> {
-    let (x0, x1) = (window.x0.saturating_sub(1), window.x1.min(w));
-    let rows: Vec<Vec<(usize, usize)>> = (window.y0.saturating_sub(1)..window.y1.min(h))
+    let span = |y: usize| spans.get(y).copied().flatten();
+    let (Some(first), Some(last)) = (spans.iter().position(Option::is_some), spans.iter().rposition(Option::is_some))
+    else {
+        return Vec::new();
+    };
+    let rows: Vec<Vec<(usize, usize)>> = (first.saturating_sub(1)..(last + 1).min(h))
         .into_par_iter()
         .map(|y| {
+            // Columns x of the right pairs (x, x + 1) touching row y's span,
+            // and of the lower pairs (x, x + w) touching row y's or row
+            // y + 1's (the hull of the two).
+            let right = span(y).map(|(a, b)| (a.saturating_sub(1), b.min(w.saturating_sub(1))));
+            let lower = match (span(y), span(y + 1).filter(|_| y + 1 < h)) {
+                (Some((a, b)), Some((c, d))) => Some((a.min(c), b.max(d))),
+                (one, other) if y + 1 < h => one.or(other),
+                _ => None,
+            };
+            let inside = |r: Option<(usize, usize)>, x: usize| r.is_some_and(|(a, b)| (a..b).contains(&x));
+            let (lo, hi) = [right, lower].into_iter().flatten().fold((w, 0), |(lo, hi), (a, b)| (lo.min(a), hi.max(b)));
             let mut pairs = Vec::new();
-            for x in x0..x1 {
+            for x in lo..hi {
                 let i = y * w + x;
-                if x + 1 < w && over(i, i + 1) {
+                if inside(right, x) && over(i, i + 1) {
                     pairs.push((i, i + 1));
                 }
-                if y + 1 < h && over(i, i + w) {
+                if inside(lower, x) && over(i, i + w) {
                     pairs.push((i, i + w));
                 }
             }
@@ -1530,9 +1584,10 @@ mod tests {
             assert!(inside || *v == Vec3::ZERO, "pixel ({x}, {y}) is lit outside the window");
         }
         let over = |a: usize, b: usize| (dense[a] - dense[b]).abs().max_element() > 0.05;
-        let all = neighbour_pairs(w, h, LitWindow::full(w, h), over);
+        let all = neighbour_pairs(w, h, &LitWindow::full(w, h).spans(h), over);
         assert!(all.len() >= 12, "the patches make pairs with their dark neighbours: {}", all.len());
-        assert_eq!(neighbour_pairs(w, h, window, over), all);
+        assert_eq!(neighbour_pairs(w, h, &window.spans(h), over), all);
+        assert_eq!(neighbour_pairs(w, h, &row_spans(&dense, w), over), all);
         let (level, same_window) = reference_in_window(&dense, w, h).unwrap();
         assert_eq!((Some(level), same_window), (reference_level(&dense), window));
         assert_eq!(lit_window(&[Vec3::ZERO; 6], 3, 2), None);

@@ -13,7 +13,8 @@
 //! independent single-pass eq. 1 renderer ([`super::reference`]).
 
 use crate::fixture::Light;
-use crate::scene::{Facing, Scene, SurfacePoint, bvh::offset_origin};
+use crate::scene::bvh::{OccluderHint, offset_origin};
+use crate::scene::{Facing, Scene, SurfacePoint};
 use glam::Vec3;
 
 /// A surface point seen by the camera, directly or through mirrors/glass.
@@ -156,6 +157,27 @@ pub fn refract(d: Vec3, n: Vec3, eta: f32) -> Option<Vec3> {
 /// f_P(wi, wo) · f_ε(P_i → x') · cos θ / r² · g(P_i → x') (eq. 1's light term).
 /// Zero behind the surface, outside the beam, or in shadow.
 pub fn direct(scene: &Scene, light: &Light, v: &ShadingVertex) -> Vec3 {
+    direct_with(scene, light, v, |origin, wi, len| scene.accel.occluded(origin, wi, len))
+}
+
+/// [`direct`], its shadow ray tested first against the triangle that
+/// blocked the last one tested with `hint` ([`Accel::occluded_hinted`]):
+/// the same value, and no traversal when neighbouring vertices (the samples
+/// of one re-shaded pixel) lie in the shadow of one triangle.
+///
+/// [`Accel::occluded_hinted`]: crate::scene::bvh::Accel::occluded_hinted
+pub fn direct_hinted(scene: &Scene, light: &Light, v: &ShadingVertex, hint: &mut OccluderHint) -> Vec3 {
+    direct_with(scene, light, v, |origin, wi, len| scene.accel.occluded_hinted(origin, wi, len, hint))
+}
+
+/// [`direct`] with the shadow test `occluded(origin, direction, length)`.
+#[inline(always)]
+fn direct_with(
+    scene: &Scene,
+    light: &Light,
+    v: &ShadingVertex,
+    occluded: impl FnOnce(Vec3, Vec3, f32) -> bool,
+) -> Vec3 {
     let to_light = light.position - v.position;
     let dist2 = to_light.length_squared();
     if dist2.is_nan() || dist2 <= 1e-12 || dist2.is_infinite() {
@@ -187,7 +209,7 @@ pub fn direct(scene: &Scene, light: &Light, v: &ShadingVertex) -> Vec3 {
     }
     let origin = offset_origin(v.position, v.geometric_normal);
     let shadow_len = (light.position - origin).length() * (1.0 - 1e-5);
-    if scene.accel.occluded(origin, wi, shadow_len) {
+    if occluded(origin, wi, shadow_len) {
         return Vec3::ZERO;
     }
     brdf * scale
