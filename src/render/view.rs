@@ -226,10 +226,12 @@ pub fn facing_corners(pairs: &[(usize, usize)], w: usize) -> Vec<(usize, u8)> {
     facing
 }
 
-/// What a corners-first re-shade of one pixel tests: the light's reference
-/// level (relative code 255) and the corners to probe ([`facing_corners`]).
+/// What a corners-first re-shade of one pixel tests: its base value, the
+/// light's reference level (relative code 255) and the corners to probe
+/// ([`facing_corners`]).
 #[derive(Clone, Copy, Debug)]
 struct CornerProbe {
+    base: Vec3,
     level: f32,
     mask: u8,
 }
@@ -556,7 +558,7 @@ impl View {
                     Some(level) if whole.binary_search(&i).is_err() => {
                         let mask =
                             how.facing.binary_search_by_key(&i, |f| f.0).map_or(ALL_CORNERS, |k| how.facing[k].1);
-                        self.corners_first(scene, light, i, base[i], CornerProbe { level, mask }, scratch, hint)
+                        self.corners_first(scene, light, i, CornerProbe { base: base[i], level, mask }, scratch, hint)
                     }
                     _ => shade_hinted(scene, light, self.nine_paths(scene, i, scratch).1, hint),
                 }
@@ -607,23 +609,23 @@ impl View {
     }
 
     /// A marked pixel re-shaded corners first ([`Reshading::corners_first`]):
-    /// its base value `base` when each corner sample in `probe.mask` (the
-    /// corners facing its pairs' partners, [`facing_corners`]) lies within
-    /// [`CORNER_AGREEMENT`] codes of it (on the scale where `probe.level`
-    /// is 255), else all 9 samples. The paths come from the 9-sample cache
-    /// when another light or rebuild expanded them; a pixel that stops at
-    /// its corners is not cached.
+    /// its base value `probe.base` when each corner sample in `probe.mask`
+    /// (the corners facing its pairs' partners, [`facing_corners`]) lies
+    /// within [`CORNER_AGREEMENT`] codes of it (on the scale where
+    /// `probe.level` is 255), else all 9 samples. The paths come from the
+    /// 9-sample cache when another light or rebuild expanded them; a pixel
+    /// that stops at its corners is not cached. `hint` carries the pixel's
+    /// shadow rays' last occluder from sample to sample.
     fn corners_first(
         &self,
         scene: &Scene,
         light: &Light,
         index: usize,
-        base: Vec3,
         probe: CornerProbe,
         scratch: &mut Vec<ShadingVertex>,
         hint: &mut OccluderHint,
     ) -> Vec3 {
-        let CornerProbe { level, mask } = probe;
+        let CornerProbe { base, level, mask } = probe;
         let scale = 1.0 / level;
         let own = srgb8(base * scale);
         let agrees = |corner: Vec3| {
