@@ -1461,18 +1461,17 @@ fn neighbour_pairs(
                 (one, other) if y + 1 < h => one.or(other),
                 _ => None,
             };
-            let inside = |r: Option<(usize, usize)>, x: usize| r.is_some_and(|(a, b)| (a..b).contains(&x));
-            let (lo, hi) = [right, lower].into_iter().flatten().fold((w, 0), |(lo, hi), (a, b)| (lo.min(a), hi.max(b)));
             let mut pairs = Vec::new();
-            for x in lo..hi {
-                let i = y * w + x;
-                if inside(right, x) && over(i, i + 1) {
-                    pairs.push((i, i + 1));
-                }
-                if inside(lower, x) && over(i, i + w) {
-                    pairs.push((i, i + w));
+            for (step, columns) in [(1, right), (w, lower)] {
+                let Some((a, b)) = columns else { continue };
+                for i in y * w + a..y * w + b {
+                    if over(i, i + step) {
+                        pairs.push((i, i + step));
+                    }
                 }
             }
+            // Each pixel's right pair before its lower one (a + 1 < a + w).
+            pairs.sort_unstable();
             pairs
         })
         .collect();
