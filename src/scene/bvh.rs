@@ -182,11 +182,9 @@ mod tests {
         // and a light above: every segment, tested in scan order with one
         // hint carried along, gets the plain traversal's answer, and the
         // hint holds a triangle that blocks the last blocked segment.
-        let mut seed = 7u32;
-        let mut next = || {
-            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            seed as f32 / u32::MAX as f32
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(7);
+        let mut next = || rng.random::<f32>();
         let mut cards = Vec::new();
         for _ in 0..300 {
             let c = Vec3::new(4.0 * next() - 2.0, 0.5 + 2.0 * next(), 4.0 * next() - 2.0);
