@@ -618,7 +618,14 @@ fn pictures_mode_pushes_the_server_png_when_the_picture_changes() {
     server.frames.send_replace(frame(6, w, h, buffer, 0));
     let pic = binary(&mut ws);
     assert_eq!(image::load_from_memory(&pic[12..]).unwrap().to_rgb8().as_raw()[0], 6);
-    let s = server.stream();
+    // The server counts a message once its send returns, which can be
+    // after the client has read it: wait (bounded) for the count.
+    let t = Instant::now();
+    let mut s = server.stream();
+    while s["picture_messages"].as_u64() < Some(2) && t.elapsed() < Duration::from_secs(30) {
+        std::thread::sleep(Duration::from_millis(10));
+        s = server.stream();
+    }
     assert_eq!((s["picture_messages"].as_u64(), s["buffer_messages"].as_u64()), (Some(2), Some(0)), "{s}");
     // The daemon's shutdown drops the frame channel's sender: the stream ends
     // by itself (upgraded connections are outside the accept loop's shutdown).
