@@ -505,12 +505,10 @@ impl View {
                 }
                 // The row's lit span ([`row_span`]'s rule: a NaN counts as
                 // lit), found as the row is written.
-                let mut span: Option<(usize, usize)> = None;
+                let mut span = None;
                 for (x, out) in row.iter_mut().enumerate() {
                     *out = pixel(x);
-                    if *out != Vec3::ZERO {
-                        span = Some((span.map_or(x, |s| s.0), x + 1));
-                    }
+                    span = widen_span(span, x, *out);
                 }
                 span
             })
@@ -596,7 +594,7 @@ impl View {
         aa: AaParams,
     ) -> AaDecision {
         let (w, h) = (self.width() as usize, self.height() as usize);
-        let Some((reference, _)) = reference_in_spans(dense, w, spans) else {
+        let Some(reference) = reference_in_spans(dense, w, spans) else {
             return AaDecision { flags: vec![false; w * h], highlights: Vec::new(), level: None, facing: Vec::new() };
         };
         let pairs = self.pairs_over(scene, dense, reference, aa.threshold, spans);
@@ -704,7 +702,7 @@ impl View {
     pub fn gradient_pairs(&self, scene: &Scene, dense: &[Vec3], aa: AaParams) -> Vec<(usize, usize)> {
         let (w, h) = (self.width() as usize, self.height() as usize);
         let spans = row_spans(&dense[..w * h], w);
-        let Some((reference, _)) = reference_in_spans(dense, w, &spans) else { return Vec::new() };
+        let Some(reference) = reference_in_spans(dense, w, &spans) else { return Vec::new() };
         self.pairs_over(scene, dense, reference, aa.threshold, &spans)
     }
 
@@ -1396,9 +1394,14 @@ pub fn row_spans(dense: &[Vec3], w: usize) -> RowSpans {
 
 /// One row's lit span ([`RowSpans`]).
 fn row_span(row: &[Vec3]) -> Option<(usize, usize)> {
-    let first = row.iter().position(|v| *v != Vec3::ZERO)?;
-    let last = row.iter().rposition(|v| *v != Vec3::ZERO)?;
-    Some((first, last + 1))
+    row.iter().enumerate().fold(None, |span, (x, v)| widen_span(span, x, *v))
+}
+
+/// A row's lit span so far, `span`, after column `x` with value `v`: a
+/// non-zero value (a NaN too) widens it to `x + 1`.
+#[inline(always)]
+fn widen_span(span: Option<(usize, usize)>, x: usize, v: Vec3) -> Option<(usize, usize)> {
+    if v == Vec3::ZERO { span } else { Some((span.map_or(x, |s| s.0), x + 1)) }
 }
 
 /// The [`LitWindow`] of `dense` (`None` when every pixel is 0). A NaN
@@ -1419,15 +1422,16 @@ fn window_of(spans: &[Option<(usize, usize)>], w: usize) -> Option<LitWindow> {
 /// [`LitWindow`], the level found among the rows' lit spans only (every
 /// lit pixel is there: the same value as over the whole image).
 pub fn reference_in_window(dense: &[Vec3], w: usize, h: usize) -> Option<(f32, LitWindow)> {
-    reference_in_spans(dense, w, &row_spans(&dense[..w * h], w))
+    let spans = row_spans(&dense[..w * h], w);
+    Some((reference_in_spans(dense, w, &spans)?, window_of(&spans, w)?))
 }
 
-/// [`reference_in_window`] with the rows' lit spans given.
-fn reference_in_spans(dense: &[Vec3], w: usize, spans: &[Option<(usize, usize)>]) -> Option<(f32, LitWindow)> {
-    let window = window_of(spans, w)?;
+/// The light's reference level ([`reference_level`]) found among the rows'
+/// lit spans `spans` ([`RowSpans`]) of the `w`-wide `dense`.
+fn reference_in_spans(dense: &[Vec3], w: usize, spans: &[Option<(usize, usize)>]) -> Option<f32> {
     let parts: Vec<&[Vec3]> =
         spans.iter().enumerate().filter_map(|(y, s)| s.map(|(a, b)| &dense[y * w + a..y * w + b])).collect();
-    Some((level_over(&parts)?, window))
+    level_over(&parts)
 }
 
 /// Every pair (pixel, right neighbour) and (pixel, lower neighbour) of a

@@ -73,13 +73,20 @@ impl Accel {
 
     /// True when anything blocks the segment `origin + t·dir`, t in (0, `t_max`).
     pub fn occluded(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
-        let Some(bvh) = self.bvh.as_ref() else { return false };
+        let Some((bvh, ray)) = self.shadow_ray(origin, dir, t_max) else { return false };
+        !bvh.ray_traverse_miss(ray, |ray, id| self.ordered[id].intersect(ray))
+    }
+
+    /// The BVH and the ray of a shadow segment, `None` when nothing can
+    /// block it (an empty scene, a non-finite ray, no length).
+    #[inline(always)]
+    fn shadow_ray(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<(&CwBvh, Ray)> {
+        let bvh = self.bvh.as_ref()?;
         if !origin.is_finite() || !dir.is_finite() || t_max <= 0.0 {
-            return false;
+            return None;
         }
         let dir = dir + Vec3::ZERO; // −0.0 → +0.0, as in `intersect`
-        let ray = Ray::new(origin.into(), dir.into(), 0.0, t_max);
-        !bvh.ray_traverse_miss(ray, |ray, id| self.ordered[id].intersect(ray))
+        Some((bvh, Ray::new(origin.into(), dir.into(), 0.0, t_max)))
     }
 
     /// [`Accel::occluded`], testing first the triangle that blocked the last
@@ -92,16 +99,8 @@ impl Accel {
     /// the triangle's (conservative) leaf box, so the traversal would find
     /// it blocked too.
     pub fn occluded_hinted(&self, origin: Vec3, dir: Vec3, t_max: f32, hint: &mut OccluderHint) -> bool {
-        let Some(bvh) = self.bvh.as_ref() else { return false };
-        if !origin.is_finite() || !dir.is_finite() || t_max <= 0.0 {
-            return false;
-        }
-        let dir = dir + Vec3::ZERO; // −0.0 → +0.0, as in `intersect`
-        let ray = Ray::new(origin.into(), dir.into(), 0.0, t_max);
-        let blocks = |id: usize| self.ordered[id].intersect(&ray) < t_max;
-        if let Some(id) = hint.0
-            && blocks(id as usize)
-        {
+        let Some((bvh, ray)) = self.shadow_ray(origin, dir, t_max) else { return false };
+        if hint.0.is_some_and(|id| self.ordered[id as usize].intersect(&ray) < t_max) {
             return true;
         }
         let mut found = None;
