@@ -504,11 +504,15 @@ impl View {
                     return None;
                 }
                 // The row's lit span ([`row_span`]'s rule: a NaN counts as
-                // lit), found as the row is written.
-                let mut span = None;
+                // lit), found as the row is written. Written out here: the
+                // same rule through a shared helper cost this loop ~8 M
+                // instructions a pass (callgrind), as it compiled.
+                let mut span: Option<(usize, usize)> = None;
                 for (x, out) in row.iter_mut().enumerate() {
                     *out = pixel(x);
-                    span = widen_span(span, x, *out);
+                    if *out != Vec3::ZERO {
+                        span = Some((span.map_or(x, |s| s.0), x + 1));
+                    }
                 }
                 span
             })
@@ -1394,14 +1398,9 @@ pub fn row_spans(dense: &[Vec3], w: usize) -> RowSpans {
 
 /// One row's lit span ([`RowSpans`]).
 fn row_span(row: &[Vec3]) -> Option<(usize, usize)> {
-    row.iter().enumerate().fold(None, |span, (x, v)| widen_span(span, x, *v))
-}
-
-/// A row's lit span so far, `span`, after column `x` with value `v`: a
-/// non-zero value (a NaN too) widens it to `x + 1`.
-#[inline(always)]
-fn widen_span(span: Option<(usize, usize)>, x: usize, v: Vec3) -> Option<(usize, usize)> {
-    if v == Vec3::ZERO { span } else { Some((span.map_or(x, |s| s.0), x + 1)) }
+    let first = row.iter().position(|v| *v != Vec3::ZERO)?;
+    let last = row.iter().rposition(|v| *v != Vec3::ZERO)?;
+    Some((first, last + 1))
 }
 
 /// The [`LitWindow`] of `dense` (`None` when every pixel is 0). A NaN
