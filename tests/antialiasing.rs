@@ -505,3 +505,84 @@ fn lights_built_together_re_shade_the_same_highlights_as_alone() {
         }
     }
 }
+
+/// A Lambert floor seen through, and reflected in, a vertical glass pane
+/// (k_T 0.9, k_R 0.04), under a spot whose beam edge crosses the floor on
+/// both sides of the pane.
+fn floor_behind_glass() -> (footlight::scene::Scene, footlight::Light, footlight::scene::Camera) {
+    use footlight::fixture::{Beam, SpotBeam};
+    use footlight::scene::Material;
+    let mut b = footlight::scene::SceneBuilder::new();
+    let m = lambert(&mut b, 0.6);
+    floor(&mut b, 4.0, 0.0, m);
+    let glass = b.add_material(Material {
+        k_r: Vec3::splat(0.04),
+        k_t: Vec3::splat(0.9),
+        ior: 1.5,
+        ..Material::lambert("glass", Vec3::ZERO)
+    });
+    let (a, c) = (Vec3::new(-1.5, 0.05, 0.0), Vec3::new(1.5, 1.6, 0.0));
+    b.add_quad(a, Vec3::new(c.x, a.y, 0.0), c, Vec3::new(a.x, c.y, 0.0), glass);
+    let light = footlight::Light::aimed(
+        Vec3::new(0.0, 3.0, 0.5),
+        Vec3::new(0.4, 0.0, -0.3),
+        Beam::Spot(SpotBeam::from_beam_field(50.0, 70.0)),
+    );
+    let cam =
+        footlight::scene::Camera::look_at(Vec3::new(0.0, 1.0, 3.5), Vec3::new(0.0, 0.4, -1.0), 50f32.to_radians());
+    (b.build(), light, cam)
+}
+
+#[test]
+fn reshaded_samples_take_their_weak_branches_from_the_base() {
+    // Issue 13 (AA cost): a re-shaded pixel whose base is one bin of all 9
+    // samples follows its samples' branches only down to
+    // RESHADE_MIN_BRANCH (relative path weight); the base's branches below
+    // it stand in for theirs. Against the independent eq. 1 renderer: such
+    // a pixel is the 9-sample render cut at that weight plus the binned
+    // render's part below it; any other re-shaded pixel is the full
+    // 9-sample render. Fails without the base's part (the glass's k_R =
+    // 0.04 reflections of the lit floor) or with the samples followed to
+    // the end.
+    use footlight::render::RecursionLimits;
+    use footlight::render::reference::render_eq1;
+    use footlight::render::view::{RESHADE_MIN_BRANCH, SampleSet};
+    let (scene, light, cam) = floor_behind_glass();
+    let v = view(&scene, cam, 160, 100, Sampling::Adaptive, 5);
+    let aa = AaParams { corners_first: false, ..AaParams::new(20.0) };
+    let (base, _) = v.render_direct(&scene, &light, None);
+    let flags = v.aa_flags(&scene, &light, &base, aa);
+    let (adaptive, n) = v.render_direct(&scene, &light, Some(aa));
+    let lights = [light.clone()];
+    let eq1 = |set, min_weight| {
+        render_eq1(&scene, &v.gbuffer, &lights, &[Vec3::ONE], set, RecursionLimits { max_depth: 5, min_weight })
+    };
+    let nine = eq1(SampleSet::All, 0.0);
+    let nine_strong = eq1(SampleSet::All, RESHADE_MIN_BRANCH / 9.0);
+    let binned = eq1(SampleSet::Binned, 0.0);
+    let binned_strong = eq1(SampleSet::Binned, RESHADE_MIN_BRANCH);
+    let scale = nine.iter().map(|x| x.max_element()).fold(0.0f32, f32::max);
+    let near = |a: Vec3, b: Vec3| (a - b).abs().max_element() <= 1e-5 * scale;
+    // Corners first (the shipped rule): each marked pixel keeps its base
+    // or takes the same value as when re-shaded whole.
+    let (shipped, _) = v.render_direct(&scene, &light, Some(AaParams::new(20.0)));
+    let (mut pruned, mut weak_lit, mut differs, mut probed) = (0, 0, 0, 0);
+    for i in (0..base.len()).filter(|&i| flags[i]) {
+        let one_bin = matches!(v.gbuffer.bins(i), [b] if b.weight >= 1.0);
+        let expected = if one_bin { nine_strong[i] + (binned[i] - binned_strong[i]) } else { nine[i] };
+        assert!(near(adaptive[i], expected), "pixel {i} (one bin: {one_bin}): {} vs {expected}", adaptive[i]);
+        assert!(shipped[i] == base[i] || near(shipped[i], expected), "pixel {i}: {} corners first", shipped[i]);
+        probed += usize::from(one_bin && shipped[i] != base[i] && !near(expected, nine[i]));
+        if one_bin && nine_strong[i] != nine[i] {
+            pruned += 1;
+            weak_lit += usize::from((binned[i] - binned_strong[i]).max_element() > 1e-3 * scale);
+            differs += usize::from(!near(expected, nine[i]));
+        }
+    }
+    assert!(n > 50, "{n} pixels re-shaded");
+    assert!(
+        pruned > 20 && weak_lit > 20 && differs > 5,
+        "{pruned} pruned, {weak_lit} with lit weak branches, {differs} off 9 samples"
+    );
+    assert!(probed > 5, "{probed} pruned pixels re-shaded after their corners");
+}

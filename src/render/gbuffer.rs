@@ -470,6 +470,20 @@ impl GBuffer {
         &self.bins[self.bin_start[index] as usize..self.bin_start[index + 1] as usize]
     }
 
+    /// The bins of row `y`'s pixels, left to right: [`GBuffer::bins`] of
+    /// each, walked with one cursor through the row's contiguous bins (the
+    /// binned expansion runs this for every pixel of every view).
+    pub fn row_bins(&self, y: usize) -> impl Iterator<Item = &[Bin]> + '_ {
+        let w = self.width as usize;
+        let starts = &self.bin_start[y * w..=(y + 1) * w];
+        let mut rest = &self.bins[starts[0] as usize..starts[w] as usize];
+        starts.windows(2).map(move |s| {
+            let (mine, tail) = rest.split_at((s[1] - s[0]) as usize);
+            rest = tail;
+            mine
+        })
+    }
+
     /// Traces only the centre sample of every pixel: the single-sample ray
     /// casting baseline the paper compares its intersection buffer against.
     pub fn trace_centre_only(scene: &Scene, camera: Camera, width: u32, height: u32) -> Vec<PrimarySample> {

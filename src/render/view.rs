@@ -193,6 +193,17 @@ impl AaDecision {
 /// with the facing corners alone it is 6.015e-6.
 pub const CORNER_AGREEMENT: f32 = 10.0;
 
+/// Relative path weight below which a re-shaded sample's branches are not
+/// followed (issue 13): on a pixel whose base is one bin of all 9 samples,
+/// the base's own branches below this weight stand in for the 9 samples'
+/// (the weak branches stay 1-sample, the strong ones are anti-aliased).
+/// Path weights are products of the materials' constant k_R and k_T, so a
+/// sample's tree and the base's split at the same branches. On the bundled
+/// stage the re-shaded pixels' 9-sample paths hold 3,346 vertices below it
+/// (most of them seen in the glass's k_R = 0.04 reflections), 30 % of
+/// their traced rays, for 0.1 % of their light.
+pub const RESHADE_MIN_BRANCH: f32 = 0.1;
+
 /// The order in which a pixel's 9 samples are expanded for re-shading:
 /// the 4 corners of the 3×3 grid first, then the other 5.
 const CORNERS_FIRST: [usize; SAMPLES_PER_PIXEL] = [0, 2, 6, 8, 1, 3, 4, 5, 7];
@@ -420,10 +431,30 @@ impl View {
             .map(|y| {
                 let mut counts = Vec::with_capacity(w);
                 let mut verts = Vec::new();
-                for x in 0..w {
-                    let before = verts.len();
-                    expand_pixel(scene, gbuffer, y * w + x, set, limits, &mut verts);
-                    counts.push((verts.len() - before) as u32);
+                // The two sets every view uses walk the row directly (the
+                // same samples as expand_pixel, without its per-pixel
+                // dispatch and range look-up); the bench's others take it.
+                if set == SampleSet::Centre {
+                    for samples in &gbuffer.samples[y * w..(y + 1) * w] {
+                        let before = verts.len();
+                        expand_sample(scene, gbuffer, samples[CENTRE_SAMPLE], 1.0, limits, &mut verts);
+                        counts.push((verts.len() - before) as u32);
+                    }
+                } else if set == SampleSet::Binned {
+                    for bins in gbuffer.row_bins(y) {
+                        let before = verts.len();
+                        for b in bins {
+                            let s = PrimarySample { triangle: b.triangle, u: b.u, v: b.v };
+                            expand_sample(scene, gbuffer, s, b.weight, limits, &mut verts);
+                        }
+                        counts.push((verts.len() - before) as u32);
+                    }
+                } else {
+                    for x in 0..w {
+                        let before = verts.len();
+                        expand_pixel(scene, gbuffer, y * w + x, set, limits, &mut verts);
+                        counts.push((verts.len() - before) as u32);
+                    }
                 }
                 (counts, verts)
             })
@@ -562,7 +593,10 @@ impl View {
                             how.facing.binary_search_by_key(&i, |f| f.0).map_or(ALL_CORNERS, |k| how.facing[k].1);
                         self.corners_first(scene, light, i, CornerProbe { base: base[i], level, mask }, scratch, hint)
                     }
-                    _ => shade_hinted(scene, light, self.nine_paths(scene, i, scratch).1, hint),
+                    _ => {
+                        let weak = self.weak_branches(scene, light, i, hint);
+                        shade_hinted(scene, light, self.nine_paths(scene, i, scratch).1, hint) + weak
+                    }
                 }
             })
             .collect();
@@ -630,11 +664,14 @@ impl View {
         let CornerProbe { base, level, mask } = probe;
         let scale = 1.0 / level;
         let own = srgb8(base * scale);
+        // The base's weak branches, standing in for the samples' (zero
+        // where the samples are followed to the end).
+        let weak = self.weak_branches(scene, light, index, hint);
         let agrees = |corner: Vec3| {
             // Each sample carries weight 1/9: its own value is 9× its sum.
             // A NaN or infinite corner never agrees: all 9 samples are
             // shaded and the pixel shows it, as without corners first.
-            let c = srgb8(corner * (SAMPLES_PER_PIXEL as f32 * scale));
+            let c = srgb8((corner * SAMPLES_PER_PIXEL as f32 + weak) * scale);
             corner.is_finite() && (0..3).all(|k| (f32::from(c[k]) - f32::from(own[k])).abs() <= CORNER_AGREEMENT)
         };
         // The probed corners first (bit j: CORNERS_FIRST[j]), then the
@@ -664,7 +701,7 @@ impl View {
                 return base;
             }
             let rest = order[probed..].iter().flat_map(|&s| path(s));
-            return sum + rest.map(|v| v.weight * direct_hinted(scene, light, v, hint)).sum::<Vec3>();
+            return sum + rest.map(|v| v.weight * direct_hinted(scene, light, v, hint)).sum::<Vec3>() + weak;
         }
         scratch.clear();
         let mut counts = [0u32; SAMPLES_PER_PIXEL];
@@ -680,7 +717,7 @@ impl View {
             return base;
         }
         self.expand_samples(scene, index, &order[probed..], &mut counts[probed..], scratch);
-        let value = sum + shade_hinted(scene, light, &scratch[at..], hint);
+        let value = sum + shade_hinted(scene, light, &scratch[at..], hint) + weak;
         self.cache_nine(index, order, counts, scratch);
         value
     }
@@ -1097,12 +1134,42 @@ impl View {
         counts: &mut [u32],
         out: &mut Vec<ShadingVertex>,
     ) {
+        let limits = self.sample_limits(index);
         for (&s, count) in samples.iter().zip(counts) {
             let before = out.len();
             let p = self.gbuffer.samples[index][s];
-            expand_sample(scene, &self.gbuffer, p, 1.0 / SAMPLES_PER_PIXEL as f32, self.limits, out);
+            expand_sample(scene, &self.gbuffer, p, 1.0 / SAMPLES_PER_PIXEL as f32, limits, out);
             *count = u32::try_from(out.len() - before).unwrap_or(u32::MAX);
         }
+    }
+
+    /// Whether pixel `index`'s re-shaded samples stop at
+    /// [`RESHADE_MIN_BRANCH`]: its base is one bin holding all 9 samples
+    /// (one path of weight 1, whose weak branches stand in for theirs).
+    fn prunes(&self, index: usize) -> bool {
+        self.shading.set == SampleSet::Binned && matches!(self.gbuffer.bins(index), [b] if b.weight >= 1.0)
+    }
+
+    /// The recursion limits of pixel `index`'s re-shaded samples (weight
+    /// 1/9 each): [`RESHADE_MIN_BRANCH`] relative where [`View::prunes`].
+    fn sample_limits(&self, index: usize) -> RecursionLimits {
+        if self.prunes(index) {
+            let min_weight = (RESHADE_MIN_BRANCH / SAMPLES_PER_PIXEL as f32).max(self.limits.min_weight);
+            RecursionLimits { min_weight, ..self.limits }
+        } else {
+            self.limits
+        }
+    }
+
+    /// The direct light of pixel `index`'s base vertices below
+    /// [`RESHADE_MIN_BRANCH`] where [`View::prunes`] (they stand in for the
+    /// re-shaded samples' weak branches), else zero.
+    fn weak_branches(&self, scene: &Scene, light: &Light, index: usize, hint: &mut OccluderHint) -> Vec3 {
+        if !self.prunes(index) {
+            return Vec3::ZERO;
+        }
+        let weak = self.shading.pixel(index).iter().filter(|v| v.weight.max_element() < RESHADE_MIN_BRANCH);
+        weak.map(|v| v.weight * direct_hinted(scene, light, v, hint)).sum()
     }
 
     /// Keeps pixel `index`'s 9-sample paths for the next light or rebuild
