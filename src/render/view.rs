@@ -273,7 +273,7 @@ impl NinePaths {
 /// daemon's and the still renderer's. Chosen from the bench's error-versus-
 /// cost curve (`footlight bench --accuracy-only --accuracy-part aa`, issue
 /// 13): with pair marks and highlight pixels, 100 re-shades 0.30 % of the
-/// bundled stage's pixels at a display MSE of 5.9e-6 against 81 samples,
+/// bundled stage's pixels at a display MSE of 6.0e-6 against 81 samples,
 /// against round 4's 1.97 % at 8.6e-6 with threshold 20 and 3×3 marks. On
 /// this scale 100 is a jump from 255 down to 13 % of the light's level,
 /// or from 0 up to it; the paper's 15-25 are steps of the displayed picture.
