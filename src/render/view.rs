@@ -31,7 +31,7 @@ use super::buffer::LightBuffer;
 use super::display::srgb8;
 use super::gbuffer::PrimarySample;
 use super::gbuffer::{
-    CENTRE_SAMPLE, GBuffer, NO_HIT, SAME_SURFACE_COS, SAMPLES_PER_PIXEL, bin_samples, sharp_samples, single_bin,
+    Bin, CENTRE_SAMPLE, GBuffer, NO_HIT, SAME_SURFACE_COS, SAMPLES_PER_PIXEL, bin_samples, sharp_samples, single_bin,
 };
 use super::photon::{PhotonMaps, Progressive};
 use super::whitted::{RecursionLimits, ShadingVertex, direct, direct_hinted, expand};
@@ -443,10 +443,7 @@ impl View {
                 } else if set == SampleSet::Binned {
                     for bins in gbuffer.row_bins(y) {
                         let before = verts.len();
-                        for b in bins {
-                            let s = PrimarySample { triangle: b.triangle, u: b.u, v: b.v };
-                            expand_sample(scene, gbuffer, s, b.weight, limits, &mut verts);
-                        }
+                        expand_bins(scene, gbuffer, bins, limits, &mut verts);
                         counts.push((verts.len() - before) as u32);
                     }
                 } else {
@@ -1213,34 +1210,29 @@ pub fn expand_pixel(
     out: &mut Vec<ShadingVertex>,
 ) {
     let samples = &gbuffer.samples[index];
-    let mut one = |triangle: u32, u: f32, v: f32, weight: f32| {
-        expand_sample(scene, gbuffer, PrimarySample { triangle, u, v }, weight, limits, out);
-    };
     match set {
-        SampleSet::Centre => {
-            let s = samples[CENTRE_SAMPLE];
-            one(s.triangle, s.u, s.v, 1.0);
-        }
-        SampleSet::Binned => {
-            for b in gbuffer.bins(index) {
-                one(b.triangle, b.u, b.v, b.weight);
-            }
-        }
-        SampleSet::TriangleBins => {
+        SampleSet::Centre => expand_sample(scene, gbuffer, samples[CENTRE_SAMPLE], 1.0, limits, out),
+        SampleSet::Binned => expand_bins(scene, gbuffer, gbuffer.bins(index), limits, out),
+        SampleSet::TriangleBins => match single_bin(samples) {
             // Most pixels see one triangle: its bin without the 9-slot array.
-            if let Some(b) = single_bin(samples) {
-                one(b.triangle, b.u, b.v, b.weight);
-                return;
-            }
-            for b in bin_samples(samples).as_slice() {
-                one(b.triangle, b.u, b.v, b.weight);
-            }
-        }
+            Some(b) => expand_bins(scene, gbuffer, &[b], limits, out),
+            None => expand_bins(scene, gbuffer, bin_samples(samples).as_slice(), limits, out),
+        },
         SampleSet::All => {
-            for s in samples {
-                one(s.triangle, s.u, s.v, 1.0 / SAMPLES_PER_PIXEL as f32);
+            for &s in samples {
+                expand_sample(scene, gbuffer, s, 1.0 / SAMPLES_PER_PIXEL as f32, limits, out);
             }
         }
+    }
+}
+
+/// Appends the camera paths of a pixel's `bins`, each from its mean point
+/// with its weight.
+#[inline]
+fn expand_bins(scene: &Scene, gbuffer: &GBuffer, bins: &[Bin], limits: RecursionLimits, out: &mut Vec<ShadingVertex>) {
+    for b in bins {
+        let s = PrimarySample { triangle: b.triangle, u: b.u, v: b.v };
+        expand_sample(scene, gbuffer, s, b.weight, limits, out);
     }
 }
 
