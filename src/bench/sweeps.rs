@@ -298,7 +298,13 @@ pub fn aa_rules(
                 let f = flags(&v, &dense);
                 // Every rule of this table re-shades its pixels whole (as
                 // round 4 did), so the rows differ only in the decision.
-                let how = crate::render::view::Reshading { flags: &f, whole: &[], corners_first: None, facing: &[] };
+                let how = crate::render::view::Reshading {
+                    flags: &f,
+                    whole: &[],
+                    corners_first: None,
+                    facing: &[],
+                    reconstruct: false,
+                };
                 let n = v.reshade(scene, light, &mut dense, how);
                 (dense, n)
             },
@@ -516,6 +522,7 @@ pub fn aa_breakdown_with(
                 highlights: Vec::new(),
                 level: None,
                 facing: Vec::new(),
+                reconstruct: false,
             },
             Decision::Now(aa) => v.aa_decision(scene, light, &dense, aa),
         };
@@ -672,6 +679,17 @@ pub fn aa_cost(
             Some(AaParams::new(t)),
         ));
     }
+    // Before the reconstruction (the second session of 2026-12-02's
+    // shipped rule): a pair's pixel whose probed corners disagree takes
+    // all 9 samples.
+    for t in [AA_THRESHOLD_BEFORE, threshold] {
+        variants.push((
+            format!("before: marks: pair + highlight pixels, corners first, else all 9 samples, threshold {t}"),
+            Sampling::Adaptive,
+            SampleSet::Binned,
+            Some(AaParams { reconstruct: false, ..AaParams::new(t) }),
+        ));
+    }
     for (marking, name) in [(AaMarking::Across, "pair and the pixel beyond each"), (AaMarking::Pair, "pair")] {
         for t in AA_CURVE_THRESHOLDS {
             let aa = AaParams { marking, ..AaParams::new(t) };
@@ -817,13 +835,18 @@ pub fn aa_picture_markdown(rows: &[AaPictureRow]) -> String {
 /// "before" rows (0-255; since round 4 on the light's relative scale).
 pub const ROUND4_THRESHOLD: f32 = 20.0;
 
+/// The renderer's threshold before the reconstruction of one-bin pixels
+/// ([`crate::render::view::Reshading::reconstruct`]), for the bench's
+/// "before" row.
+pub const AA_THRESHOLD_BEFORE: f32 = 100.0;
+
 /// Thresholds of the bench's "no bins" rows (1-sample base, every pair
 /// re-shaded with 9 samples).
 pub const NO_BINS_THRESHOLDS: [f32; 3] = [20.0, 60.0, 100.0];
 
 /// Thresholds of the bench's error-versus-cost curve of adaptive
 /// anti-aliasing (relative 0-255 codes).
-pub const AA_CURVE_THRESHOLDS: [f32; 5] = [20.0, 40.0, 60.0, 100.0, 150.0];
+pub const AA_CURVE_THRESHOLDS: [f32; 6] = [20.0, 40.0, 60.0, 100.0, 120.0, 150.0];
 
 /// Markdown table of [`aa_cost`] rows.
 pub fn aa_cost_markdown(rows: &[AaCostRow]) -> String {

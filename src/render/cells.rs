@@ -331,8 +331,13 @@ fn anti_alias(
         mark_pairs_into(flags, &pairs, w, h, aa.marking);
         mark_highlights_into(flags, &glints, w, h, aa.marking);
         let facing = if aa.corners_first { facing_corners(&pairs, w) } else { Vec::new() };
-        let how =
-            Reshading { flags, whole: &glints, corners_first: aa.corners_first.then_some(level), facing: &facing };
+        let how = Reshading {
+            flags,
+            whole: &glints,
+            corners_first: aa.corners_first.then_some(level),
+            facing: &facing,
+            reconstruct: aa.reconstruct,
+        };
         reshaded = view.reshade(scene, light, dense, how);
         window = (x0, y0, x1, y1);
     }

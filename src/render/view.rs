@@ -9,8 +9,10 @@
 //! (0-255 scale) to a neighbour, the paper re-shades the pixel and its 8
 //! neighbours with all 9 samples; Footlight re-shades the two pixels of the
 //! jump ([`AaMarking`]), each corners first (a pixel whose 4 corner samples
-//! agree with its base value keeps it: the jump lies in the other pixel,
-//! [`Reshading`]), and, on sharp specular surfaces, with all 9 samples the
+//! agree with its base value keeps it: the jump lies in the other pixel;
+//! where they disagree, a pixel of one surface bin is rebuilt from those
+//! corners and its base, [`Reshading`]), and, on sharp specular surfaces,
+//! with all 9 samples the
 //! pixels whose 9 samples would see the light's highlight
 //! ([`View::glint_pixels`]: a highlight smaller than a pixel shows no
 //! jump). The bench (`footlight bench --accuracy-only --accuracy-part aa`)
@@ -122,19 +124,24 @@ pub struct AaParams {
     /// Re-shade a pair's pixels corners first ([`Reshading::corners_first`]):
     /// a pixel whose 4 corner samples agree with its base value keeps it.
     pub corners_first: bool,
+    /// With corners first: a one-bin pixel whose probed corners disagree
+    /// with its base is reconstructed from them and the base
+    /// ([`Reshading::reconstruct`]) instead of taking all 9 samples.
+    pub reconstruct: bool,
 }
 
 impl AaParams {
     /// The renderer's parameters with the given threshold (0-255 scale):
-    /// [`AaMarking::Pair`], highlight pixels, corners first.
+    /// [`AaMarking::Pair`], highlight pixels, corners first, one-bin pixels
+    /// reconstructed from their probed corners.
     pub fn new(threshold: f32) -> Self {
-        Self { threshold, marking: AaMarking::Pair, glints: true, corners_first: true }
+        Self { threshold, marking: AaMarking::Pair, glints: true, corners_first: true, reconstruct: true }
     }
 
     /// Round 4's rule (the bench's "before"): 3×3 dilation, no highlight
     /// pixels, all 9 samples for every marked pixel.
     pub fn round4(threshold: f32) -> Self {
-        Self { threshold, marking: AaMarking::Dilated, glints: false, corners_first: false }
+        Self { threshold, marking: AaMarking::Dilated, glints: false, corners_first: false, reconstruct: false }
     }
 }
 
@@ -160,6 +167,13 @@ pub struct Reshading<'a> {
     /// by pixel): only those facing its over-threshold partners. A marked
     /// pixel not listed probes all 4.
     pub facing: &'a [(usize, u8)],
+    /// With corners first: where the probed corners of a pixel whose base
+    /// is one bin of all 9 samples disagree with it, the pixel is not
+    /// shaded with its other samples but reconstructed on the 3×3 grid
+    /// ([`reconstructed`]): the probed corners as shaded, the centre and
+    /// the corners not probed at the base's value, each edge midpoint the
+    /// mean of its two corners. Pixels of several bins take all 9 samples.
+    pub reconstruct: bool,
 }
 
 /// What adaptive anti-aliasing re-shades for one light
@@ -175,12 +189,21 @@ pub struct AaDecision {
     pub level: Option<f32>,
     /// The corners each pair's pixel probes first ([`facing_corners`]).
     pub facing: Vec<(usize, u8)>,
+    /// Whether one-bin pixels are reconstructed from their probed corners
+    /// ([`AaParams::reconstruct`]).
+    pub reconstruct: bool,
 }
 
 impl AaDecision {
     /// How [`View::reshade`] re-shades these pixels.
     pub fn reshading(&self) -> Reshading<'_> {
-        Reshading { flags: &self.flags, whole: &self.highlights, corners_first: self.level, facing: &self.facing }
+        Reshading {
+            flags: &self.flags,
+            whole: &self.highlights,
+            corners_first: self.level,
+            facing: &self.facing,
+            reconstruct: self.reconstruct,
+        }
     }
 }
 
@@ -245,6 +268,29 @@ struct CornerProbe {
     base: Vec3,
     level: f32,
     mask: u8,
+    reconstruct: bool,
+}
+
+/// A one-bin pixel reconstructed on its 3×3 sample grid from the base and
+/// its probed corners ([`Reshading::reconstruct`]): the probed corners as
+/// shaded (`corners`, their sum, each sample weighted 1/9), the centre and
+/// the `4 - probed` corners not probed at the base's value, and each of the
+/// 4 edge midpoints the mean of its two corners. Each corner then weighs
+/// 2/9 and the centre 1/9: (1 + 2 (4 − probed))/9 · base + 2 · corners.
+/// The base's weak branches (`weak`, [`RESHADE_MIN_BRANCH`]) are part of
+/// `base` and stand in for the samples', so they are added once, whole.
+///
+/// Why the far corners take the base: a pixel probes the corners facing
+/// the partners of its over-threshold pairs ([`facing_corners`]), and the
+/// jump between two pixel centres lies between them, so the edge crosses
+/// the probed half of the pixel; the half away from it shows what the
+/// centre shows. Measured against 81 samples on the bundled stage
+/// (docs/rendering.md, "Third session of 2026-12-02"): 6.90e-6 against
+/// 6.02e-6 with all 9 samples (threshold 100), for 3 to 7 fewer shaded
+/// samples per re-shaded pixel.
+fn reconstructed(base: Vec3, weak: Vec3, corners: Vec3, probed: usize) -> Vec3 {
+    let held = (1 + 2 * (4 - probed.min(4))) as f32 / SAMPLES_PER_PIXEL as f32;
+    held * (base - weak) + 2.0 * corners + weak
 }
 
 /// A pixel's 9-sample camera paths, sample `order[k]`'s path the k-th,
@@ -272,12 +318,15 @@ impl NinePaths {
 /// 99th-percentile pixel = 255): the CLI's `--aa-threshold` default, the
 /// daemon's and the still renderer's. Chosen from the bench's error-versus-
 /// cost curve (`footlight bench --accuracy-only --accuracy-part aa`, issue
-/// 13): with pair marks and highlight pixels, 100 re-shades 0.30 % of the
-/// bundled stage's pixels at a display MSE of 6.0e-6 against 81 samples,
-/// against round 4's 1.97 % at 8.6e-6 with threshold 20 and 3×3 marks. On
-/// this scale 100 is a jump from 255 down to 13 % of the light's level,
-/// or from 0 up to it; the paper's 15-25 are steps of the displayed picture.
-pub const AA_THRESHOLD: f32 = 100.0;
+/// 13): with pair marks, highlight pixels and one-bin pixels reconstructed
+/// from their probed corners, 120 re-shades ~0.25 % of the bundled stage's
+/// pixels at a display MSE of 7.4e-6 against 81 samples (round 4: 1.97 %
+/// at 8.6e-6 with threshold 20 and 3×3 marks; the triangle-ID rule before
+/// issue 13, 8.48e-6), for ~114 % of the 1-sample pass's instructions
+/// (100: 6.9e-6, ~115.4 %). On this scale 120 is a jump from 255 down to
+/// ~20 % of the light's level, or from 0 up to it; the paper's 15-25 are
+/// steps of the displayed picture.
+pub const AA_THRESHOLD: f32 = 120.0;
 
 /// Lowest Phong exponent for which [`View::glint_pixels`] looks for the
 /// light's highlight inside a pixel: a lobe of exponent 100 is ~7°
@@ -588,7 +637,8 @@ impl View {
                     Some(level) if whole.binary_search(&i).is_err() => {
                         let mask =
                             how.facing.binary_search_by_key(&i, |f| f.0).map_or(ALL_CORNERS, |k| how.facing[k].1);
-                        self.corners_first(scene, light, i, CornerProbe { base: base[i], level, mask }, scratch, hint)
+                        let probe = CornerProbe { base: base[i], level, mask, reconstruct: how.reconstruct };
+                        self.corners_first(scene, light, i, probe, scratch, hint)
                     }
                     _ => {
                         let weak = self.weak_branches(scene, light, i, hint);
@@ -630,7 +680,13 @@ impl View {
     ) -> AaDecision {
         let (w, h) = (self.width() as usize, self.height() as usize);
         let Some(reference) = reference_in_spans(dense, w, spans) else {
-            return AaDecision { flags: vec![false; w * h], highlights: Vec::new(), level: None, facing: Vec::new() };
+            return AaDecision {
+                flags: vec![false; w * h],
+                highlights: Vec::new(),
+                level: None,
+                facing: Vec::new(),
+                reconstruct: aa.reconstruct,
+            };
         };
         let pairs = self.pairs_over(scene, dense, reference, aa.threshold, spans);
         let mut flags = mark_pairs(&pairs, w, h, aa.marking);
@@ -638,7 +694,13 @@ impl View {
             if aa.glints { self.glint_pixels(scene, light, dense, reference, aa.threshold) } else { Vec::new() };
         mark_highlights_into(&mut flags, &highlights, w, h, aa.marking);
         let facing = if aa.corners_first { facing_corners(&pairs, w) } else { Vec::new() };
-        AaDecision { flags, highlights, level: aa.corners_first.then_some(reference), facing }
+        AaDecision {
+            flags,
+            highlights,
+            level: aa.corners_first.then_some(reference),
+            facing,
+            reconstruct: aa.reconstruct,
+        }
     }
 
     /// A marked pixel re-shaded corners first ([`Reshading::corners_first`]):
@@ -658,7 +720,7 @@ impl View {
         scratch: &mut Vec<ShadingVertex>,
         hint: &mut OccluderHint,
     ) -> Vec3 {
-        let CornerProbe { base, level, mask } = probe;
+        let CornerProbe { base, level, mask, reconstruct } = probe;
         let scale = 1.0 / level;
         let own = srgb8(base * scale);
         // The base's weak branches, standing in for the samples' (zero
@@ -680,6 +742,10 @@ impl View {
             *slot = CORNERS_FIRST[j];
         }
         let probed = mask.count_ones() as usize;
+        // A one-bin pixel whose probed corners disagree is reconstructed
+        // from them (the same value from the cache as from a fresh
+        // expansion: the same sum of the same paths).
+        let reconstruct = reconstruct && self.prunes(index);
         // The probed paths' sum and whether each agrees with the base: the
         // same sums in the same order from the cache as from a fresh
         // expansion, so a rebuild from the cache is the same buffer bit
@@ -697,6 +763,9 @@ impl View {
             if agree {
                 return base;
             }
+            if reconstruct {
+                return reconstructed(base, weak, sum, probed);
+            }
             let rest = order[probed..].iter().flat_map(|&s| path(s));
             return sum + rest.map(|v| v.weight * direct_hinted(scene, light, v, hint)).sum::<Vec3>() + weak;
         }
@@ -712,6 +781,9 @@ impl View {
         let (sum, agree) = probe(&mut paths);
         if agree {
             return base;
+        }
+        if reconstruct {
+            return reconstructed(base, weak, sum, probed);
         }
         self.expand_samples(scene, index, &order[probed..], &mut counts[probed..], scratch);
         let value = sum + shade_hinted(scene, light, &scratch[at..], hint) + weak;
