@@ -161,7 +161,9 @@ pub struct Reshading<'a> {
     /// codes of the pixel's base value (the light's reference `level` =
     /// 255, the decision's scale), no edge crosses the pixel (a pair's jump
     /// lies in its other pixel) and it keeps its base value; else all the
-    /// other samples too. `None`: all 9 samples for every marked pixel (round 4).
+    /// other samples too, or, with [`Reshading::reconstruct`], a one-bin
+    /// pixel is rebuilt from those corners. `None`: all 9 samples for every
+    /// marked pixel (round 4).
     pub corners_first: Option<f32>,
     /// The corners a pair's pixel probes first ([`facing_corners`], sorted
     /// by pixel): only those facing its over-threshold partners. A marked
@@ -286,8 +288,8 @@ struct CornerProbe {
 /// the probed half of the pixel; the half away from it shows what the
 /// centre shows. Measured against 81 samples on the bundled stage
 /// (docs/rendering.md, "Third session of 2026-12-02"): 6.90e-6 against
-/// 6.02e-6 with all 9 samples (threshold 100), for 3 to 7 fewer shaded
-/// samples per re-shaded pixel.
+/// 6.02e-6 with all 9 samples (threshold 100); a pixel that would have
+/// taken all 9 shades 5 to 7 fewer samples.
 fn reconstructed(base: Vec3, weak: Vec3, corners: Vec3, probed: usize) -> Vec3 {
     let held = (1 + 2 * (4 - probed.min(4))) as f32 / SAMPLES_PER_PIXEL as f32;
     held * (base - weak) + 2.0 * corners + weak
