@@ -22,6 +22,7 @@
 pub mod bench;
 pub mod gpu;
 pub mod live;
+pub mod memory;
 pub mod render;
 pub mod scene;
 pub mod serve;
@@ -38,5 +39,9 @@ pub use scene::Scene;
 
 /// Path of the bundled default stage, relative to the repository root.
 pub const DEFAULT_SCENE: &str = "scenes/stage.glb";
-/// Path of the bundled default patch, relative to the repository root.
-pub const DEFAULT_PATCH: &str = "patch/paper-rig.toml";
+/// Path of the bundled default patch, relative to the repository root: the
+/// paper's rig plus colour and moving heads a desk can play.
+pub const DEFAULT_PATCH: &str = "patch/default.toml";
+/// Path of the paper's section 4.3 rig (six lights, the bench's and the
+/// golden images' rig), relative to the repository root.
+pub const PAPER_PATCH: &str = "patch/paper-rig.toml";

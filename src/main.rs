@@ -238,6 +238,10 @@ struct RunArgs {
     /// Replay speed (1 = real time; 0.01-1000).
     #[arg(long, default_value_t = 1.0, value_parser = flags::speed)]
     speed: f64,
+    /// Play the recording again from the start each time it ends, until stopped
+    /// (without it the last look holds).
+    #[arg(long = "loop")]
+    looped: bool,
     /// Picture width in pixels.
     #[arg(long, default_value_t = DaemonConfig::default().width, value_parser = flags::pixels)]
     width: u32,
@@ -280,8 +284,16 @@ struct SceneArgs {
     #[arg(long)]
     scene: Option<PathBuf>,
     /// Patch file: TOML, or an MVR show (its GDTF fixture types, and its geometry unless `--scene`).
-    #[arg(long, default_value = footlight::DEFAULT_PATCH)]
-    patch: PathBuf,
+    /// Default: patch/default.toml (`bench`: patch/paper-rig.toml, the paper's rig).
+    #[arg(long)]
+    patch: Option<PathBuf>,
+}
+
+impl SceneArgs {
+    /// The patch asked for, else the bundled default.
+    fn patch(&self) -> &Path {
+        self.patch.as_deref().unwrap_or(Path::new(footlight::DEFAULT_PATCH))
+    }
 }
 
 #[derive(Args)]
@@ -396,6 +408,17 @@ fn main() -> std::process::ExitCode {
         .with_ansi(std::io::stderr().is_terminal())
         .init();
     let cli = Cli::parse();
+    let size = match &cli.command {
+        Command::Render(a) => Some((a.width, a.height)),
+        Command::Run(a) => Some((a.width, a.height)),
+        Command::Replay { run, .. } => Some((run.width, run.height)),
+        _ => None,
+    };
+    if let Some(why) = size.and_then(|(w, h)| footlight::memory::picture_too_big(w, h, footlight::memory::available()))
+    {
+        use clap::CommandFactory;
+        Cli::command().error(clap::error::ErrorKind::ValueValidation, why).exit();
+    }
     let result = match cli.command {
         Command::Render(args) => render(args),
         Command::Run(args) => run(args),
@@ -416,7 +439,9 @@ fn main() -> std::process::ExitCode {
     }
 }
 
-fn bench_command(args: BenchArgs) -> Result<()> {
+fn bench_command(mut args: BenchArgs) -> Result<()> {
+    // The paper's figures are measured on the paper's rig.
+    args.input.patch.get_or_insert_with(|| PathBuf::from(footlight::PAPER_PATCH));
     let (scene, patch) = load_inputs(&args.input)?;
     let camera = choose_camera(&scene, &patch);
     if args.walk_only {
@@ -512,7 +537,7 @@ fn load_inputs(args: &SceneArgs) -> Result<(Scene, Patch)> {
         t.elapsed().as_secs_f64() * 1e3
     );
     // A TOML patch, or an MVR show whose fixtures come from its GDTF files.
-    let patch = footlight_mvr::load_patch(&resolve(&args.patch))?;
+    let patch = footlight_mvr::load_patch(&resolve(args.patch()))?;
     tracing::info!("{}: {} fixtures", patch.path.display(), patch.fixtures.len());
     Ok((scene, patch))
 }
@@ -520,7 +545,7 @@ fn load_inputs(args: &SceneArgs) -> Result<(Scene, Patch)> {
 /// The scene: `--scene`, else an MVR patch's own geometry (issue 14), else the bundled stage.
 fn load_scene(args: &SceneArgs) -> Result<(PathBuf, Scene)> {
     use footlight::scene::mvr_scene::{SceneSource, scene_source};
-    let patch = resolve(&args.patch);
+    let patch = resolve(args.patch());
     let default = resolve(Path::new(footlight::DEFAULT_SCENE));
     match scene_source(args.scene.as_deref().map(resolve).as_deref(), &patch, &default) {
         SceneSource::Gltf(path) => {
@@ -598,6 +623,9 @@ fn runtime() -> Result<tokio::runtime::Runtime> {
 }
 
 fn run(args: RunArgs) -> Result<()> {
+    if args.looped && args.replay.is_none() {
+        bail!("--loop plays a recording again: give one with --replay FILE (or use `footlight replay FILE --loop`)");
+    }
     if args.window && !cfg!(feature = "window") {
         bail!(
             "this footlight was built without the window; rebuild with `cargo run --release --features window -- run --window`"
@@ -649,12 +677,12 @@ fn run_daemon(
         let bodies = match args.bodies {
             BodiesChoice::On => true,
             BodiesChoice::Off => false,
-            BodiesChoice::Auto => footlight_mvr::is_mvr(&args.input.patch),
+            BodiesChoice::Auto => footlight_mvr::is_mvr(args.input.patch()),
         };
         let bodies = bodies.then(|| {
             let names: Vec<String> = show.patch().fixtures.iter().map(|f| f.name.clone()).collect();
             let (models, warnings) =
-                footlight::render::bodies::body_models(&args.input.patch, &names, &show.fixture_ids());
+                footlight::render::bodies::body_models(args.input.patch(), &names, &show.fixture_ids());
             for w in warnings {
                 tracing::warn!("{w}");
             }
@@ -679,12 +707,13 @@ fn run_daemon(
             Some(path) => {
                 let recording = footlight_dmx::Recording::open(path)?;
                 println!(
-                    "replaying {} ({:.1} s) at {}× once the preview serves",
+                    "replaying {} ({:.1} s) at {}× once the preview serves{}",
                     path.display(),
                     recording.duration().as_secs_f64(),
-                    args.speed
+                    args.speed,
+                    if args.looped { ", in a loop" } else { "" }
                 );
-                DmxSource::Replay { recording, speed: args.speed }
+                DmxSource::Replay { recording, speed: args.speed, looped: args.looped }
             }
             None => args.dmx.source(&show)?,
         };
@@ -893,7 +922,13 @@ fn render(args: RenderArgs) -> Result<()> {
         bail!("--refine {}: refinement needs photons (--photons is 0)", args.refine);
     }
     let universes = still_universes(&args, &show)?;
-    let jobs = jobs_for(&show, &universes);
+    // Only what the look lights is built: a dark light adds exactly 0 to eq. 5.
+    let all = jobs_for(&show, &universes);
+    let lights = all.len();
+    let jobs: Vec<LightJob> = all.into_iter().filter(|j| j.k != Vec3::ZERO).collect();
+    if jobs.len() < lights {
+        tracing::info!("{} of {lights} lights are lit; the dark ones are not built", jobs.len());
+    }
     // Haze from the patch's [haze] at the hazer channel's density (issue 15).
     let haze = show.patch().haze.as_ref().and_then(|spec| {
         let medium = footlight::render::media::Medium::from_spec(spec, &scene);
@@ -913,7 +948,8 @@ fn render(args: RenderArgs) -> Result<()> {
     if args.bodies {
         // Fixture bodies: a layer over the composite, never in the light buffers (issue 14).
         let t = std::time::Instant::now();
-        let (layer, bodies, lights, k) = still_bodies(&show, &universes, &args.input.patch, &scene, &camera, &settings);
+        let (layer, bodies, lights, k) =
+            still_bodies(&show, &universes, args.input.patch(), &scene, &camera, &settings);
         layer.overlay(&camera, &bodies, &lights, &k, &mut still.linear);
         let tested: u64 = (0..bodies.len()).map(|i| layer.footprint_pixels(i)).sum();
         tracing::info!(

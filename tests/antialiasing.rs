@@ -9,7 +9,7 @@ use glam::Vec3;
 #[test]
 fn adaptive_aa_beats_one_sample_against_nine_times_oversampling() {
     let scene = stage();
-    let patch = default_patch();
+    let patch = paper_patch();
     let cam = scene.camera.unwrap();
     let display = Display::default();
     let (w, h) = (200, 125);
@@ -46,7 +46,7 @@ fn reshaded_pixels_do_not_depend_on_exposure_or_dimmer() {
     // set of re-shaded pixels is the same for the buffer at any scale
     // (exposure ×0.01 and ×100, any dimmer or k_i).
     let scene = stage();
-    let patch = default_patch();
+    let patch = paper_patch();
     let cam = scene.camera.unwrap();
     let v = view(&scene, cam, 160, 100, Sampling::Adaptive, 5);
     let aa = AaParams::new(20.0);

@@ -42,7 +42,7 @@ use std::path::PathBuf;
 #[test]
 fn default_render_matches_golden() {
     let scene = stage();
-    let patch = default_patch();
+    let patch = paper_patch();
     let settings = RenderSettings::default();
     let jobs: Vec<LightJob> =
         patch.fixtures.iter().map(|f| LightJob { light: f.light.clone(), k_full: f.k_full(), k: f.k() }).collect();

@@ -31,7 +31,7 @@ fn gpu_composite_matches_cpu_composite() {
     let display = Display::for_white_lux(300.0);
     let Some(mut gpu) = gpu_or_skip(w, h, display) else { return };
     let scene = stage();
-    let patch = default_patch();
+    let patch = paper_patch();
     let v = view(&scene, scene.camera.unwrap(), w, h, Sampling::Geometry, 5);
     let buffers: Vec<LightBuffer> = patch.fixtures.iter().map(|f| v.render_light(&scene, &f.light, None).0).collect();
     let mut rng = Rng(0x6_9_0);
@@ -73,7 +73,7 @@ fn gpu_composite_of_hazy_knots_matches_cpu() {
     let display = Display::for_white_lux(300.0);
     let Some(mut gpu) = gpu_or_skip(w, h, display) else { return };
     let scene = stage();
-    let patch = default_patch();
+    let patch = paper_patch();
     let v = view(&scene, scene.camera.unwrap(), w, h, Sampling::Geometry, 5);
     let (lo, hi) = footlight::render::media::medium::scene_bounds(&scene).unwrap();
     let medium = Medium::new(0.05, 0.005, 0.7, lo, hi).unwrap();
@@ -110,7 +110,7 @@ fn gpu_rolloff_matches_cpu_over_white() {
     let display = clip.with_rolloff(Some(HighlightRolloff { knee: 0.5, white: 12.0 }));
     let Some(mut gpu) = gpu_or_skip(w, h, clip) else { return };
     let scene = stage();
-    let patch = default_patch();
+    let patch = paper_patch();
     let v = view(&scene, scene.camera.unwrap(), w, h, Sampling::Geometry, 5);
     let buffers: Vec<LightBuffer> = patch.fixtures.iter().map(|f| v.render_light(&scene, &f.light, None).0).collect();
     // Bright enough that most lit pixels are over white.

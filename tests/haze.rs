@@ -252,7 +252,7 @@ fn extinction_on_a_plane_is_exp_sigma_t_d_on_both_paths() {
 #[test]
 fn zero_density_reproduces_todays_buffers_exactly() {
     let scene = stage();
-    let patch = default_patch();
+    let patch = paper_patch();
     let v = view(&scene, scene.camera.unwrap(), 80, 50, Sampling::Geometry, 5);
     let hv = HazeView::new(&scene, &v.gbuffer);
     let medium = stage_medium(&scene);
@@ -276,7 +276,7 @@ fn stage_medium(scene: &Scene) -> Medium {
 #[test]
 fn composite_of_haze_buffers_equals_single_pass_render() {
     let scene = stage();
-    let patch = default_patch();
+    let patch = paper_patch();
     let cam = scene.camera.unwrap();
     let lights = patch.lights();
     let (w, h) = (120u32, 75u32);
@@ -324,7 +324,7 @@ fn composite_of_haze_buffers_equals_single_pass_render() {
 #[test]
 fn density_reweighting_stays_within_its_bound_of_a_rebuild() {
     let scene = stage();
-    let patch = default_patch();
+    let patch = paper_patch();
     let v = view(&scene, scene.camera.unwrap(), 100, 62, Sampling::Geometry, 0);
     let hv = HazeView::new(&scene, &v.gbuffer);
     let medium = stage_medium(&scene);
@@ -352,7 +352,7 @@ fn density_reweighting_stays_within_its_bound_of_a_rebuild() {
 #[test]
 fn extreme_haze_never_makes_a_nan_pixel() {
     let scene = stage();
-    let patch = default_patch();
+    let patch = paper_patch();
     let v = view(&scene, scene.camera.unwrap(), 40, 25, Sampling::Geometry, 2);
     let hv = HazeView::new(&scene, &v.gbuffer);
     let (lo, hi) = footlight::render::media::medium::scene_bounds(&scene).unwrap();

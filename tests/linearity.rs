@@ -14,7 +14,7 @@ use glam::Vec3;
 #[test]
 fn composite_equals_single_pass_eq1_render() {
     let scene = stage();
-    let patch = default_patch();
+    let patch = paper_patch();
     let cam = scene.camera.expect("stage has a camera");
     let lights = patch.lights();
     let mut rng = Rng(0x5EED_0005);
@@ -52,7 +52,7 @@ fn composite_equals_single_pass_eq1_render() {
 #[test]
 fn composite_scales_exactly_with_k() {
     let scene = stage();
-    let patch = default_patch();
+    let patch = paper_patch();
     let v = view(&scene, scene.camera.unwrap(), 80, 50, Sampling::Geometry, 5);
     let (buf, _) = v.render_light(&scene, &patch.fixtures[0].light, None);
     let one = composite(&[&buf], &[Vec3::ONE], 80, 50);

@@ -54,6 +54,7 @@ impl Daemon {
                     Source::Replay(name) => DmxSource::Replay {
                         recording: footlight_dmx::Recording::open(recording(name)).unwrap(),
                         speed: f64::INFINITY,
+                        looped: false,
                     },
                     Source::ArtNet => DmxSource::Network {
                         artnet: Some(footlight_dmx::artnet::ArtNetConfig {

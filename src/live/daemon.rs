@@ -113,6 +113,9 @@ pub enum DmxSource {
         recording: Recording,
         /// 1 = real time.
         speed: f64,
+        /// Play it again from the start each time it ends (until shutdown);
+        /// otherwise the last look holds.
+        looped: bool,
     },
     /// Merged universes from elsewhere (tests, embedding).
     Channel(watch::Receiver<Universes>),
@@ -436,7 +439,7 @@ impl Daemon {
                 input_kind = "network";
                 network = Some(input);
             }
-            DmxSource::Replay { recording, speed } => {
+            DmxSource::Replay { recording, speed, looped } => {
                 input_kind = "replay";
                 let options = ReplayOptions {
                     speed,
@@ -444,7 +447,7 @@ impl Daemon {
                     patch: input_patch.clone(),
                     status: dmx_status.clone(),
                 };
-                replay = Some((recording, options));
+                replay = Some((recording, options, looped));
             }
             DmxSource::Channel(rx) => {
                 input_kind = "channel";
@@ -547,23 +550,32 @@ impl Daemon {
             let input_stop = stop.clone();
             tasks.spawn(async move { ("DMX input", input.run(input_stop.fired()).await.map_err(|e| e.to_string())) });
         }
-        if let Some((recording, options)) = replay {
+        if let Some((recording, options, looped)) = replay {
             let replay_stop = stop.clone();
             tasks.spawn(async move {
-                let result = footlight_dmx::replay(
-                    &recording,
-                    &options,
-                    |frame| universes_tx.send_modify(|u| u.update(frame)),
-                    replay_stop.fired(),
-                )
-                .await;
-                match result {
-                    Ok(summary) => {
-                        tracing::info!("replay finished: {} DMX packets; holding the last look", summary.packets);
-                        ("replay", Ok(()))
+                for pass in 1u64.. {
+                    let result = footlight_dmx::replay(
+                        &recording,
+                        &options,
+                        |frame| universes_tx.send_modify(|u| u.update(frame)),
+                        replay_stop.clone().fired(),
+                    )
+                    .await;
+                    match result {
+                        // An empty recording would loop without waiting: play it once.
+                        Ok(summary) if looped && !summary.interrupted && summary.packets > 0 => {
+                            tracing::info!("replay pass {pass} finished: {} DMX packets; again", summary.packets);
+                            // A replay at unbounded speed never waits: give the other tasks their turn.
+                            tokio::task::yield_now().await;
+                        }
+                        Ok(summary) => {
+                            tracing::info!("replay finished: {} DMX packets; holding the last look", summary.packets);
+                            return ("replay", Ok(()));
+                        }
+                        Err(e) => return ("replay", Err(e.to_string())),
                     }
-                    Err(e) => ("replay", Err(e.to_string())),
                 }
+                ("replay", Ok(()))
             });
         }
         if let Some(tap) = tap {
@@ -640,7 +652,17 @@ fn warnings(dmx: &footlight_dmx::InputStatus, map: &footlight_dmx::UniverseMap) 
         };
         footlight_dmx::status::unpatched_message(map, input, u.packets)
     });
-    stale.chain(unpatched).collect()
+    let sockets = [("Art-Net", dmx.sockets.artnet), ("sACN", dmx.sockets.sacn)];
+    let drops = sockets.into_iter().filter_map(|(name, s)| {
+        let s = s?;
+        let drops = s.kernel_drops.filter(|&d| d > 0)?;
+        Some(format!(
+            "{name}: the kernel dropped {drops} datagram(s) because the receive buffer ({} KiB) was full; \
+             levels may have skipped (a larger buffer: docs/dmx.md)",
+            s.recv_buffer_bytes / 1024
+        ))
+    });
+    stale.chain(unpatched).chain(drops).collect()
 }
 
 fn task_error(task: &'static str, e: tokio::task::JoinError) -> DaemonError {

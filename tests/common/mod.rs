@@ -19,9 +19,9 @@ pub fn stage() -> Scene {
     footlight::scene::load(&root().join(footlight::DEFAULT_SCENE)).expect("bundled stage loads")
 }
 
-/// The bundled default patch.
-pub fn default_patch() -> footlight::Patch {
-    footlight::Patch::load(&root().join(footlight::DEFAULT_PATCH)).expect("default patch loads")
+/// The paper's rig (six lights; the goldens' and the paper figures' rig).
+pub fn paper_patch() -> footlight::Patch {
+    footlight::Patch::load(&root().join(footlight::PAPER_PATCH)).expect("paper rig loads")
 }
 
 /// Adds an axis-aligned horizontal square at height `y`, facing +Y.

@@ -18,13 +18,28 @@ use tokio::time::Instant;
 use crate::error::Error;
 use crate::record::Tap;
 use crate::source::{Disposition, InputUniverse, Protocol, SourceEvent, SourceId};
-use crate::stats::StatsHandle;
+use crate::stats::{SocketCounters, StatsHandle};
 use crate::status::StatusHandle;
 
 /// How often node timers run (ArtSync fallback, sync loss, poll replies).
 pub(crate) const TICK: Duration = Duration::from_millis(50);
-/// Receive buffer asked for: 64 universes × 638 bytes, several frames deep.
-const RECV_BUFFER: usize = 1 << 20;
+/// Datagrams the receive buffer holds: 64 universes at DMX's full refresh
+/// rate (44 Hz) for one second, so a receive task that does not run for a
+/// second (a loaded 2-core machine, a desk's burst after a cue) drops none.
+pub const BURST_DATAGRAMS: usize = 64 * 44;
+/// Kernel memory one queued datagram costs (the socket buffer's "truesize",
+/// which the receive buffer limits, not the payload): 1,280 bytes measured on
+/// loopback for 530- and 638-byte datagrams (`/proc/net/udp` rx_queue over
+/// 100 queued datagrams); network drivers that receive into 2 KiB pages cost
+/// more, so 2,304 bytes is taken (estimated: a 2 KiB fragment plus the
+/// 256-byte `sk_buff`).
+pub const DATAGRAM_TRUESIZE: usize = 2304;
+/// Receive buffer wanted, in bytes of kernel memory (6.5 MB).
+pub const RECV_BUFFER: usize = BURST_DATAGRAMS * DATAGRAM_TRUESIZE;
+/// How often the kernel's drop count is read.
+const DROPS_PERIOD: Duration = Duration::from_secs(1);
+/// Datagrams read per wake-up before the loop looks at its timers again.
+const BATCH: usize = 64;
 
 /// Creates a non-blocking UDP socket bound to `addr` with address and port reuse.
 pub(crate) fn bind_udp(protocol: Protocol, addr: SocketAddr) -> Result<std::net::UdpSocket, Error> {
@@ -38,13 +53,107 @@ pub(crate) fn bind_udp(protocol: Protocol, addr: SocketAddr) -> Result<std::net:
         #[cfg(unix)]
         socket.set_reuse_port(true).map_err(bind_err)?;
     }
-    // A small default buffer only costs dropped frames under load; not fatal.
-    if let Err(e) = socket.set_recv_buffer_size(RECV_BUFFER) {
-        tracing::debug!(%e, "could not enlarge the {protocol} receive buffer");
-    }
+    size_recv_buffer(&socket, protocol);
     socket.set_nonblocking(true).map_err(bind_err)?;
     socket.bind(&addr.into()).map_err(bind_err)?;
     Ok(socket.into())
+}
+
+/// Asks for [`RECV_BUFFER`]. Linux doubles the value it is given (half of
+/// the buffer is its bookkeeping) and caps `SO_RCVBUF` at
+/// `net.core.rmem_max` (208 KiB on a stock Debian); a daemon allowed to
+/// (root, `CAP_NET_ADMIN`) sets it past that cap with `SO_RCVBUFFORCE`.
+/// What was granted is read back by the node and shown in the status; a
+/// smaller buffer only costs drops under load, so it is not an error.
+fn size_recv_buffer(socket: &Socket, protocol: Protocol) {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::fd::AsRawFd;
+        let ask = RECV_BUFFER / 2;
+        if nix::sys::socket::setsockopt(socket.as_raw_fd(), nix::sys::socket::sockopt::RcvBufForce, &ask).is_ok() {
+            return;
+        }
+        if let Err(e) = socket.set_recv_buffer_size(ask) {
+            tracing::debug!(%e, "could not enlarge the {protocol} receive buffer");
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    if let Err(e) = socket.set_recv_buffer_size(RECV_BUFFER) {
+        tracing::debug!(%e, "could not enlarge the {protocol} receive buffer");
+    }
+}
+
+/// The kernel's view of a socket: its receive buffer now, and a way to read
+/// the datagrams it dropped.
+struct KernelSocket {
+    /// The socket's inode (Linux: its line in `/proc/net/udp`).
+    inode: Option<u64>,
+    /// `/proc/net/udp` or `/proc/net/udp6`.
+    table: &'static str,
+}
+
+impl KernelSocket {
+    /// Reads the granted buffer into the status (warning once when it is
+    /// short of [`RECV_BUFFER`]) and finds the socket's drop counter.
+    fn open(socket: &UdpSocket, protocol: Protocol, stats: &StatsHandle) -> KernelSocket {
+        let granted = socket2::SockRef::from(socket).recv_buffer_size().unwrap_or(0);
+        if granted < RECV_BUFFER {
+            tracing::warn!(
+                "{protocol} receive buffer is {} KiB, short of the {} KiB that holds 64 universes at 44 Hz \
+                 for a second: under load the kernel may drop datagrams (counted in /api/status). \
+                 Raise the cap with `sysctl -w net.core.rmem_max={}` or run with CAP_NET_ADMIN",
+                granted / 1024,
+                RECV_BUFFER / 1024,
+                RECV_BUFFER / 2
+            );
+        }
+        let v6 = socket.local_addr().is_ok_and(|a| a.is_ipv6());
+        let k =
+            KernelSocket { inode: socket_inode(socket), table: if v6 { "/proc/net/udp6" } else { "/proc/net/udp" } };
+        let counters = SocketCounters {
+            recv_buffer_bytes: granted as u64,
+            recv_buffer_wanted: RECV_BUFFER as u64,
+            kernel_drops: k.drops(),
+        };
+        if let Some(slot) = stats.lock().socket_mut(protocol) {
+            *slot = Some(counters);
+        }
+        k
+    }
+
+    /// Datagrams the kernel dropped on this socket (Linux `/proc/net/udp`'s
+    /// last column; `None` elsewhere or when the line is gone).
+    fn drops(&self) -> Option<u64> {
+        let inode = self.inode?;
+        let table = std::fs::read_to_string(self.table).ok()?;
+        udp_table_drops(&table, inode)
+    }
+}
+
+/// The inode of a socket, from `/proc/self/fd/N` → `socket:[INODE]` (Linux).
+fn socket_inode(socket: &UdpSocket) -> Option<u64> {
+    #[cfg(unix)]
+    {
+        use std::os::fd::AsRawFd;
+        let link = std::fs::read_link(format!("/proc/self/fd/{}", socket.as_raw_fd())).ok()?;
+        let link = link.to_str()?;
+        link.strip_prefix("socket:[")?.strip_suffix(']')?.parse().ok()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = socket;
+        None
+    }
+}
+
+/// The `drops` column of the `/proc/net/udp` line whose inode column is
+/// `inode` (columns: sl, local, remote, st, tx:rx queue, tr:when, retrnsmt,
+/// uid, timeout, inode, ref, pointer, drops).
+fn udp_table_drops(table: &str, inode: u64) -> Option<u64> {
+    table.lines().skip(1).find_map(|line| {
+        let cols: Vec<&str> = line.split_whitespace().collect();
+        (cols.len() >= 13 && cols[9].parse() == Ok(inode)).then(|| cols[12].parse().ok()).flatten()
+    })
 }
 
 /// Wraps a bound std socket for tokio (needs a runtime).
@@ -149,13 +258,14 @@ pub(crate) async fn run_datagram_node<P: DatagramProtocol>(
     let name = P::PROTOCOL;
     let local = socket.local_addr().unwrap_or_else(|_| SocketAddr::from(([0, 0, 0, 0], 0)));
     tracing::info!(%local, "{name} input listening");
+    let kernel = KernelSocket::open(&socket, name, &ctx.stats);
+    let mut drops_read = Instant::now();
     // Largest valid packets: sACN 638 bytes, Art-Net 530; more is truncated and fails to parse.
     let mut buf = vec![0u8; 2048];
     let mut events: Vec<SourceEvent> = Vec::with_capacity(64);
     let mut ticker = tokio::time::interval(TICK);
     ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    let mut malformed_log = LogLimiter::new();
-    let mut error_log = LogLimiter::new();
+    let mut logs = Logs { malformed: LogLimiter::new(), errors: LogLimiter::new() };
     tokio::pin!(shutdown);
     loop {
         tokio::select! {
@@ -163,34 +273,42 @@ pub(crate) async fn run_datagram_node<P: DatagramProtocol>(
             () = &mut shutdown => break,
             // Timers before packets: a flood must not starve the ArtSync
             // fallback, sync loss or poll replies.
-            _ = ticker.tick() => protocol.tick(Instant::now(), &mut events, &socket),
-            received = socket.recv_from(&mut buf) => match received {
-                Ok((n, from)) => {
-                    let now = Instant::now();
-                    let data = &buf[..n];
-                    if let Some(tap) = &ctx.tap {
-                        tap.datagram(now, from, local, data);
-                    }
-                    let tally = protocol.datagram(data, from, now, &mut events, &socket);
-                    if let Disposition::Malformed(e) = &tally.disposition
-                        && let Some(suppressed) = malformed_log.allow(now)
-                    {
-                        tracing::warn!(%from, suppressed, "malformed {name} packet: {e}");
-                    }
-                    ctx.stats.lock().packet(name, tally.source, Some(from.ip()), &tally.disposition);
-                    if let Some(input) = tally.unpatched {
-                        ctx.status.not_patched(input, now);
+            _ = ticker.tick() => {
+                let now = Instant::now();
+                protocol.tick(now, &mut events, &socket);
+                if now.saturating_duration_since(drops_read) >= DROPS_PERIOD {
+                    drops_read = now;
+                    let drops = kernel.drops();
+                    if let Some(Some(c)) = ctx.stats.lock().socket_mut(name) {
+                        c.kernel_drops = drops;
                     }
                 }
-                Err(e) if transient(&e) => tracing::debug!(%e, "{name} socket"),
-                Err(e) => {
-                    if let Some(suppressed) = error_log.allow(Instant::now()) {
-                        tracing::warn!(%e, suppressed, "{name} socket receive error");
+            }
+            received = socket.recv_from(&mut buf) => {
+                let mut received = received;
+                // Drain what is queued (up to a batch) before the timers and
+                // the merge get their turn: one wake-up per burst, not per datagram.
+                for _ in 0..BATCH {
+                    match received {
+                        Ok((n, from)) => {
+                            let now = Instant::now();
+                            let tally = protocol.datagram(&buf[..n], from, now, &mut events, &socket);
+                            count_datagram(&ctx, &mut logs, (now, local, from), &buf[..n], name, tally);
+                        }
+                        Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
+                        Err(e) if transient(&e) => tracing::debug!(%e, "{name} socket"),
+                        Err(e) => {
+                            if let Some(suppressed) = logs.errors.allow(Instant::now()) {
+                                tracing::warn!(%e, suppressed, "{name} socket receive error");
+                            }
+                            // A persistent error must not spin the core.
+                            tokio::time::sleep(Duration::from_millis(10)).await;
+                            break;
+                        }
                     }
-                    // A persistent error must not spin the core.
-                    tokio::time::sleep(Duration::from_millis(10)).await;
+                    received = socket.try_recv_from(&mut buf);
                 }
-            },
+            }
         }
         for event in events.drain(..) {
             if ctx.events.send(event).await.is_err() {
@@ -200,6 +318,35 @@ pub(crate) async fn run_datagram_node<P: DatagramProtocol>(
         }
     }
     tracing::info!("{name} input stopped");
+}
+
+/// The receive loop's rate-limited logs.
+struct Logs {
+    malformed: LogLimiter,
+    errors: LogLimiter,
+}
+
+/// Records, logs and counts one datagram the protocol has handled.
+fn count_datagram<E: std::fmt::Display>(
+    ctx: &NodeContext,
+    logs: &mut Logs,
+    (now, local, from): (Instant, SocketAddr, SocketAddr),
+    data: &[u8],
+    name: Protocol,
+    tally: Tally<E>,
+) {
+    if let Some(tap) = &ctx.tap {
+        tap.datagram(now, from, local, data);
+    }
+    if let Disposition::Malformed(e) = &tally.disposition
+        && let Some(suppressed) = logs.malformed.allow(now)
+    {
+        tracing::warn!(%from, suppressed, "malformed {name} packet: {e}");
+    }
+    ctx.stats.lock().packet(name, tally.source, Some(from.ip()), &tally.disposition);
+    if let Some(input) = tally.unpatched {
+        ctx.status.not_patched(input, now);
+    }
 }
 
 /// The local IPv4 address that routes to `peer` (for ArtPollReply's IP field
@@ -236,5 +383,48 @@ mod tests {
         let c = socket2::SockRef::from(&c);
         assert!(!c.reuse_port().unwrap() && !c.reuse_address().unwrap(), "a port-0 socket is not shared");
         assert_eq!(local_ip_towards("127.0.0.1".parse().unwrap()), Some("127.0.0.1".parse().unwrap()));
+    }
+
+    #[test]
+    fn udp_table_drops_reads_the_last_column_of_the_socket_line() {
+        let table = "   sl  local_address rem_address   st tx_queue rx_queue tr tm->when retrnsmt   uid  timeout inode ref pointer drops\n\
+            \x20 12: 0100007F:1936 00000000:0000 07 00000000:00000000 00:00000000 00000000     0        0 4242 2 0000000000000000 17\n\
+            \x20 13: 00000000:15C0 00000000:0000 07 00000000:00000000 00:00000000 00000000     0        0 99 2 0000000000000000 0\n";
+        assert_eq!(udp_table_drops(table, 4242), Some(17));
+        assert_eq!(udp_table_drops(table, 99), Some(0));
+        assert_eq!(udp_table_drops(table, 7), None);
+    }
+
+    /// The kernel's own count: a socket with a tiny buffer that nobody reads
+    /// overflows, and the drops read through its inode are the datagrams
+    /// sent minus those still queued.
+    #[cfg(target_os = "linux")]
+    #[tokio::test]
+    async fn kernel_drops_of_an_unread_socket_are_counted() {
+        let small = Socket::new(Domain::IPV4, Type::DGRAM, None).unwrap();
+        small.set_recv_buffer_size(2048).unwrap();
+        small.bind(&SocketAddr::from(([127, 0, 0, 1], 0)).into()).unwrap();
+        small.set_nonblocking(true).unwrap();
+        let std: std::net::UdpSocket = small.into();
+        let to = std.local_addr().unwrap();
+        let reader = std.try_clone().unwrap();
+        let socket = UdpSocket::from_std(std).unwrap();
+        let stats = StatsHandle::new();
+        let kernel = KernelSocket::open(&socket, Protocol::ArtNet, &stats);
+        assert_eq!(kernel.drops(), Some(0));
+        let sender = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        for _ in 0..200 {
+            sender.send_to(&[0u8; 530], to).unwrap();
+        }
+        let mut queued = 0;
+        let mut buf = [0u8; 2048];
+        while reader.recv_from(&mut buf).is_ok() {
+            queued += 1;
+        }
+        assert!(queued < 200, "a 4 KiB buffer cannot hold 200 datagrams");
+        assert_eq!(kernel.drops(), Some(200 - queued));
+        let c = stats.snapshot().artnet_socket.unwrap();
+        assert_eq!(c.recv_buffer_wanted, RECV_BUFFER as u64);
+        assert!(c.recv_buffer_bytes > 0 && c.recv_buffer_bytes < RECV_BUFFER as u64);
     }
 }

@@ -37,6 +37,21 @@ pub struct Counters {
     pub ignored: u64,
 }
 
+/// What the kernel did with one UDP socket: its receive buffer and the
+/// datagrams it dropped because that buffer was full (the receive task fell
+/// behind). Read from the socket and, on Linux, `/proc/net/udp`'s `drops`
+/// column once a second ([`crate::net`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct SocketCounters {
+    /// The receive buffer the kernel granted, in bytes of kernel memory.
+    pub recv_buffer_bytes: u64,
+    /// The receive buffer asked for (64 universes at 44 Hz for one second).
+    pub recv_buffer_wanted: u64,
+    /// Datagrams the kernel dropped on this socket since it was opened
+    /// (`None` where the platform does not tell).
+    pub kernel_drops: Option<u64>,
+}
+
 /// All counters.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Stats {
@@ -50,6 +65,10 @@ pub struct Stats {
     pub sources: BTreeMap<SourceId, Counters>,
     /// Malformed packets per sending IP (at most [`MAX_TRACKED`]).
     pub malformed_peers: BTreeMap<IpAddr, u64>,
+    /// The Art-Net socket's buffer and kernel drops (`None`: no socket).
+    pub artnet_socket: Option<SocketCounters>,
+    /// The sACN socket's buffer and kernel drops (`None`: no socket).
+    pub sacn_socket: Option<SocketCounters>,
 }
 
 impl Stats {
@@ -67,6 +86,15 @@ impl Stats {
             Protocol::ArtNet => &mut self.artnet,
             Protocol::Sacn => &mut self.sacn,
             Protocol::UsbPro => &mut self.usbpro,
+        }
+    }
+
+    /// The socket counters of a UDP protocol (`None` for USB Pro).
+    pub fn socket_mut(&mut self, protocol: Protocol) -> Option<&mut Option<SocketCounters>> {
+        match protocol {
+            Protocol::ArtNet => Some(&mut self.artnet_socket),
+            Protocol::Sacn => Some(&mut self.sacn_socket),
+            Protocol::UsbPro => None,
         }
     }
 

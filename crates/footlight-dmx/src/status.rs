@@ -29,7 +29,7 @@ use tokio::time::Instant;
 use crate::input::InputPatch;
 use crate::map::{UniverseFilter, UniverseMap};
 use crate::source::{InputUniverse, Protocol, SourceId, SourceName};
-use crate::stats::{Counters, Stats, StatsHandle};
+use crate::stats::{Counters, SocketCounters, Stats, StatsHandle};
 
 /// Unpatched input universes tracked one by one; packets on further ones are
 /// only counted in [`InputStatus::unpatched_untracked`].
@@ -51,6 +51,17 @@ pub struct InputStatus {
     pub unpatched_untracked: u64,
     /// Packet counters per protocol.
     pub counters: ProtocolCounters,
+    /// The UDP sockets' receive buffers and kernel drops.
+    pub sockets: SocketStatus,
+}
+
+/// The UDP input sockets as the kernel sees them ([`SocketCounters`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct SocketStatus {
+    /// The Art-Net socket (`None`: Art-Net is off).
+    pub artnet: Option<SocketCounters>,
+    /// The sACN socket (`None`: sACN is off).
+    pub sacn: Option<SocketCounters>,
 }
 
 /// Packet counters of each protocol ([`Stats`] totals).
@@ -339,6 +350,7 @@ impl Board {
             unpatched,
             unpatched_untracked: self.unpatched_untracked,
             counters: ProtocolCounters { artnet: stats.artnet, sacn: stats.sacn, usbpro: stats.usbpro },
+            sockets: SocketStatus { artnet: stats.artnet_socket, sacn: stats.sacn_socket },
         }
     }
 }

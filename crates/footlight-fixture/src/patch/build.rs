@@ -51,6 +51,7 @@ pub(super) fn build_with(
         }
     }
     b.addresses(&built);
+    b.unaddressed(&built);
     let mut look_universes = b.look(&file, &mut built);
     let inputs = b.inputs(&file.input);
     let fixtures: Vec<Fixture> = built.iter().map(|x| x.fixture.clone()).collect();
@@ -668,6 +669,25 @@ impl<'a> Builder<'a> {
     }
 
     /// Footprints inside the universe, and no two fixtures on one slot.
+    /// One warning for the fixtures without a universe and address: a desk
+    /// cannot reach them, they stay at their look.
+    fn unaddressed(&mut self, built: &[Built]) {
+        let none: Vec<&Fixture> = built.iter().map(|b| &b.fixture).filter(|f| f.dmx.is_none()).collect();
+        let Some(first) = none.first() else { return };
+        let ids: Vec<String> = none.iter().take(12).map(|f| f.id.to_string()).collect();
+        let more = if none.len() > ids.len() { format!(" and {} more", none.len() - ids.len()) } else { String::new() };
+        self.warnings.push(PatchError::new(
+            self.path,
+            first.line,
+            format!(
+                "warning: {} fixture(s) have no universe and address (id {}{more}): a desk cannot control \
+                 them, they stay at their [look]; add `universe` and `address` to each",
+                none.len(),
+                ids.join(", ")
+            ),
+        ));
+    }
+
     fn addresses(&mut self, built: &[Built]) {
         for (i, b) in built.iter().enumerate() {
             let Some((u, a)) = b.fixture.dmx else { continue };

@@ -96,7 +96,7 @@ fn the_paper_rig_loads_with_its_look() {
 
 #[test]
 fn the_built_in_spot_patch_takes_its_colours_from_the_gel_library() {
-    let patch = Patch::load(&root().join("patch/default.toml")).unwrap();
+    let patch = Patch::load(&root().join("patch/builtin-spots.toml")).unwrap();
     assert_eq!(patch.fixtures.len(), 6);
     assert_eq!(patch.fixtures[0].k(), Vec3::splat(60000.0), "open white");
     // LEE 136 (pale lavender) on tungsten: red and blue pass more than green,
@@ -107,4 +107,61 @@ fn the_built_in_spot_patch_takes_its_colours_from_the_gel_library() {
     // LEE 201 (full CT blue) on tungsten: blue passes most, red least.
     let b = patch.fixtures[1].k_full();
     assert!(b.z > b.y && b.y > b.x, "{b}");
+}
+
+/// The default patch is the paper's rig (same fixtures, addresses and look)
+/// plus colour and moving heads a desk can play: every fixture addressed on
+/// universe 1, footprints apart, and DMX on the documented addresses drives
+/// the PARs' colour and the spots' pan/tilt.
+#[test]
+fn the_default_patch_is_the_paper_rig_plus_colour_and_moving_heads() {
+    let default = Patch::load(&root().join("patch/default.toml")).unwrap_or_else(|e| panic!("{e}"));
+    let paper = Patch::load(&root().join("patch/paper-rig.toml")).unwrap();
+    assert_eq!(default.fixtures.len(), 10);
+    for (d, p) in default.fixtures.iter().zip(&paper.fixtures) {
+        assert_eq!((d.id, &d.name, d.dmx), (p.id, &p.name, p.dmx));
+        assert_eq!(d.light.position, p.light.position);
+        assert_eq!(d.k(), p.k(), "{}: the paper's look", d.name);
+    }
+    // The addresses the file's header table documents, and no overlap.
+    let starts: Vec<_> = default.fixtures.iter().map(|f| f.dmx).collect();
+    let want = [1, 2, 3, 4, 5, 6, 7, 13, 21, 41].map(|a| Some((1u16, a)));
+    assert_eq!(starts, want);
+    let mut used = [false; 512];
+    for f in &default.fixtures {
+        let (_, a) = f.dmx.unwrap();
+        for s in a..a + f.footprint() {
+            assert!(!used[usize::from(s) - 1], "slot {s} used twice");
+            used[usize::from(s) - 1] = true;
+        }
+    }
+    assert_eq!(default.fixtures[6].footprint(), 6);
+    assert_eq!(default.fixtures[8].footprint(), 13);
+    // The extras wait dark.
+    assert!(default.fixtures[6..].iter().all(|f| f.k() == Vec3::ZERO));
+    // A desk's levels on the documented slots (1-based as desks show them).
+    let mut slots = [0u8; 512];
+    let mut set =
+        |address: usize, values: &[u8]| slots[address - 1..address - 1 + values.len()].copy_from_slice(values);
+    set(7, &[255, 255, 255, 0, 0, 0]); // PAR SR: full, red only
+    set(13, &[255, 255, 0, 0, 255, 0]); // PAR SL: full, blue only
+    set(21, &[0x80, 0, 0x80, 0, 0, 0, 0, 0, 0, 0, 255, 255, 255]); // spot SR: centre, full
+    set(41, &[0xC0, 0, 0x80, 0, 0, 0, 0, 0, 0, 0, 255, 255, 255]); // spot SL: panned
+    let states: Vec<_> = default.fixtures.iter().map(|f| f.decode(&slots)).collect();
+    let red = default.fixtures[6].k_of(&states[6]);
+    let blue = default.fixtures[7].k_of(&states[7]);
+    assert!(red.x > 10.0 * red.y.max(red.z), "a red PAR: {red}");
+    assert!(blue.z > 3.0 * blue.x.max(blue.y), "a blue PAR: {blue}");
+    let centre = default.fixtures[8].light_of(&states[8]);
+    assert!(centre.axis().y < -0.99, "at the DMX centre the spot points straight down: {}", centre.axis());
+    let panned = default.fixtures[9].light_of(&states[9]);
+    assert!(panned.axis().y < -0.99, "pan alone turns a hanging head's beam about the vertical: {}", panned.axis());
+    assert!((states[9].pan - states[8].pan - 540.0 * 0.25).abs() < 1.0, "a quarter of the 540° pan range");
+    let tilted = {
+        let mut s = slots;
+        s[20 + 2] = 0xC0; // spot SR tilt to 3/4
+        default.fixtures[8].light_of(&default.fixtures[8].decode(&s))
+    };
+    assert!(tilted.axis().y > -0.75, "tilt swings the beam off the vertical: {}", tilted.axis());
+    assert!(default.fixtures[8].k_of(&states[8]).min_element() > 0.0, "the spot's shutter is open and lit");
 }
