@@ -288,7 +288,7 @@ pub(crate) async fn run_datagram_node<P: DatagramProtocol>(
                 let mut received = received;
                 // Drain what is queued (up to a batch) before the timers and
                 // the merge get their turn: one wake-up per burst, not per datagram.
-                for _ in 0..BATCH {
+                for read in 1..=BATCH {
                     match received {
                         Ok((n, from)) => {
                             let now = Instant::now();
@@ -305,6 +305,9 @@ pub(crate) async fn run_datagram_node<P: DatagramProtocol>(
                             tokio::time::sleep(Duration::from_millis(10)).await;
                             break;
                         }
+                    }
+                    if read == BATCH {
+                        break;
                     }
                     received = socket.try_recv_from(&mut buf);
                 }

@@ -273,3 +273,36 @@ async fn unserved_opcodes_and_bad_headers_are_counted_and_harmless() {
     assert_eq!(s.malformed_peers[&"127.0.0.1".parse().unwrap()], 3);
     input.stop().await;
 }
+
+/// A burst larger than the node reads per wake-up is counted whole: every
+/// datagram sent to the socket is received (none lost between batches), and
+/// the kernel reports no drop for the 6.5 MB buffer.
+#[tokio::test]
+async fn a_burst_of_datagrams_is_received_whole() {
+    let input = Running::start(loopback_config(vec![])).await;
+    let tx = sender();
+    const SENT: u64 = 3000;
+    for i in 0..SENT {
+        let frame = build_dmx((i % 255 + 1) as u8, 0, (i % 4) as u16, &[i as u8; 512]);
+        tx.send_to(&frame, input.artnet()).unwrap();
+        // Bursts of 200 (several read batches each) that fit even a stock
+        // 208 KiB `rmem_max` buffer, so the test does not need root.
+        if i % 200 == 199 {
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+    }
+    let mut received = 0;
+    for _ in 0..200 {
+        received = input.stats.snapshot().artnet.received;
+        if received >= SENT {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(25)).await;
+    }
+    assert_eq!(received, SENT, "every datagram of the burst is counted");
+    let status = input.status.snapshot();
+    let socket = status.sockets.artnet.expect("the Art-Net socket's counters");
+    assert_eq!(socket.recv_buffer_wanted, 64 * 44 * 2304);
+    assert!(socket.recv_buffer_bytes > 0);
+    input.stop().await;
+}
