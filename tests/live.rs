@@ -1,5 +1,7 @@
 //! The live daemon: frame numbers under paused time, staged rebuilds of a
-//! moved light, the geometry cache, and the HTTP preview on loopback.
+//! moved light, the geometry cache, the HTTP preview on loopback, and the
+//! status's per-light patch fields (fixture, cell, address, mode, position)
+//! against a TOML patch and an MVR file read by the tests themselves.
 
 use crate::common::*;
 use footlight::fixture::{DmxSlots, FixtureState, Universes};
@@ -333,4 +335,278 @@ fn strobe_is_a_composite_on_the_frame_clock_not_a_rebuild() {
     assert_eq!(again.rgb, lit.rgb);
     // The state never changed, so the tracer was never asked for a rebuild.
     assert_eq!(tracer.published(0).generation, generation);
+}
+
+/// A daemon serving `patch` over a floor on loopback (CPU compositor, no
+/// photons), fed DMX through a channel; stopped when dropped.
+pub(crate) struct ShowDaemon {
+    /// The preview's address.
+    pub(crate) http: std::net::SocketAddr,
+    /// The merged DMX the daemon reads (held: the input stays open).
+    _dmx: watch::Sender<footlight_dmx::Universes>,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl ShowDaemon {
+    /// Starts the daemon at `width`×`height` with `dmx` as the first levels.
+    pub(crate) fn start(patch: footlight::Patch, width: u32, height: u32, dmx: footlight_dmx::Universes) -> Self {
+        let (dmx_tx, dmx_rx) = watch::channel(dmx);
+        let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+        let (addr_tx, addr_rx) = std::sync::mpsc::channel();
+        let thread = std::thread::spawn(move || {
+            let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+            rt.block_on(async move {
+                let mut b = SceneBuilder::new();
+                let m = lambert(&mut b, 0.5);
+                floor(&mut b, 12.0, 0.0, m);
+                let camera = Camera::look_at(Vec3::new(0.0, 5.0, 14.0), Vec3::new(0.0, 1.0, 0.0), 50f32.to_radians());
+                let listener = footlight::live::bind_http("127.0.0.1:0".parse().unwrap()).await.unwrap();
+                addr_tx.send(listener.local_addr().unwrap()).unwrap();
+                let config = DaemonConfig {
+                    width,
+                    height,
+                    fps: 20.0,
+                    tracer: no_photons(),
+                    compositor: footlight::gpu::CompositorChoice::Cpu,
+                    ..DaemonConfig::default()
+                };
+                let show = Arc::new(footlight::live::Show::new(patch));
+                Daemon::new(Arc::new(b.build()), show, camera, config)
+                    .input(DmxSource::Channel(dmx_rx))
+                    .serve(listener)
+                    .run(async {
+                        let _ = stop_rx.await;
+                    })
+                    .await
+                    .unwrap();
+            })
+        });
+        let http = addr_rx.recv_timeout(Duration::from_secs(120)).unwrap();
+        Self { http, _dmx: dmx_tx, stop: Some(stop_tx), thread: Some(thread) }
+    }
+
+    /// `GET /api/status`, parsed.
+    pub(crate) fn status(&self) -> serde_json::Value {
+        serde_json::from_slice(&http_get(self.http, "/api/status").1).unwrap()
+    }
+}
+
+impl Drop for ShowDaemon {
+    fn drop(&mut self) {
+        if let Some(stop) = self.stop.take() {
+            let _ = stop.send(());
+        }
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// One fixture as read from its patch file by the tests (not by Footlight).
+#[derive(Debug)]
+struct FileFixture {
+    id: u64,
+    name: String,
+    /// Lights it makes: its cells (1 for a one-light fixture).
+    cells: usize,
+    universe: Option<u64>,
+    address: Option<u64>,
+    mode: Option<String>,
+    /// Metres, stage axes.
+    position: [f64; 3],
+}
+
+/// Checks `/api/status`'s per-light patch fields against the fixtures read
+/// from the file: each fixture's lights are consecutive, under its id and
+/// name, numbered 1.. when it has cells, with its address, mode and
+/// position (within `tolerance` metres).
+fn assert_status_patch(status: &serde_json::Value, expected: &[FileFixture], tolerance: f64) {
+    let lights = status["lights"].as_array().unwrap();
+    assert_eq!(lights.len(), expected.iter().map(|f| f.cells).sum::<usize>(), "one light per cell");
+    let mut next = lights.iter();
+    for f in expected {
+        for n in 1..=f.cells {
+            let l = next.next().unwrap();
+            let what = format!("{} light {n}: {l}", f.name);
+            assert_eq!(l["fixture"].as_u64(), Some(f.id), "{what}");
+            assert_eq!(l["fixture_name"].as_str(), Some(f.name.as_str()), "{what}");
+            if f.cells > 1 {
+                assert_eq!(l["cell"].as_u64(), Some(n as u64), "{what}");
+                assert!(l["name"].as_str().unwrap().starts_with(&format!("{} / ", f.name)), "{what}");
+            } else {
+                assert!(l["cell"].is_null(), "{what}");
+                assert_eq!(l["name"].as_str(), Some(f.name.as_str()), "{what}");
+            }
+            assert_eq!(l["universe"].as_u64(), f.universe, "{what}");
+            assert_eq!(l["address"].as_u64(), f.address, "{what}");
+            let desk = f.universe.zip(f.address).map(|(u, a)| format!("{u}.{a}"));
+            assert_eq!(l["dmx_address"].as_str(), desk.as_deref(), "{what}");
+            assert_eq!(l["mode"].as_str(), f.mode.as_deref(), "{what}");
+            let p: Vec<f64> = l["position"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+            assert!(p.iter().zip(f.position).all(|(a, b)| (a - b).abs() <= tolerance), "{what}: want {:?}", f.position);
+        }
+    }
+}
+
+/// Issue 36 item 6: the status gives each light's fixture, DMX address
+/// (universe.address as a desk writes it), mode and position, for a TOML
+/// patch: a library type with a mode, a built-in spot (no mode) and an
+/// unaddressed spot, read back from the file with a plain TOML parser.
+#[test]
+fn status_gives_each_lights_address_mode_and_position_from_a_toml_patch() {
+    let dir = std::env::temp_dir().join(format!("footlight-status-patch-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("rig.toml");
+    let text = format!(
+        r#"fixtures = "{fixtures}"
+gels = "{gels}"
+
+[[fixture]]
+id = 12
+name = "Castor on 2.17"
+type = "strand-castor"
+mode = "1ch"
+universe = 2
+address = 17
+position = [-5.5, 5.25, 7.0]
+aim = [0.0, 0.0, 0.0]
+
+[[fixture]]
+id = 3
+name = "Spot on 3.512"
+type = "spot"
+universe = 3
+address = 512
+position = [1.5, 6.0, -3.125]
+aim = [0.0, 0.0, 0.0]
+beam_angle = 20.0
+field_angle = 30.0
+intensity = 1000.0
+
+[[fixture]]
+id = 40
+name = "Spot with no address"
+type = "spot"
+position = [0.0, 7.5, 2.0]
+aim = [0.0, 0.0, 0.0]
+beam_angle = 20.0
+field_angle = 30.0
+intensity = 1000.0
+"#,
+        fixtures = root().join("patch/fixtures").display(),
+        gels = root().join("patch/gels.toml").display(),
+    );
+    std::fs::write(&path, &text).unwrap();
+    let patch = footlight::Patch::load(&path).unwrap();
+    // The file, read with a plain TOML parser.
+    let file: toml::Table = text.parse().unwrap();
+    let expected: Vec<FileFixture> = file["fixture"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| FileFixture {
+            id: f["id"].as_integer().unwrap() as u64,
+            name: f["name"].as_str().unwrap().to_string(),
+            cells: 1,
+            universe: f.get("universe").map(|v| v.as_integer().unwrap() as u64),
+            address: f.get("address").map(|v| v.as_integer().unwrap() as u64),
+            mode: f.get("mode").map(|v| v.as_str().unwrap().to_string()),
+            position: [0, 1, 2].map(|i| f["position"][i].as_float().unwrap()),
+        })
+        .collect();
+    let daemon = ShowDaemon::start(patch, 16, 10, footlight_dmx::Universes::default());
+    assert_status_patch(&daemon.status(), &expected, 1e-9);
+    drop(daemon);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The named member of a zip archive (stored or deflated), found through
+/// the central directory: the tests' own reader of an MVR file.
+fn zip_member(zip: &[u8], name: &str) -> Vec<u8> {
+    use std::io::Read;
+    let u16_at = |o: usize| usize::from(u16::from_le_bytes([zip[o], zip[o + 1]]));
+    let u32_at = |o: usize| u32::from_le_bytes(zip[o..o + 4].try_into().unwrap()) as usize;
+    let end = (0..zip.len() - 21).rev().find(|&o| u32_at(o) == 0x0605_4b50).expect("end of central directory");
+    let mut o = u32_at(end + 16);
+    for _ in 0..u16_at(end + 10) {
+        assert_eq!(u32_at(o), 0x0201_4b50, "central directory entry");
+        let (method, size, local) = (u16_at(o + 10), u32_at(o + 20), u32_at(o + 42));
+        let (n, extra, comment) = (u16_at(o + 28), u16_at(o + 30), u16_at(o + 32));
+        if &zip[o + 46..o + 46 + n] == name.as_bytes() {
+            let data = local + 30 + u16_at(local + 26) + u16_at(local + 28);
+            let raw = &zip[data..data + size];
+            let mut out = Vec::new();
+            match method {
+                0 => out.extend_from_slice(raw),
+                8 => {
+                    flate2::read::DeflateDecoder::new(raw).read_to_end(&mut out).unwrap();
+                }
+                m => panic!("zip method {m}"),
+            }
+            return out;
+        }
+        o += 46 + n + extra + comment;
+    }
+    panic!("{name} is not in the archive")
+}
+
+/// The fixtures of an MVR scene description, read with string searches: id,
+/// name, GDTF mode, absolute DMX address (→ universe.address, 512 slots a
+/// universe) and the matrix's offset (mm, Z up → metres, stage Y up, +Z
+/// toward the audience: (x, z, −y) / 1000). `cells` gives the lights per
+/// GDTF file.
+fn mvr_fixtures(xml: &str, cells: &dyn Fn(&str) -> usize) -> Vec<FileFixture> {
+    let between = |s: &str, open: &str, close: &str| -> Option<String> {
+        let start = s.find(open)? + open.len();
+        Some(s[start..start + s[start..].find(close)?].to_string())
+    };
+    xml.split("<Fixture ")
+        .skip(1)
+        .map(|chunk| {
+            let body = &chunk[..chunk.find("</Fixture>").unwrap()];
+            let absolute: u64 = between(body, "<Address break=\"0\">", "<").unwrap().trim().parse().unwrap();
+            let matrix = between(body, "<Matrix>", "<").unwrap();
+            let offset: Vec<f64> = matrix
+                .rsplit('{')
+                .next()
+                .unwrap()
+                .trim_end_matches('}')
+                .split(',')
+                .map(|v| v.parse().unwrap())
+                .collect();
+            FileFixture {
+                id: between(body, "<FixtureID>", "<").unwrap().parse().unwrap(),
+                name: between(body, "name=\"", "\"").unwrap(),
+                cells: cells(&between(body, "<GDTFSpec>", "<").unwrap()),
+                universe: Some((absolute - 1) / 512 + 1),
+                address: Some((absolute - 1) % 512 + 1),
+                mode: between(body, "<GDTFMode>", "<"),
+                position: [offset[0] / 1000.0, offset[2] / 1000.0, -offset[1] / 1000.0],
+            }
+        })
+        .collect()
+}
+
+/// Issue 36 item 6 on the 150-fixture MVR show: every light carries its
+/// fixture's id, name, address, GDTF mode and position as the MVR file
+/// gives them, and the 24 pixel bars' cells are numbered 1-8 under their bar.
+#[test]
+fn status_gives_each_mvr_fixtures_cells_address_mode_and_position() {
+    let path = root().join("tests/data/mvr/show150.mvr");
+    let xml = String::from_utf8(zip_member(&std::fs::read(&path).unwrap(), "GeneralSceneDescription.xml")).unwrap();
+    // tools/gen_gdtf_mvr.py: the bar has eight RGB pixels, the blinder two
+    // lamps, the hazer no beam (it is not a light).
+    let cells = |spec: &str| match spec {
+        "Footlight@Bar8.gdtf" => 8,
+        "Footlight@Blinder.gdtf" => 2,
+        "Footlight@Hazer.gdtf" => 0,
+        _ => 1,
+    };
+    let expected: Vec<FileFixture> = mvr_fixtures(&xml, &cells).into_iter().filter(|f| f.cells > 0).collect();
+    assert_eq!((expected.len(), expected.iter().map(|f| f.cells).sum::<usize>()), (148, 336));
+    let patch = footlight_mvr::load_mvr(&path).unwrap().patch;
+    let daemon = ShowDaemon::start(patch, 16, 10, footlight_dmx::Universes::default());
+    // Positions in the status are to the millimetre; the file's to 1/1000 mm.
+    assert_status_patch(&daemon.status(), &expected, 0.0005 + 1e-6);
 }

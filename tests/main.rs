@@ -18,8 +18,10 @@ mod degenerate;
 mod golden;
 // Per-light photon maps: energy, linearity, caustics, progressive refinement.
 mod photons;
-// The live daemon: frame clock, staged rebuilds, cache, HTTP preview.
+// The live daemon: frame clock, staged rebuilds, cache, HTTP preview, the status's patch fields.
 mod live;
+// The preview page's light table at 1280×800 in headless Chromium (issue 37).
+mod light_table;
 // Haze: single scattering vs quadrature, extinction, wedges, density, linearity.
 mod haze;
 // Numerical stress matrix: extremes stay finite and bounded.

@@ -25,7 +25,7 @@
 //! running after it is left to end with the process.
 
 use super::clock::{Decode, Frame, FrameClock, LightLabel};
-use super::show::{LiveSlots, Show};
+use super::show::{LightPatch, LiveSlots, Show};
 use super::tracer::{LightReport, Tracer, TracerSettings};
 use super::views::{NamedView, ViewSettings, ViewStatus, Views};
 use crate::render::composite::Compositor;
@@ -199,6 +199,10 @@ pub struct LightStatus {
     /// Fixture id and name as the patch gives them.
     #[serde(flatten)]
     pub label: LightLabel,
+    /// Its fixture (a cell's fixture), DMX address, mode and position
+    /// (all `null` for a daemon without a patch).
+    #[serde(flatten)]
+    pub patch: LightPatch,
     /// DMX values of its footprint.
     pub dmx: Vec<u8>,
     /// Luminance of its k_i now (cd), 0 when dark.
@@ -474,6 +478,7 @@ impl Daemon {
             let views = views.clone();
             let map = input_patch.map.clone();
             let labels = decoder.labels();
+            let patches = show.as_ref().map(|s| s.light_patches()).unwrap_or_default();
             let cache_budget = config.tracer.cache_bytes;
             Arc::new(move || {
                 let frame = frames.borrow().clone();
@@ -484,6 +489,7 @@ impl Daemon {
                     .enumerate()
                     .map(|(i, label)| LightStatus {
                         label: label.clone(),
+                        patch: patches.get(i).cloned().unwrap_or_default(),
                         dmx: decoder.slots_of(i, &slots),
                         intensity: frame.intensity.get(i).copied().unwrap_or(0.0),
                         build: tracer.report(i),

@@ -76,6 +76,12 @@ impl Show {
         self.patch.fixtures.iter().map(|f| f.id).collect()
     }
 
+    /// Every light's patch data for the status, in light order: its
+    /// fixture (a cell's fixture), DMX address, mode and position.
+    pub fn light_patches(&self) -> Vec<LightPatch> {
+        self.patch.fixtures.iter().map(LightPatch::of).collect()
+    }
+
     /// The DMX slots of light `index`'s footprint, for the status page.
     pub fn fixture_slots(&self, index: usize, universes: &dyn DmxSlots) -> Vec<u8> {
         let Some(f) = self.patch.fixtures.get(index) else { return Vec::new() };
@@ -89,6 +95,49 @@ impl Show {
     /// What a state change of a fixture costs: the fixture crate's rule.
     pub fn change(old: &FixtureState, new: &FixtureState) -> Change {
         classify(old, new)
+    }
+}
+
+/// Where a light is patched and hung, as a desk shows it (the status's
+/// per-light patch fields, [`Show::light_patches`]; docs/live.md).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct LightPatch {
+    /// The fixture's own name: for a cell, its fixture's (the light's
+    /// `name` is `"fixture / cell"`); else the light's name.
+    pub fixture_name: Option<String>,
+    /// 1-based number of the cell within its fixture, when the fixture is
+    /// several lights (an MVR pixel bar's pixels); `None` for a one-light
+    /// fixture. A fixture's cells are consecutive lights under one id.
+    pub cell: Option<u32>,
+    /// Patch universe of the start address; `None` when unpatched.
+    pub universe: Option<u16>,
+    /// Start address, 1-512; `None` when unpatched.
+    pub address: Option<u16>,
+    /// `universe.address` as desks write it (`"2.17"`); `None` when unpatched.
+    pub dmx_address: Option<String>,
+    /// Channels the fixture's mode uses from its start address.
+    pub footprint: Option<u16>,
+    /// The DMX mode's name (GDTF and library types); `None` for the built-in spot.
+    pub mode: Option<String>,
+    /// Where the fixture hangs, metres to the millimetre, stage axes (y up):
+    /// the patch's `position`, an MVR fixture's origin (shared by its cells).
+    pub position: Option<[f64; 3]>,
+}
+
+impl LightPatch {
+    /// The patch data of one fixture instance.
+    fn of(f: &footlight_fixture::Fixture) -> Self {
+        let fixture_name = f.cell.as_ref().map_or_else(|| f.name.clone(), |c| c.fixture_name.clone());
+        Self {
+            fixture_name: Some(fixture_name),
+            cell: f.cell.as_ref().map(|c| c.number),
+            universe: f.dmx.map(|(u, _)| u),
+            address: f.dmx.map(|(_, a)| a),
+            dmx_address: f.dmx.map(|(u, a)| format!("{u}.{a}")),
+            footprint: Some(f.footprint()),
+            mode: f.mode_name().map(str::to_string),
+            position: Some(f.position.to_array().map(|v| (f64::from(v) * 1000.0).round() / 1000.0)),
+        }
     }
 }
 

@@ -49,7 +49,7 @@ use footlight_fixture::fixture_type::{
     Action, Attribute, Channel, CorrectionTable, Function, Mode, Movement, Optics, SlotOverride, SpotOptics, WheelSlot,
     wheel_factor,
 };
-use footlight_fixture::patch::{BREAK_STRIDE, BuiltinSpot, TypeLoader, TypedFixture};
+use footlight_fixture::patch::{BREAK_STRIDE, BuiltinSpot, FixtureCell, TypeLoader, TypedFixture};
 use footlight_fixture::state::{MAX_MIX, SLOTS, Universes};
 use footlight_fixture::{Beam, Fixture, FixtureModel, FixtureState, FixtureType, Light, Manual, Patch, PatchError};
 use footlight_photometry::{Chroma, CmyFilters, DimmerCurve, Emitter, Gel, Lamp, Sampled};
@@ -567,6 +567,8 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
                     line: 0,
                     model: FixtureModel::Builtin(BuiltinSpot { beam, intensity: 0.0, colour: Vec3::ZERO }),
                     look: FixtureState::default(),
+                    position,
+                    cell: None,
                 });
             }
             Err(why) => {
@@ -607,15 +609,18 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
                 // A cell's own rotation (its GeometryReference's and beam's
                 // matrices) turns its beam within the fixture; a moving head's
                 // cells follow the head's pan/tilt instead.
-                let parts: Vec<(String, Arc<FixtureType>, usize, Vec3, Quat)> = match cells {
+                type Part = (String, Arc<FixtureType>, usize, Vec3, Quat, Option<FixtureCell>);
+                let parts: Vec<Part> = match cells {
                     Some(cells) => cells
                         .iter()
-                        .map(|c| {
+                        .zip(1..)
+                        .map(|(c, number)| {
                             let turn = if ty.movement.is_some() { Quat::IDENTITY } else { c.rotation };
-                            (format!("{} / {}", f.name, c.name), c.fixture_type.clone(), 0, c.offset, turn)
+                            let cell = FixtureCell { number, fixture_name: f.name.clone() };
+                            (format!("{} / {}", f.name, c.name), c.fixture_type.clone(), 0, c.offset, turn, Some(cell))
                         })
                         .collect(),
-                    None => vec![(f.name.clone(), ty.clone(), mode, *beam_offset, Quat::IDENTITY)],
+                    None => vec![(f.name.clone(), ty.clone(), mode, *beam_offset, Quat::IDENTITY, None)],
                 };
                 let ranges = match dmx {
                     Some(start) => break_ranges(md, start, &breaks),
@@ -641,7 +646,7 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
                         }
                     }
                 }
-                for (name, fixture_type, mode, beam_offset, turn) in parts {
+                for (name, fixture_type, mode, beam_offset, turn, cell) in parts {
                     let typed = TypedFixture {
                         fixture_type,
                         mode,
@@ -661,6 +666,8 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
                         line: 0,
                         model: FixtureModel::Typed(typed),
                         look: FixtureState::default(),
+                        position,
+                        cell,
                     };
                     for (o, v) in &local {
                         if let Some((u, a)) = fixture.slot_address(*o) {

@@ -329,6 +329,8 @@ impl<'a> Builder<'a> {
             line,
             model: made.model,
             look: FixtureState { v: made.level.unwrap_or(0.0), ..FixtureState::default() },
+            position,
+            cell: None,
         };
         Some(Built {
             fixture,

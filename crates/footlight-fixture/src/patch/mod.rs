@@ -61,6 +61,26 @@ pub struct Fixture {
     pub model: FixtureModel,
     /// The state of the default look (the `[look]` table over the channel defaults).
     pub look: FixtureState,
+    /// Where the fixture hangs, metres: the patch's `position`, an MVR
+    /// fixture's origin (the same for each of its cells). What the status
+    /// shows; the light's source may sit off it (a lens, a cell: `light`).
+    pub position: Vec3,
+    /// Which cell of its fixture this light is, when the fixture is several
+    /// lights (an MVR pixel bar's pixels, a blinder's lamps); `None` for a
+    /// one-light fixture.
+    pub cell: Option<FixtureCell>,
+}
+
+/// One light of a fixture made of several ([`Fixture::cell`]): the MVR
+/// import emits a fixture's cells one after another, under its id and DMX
+/// address, each named `"fixture / cell"`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FixtureCell {
+    /// 1-based number among its fixture's cells, in patch order (as desks
+    /// number sub-fixtures).
+    pub number: u32,
+    /// The whole fixture's name.
+    pub fixture_name: String,
 }
 
 /// The two kinds of fixture instance.
@@ -126,6 +146,15 @@ impl Fixture {
     /// changes a light's sample set).
     pub fn k_full(&self) -> Vec3 {
         self.k_full_of(&self.look)
+    }
+
+    /// The DMX mode's name (a typed fixture's, a GDTF mode's as the file
+    /// names it); `None` for the built-in spot.
+    pub fn mode_name(&self) -> Option<&str> {
+        match &self.model {
+            FixtureModel::Builtin(_) => None,
+            FixtureModel::Typed(t) => t.fixture_type.modes.get(t.mode).map(|m| m.name.as_str()),
+        }
     }
 
     /// Slots the fixture uses from its start address.
