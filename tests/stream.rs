@@ -5,10 +5,11 @@
 //! (bodies drawn from the stream's body tiles) equals the server's frame at
 //! rest, after a pan and after a dimmer change; a client that stops reading is
 //! skipped, then dropped, with at most one message held for it; malformed
-//! and oversized client messages close only that connection; pictures mode
-//! pushes the server's PNG. Real sockets need real time: every wait is a
-//! generous upper bound (the assertions are about what happens, never how
-//! fast).
+//! and oversized client messages close only that connection (a legal
+//! 125-byte ping is answered); a storm of mode switches from 20 clients is
+//! rate-limited (issue 35); pictures mode pushes the server's PNG. Real
+//! sockets need real time: every wait is a generous upper bound (the
+//! assertions are about what happens, never how fast).
 
 use crate::common::*;
 use footlight::live::{DaemonConfig, DmxSource, Frame, Show};
@@ -602,6 +603,168 @@ fn malformed_and_oversized_client_messages_close_that_connection_only() {
     assert!(s["buffer_messages"].as_u64().unwrap() >= 3, "{s}");
 }
 
+/// Issue 35 item 6: a ping may carry the 125 bytes RFC 6455 allows a
+/// control frame; it is answered with a pong and the stream goes on, while
+/// a data message over [`stream::MAX_CLIENT_MESSAGE`] still closes with 1009.
+#[test]
+fn a_legal_125_byte_ping_is_answered_with_a_pong_and_the_stream_goes_on() {
+    let (w, h) = (32, 16);
+    let buffer = noise(w, h, 5);
+    let server = serve(frame(0, w, h, buffer.clone(), 0));
+    let mut ws = server.connect("");
+    assert_eq!(binary(&mut ws)[0], MSG_HELLO);
+    assert_eq!(binary(&mut ws)[0], MSG_BUFFER);
+    assert_eq!(binary(&mut ws)[0], MSG_FRAME);
+    let payload: Vec<u8> = (0..125u8).collect();
+    ws.send(Message::Ping(payload.clone().into())).unwrap();
+    let pong = loop {
+        match ws.read() {
+            Ok(Message::Pong(p)) => break p,
+            Ok(Message::Binary(b)) if b[0] == MSG_FRAME => continue, // a keepalive
+            other => panic!("expected the pong, got {other:?}"),
+        }
+    };
+    assert_eq!(pong.to_vec(), payload);
+    server.frames.send_replace(frame(1, w, h, buffer, 0));
+    let k = binary(&mut ws);
+    assert_eq!((k[0], u64::from_le_bytes(k[8..16].try_into().unwrap())), (MSG_FRAME, 1), "still streaming");
+    // Data messages stay limited: one byte over the limit closes with 1009.
+    ws.send(Message::binary(vec![stream::MSG_SET_MODE; stream::MAX_CLIENT_MESSAGE + 1])).unwrap();
+    let code = loop {
+        match ws.read() {
+            Ok(Message::Close(c)) => break c.map(|c| u16::from(c.code)),
+            Ok(_) => continue,
+            Err(e) => panic!("closed without a close frame: {e}"),
+        }
+    };
+    assert_eq!(code, Some(1009));
+    let s = server.stream();
+    assert_eq!(s["closed_bad_message"], 1, "{s}");
+}
+
+/// One client of the switch storm: what it received.
+#[derive(Default)]
+struct StormTally {
+    /// The mode byte of each hello, in order.
+    hellos: Vec<u8>,
+    /// Frame messages since the last hello.
+    frames_since_hello: u64,
+    buffers: u64,
+    bytes: u64,
+}
+
+/// Issue 35 item 4: 20 clients each send 50 mode switches (pictures,
+/// buffers, … ending on buffers) 5 ms apart. Each client's first switch
+/// restarts its stream at once; the rest come within the minimum interval
+/// and are deferred, the latest (buffers) applied once the interval has
+/// passed. So the storm restarts each stream about twice instead of 50
+/// times, and the buffers re-sent stay bounded by the interval: counters,
+/// not speed (the bound is computed from the time the storm took).
+#[test]
+fn a_mode_switch_storm_of_20_clients_is_rate_limited() {
+    use futures_util::{SinkExt, StreamExt};
+    use std::sync::Mutex;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    const CLIENTS: usize = 20;
+    const SWITCHES: usize = 50;
+    let (w, h) = (64, 64);
+    let server = serve(frame(0, w, h, noise(w, h, 11), 0));
+    let buffer_len = stream::encode_buffer(0, 0, &noise(w, h, 11)).len() as u64;
+    let clients = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+    let tallies: Vec<Arc<Mutex<StormTally>>> = (0..CLIENTS).map(|_| Arc::default()).collect();
+    let stop = Arc::new(AtomicBool::new(false));
+    let started = Instant::now();
+    let mut tasks = Vec::new();
+    for tally in &tallies {
+        let (tally, stop, addr) = (tally.clone(), stop.clone(), server.addr);
+        tasks.push(clients.spawn(async move {
+            let (ws, _) = tokio_tungstenite::connect_async(format!("ws://{addr}/api/stream")).await.unwrap();
+            let (mut tx, mut rx) = ws.split();
+            let reader = tokio::spawn(async move {
+                while !stop.load(Ordering::Relaxed) {
+                    let m = match tokio::time::timeout(Duration::from_millis(50), rx.next()).await {
+                        Err(_) => continue,
+                        Ok(Some(Ok(m))) => m,
+                        Ok(_) => break,
+                    };
+                    let Message::Binary(b) = m else { continue };
+                    let mut t = tally.lock().unwrap();
+                    t.bytes += b.len() as u64;
+                    match b[0] {
+                        MSG_HELLO => {
+                            t.hellos.push(b[2]);
+                            t.frames_since_hello = 0;
+                        }
+                        MSG_BUFFER => t.buffers += 1,
+                        MSG_FRAME => t.frames_since_hello += 1,
+                        _ => {}
+                    }
+                }
+            });
+            for i in 0..SWITCHES {
+                let mode = u8::from(i % 2 == 0); // pictures first, buffers last
+                tx.send(Message::binary(vec![stream::MSG_SET_MODE, mode])).await.unwrap();
+                tokio::time::sleep(Duration::from_millis(5)).await;
+            }
+            reader.await.unwrap();
+            let _ = tx.close().await;
+        }));
+    }
+    // Every switch received, then every deferred switch applied: each
+    // client has read every hello the server sent it, the last one in
+    // buffers mode (the latest requested) and its frame message after it.
+    let t = Instant::now();
+    let settled = loop {
+        let s = server.stream();
+        let restarts = s["mode_restarts"].as_u64().unwrap_or(0);
+        let hellos: u64 = tallies.iter().map(|t| t.lock().unwrap().hellos.len() as u64).sum();
+        let done = tallies.iter().all(|t| {
+            let t = t.lock().unwrap();
+            t.hellos.last() == Some(&0) && t.frames_since_hello > 0
+        });
+        if s["mode_switches"] == (CLIENTS * SWITCHES) as u64 && hellos == CLIENTS as u64 + restarts && done {
+            break s;
+        }
+        assert!(t.elapsed() < Duration::from_secs(60), "the storm never settled: {s}");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let elapsed = started.elapsed();
+    stop.store(true, Ordering::Relaxed);
+    for task in tasks {
+        clients.block_on(task).unwrap();
+    }
+    let count = |k: &str| settled[k].as_u64().unwrap();
+    let (switches, restarts, limited) = (count("mode_switches"), count("mode_restarts"), count("switches_limited"));
+    // At most one restart per client per interval, plus the first switch
+    // (free) and the deferred one at the end.
+    let intervals = (elapsed.as_secs_f64() / stream::MIN_RESTART_INTERVAL.as_secs_f64()).floor() as u64;
+    let bound = CLIENTS as u64 * (2 + intervals);
+    eprintln!("storm: {elapsed:?}, {settled}; {restarts} restarts, bound {bound}");
+    assert!(restarts <= bound, "{restarts} restarts for {switches} switches in {elapsed:?}: over {bound}");
+    assert!(restarts >= 2 * CLIENTS as u64, "each stream restarted for its first and its last switch: {restarts}");
+    assert!(limited >= switches - restarts, "the switches not applied at once are counted: {settled}");
+    // Bytes: every start (connect or restart) is a hello and at most the
+    // buffer and a frame (buffers) or a picture (pictures); keepalives at
+    // most one frame message a second per client.
+    let buffer_messages = count("buffer_messages");
+    assert!(buffer_messages <= CLIENTS as u64 + restarts, "{settled}");
+    let picture_len = 12 + footlight::serve::encode_png(&frame(0, w, h, noise(w, h, 11), 0)).unwrap().len() as u64;
+    let per_start = 44 + (buffer_len + 56).max(picture_len);
+    let keepalives = CLIENTS as u64 * (elapsed.as_secs() + 2) * 56;
+    let bytes_bound = (CLIENTS as u64 + restarts) * per_start + keepalives;
+    let received: u64 = tallies.iter().map(|t| t.lock().unwrap().bytes).sum();
+    assert!(count("bytes_sent") <= bytes_bound, "{} bytes sent, bound {bytes_bound}: {settled}", count("bytes_sent"));
+    assert!(received <= bytes_bound, "{received} bytes received");
+    let unlimited = CLIENTS as u64 * (1 + SWITCHES as u64 / 2) * buffer_len;
+    eprintln!("storm: {received} bytes received (without the limit at least {unlimited})");
+    for t in &tallies {
+        let t = t.lock().unwrap();
+        assert_eq!(t.hellos.first(), Some(&0), "connected in buffers mode");
+        assert_eq!(t.hellos.get(1), Some(&1), "the first switch (pictures) applied at once");
+        assert!(t.buffers >= 2, "the buffer on connect and after the last switch: {}", t.buffers);
+    }
+}
+
 #[test]
 fn pictures_mode_pushes_the_server_png_when_the_picture_changes() {
     let (w, h) = (32, 16);
@@ -659,6 +822,7 @@ fn measure_stream_against_pictures_and_polling() {
         (Viewer::Pictures, 20),
         (Viewer::Polling, 20),
         (Viewer::Buffers, 60),
+        (Viewer::Switching, 20),
     ];
     let rows = run(&scene, &patch, camera, size, &levels, 8.0).unwrap();
     println!("{}", markdown(&rows, size));

@@ -9,16 +9,26 @@
 //! (the Art-Net packet leaving) to the k message reaching a viewer (the
 //! server side of "fader to canvas": the viewer's composite adds one
 //! display frame at most).
+//!
+//! The switch storm (issue 35 item 4) is N buffers-mode viewers that each
+//! send a mode switch (`[0x10, 1]`, `[0x10, 0]`, …) every
+//! [`SWITCH_EVERY`]: without the per-client rate limit every switch made
+//! the server send every light's buffer again (20 viewers pulled 12.2 GB in
+//! 10 s and the clock fell to 55 fps); the row shows the clock, the bytes
+//! the viewers got and the switches they sent.
 
 use crate::live::{Daemon, DmxSource, Show};
 use crate::scene::{Camera, Scene};
 use crate::serve::stream::{MSG_BUFFER, MSG_CLEARED, MSG_FRAME, MSG_PICTURE};
-use futures_util::StreamExt;
+use futures_util::{SinkExt, StreamExt};
 use serde::Serialize;
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
+
+/// How often each viewer of the switch storm sends a mode switch.
+pub const SWITCH_EVERY: Duration = Duration::from_millis(10);
 
 /// Name prefix of the daemon runtime's threads (CPU accounting).
 const SERVER_THREADS: &str = "fl-daemon";
@@ -35,6 +45,9 @@ pub enum Viewer {
     Pictures,
     /// `/api/frame.png` polled back to back (the page before issue 17).
     Polling,
+    /// `/api/stream?mode=buffers`, each viewer switching modes back and
+    /// forth every [`SWITCH_EVERY`] (the issue 35 storm).
+    Switching,
 }
 
 /// One load level.
@@ -58,6 +71,8 @@ pub struct StreamRow {
     pub fader_to_viewer_ms: Option<f64>,
     /// Clients that received anything.
     pub clients_served: usize,
+    /// Mode switches the viewers sent (the switch storm; 0 otherwise).
+    pub switches_sent: u64,
 }
 
 /// CPU seconds of this process's threads whose name starts with `prefix`
@@ -86,19 +101,45 @@ struct Received {
     bytes: AtomicU64,
     buffers: AtomicU64,
     served: AtomicU64,
+    /// Mode switches sent (the switch storm).
+    switches: AtomicU64,
     /// Nanoseconds since `epoch` of the last k message whose first k_i changed.
     k_changed_ns: AtomicU64,
 }
 
-/// One stream viewer reading until `stop`.
-async fn viewer(addr: SocketAddr, mode: &str, rx: Arc<Received>, stop: Arc<AtomicBool>, epoch: Instant, probe: bool) {
-    let Ok((mut ws, _)) = tokio_tungstenite::connect_async(format!("ws://{addr}/api/stream?mode={mode}")).await else {
+/// One stream viewer reading until `stop`; with `switching` it also sends a
+/// mode switch every [`SWITCH_EVERY`], alternating pictures and buffers.
+async fn viewer(
+    addr: SocketAddr,
+    mode: &str,
+    switching: bool,
+    rx: Arc<Received>,
+    stop: Arc<AtomicBool>,
+    epoch: Instant,
+    probe: bool,
+) {
+    let Ok((ws, _)) = tokio_tungstenite::connect_async(format!("ws://{addr}/api/stream?mode={mode}")).await else {
         return;
     };
+    let (mut tx, mut ws) = ws.split();
+    let mut switch = tokio::time::interval(SWITCH_EVERY);
+    let mut next_mode = 1u8;
     let mut first = true;
     let mut last_k = f32::NAN;
     while !stop.load(Ordering::Relaxed) {
-        let msg = match tokio::time::timeout(Duration::from_millis(200), ws.next()).await {
+        let msg = tokio::select! {
+            msg = tokio::time::timeout(Duration::from_millis(200), ws.next()) => msg,
+            _ = switch.tick(), if switching => {
+                let message = tokio_tungstenite::tungstenite::Message::binary(vec![crate::serve::stream::MSG_SET_MODE, next_mode]);
+                if tx.send(message).await.is_err() {
+                    break;
+                }
+                rx.switches.fetch_add(1, Ordering::Relaxed);
+                next_mode ^= 1;
+                continue;
+            }
+        };
+        let msg = match msg {
             Err(_) => continue,
             Ok(Some(Ok(m))) => m,
             Ok(_) => break,
@@ -190,7 +231,7 @@ pub fn run(
         let mut tasks = Vec::new();
         let duration = Duration::from_secs_f64(seconds);
         let mode = match viewer_kind {
-            Viewer::Buffers => Some("buffers"),
+            Viewer::Buffers | Viewer::Switching => Some("buffers"),
             Viewer::Pictures => Some("pictures"),
             Viewer::None | Viewer::Polling => None,
         };
@@ -199,7 +240,8 @@ pub fn run(
             .then(|| load.spawn(crate::serve::load::poll_frames(addr, clients, duration)));
         if let Some(mode) = mode {
             for c in 0..clients {
-                tasks.push(load.spawn(viewer(addr, mode, rx.clone(), stop.clone(), epoch, c == 0)));
+                let switching = viewer_kind == Viewer::Switching;
+                tasks.push(load.spawn(viewer(addr, mode, switching, rx.clone(), stop.clone(), epoch, c == 0)));
             }
         }
         // Connected, initial buffers received (the measured window is the steady state).
@@ -273,6 +315,7 @@ pub fn run(
             buffer_messages: rx.buffers.load(Ordering::Relaxed),
             fader_to_viewer_ms: latencies.get(latencies.len() / 2).copied(),
             clients_served: served,
+            switches_sent: rx.switches.load(Ordering::Relaxed),
         });
     }
     running.stop()?;
@@ -281,18 +324,23 @@ pub fn run(
 
 /// Markdown section for report.md.
 pub fn markdown(rows: &[StreamRow], (width, height): (u32, u32)) -> String {
+    let every = SWITCH_EVERY.as_millis();
+    let interval = crate::serve::stream::MIN_RESTART_INTERVAL.as_secs_f64();
     let mut s = format!(
         "\n## Browser stream (issue 17)\n\nThe rig through the daemon at {width}×{height}, a fader moving on Art-Net \
          (44 Hz ramp, then steps), N loopback viewers: the buffer stream (`/api/stream`, the browser composites), \
          pushed server PNGs (`?mode=pictures`), or `/api/frame.png` polled back to back. Server CPU is the daemon \
          runtime's threads (HTTP, frame clock, PNG encodes) above the run without viewers, per viewer; \
-         fader → viewer is the Art-Net packet leaving until the k message arrives (median).\n\n\
-         | viewers | mode | p99 frame interval | frame rate | bytes/frame/viewer | server CPU/viewer | buffer msgs | fader → viewer | served |\n\
-         |---:|---|---:|---:|---:|---:|---:|---:|---:|\n",
+         fader → viewer is the Art-Net packet leaving until the k message arrives (median). \
+         `Switching` is the mode-switch storm (issue 35): buffers-mode viewers each sending a switch every \
+         {every} ms, pictures and buffers in turn (the server restarts a client's stream at most once per \
+         {interval} s).\n\n\
+         | viewers | mode | p99 frame interval | frame rate | bytes/frame/viewer | server CPU/viewer | buffer msgs | switches sent | fader → viewer | served |\n\
+         |---:|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         s += &format!(
-            "| {} | {:?} | {:.1} ms | {:.1} fps | {:.0} | {:.2} % | {} | {} | {} |\n",
+            "| {} | {:?} | {:.1} ms | {:.1} fps | {:.0} | {:.2} % | {} | {} | {} | {} |\n",
             r.clients,
             r.viewer,
             r.frame_interval_p99_ms,
@@ -300,6 +348,7 @@ pub fn markdown(rows: &[StreamRow], (width, height): (u32, u32)) -> String {
             r.bytes_per_frame_per_client,
             r.server_cpu_per_client_pct,
             r.buffer_messages,
+            r.switches_sent,
             r.fader_to_viewer_ms.map_or("–".into(), |v| format!("{v:.1} ms")),
             r.clients_served,
         );

@@ -3,7 +3,8 @@
 //!
 //! * `GET /api/views`: the named views and the camera's status.
 //! * `POST /api/camera`: `{"position": [x, y, z], "target": [x, y, z], "fov_y": deg}`
-//!   or `{"view": "name"}` moves the camera (204).
+//!   or `{"view": "name"}` moves the camera (204); a body with both a view
+//!   and pose fields is refused (400), not read as one of them.
 //! * `POST /api/views`: `{"name": "…"}` saves the current camera under that
 //!   name, in memory only (201 with the view).
 //! * `GET /api/display`: the display settings of the latest frame.
@@ -125,18 +126,53 @@ async fn authorized_json<T: for<'de> Deserialize<'de>>(app: &App, req: Request) 
 }
 
 /// A camera write: a pose or a named view.
-#[derive(Deserialize)]
-#[serde(untagged)]
+#[derive(Debug, PartialEq)]
 enum CameraWrite {
     Pose(Pose),
     Named { view: String },
 }
 
+/// The fields of a [`Pose`] in JSON.
+const POSE_FIELDS: [&str; 4] = ["position", "target", "fov_y", "up"];
+
+impl CameraWrite {
+    /// Reads a camera write from its JSON: `{"view": "name"}` or a pose
+    /// (`position`, `target`, `fov_y`, optional `up`). A body naming a view
+    /// and pose fields is an error naming both (which one was meant cannot
+    /// be told), as is anything else that is neither.
+    fn from_json(value: serde_json::Value) -> Result<Self, String> {
+        let Some(fields) = value.as_object() else {
+            return Err(format!("a camera write is a JSON object, not {value}"));
+        };
+        if fields.contains_key("view") {
+            let pose: Vec<&str> = POSE_FIELDS.into_iter().filter(|f| fields.contains_key(*f)).collect();
+            if !pose.is_empty() {
+                return Err(format!(
+                    "a camera write names a view or gives a pose, not both: got \"view\" and {}",
+                    pose.iter().map(|f| format!("{f:?}")).collect::<Vec<_>>().join(", ")
+                ));
+            }
+            #[derive(Deserialize)]
+            #[serde(deny_unknown_fields)]
+            struct Named {
+                view: String,
+            }
+            let named: Named = serde_json::from_value(value).map_err(|e| format!("camera view: {e}"))?;
+            return Ok(Self::Named { view: named.view });
+        }
+        serde_json::from_value(value).map(Self::Pose).map_err(|e| format!("camera pose: {e}"))
+    }
+}
+
 /// `POST /api/camera`.
 pub(super) async fn post_camera(State(app): State<App>, req: Request) -> Response {
-    let (views, write) = match authorized_json::<CameraWrite>(&app, req).await {
+    let (views, write) = match authorized_json::<serde_json::Value>(&app, req).await {
         Ok(x) => x,
         Err(r) => return r,
+    };
+    let write = match CameraWrite::from_json(write) {
+        Ok(w) => w,
+        Err(e) => return error(StatusCode::BAD_REQUEST, e),
     };
     let result = match write {
         CameraWrite::Pose(pose) => views.move_to_pose(pose),
@@ -276,6 +312,23 @@ mod tests {
         // Unknown peer: treated as remote.
         assert!(!write_allowed(None, Some("t0k3n"), None));
         assert!(write_allowed(None, Some("t0k3n"), Some("t0k3n")));
+    }
+
+    /// Issue 35: a write with both a view and a pose was read as the view.
+    #[test]
+    fn a_camera_write_is_a_view_or_a_pose_never_both() {
+        let read = |s: &str| CameraWrite::from_json(serde_json::from_str(s).unwrap());
+        assert_eq!(read(r#"{"view": "front"}"#), Ok(CameraWrite::Named { view: "front".into() }));
+        let pose = read(r#"{"position": [0, 1, 5], "target": [0, 1, 0], "fov_y": 40}"#).unwrap();
+        assert!(matches!(pose, CameraWrite::Pose(p) if p.fov_y == 40.0 && p.up.is_none()), "{pose:?}");
+        let both = read(r#"{"view": "front", "position": [0, 1, 5], "target": [0, 1, 0], "fov_y": 40}"#);
+        let e = both.expect_err("view and pose together are refused");
+        assert!(e.contains("\"view\"") && e.contains("\"position\"") && e.contains("\"fov_y\""), "{e}");
+        let e = read(r#"{"view": "front", "up": [0, 1, 0]}"#).unwrap_err();
+        assert!(e.contains("\"view\"") && e.contains("\"up\""), "{e}");
+        for bad in [r#"{"view": "front", "zoom": 2}"#, r#"{"position": [0, 1, 5]}"#, r#"{}"#, "[1]", r#"{"view": 3}"#] {
+            assert!(read(bad).is_err(), "{bad}");
+        }
     }
 
     #[test]

@@ -17,7 +17,15 @@
 //!   `503 Service Unavailable` (written without waiting) and closed; they
 //!   never queue, so a flood cannot delay the clients already served;
 //! * a **Host check** against DNS rebinding ([`HostPolicy`]): 403 unless the
-//!   Host names the bound address or a loopback name with its port;
+//!   Host names the bound address or a loopback name with its port; a
+//!   request with more than one Host header is refused with 400 whatever
+//!   the policy (RFC 9112 3.2: no header may decide for the other);
+//! * a **body limit** ([`ServeConfig::max_request_body`]): a larger body is
+//!   answered `413 Payload Too Large`. The body is read (and dropped, up to
+//!   [`DRAIN_LIMIT`] bytes for at most [`DRAIN_TIME`]) before the answer, so
+//!   a client still sending gets the 413: a connection closed with unread
+//!   bytes is reset, and the reset throws away the answer on the client's
+//!   side before it reads it;
 //! * **shutdown**: when the `shutdown` future completes the listener is
 //!   closed (the port is free at once), every connection is asked to finish
 //!   its current response, and whatever is still open after the grace
@@ -92,6 +100,9 @@ pub struct ServeConfig {
     pub shutdown_grace: Duration,
     /// Which Host headers are answered.
     pub host_policy: HostPolicy,
+    /// Largest request body (bytes) any route gets; a larger one is
+    /// answered 413 (after it is drained, see the module docs).
+    pub max_request_body: usize,
 }
 
 impl ServeConfig {
@@ -104,6 +115,10 @@ impl ServeConfig {
     pub const MAX_CONNECTIONS: usize = 256;
     /// Default [`ServeConfig::shutdown_grace`]: 1 s.
     pub const SHUTDOWN_GRACE: Duration = Duration::from_secs(1);
+    /// Default [`ServeConfig::max_request_body`]: 16 KiB (the only bodies
+    /// are the camera and display writes' JSON, a few hundred bytes; the
+    /// write routes take 4 KiB at most themselves).
+    pub const MAX_REQUEST_BODY: usize = 16 * 1024;
 
     /// The defaults, with the Host policy the `--http` address implies
     /// ([`HostPolicy::for_address`]).
@@ -121,6 +136,7 @@ impl Default for ServeConfig {
             max_connections: Self::MAX_CONNECTIONS,
             shutdown_grace: Self::SHUTDOWN_GRACE,
             host_policy: HostPolicy::Local,
+            max_request_body: Self::MAX_REQUEST_BODY,
         }
     }
 }
@@ -149,8 +165,10 @@ pub struct ServeStats {
     pub idle_closed: AtomicU64,
     /// Connections dropped at shutdown after the grace period.
     pub dropped_at_shutdown: AtomicU64,
-    /// Requests refused for their Host header (403).
+    /// Requests refused for their Host header (403; 400 for more than one).
     pub forbidden_host: AtomicU64,
+    /// Requests refused for a body over [`ServeConfig::max_request_body`] (413).
+    pub body_too_large: AtomicU64,
     /// PNG encodes of frames.
     pub png_encodes: AtomicU64,
     /// `/api/frame.png` responses served.
@@ -172,6 +190,8 @@ pub struct StatsSnapshot {
     pub dropped_at_shutdown: u64,
     /// Requests refused for their Host header.
     pub forbidden_host: u64,
+    /// Requests refused for their body's size.
+    pub body_too_large: u64,
     /// PNG encodes.
     pub png_encodes: u64,
     /// Frame responses served.
@@ -189,6 +209,7 @@ impl ServeStats {
             idle_closed: r(&self.idle_closed),
             dropped_at_shutdown: r(&self.dropped_at_shutdown),
             forbidden_host: r(&self.forbidden_host),
+            body_too_large: r(&self.body_too_large),
             png_encodes: r(&self.png_encodes),
             png_served: r(&self.png_served),
         }
@@ -256,7 +277,11 @@ impl Server {
         }
         let local = listener.local_addr().map_err(ServeError::LocalAddr)?;
         let hosts = Arc::new(AllowedHosts::new(config.host_policy, local, stats.clone()));
-        let app = routes.layer(axum::middleware::from_fn_with_state(hosts, check_host));
+        let limit = BodyLimit { max: config.max_request_body, stats: stats.clone() };
+        // Layers run outside in: the Host check first, then the body limit.
+        let app = routes
+            .layer(axum::middleware::from_fn_with_state(Arc::new(limit), limit_body))
+            .layer(axum::middleware::from_fn_with_state(hosts, check_host));
         let mut http = hyper::server::conn::http1::Builder::new();
         http.timer(TokioTimer::new()).header_read_timeout(config.header_read_timeout).keep_alive(true);
         let limit = Arc::new(Semaphore::new(config.max_connections));
@@ -493,9 +518,14 @@ impl AllowedHosts {
     }
 }
 
-/// Middleware: 403 for a Host (header, or the authority of an absolute
-/// request target) the policy does not allow.
+/// Middleware: 400 for more than one Host header, 403 for a Host (header,
+/// or the authority of an absolute request target) the policy does not allow.
 async fn check_host(State(hosts): State<Arc<AllowedHosts>>, req: Request, next: Next) -> Response {
+    if req.headers().get_all(header::HOST).iter().nth(1).is_some() {
+        hosts.stats.forbidden_host.fetch_add(1, Ordering::Relaxed);
+        let message = "400: more than one Host header; a request names its host once.\n";
+        return (StatusCode::BAD_REQUEST, [(header::CONNECTION, "close")], message).into_response();
+    }
     let header = req.headers().get(header::HOST).map(|h| h.to_str().unwrap_or("\u{fffd}"));
     let authority = req.uri().authority().map(|a| a.as_str());
     let ok = hosts.allows(header.or(authority)) && authority.is_none_or(|a| hosts.allows(Some(a)));
@@ -510,6 +540,76 @@ async fn check_host(State(hosts): State<Arc<AllowedHosts>>, req: Request, next: 
          to serve other names, bind it to a non-loopback address with --http.\n"
     );
     (StatusCode::FORBIDDEN, [(header::CONNECTION, "close")], message).into_response()
+}
+
+/// Bytes of an oversized body read and dropped before the 413 goes out;
+/// beyond them the connection is closed (and reset) without one.
+pub const DRAIN_LIMIT: u64 = 64 << 20;
+/// Time an oversized body may take to drain before the 413 goes out anyway.
+pub const DRAIN_TIME: Duration = Duration::from_secs(10);
+
+/// What [`limit_body`] needs.
+struct BodyLimit {
+    max: usize,
+    stats: Arc<ServeStats>,
+}
+
+/// Middleware: reads the request body (at most `max` bytes) before the
+/// route sees it; a larger one (declared or sent) is drained and answered
+/// 413, so the answer reaches a client that is still sending.
+async fn limit_body(State(limit): State<Arc<BodyLimit>>, req: Request, next: Next) -> Response {
+    use futures_util::StreamExt;
+    let (parts, body) = req.into_parts();
+    let declared = parts
+        .headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.trim().parse::<u64>().ok());
+    let too_large = |limit: &BodyLimit| {
+        limit.stats.body_too_large.fetch_add(1, Ordering::Relaxed);
+        let message = format!("413: the request body is over {} bytes\n", limit.max);
+        (StatusCode::PAYLOAD_TOO_LARGE, [(header::CONNECTION, "close")], message).into_response()
+    };
+    if declared.is_some_and(|n| n > limit.max as u64) {
+        // A client waiting for `100 Continue` has sent nothing: answering
+        // without reading is clean (reading would ask it for the body).
+        let waits =
+            parts.headers.get(header::EXPECT).is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(b"100-continue"));
+        if !waits && declared.is_some_and(|n| n <= DRAIN_LIMIT) {
+            drain(body.into_data_stream()).await;
+        }
+        return too_large(&limit);
+    }
+    let mut stream = body.into_data_stream();
+    let mut bytes = Vec::new();
+    while let Some(chunk) = stream.next().await {
+        let Ok(chunk) = chunk else {
+            let message = "400: the request body ended early\n";
+            return (StatusCode::BAD_REQUEST, [(header::CONNECTION, "close")], message).into_response();
+        };
+        if bytes.len() + chunk.len() > limit.max {
+            drain(stream).await;
+            return too_large(&limit);
+        }
+        bytes.extend_from_slice(&chunk);
+    }
+    next.run(Request::from_parts(parts, axum::body::Body::from(bytes))).await
+}
+
+/// Reads and drops what is left of a body, at most [`DRAIN_LIMIT`] bytes
+/// for at most [`DRAIN_TIME`].
+async fn drain(mut stream: axum::body::BodyDataStream) {
+    use futures_util::StreamExt;
+    let _ = tokio::time::timeout(DRAIN_TIME, async {
+        let mut read = 0u64;
+        while let Some(Ok(chunk)) = stream.next().await {
+            read += chunk.len() as u64;
+            if read > DRAIN_LIMIT {
+                break;
+            }
+        }
+    })
+    .await;
 }
 
 #[cfg(test)]

@@ -34,8 +34,18 @@
 //! Upgraded connections leave the HTTP accept loop, so this module bounds
 //! them itself: at most [`MAX_CLIENTS`] streams, client messages of at most
 //! [`MAX_CLIENT_MESSAGE`] bytes (anything larger, or not in the protocol,
-//! closes that connection only), and every stream ends when the frame clock
-//! stops (the daemon's shutdown drops the frame channel's sender).
+//! closes that connection only; a ping may carry the 125 bytes RFC 6455
+//! allows and is answered with a pong), and every stream ends when the frame
+//! clock stops (the daemon's shutdown drops the frame channel's sender).
+//!
+//! A mode switch makes the server start the stream over (hello and every
+//! light's buffer again: megabytes for two bytes received), so switches are
+//! rate-limited per client ([`SwitchLimiter`], issue 35): a switch to the
+//! mode in force is a no-op, and one within [`MIN_RESTART_INTERVAL`] of the
+//! client's last restart is deferred until the interval has passed, only the
+//! latest requested mode being applied. The page switches at most once (to
+//! pictures, when WebGL2 fails), and a connection's first switch is never
+//! deferred, so no real viewer waits.
 
 use super::png::PngCache;
 use crate::live::bodies::BodyTiles;
@@ -76,8 +86,21 @@ pub const BODY_PIXEL_BYTES: usize = 12;
 pub const MSG_SET_MODE: u8 = 0x10;
 /// Streams open at most; more are refused with 503.
 pub const MAX_CLIENTS: usize = 64;
-/// Largest client message accepted (bytes); a larger one closes the stream.
+/// Largest client data message accepted (bytes); a larger one closes the
+/// stream with 1009.
 pub const MAX_CLIENT_MESSAGE: usize = 64;
+/// Largest incoming WebSocket frame (payload bytes): the 125 bytes RFC 6455
+/// (5.5) allows a control frame, so every legal ping is read and answered;
+/// data messages stay limited to [`MAX_CLIENT_MESSAGE`].
+pub const MAX_CLIENT_FRAME: usize = 125;
+/// Shortest time between two restarts of one client's stream by mode
+/// switches; a switch that comes sooner is deferred until this has passed.
+/// The page switches at most once per connection (to pictures, when WebGL2
+/// fails or its context is lost), and a connection's first switch is applied
+/// at once, so no real viewer is ever deferred; a client that switches
+/// back and forth costs at most one restart (a hello and, in buffers mode,
+/// every light's buffer) per 2 s instead of one per message.
+pub const MIN_RESTART_INTERVAL: Duration = Duration::from_secs(2);
 /// Default stall limit: a send that takes longer drops the client.
 pub const STALL_LIMIT: Duration = Duration::from_secs(10);
 /// A k message is sent at least this often even when nothing changed, so a
@@ -144,6 +167,14 @@ pub struct StreamStats {
     pub dropped_stalled: AtomicU64,
     /// Streams closed for a malformed or oversized client message.
     pub closed_bad_message: AtomicU64,
+    /// Mode-switch messages received (`[0x10, mode]`).
+    pub mode_switches: AtomicU64,
+    /// Restarts of a stream by a mode switch (hello and everything again).
+    pub mode_restarts: AtomicU64,
+    /// Mode-switch messages not applied at once ([`SwitchLimiter`]): a
+    /// switch to the mode in force, or one within [`MIN_RESTART_INTERVAL`]
+    /// of the client's last restart (deferred; only the latest is applied).
+    pub switches_limited: AtomicU64,
     /// Buffers encoded (f16 + DEFLATE), over all clients.
     pub buffer_encodes: AtomicU64,
     /// Message bytes held by the server for all clients now (at most one
@@ -172,6 +203,9 @@ impl StreamStats {
             "frames_skipped": r(&self.frames_skipped),
             "dropped_stalled": r(&self.dropped_stalled),
             "closed_bad_message": r(&self.closed_bad_message),
+            "mode_switches": r(&self.mode_switches),
+            "mode_restarts": r(&self.mode_restarts),
+            "switches_limited": r(&self.switches_limited),
             "buffer_encodes": r(&self.buffer_encodes),
             "pending_bytes": r(&self.pending_bytes),
             "max_pending_per_client": r(&self.max_pending_per_client),
@@ -251,7 +285,7 @@ pub async fn handler(
     let guard = OpenGuard(s.stats.clone());
     let mode = q.mode.unwrap_or(Mode::Buffers);
     let stall = q.stall_ms.map_or(STALL_LIMIT, |ms| Duration::from_millis(ms.clamp(50, 10_000)));
-    ws.max_message_size(MAX_CLIENT_MESSAGE).max_frame_size(MAX_CLIENT_MESSAGE).on_upgrade(move |socket| async move {
+    ws.max_message_size(MAX_CLIENT_MESSAGE).max_frame_size(MAX_CLIENT_FRAME).on_upgrade(move |socket| async move {
         let _guard = guard;
         Client {
             socket,
@@ -264,6 +298,7 @@ pub async fn handler(
             last_k: None,
             last_picture: None,
             shown: 0,
+            limiter: SwitchLimiter::default(),
         }
         .run()
         .await;
@@ -318,6 +353,60 @@ struct Client {
     last_picture: Option<Arc<Vec<u8>>>,
     /// The number of the last frame handled.
     shown: u64,
+    /// This client's mode switches: when they may restart the stream.
+    limiter: SwitchLimiter,
+}
+
+/// The rate limit of one client's mode switches (see the module docs): a
+/// pure state machine over the instants it is given, so it is tested without
+/// a clock.
+#[derive(Debug, Default)]
+struct SwitchLimiter {
+    /// When a switch last restarted the stream (`None`: never; the
+    /// connection's own start does not count, so its first switch is free).
+    last_restart: Option<tokio::time::Instant>,
+    /// The mode a deferred switch asks for (the latest one requested),
+    /// applied at [`SwitchLimiter::due`].
+    pending: Option<Mode>,
+}
+
+impl SwitchLimiter {
+    /// A switch to `wanted` received at `now` while `current` is in force:
+    /// `Some(mode)` to restart in `mode` now; `None` when it is limited (the
+    /// mode already in force, or deferred: then the latest request decides
+    /// what [`SwitchLimiter::take_due`] applies).
+    fn request(&mut self, current: Mode, wanted: Mode, now: tokio::time::Instant) -> Option<Mode> {
+        if self.pending.is_some() {
+            // Already deferred: the latest request decides (back to the
+            // mode in force cancels it).
+            self.pending = (wanted != current).then_some(wanted);
+            return None;
+        }
+        if wanted == current {
+            return None;
+        }
+        if self.last_restart.is_some_and(|t| now < t + MIN_RESTART_INTERVAL) {
+            self.pending = Some(wanted);
+            return None;
+        }
+        self.last_restart = Some(now);
+        Some(wanted)
+    }
+
+    /// When the deferred switch may be applied (`None`: none deferred).
+    fn due(&self) -> Option<tokio::time::Instant> {
+        self.pending.and(self.last_restart).map(|t| t + MIN_RESTART_INTERVAL)
+    }
+
+    /// The deferred switch's mode if it is due at `now` (it then counts as
+    /// the last restart).
+    fn take_due(&mut self, now: tokio::time::Instant) -> Option<Mode> {
+        if self.due().is_none_or(|due| now < due) {
+            return None;
+        }
+        self.last_restart = Some(now);
+        self.pending.take()
+    }
 }
 
 impl Client {
@@ -357,6 +446,7 @@ impl Client {
         let mut keepalive = tokio::time::interval(KEEPALIVE);
         keepalive.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         loop {
+            let due = self.limiter.due();
             tokio::select! {
                 changed = frames.changed() => {
                     if changed.is_err() {
@@ -373,6 +463,12 @@ impl Client {
                     let frame = frames.borrow().clone();
                     self.receive(msg, &frame).await?;
                 }
+                () = tokio::time::sleep_until(due.unwrap_or_else(tokio::time::Instant::now)), if due.is_some() => {
+                    if let Some(mode) = self.limiter.take_due(tokio::time::Instant::now()) {
+                        let frame = frames.borrow().clone();
+                        self.restart(mode, &frame).await?;
+                    }
+                }
                 _ = keepalive.tick() => {
                     let frame = frames.borrow().clone();
                     if self.mode == Mode::Buffers
@@ -385,8 +481,10 @@ impl Client {
         }
     }
 
-    /// A client message: `[MSG_SET_MODE, mode]` switches mode; control frames
-    /// are answered by the WebSocket layer; anything else closes the stream.
+    /// A client message: `[MSG_SET_MODE, mode]` switches mode (rate-limited
+    /// by [`SwitchLimiter`]); control frames are answered by the WebSocket
+    /// layer (a ping's pong goes out with the next read); anything else
+    /// closes the stream.
     async fn receive(&mut self, msg: Option<Result<Message, axum::Error>>, frame: &Arc<Frame>) -> Result<(), End> {
         match msg {
             None => Err(End::Closed),
@@ -405,16 +503,30 @@ impl Client {
             Some(Ok(Message::Close(_))) => Err(End::Closed),
             Some(Ok(Message::Ping(_) | Message::Pong(_))) => Ok(()),
             Some(Ok(Message::Binary(b))) if b.len() == 2 && b[0] == MSG_SET_MODE && b[1] <= 1 => {
-                self.mode = if b[1] == 0 { Mode::Buffers } else { Mode::Pictures };
-                self.sent.clear();
-                self.body_sent.clear();
-                self.last_bodies = None;
-                self.last_k = None;
-                self.last_picture = None;
-                self.start(frame).await
+                let wanted = if b[1] == 0 { Mode::Buffers } else { Mode::Pictures };
+                self.s.stats.mode_switches.fetch_add(1, Ordering::Relaxed);
+                match self.limiter.request(self.mode, wanted, tokio::time::Instant::now()) {
+                    Some(mode) => self.restart(mode, frame).await,
+                    None => {
+                        self.s.stats.switches_limited.fetch_add(1, Ordering::Relaxed);
+                        Ok(())
+                    }
+                }
             }
             Some(Ok(_)) => Err(End::Bad(1003, "not a footlight stream message")),
         }
+    }
+
+    /// Starts the stream over in `mode`: hello, then everything as on connect.
+    async fn restart(&mut self, mode: Mode, frame: &Arc<Frame>) -> Result<(), End> {
+        self.s.stats.mode_restarts.fetch_add(1, Ordering::Relaxed);
+        self.mode = mode;
+        self.sent.clear();
+        self.body_sent.clear();
+        self.last_bodies = None;
+        self.last_k = None;
+        self.last_picture = None;
+        self.start(frame).await
     }
 
     /// Sends what `frame` changed for this client.
@@ -883,6 +995,51 @@ mod tests {
         }
         assert!(decode_bodies(&msg[..msg.len() - 1]).is_err());
         assert!(decode_bodies(&encode_cleared(1, 2)).is_err());
+    }
+
+    /// Issue 35: a connection's first switch restarts at once; later ones
+    /// within [`MIN_RESTART_INTERVAL`] of the last restart wait for it, the
+    /// latest request deciding; a switch to the mode in force does nothing.
+    #[test]
+    fn mode_switches_restart_at_most_once_per_interval_latest_mode_wins() {
+        use Mode::{Buffers, Pictures};
+        let t0 = tokio::time::Instant::now();
+        let at = |ms: u64| t0 + Duration::from_millis(ms);
+        let mut l = SwitchLimiter::default();
+        assert_eq!(l.request(Buffers, Buffers, at(0)), None, "the mode in force: a no-op");
+        assert_eq!(l.due(), None);
+        assert_eq!(l.request(Buffers, Pictures, at(1)), Some(Pictures), "the first switch is not deferred");
+        // A storm within the interval: deferred, the latest mode decides.
+        for i in 0..100u64 {
+            let wanted = if i % 2 == 0 { Pictures } else { Buffers };
+            assert_eq!(l.request(Pictures, wanted, at(2 + i)), None);
+        }
+        assert_eq!(l.due(), Some(at(1) + MIN_RESTART_INTERVAL), "the latest request (buffers) waits for the interval");
+        assert_eq!(l.request(Pictures, Buffers, at(200)), None);
+        assert_eq!(l.take_due(at(1) + MIN_RESTART_INTERVAL - Duration::from_millis(1)), None, "not yet");
+        assert_eq!(l.take_due(at(1) + MIN_RESTART_INTERVAL), Some(Buffers), "the latest, once due");
+        assert_eq!((l.due(), l.take_due(at(10_000))), (None, None), "applied once");
+        // Back to the mode in force while deferred cancels the switch.
+        let t1 = at(1) + MIN_RESTART_INTERVAL;
+        assert_eq!(l.request(Buffers, Pictures, t1 + Duration::from_millis(5)), None);
+        assert!(l.due().is_some());
+        assert_eq!(l.request(Buffers, Buffers, t1 + Duration::from_millis(6)), None);
+        assert_eq!(l.due(), None, "cancelled");
+        // After the interval a switch is applied at once again.
+        assert_eq!(l.request(Buffers, Pictures, t1 + MIN_RESTART_INTERVAL), Some(Pictures));
+        // Any number of switches over 10 s restart at most 1 + 10 s / interval times.
+        let mut l = SwitchLimiter::default();
+        let mut mode = Buffers;
+        let mut restarts = 0;
+        for ms in 0..10_000u64 {
+            let wanted = if ms % 2 == 0 { Pictures } else { Buffers };
+            for m in [l.request(mode, wanted, at(ms)), l.take_due(at(ms))].into_iter().flatten() {
+                mode = m;
+                restarts += 1;
+            }
+        }
+        let bound = 1 + (10_000 / MIN_RESTART_INTERVAL.as_millis()) as u32;
+        assert!(restarts <= bound && restarts >= bound - 1, "{restarts} restarts, bound {bound}");
     }
 
     #[test]
