@@ -868,9 +868,10 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     let show150 = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr/show150.mvr");
     let mvr = mvr::run(&scene_arc, camera, (w, h), &show150, cfg.repeats, 50);
     progress.set_message("browser stream");
-    use stream::Viewer::{Buffers, None as NoViewers, Pictures, Polling};
+    use stream::Viewer::{Buffers, None as NoViewers, Pictures, Polling, Switching};
     let (stream_size, stream_seconds) = if cfg.quick { ((200, 125), 2.0) } else { ((800, 500), 12.0) };
-    let levels = [(NoViewers, 0), (Buffers, 20), (Pictures, 20), (Polling, 20), (Buffers, 60)];
+    // (Switching, 20): a storm of stream mode switches, rate-limited per client (issue 35).
+    let levels = [(NoViewers, 0), (Buffers, 20), (Pictures, 20), (Polling, 20), (Buffers, 60), (Switching, 20)];
     let stream_rows = stream::run(&scene_arc, patch, camera, stream_size, &levels, stream_seconds);
     let stream = (stream_rows.map_err(|e| tracing::error!("browser stream: {e}")).unwrap_or_default(), stream_size);
     progress.set_message("walking the stage");
