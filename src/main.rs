@@ -538,7 +538,7 @@ fn load_inputs(args: &SceneArgs) -> Result<(Scene, Patch)> {
     );
     // A TOML patch, or an MVR show whose fixtures come from its GDTF files.
     let patch = footlight_mvr::load_patch(&resolve(args.patch()))?;
-    tracing::info!("{}: {} fixtures", patch.path.display(), patch.fixtures.len());
+    tracing::info!("{}: {}", patch.path.display(), fixture_summary(&patch, &patch.listing()));
     Ok((scene, patch))
 }
 
@@ -673,6 +673,17 @@ fn run_daemon(
         };
         let camera = choose_camera(&scene, &patch);
         let named = footlight::live::views::named_views(&camera, &scene, Some(&patch));
+        // The addresses a desk needs, at start (a big show: `footlight check` lists them).
+        let listing = patch.listing();
+        if listing.len() <= MAX_LISTED {
+            listing.iter().for_each(|f| println!("{f}"));
+        } else {
+            println!(
+                "{} fixtures: `footlight check {}` lists their addresses (and the page's light table)",
+                listing.len(),
+                args.input.patch().display()
+            );
+        }
         let show = Arc::new(Show::new(patch));
         let bodies = match args.bodies {
             BodiesChoice::On => true,
@@ -846,14 +857,11 @@ fn check(path: &Path) -> Result<()> {
                     );
                 }
             }
-            let show = Show::new(patch);
-            let universes = show.universes();
-            println!(
-                "{}: ok, {} fixtures on universes {}",
-                path.display(),
-                show.patch().fixtures.len(),
-                universes.iter().map(u16::to_string).collect::<Vec<_>>().join(", ")
-            );
+            let listing = patch.listing();
+            for fixture in &listing {
+                println!("{fixture}");
+            }
+            println!("{}: ok, {}", path.display(), fixture_summary(&patch, &listing));
             Ok(())
         }
         Err(errors) => {
@@ -863,6 +871,39 @@ fn check(path: &Path) -> Result<()> {
             bail!("{}: {} problem(s)", path.display(), errors.len())
         }
     }
+}
+
+/// Fixtures listed with their addresses when `run` starts; a bigger show
+/// prints where to find them instead.
+const MAX_LISTED: usize = 40;
+
+/// "10 fixtures on universe 1", "150 fixtures (336 lights: cells counted) on
+/// universes 1-3, 5", "2 fixtures, none patched": fixtures and their cells
+/// counted apart, universes as the patch uses them.
+fn fixture_summary(patch: &Patch, listing: &[footlight::fixture::patch::ListedFixture]) -> String {
+    let lights = patch.fixtures.len();
+    let cells = if lights > listing.len() { format!(" ({lights} lights: cells counted)") } else { String::new() };
+    let mut universes: Vec<u16> = listing.iter().filter_map(|f| f.dmx.map(|(u, _)| u)).collect();
+    universes.sort_unstable();
+    universes.dedup();
+    let mut runs: Vec<String> = Vec::new();
+    let mut i = 0;
+    while i < universes.len() {
+        let mut j = i;
+        while j + 1 < universes.len() && universes[j + 1] == universes[j] + 1 {
+            j += 1;
+        }
+        runs.push(if j > i { format!("{}-{}", universes[i], universes[j]) } else { universes[i].to_string() });
+        i = j + 1;
+    }
+    let unpatched = listing.iter().filter(|f| f.dmx.is_none()).count();
+    let on = match (runs.len(), universes.len()) {
+        (0, _) => ", none patched".to_string(),
+        (_, 1) => format!(" on universe {}", runs.join(", ")),
+        _ => format!(" on universes {}", runs.join(", ")),
+    };
+    let loose = if unpatched > 0 && !runs.is_empty() { format!(", {unpatched} not patched") } else { String::new() };
+    format!("{} fixtures{cells}{on}{loose}", listing.len())
 }
 
 /// Refuses to replace a file the user already has, unless `force`.

@@ -600,3 +600,31 @@ fn replay_loop_plays_the_recording_again_until_stopped() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("--loop"), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// `check` lists every fixture with its type, mode and DMX addresses, counts
+/// fixtures and their cells apart, names the universes actually patched, and
+/// warns about fixtures a desk cannot reach (issue 37).
+#[test]
+fn check_lists_fixtures_with_their_addresses_and_warns_about_unaddressed_ones() {
+    let o = footlight().args(["check", "patch/default.toml"]).output().unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(out.lines().count(), 11, "one line per fixture and the summary: {out}");
+    assert!(out.contains("    9  Moving spot stage right  [Generic moving spot (standard)]  DMX 1/21-33"), "{out}");
+    assert!(out.contains("    7  LED PAR RGBW stage right  [Generic LED PAR RGBW (6ch)]  DMX 1/7-12"), "{out}");
+    assert!(out.trim_end().ends_with("patch/default.toml: ok, 10 fixtures on universe 1"), "{out}");
+
+    let o = footlight().args(["check", "patch/builtin-spots.toml"]).output().unwrap();
+    let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{err}");
+    assert!(out.trim_end().ends_with("ok, 6 fixtures, none patched"), "no universe list made up: {out}");
+    assert!(err.contains("6 fixture(s) have no universe and address (id 1, 2, 3, 4, 5, 6)"), "{err}");
+
+    // An MVR pixel show: fixtures and cells counted apart, cells folded.
+    let o = footlight().args(["check", "tests/data/mvr/show150.mvr"]).output().unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success());
+    let summary = out.lines().last().unwrap();
+    assert!(summary.ends_with("ok, 148 fixtures (336 lights: cells counted) on universes 1-5"), "{summary}");
+    assert!(out.lines().any(|l| l.contains(" cells]  DMX ")), "a pixel bar's cells are folded: {out}");
+}

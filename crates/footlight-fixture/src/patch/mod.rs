@@ -27,10 +27,12 @@
 mod build;
 pub mod file;
 pub mod haze;
+mod listing;
 pub mod views;
 
 pub use file::PatchFile;
 pub use haze::HazeSpec;
+pub use listing::ListedFixture;
 pub use views::ViewSpec;
 
 use crate::beam::{Beam, SpotBeam};
