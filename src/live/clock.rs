@@ -302,8 +302,14 @@ impl FrameClock {
         }
         let mut published: Vec<Published> = Vec::with_capacity(inputs.len());
         for (i, input) in inputs.iter().enumerate().take(self.tracer.len()) {
-            let priority = luminance(input.k_full).max(0.0)
-                * (0.1 + luminance(input.k).max(0.0) / luminance(input.k_full).max(1e-6));
+            // Brighter first; exactly 0 when dark, so the tracer builds it
+            // only when no lit light has work (lit first, issue 38).
+            let lit = luminance(input.k) > 0.0;
+            let priority = if lit {
+                luminance(input.k_full).max(0.0) * (0.1 + luminance(input.k) / luminance(input.k_full).max(1e-6))
+            } else {
+                0.0
+            };
             let moved = match &self.last[i] {
                 None => true,
                 Some(old) => classify(old, &input.state) == Change::Geometry,

@@ -21,7 +21,13 @@
 //!    spent on a position already stale. All settled lights get their
 //!    Whitted stage before any gets photons, and photons before any
 //!    refinement pass; within a stage, the brightest light goes first.
-//! 3. **A light in motion is shaded at moving quality**
+//! 3. **Lit first, dark in idle time.** A light whose k_i is 0 (priority
+//!    0: dimmer, shutter or colour at zero) is scheduled only when no lit
+//!    light has a direct or later stage due: every stage of every lit
+//!    light goes first, and a dark light that lights (priority above 0 in
+//!    the next frame) joins the lit ones at once. Rules 1 and 2 hold among
+//!    the lit lights and again among the dark ones.
+//! 4. **A light in motion is shaded at moving quality**
 //!    ([`DirectQuality::Moving`]: one pixel per 2×2 block) when its
 //!    previous request was less than `settle` earlier; the settled Whitted
 //!    stage replaces it.
@@ -306,7 +312,8 @@ pub struct SlotView {
     pub waiting_since: Option<Instant>,
     /// Share of the picture the light changes, in [1, 2].
     pub weight: f32,
-    /// Brightness priority.
+    /// Brightness priority; 0: dark (k_i = 0), built only when no lit
+    /// light has any work left.
     pub priority: f32,
     /// Still for at least the settle time.
     pub settled: bool,
@@ -326,11 +333,19 @@ pub enum Job {
 /// The scheduling policy (module doc): pure, so its fairness is tested
 /// without threads or clocks.
 pub fn schedule(slots: &[SlotView], now: Instant) -> Option<Job> {
+    // Lit first: every stage of the lit lights, then the dark ones (idle time).
+    schedule_among(slots, now, true).or_else(|| schedule_among(slots, now, false))
+}
+
+/// [`schedule`] over the lit (`priority > 0`) or the dark lights only.
+fn schedule_among(slots: &[SlotView], now: Instant, lit: bool) -> Option<Job> {
+    let mine = |s: &&SlotView| (s.priority > 0.0) == lit;
     let waited =
         |s: &SlotView| s.waiting_since.map(|t| now.saturating_duration_since(t).as_secs_f64() * f64::from(s.weight));
     let direct = slots
         .iter()
         .enumerate()
+        .filter(|(_, s)| mine(s))
         .filter_map(|(i, s)| waited(s).map(|w| (i, w)))
         // Longest weighted wait; ties go to the lower index.
         .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)));
@@ -340,7 +355,7 @@ pub fn schedule(slots: &[SlotView], now: Instant) -> Option<Job> {
     slots
         .iter()
         .enumerate()
-        .filter(|(_, s)| s.settled && s.waiting_since.is_none())
+        .filter(|(_, s)| mine(s) && s.settled && s.waiting_since.is_none())
         .filter_map(|(i, s)| s.later.map(|stage| (i, stage, s.priority)))
         .min_by(|a, b| a.1.cmp(&b.1).then(b.2.total_cmp(&a.2)).then(a.0.cmp(&b.0)))
         .map(|(i, _, _)| Job::Later(i))
@@ -1219,6 +1234,40 @@ mod tests {
         }
     }
 
+    /// Lit first (issue 38): a dark light's direct stage waits for every
+    /// stage of every lit light, however long it has waited; a dark light
+    /// that lights joins the lit ones at once.
+    #[test]
+    fn dark_lights_wait_for_every_stage_of_the_lit_ones() {
+        let t0 = Instant::now();
+        let now = t0 + Duration::from_secs(60);
+        let waiting = |since: Instant, priority: f32| SlotView {
+            waiting_since: Some(since),
+            weight: 1.0,
+            priority,
+            settled: false,
+            later: Some(0),
+        };
+        let refining = SlotView { waiting_since: None, weight: 1.0, priority: 5.0, settled: true, later: Some(2) };
+        // A dark light waiting a minute goes after a lit light's refinement pass.
+        assert_eq!(schedule(&[waiting(t0, 0.0), refining], now), Some(Job::Later(1)));
+        // ... and after a lit light that has waited a millisecond.
+        let fresh = waiting(now - Duration::from_millis(1), 1.0);
+        assert_eq!(schedule(&[waiting(t0, 0.0), fresh, refining], now), Some(Job::Direct(1)));
+        // With nothing lit left to do, the dark ones are built (longest wait first).
+        let done = SlotView { later: None, ..refining };
+        let dark = [waiting(t0 + Duration::from_secs(1), 0.0), waiting(t0, 0.0), done];
+        assert_eq!(schedule(&dark, now), Some(Job::Direct(1)));
+        // A dark light that lights jumps the queue of the dark ones.
+        let mut lit_now = dark;
+        lit_now[0].priority = 0.5;
+        assert_eq!(schedule(&lit_now, now), Some(Job::Direct(0)));
+        // Later stages of dark lights come last of all.
+        let dark_whitted = SlotView { priority: 0.0, later: Some(0), ..refining };
+        assert_eq!(schedule(&[dark_whitted, refining], now), Some(Job::Later(1)));
+        assert_eq!(schedule(&[dark_whitted, done], now), Some(Job::Later(0)));
+    }
+
     #[test]
     fn later_stages_wait_for_settled_lights_and_go_stage_by_stage() {
         let now = Instant::now();
@@ -1237,7 +1286,7 @@ mod tests {
         assert_eq!(schedule(&slots, now), Some(Job::Later(2)));
         assert_eq!(schedule(&[still(2, 100.0), still(0, 1.0)], now), Some(Job::Later(1)));
         // Any waiting request goes before every later stage.
-        let waiting = SlotView { waiting_since: Some(now), settled: false, later: None, ..still(0, 0.0) };
+        let waiting = SlotView { waiting_since: Some(now), settled: false, later: None, ..still(0, 0.1) };
         assert_eq!(schedule(&[still(0, 100.0), waiting], now), Some(Job::Direct(1)));
     }
 }
