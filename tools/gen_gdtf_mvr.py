@@ -52,6 +52,11 @@ MVR files (tests/data/mvr/):
   ../textures/checker.jpg  a baseline JPEG of flat 8x8 blocks (JPEG_BLOCKS), encoded here
   bad-*.mvr      refused archives: a `..` path, an absolute path, a >100:1 entry,
                  a header claiming > 1 GiB; and malformed XML (line/column test)
+
+    python3 tools/gen_gdtf_mvr.py --deep /tmp/deep [--depth 10000]
+
+writes only the hostile deep-nesting files of issue 35 (a GDTF, a TOML patch
+and two MVRs nested 10,000 deep) into /tmp/deep, never into tests/data.
 """
 
 import argparse
@@ -1315,10 +1320,51 @@ def outputs():
     return files
 
 
+def deep_files(depth):
+    """Hostile files nested `depth` deep (issue 35), never written to tests/data:
+    Footlight@Deep.gdtf (the Spot with a chain of `depth` <Geometry> in its beam),
+    deep-gdtf.toml (a TOML patch naming it), deep-gdtf.mvr (an MVR hanging it) and
+    deep-groups.mvr (a fixture inside `depth` nested GroupObjects). Footlight refuses
+    each before parsing, naming the file and the limit; the Rust tests build their
+    own (tests/cli.rs, crates/footlight-mvr/tests/cases/limits.rs)."""
+    spot_xml, media = spot()
+    chain = "".join(f'<Geometry Name="D{i}" Position="{m4()}">' for i in range(depth)) + "</Geometry>" * depth
+    deep_xml = spot_xml.replace("<FilterShaper", chain + "<FilterShaper", 1)
+    deep_gdtf = zip_bytes({"description.xml": deep_xml, **media})
+    spec = "Footlight@Deep.gdtf"
+    fixture = fixture_xml("Deep 1", spec, "Standard", 1, 1, mvr_matrix(0, 0, 5000), [(0, 1)])
+
+    def show(child_list):
+        layer = f'<Layer name="Rig" uuid="{uid("layer/deep")}"><ChildList>{child_list}</ChildList></Layer>'
+        return zip_bytes({"GeneralSceneDescription.xml": gsd([layer], []), spec: deep_gdtf})
+
+    groups = "".join(f'<GroupObject name="G{i}" uuid="{uid(f"group/deep/{i}")}"><ChildList>' for i in range(depth))
+    groups += fixture + "</ChildList></GroupObject>" * depth
+    toml = (
+        "# A TOML patch naming a GDTF nested too deep (tools/gen_gdtf_mvr.py --deep).\n"
+        f'[[fixture]]\nid = 1\nname = "Deep"\ntype = "{spec}"\nmode = "Standard"\n'
+        "universe = 1\naddress = 1\nposition = [0.0, 5.0, 0.0]\n"
+    )
+    return {
+        spec: deep_gdtf,
+        "deep-gdtf.toml": toml.encode(),
+        "deep-gdtf.mvr": show(fixture),
+        "deep-groups.mvr": show(groups),
+    }
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--check", action="store_true", help="compare with the files on disk instead of writing")
+    ap.add_argument("--deep", metavar="DIR", type=Path, help="write only the hostile deep-nesting files (issue 35) into DIR")
+    ap.add_argument("--depth", type=int, default=10_000, help="nesting depth of the --deep files (default 10000)")
     args = ap.parse_args()
+    if args.deep:
+        args.deep.mkdir(parents=True, exist_ok=True)
+        for name, data in deep_files(args.depth).items():
+            (args.deep / name).write_bytes(data)
+        print(f"wrote {', '.join(sorted(deep_files(0)))} ({args.depth} deep) into {args.deep}")
+        return 0
     files = outputs()
     stale = []
     for path, data in files.items():

@@ -152,7 +152,13 @@ pub fn fixture_bodies(path: &Path) -> Result<(Vec<FixtureBodySpec>, Vec<String>)
     for (n, f) in m.scene.fixtures.iter().enumerate() {
         let id = f.fixture_id_numeric.or_else(|| f.fixture_id.parse().ok()).unwrap_or(n as u32 + 1);
         let g = types.entry(f.gdtf_spec.clone()).or_insert_with(|| {
-            m.archive.get(&f.gdtf_spec).and_then(|b| Gdtf::from_bytes(&m.archive.label(&f.gdtf_spec), b.to_vec()).ok())
+            let g = m
+                .archive
+                .get(&f.gdtf_spec)
+                .and_then(|b| Gdtf::from_bytes(&m.archive.label(&f.gdtf_spec), b.to_vec()).ok());
+            // Once per type: models whose size is not drawable (NaN, negative…).
+            warnings.extend(g.iter().flat_map(Gdtf::model_warnings).map(|w| w.to_string()));
+            g
         });
         let Some(g) = g.as_ref() else { continue };
         let mode = if g.mode(&f.gdtf_mode).is_some() { f.gdtf_mode.clone() } else { g.mode_names()[0].clone() };
@@ -200,7 +206,8 @@ impl Walk<'_> {
         let index = self.spec.nodes.len();
         self.spec.nodes.push(Node { parent, local, joint });
         let beam = match &n.kind {
-            GeometryKind::Beam(b) => Some(b.beam_radius_m as f32),
+            // A radius that is not a drawable size (NaN, infinite, negative) is none.
+            GeometryKind::Beam(b) => Some(b.beam_radius_m as f32).map(|r| if r.is_finite() { r.max(0.0) } else { 0.0 }),
             _ => None,
         };
         let cell = match (&n.kind, cell) {
@@ -211,9 +218,10 @@ impl Walk<'_> {
         let model = n.model.as_deref().and_then(|name| self.g.model(name));
         match model {
             Some(model) => {
-                let dims =
-                    Vec3::new(model.dimensions[0] as f32, model.dimensions[1] as f32, model.dimensions[2] as f32);
+                let [l, w, h] = model.drawn_dimensions();
+                let dims = Vec3::new(l as f32, w as f32, h as f32);
                 let (shape, estimated) = self.shape(&model.primitive, model.file.as_deref());
+                let estimated = estimated || model.bad_dimensions().is_some();
                 let lens = beam.map(|r| if r > 0.0 { r } else { 0.5 * dims.x.min(dims.y).max(1e-3) });
                 self.spec.parts.push(PartSpec {
                     geometry: n.name.clone(),

@@ -42,8 +42,19 @@ pub use gdtf::geometry::{BeamType, LampType};
 
 /// Deepest geometry nesting followed (GeometryReferences included).
 const MAX_DEPTH: usize = 32;
+/// Deepest element nesting of a `description.xml`, checked before the `gdtf`
+/// crate parses it ([`crate::xml::well_formed`]). Real files nest about 15
+/// deep (`GDTF/FixtureType/Geometries` + a geometry tree under 10 deep, or
+/// `DMXModes/…/ChannelSet` at 9). The crate recurses once per geometry level
+/// with about 7 KiB of stack each in a debug build: a 2 MiB thread stack
+/// (a tokio blocking thread: `footlight run` loads there) survives ~250
+/// levels, so 64 keeps a 4× margin.
+pub const MAX_XML_DEPTH: usize = 64;
 /// Most geometry instances one mode may expand to.
 const MAX_NODES: usize = 100_000;
+/// Most channel instances one mode may bind (a channel on a referenced
+/// geometry counts once per reference): 128 DMX breaks of 512 slots.
+pub const MAX_CHANNELS: usize = 128 * 512;
 
 /// One parsed GDTF file.
 #[derive(Clone, Debug)]
@@ -71,6 +82,40 @@ pub struct ModelInfo {
     pub primitive: String,
     /// `File`: the model file's name, without folder and extension.
     pub file: Option<String>,
+}
+
+/// Largest model side drawn, metres (a model larger than a stage is a broken file).
+pub const MAX_MODEL_SIZE: f64 = 1000.0;
+
+impl ModelInfo {
+    /// The dimensions to draw: each side as written when it is a finite
+    /// size from 0 to [`MAX_MODEL_SIZE`] m, else 0 (NaN, infinite or
+    /// negative: that side is drawn flat).
+    pub fn drawn_dimensions(&self) -> [f64; 3] {
+        self.dimensions.map(|d| if (0.0..=MAX_MODEL_SIZE).contains(&d) { d } else { 0.0 })
+    }
+
+    /// What is wrong with the dimensions (`Length NaN, Height -0.4`), if anything.
+    pub fn bad_dimensions(&self) -> Option<String> {
+        let bad: Vec<String> = ["Length", "Width", "Height"]
+            .iter()
+            .zip(self.dimensions)
+            .filter(|(_, d)| !(0.0..=MAX_MODEL_SIZE).contains(d))
+            .map(|(n, d)| format!("{n} {d}"))
+            .collect();
+        (!bad.is_empty()).then(|| bad.join(", "))
+    }
+
+    /// The warning for [`ModelInfo::bad_dimensions`], naming the model.
+    pub fn dimension_warning(&self) -> Option<String> {
+        self.bad_dimensions().map(|bad| {
+            format!(
+                "model {:?}: {bad} is not a size from 0 to {MAX_MODEL_SIZE} m; drawn as 0 there \
+                 (the fixture body is estimated)",
+                self.name
+            )
+        })
+    }
 }
 
 /// A model's 3D file from the GDTF archive.
@@ -268,7 +313,7 @@ impl Gdtf {
         };
         let desc_label = archive.label("description.xml");
         let text = xml::utf8(&desc_label, bytes)?;
-        xml::well_formed(&desc_label, text, "GDTF")?;
+        xml::well_formed(&desc_label, text, "GDTF", MAX_XML_DEPTH)?;
         let description = gdtf::Description::from_reader(text.as_bytes())
             .map_err(|e| PatchError::new(&desc_label, 0, format!("not a GDTF description: {e}")))?;
         let data_version = format!("{}.{}", description.data_version.major, description.data_version.minor);
@@ -333,6 +378,19 @@ impl Gdtf {
         })
     }
 
+    /// One warning per `<Model>` whose `Length`, `Width` or `Height` is
+    /// not a finite size from 0 to [`MAX_MODEL_SIZE`] m, naming the file and the model.
+    pub fn model_warnings(&self) -> Vec<PatchError> {
+        let label = self.label.join("description.xml");
+        self.ft
+            .models
+            .iter()
+            .filter_map(|m| self.model(m.name.as_deref()?))
+            .filter_map(|m| m.dimension_warning())
+            .map(|w| PatchError::new(&label, 0, w))
+            .collect()
+    }
+
     /// A model's 3D file: `models/gltf/<file>.glb` first, else
     /// `models/3ds/<file>.3ds` (GDTF 1.2 "Model"; exact name, then ignoring
     /// ASCII case). `None` when the archive holds neither.
@@ -375,7 +433,17 @@ impl Gdtf {
         let tree = self.instantiate(root, DMat4::IDENTITY, None, 0, &mut count).map_err(at)?;
         // Where each file geometry occurs: (instance name, the breaks of the reference it sits in).
         let mut occurrences: Occurrences = BTreeMap::new();
-        collect(&tree, None, &self.ft, &mut occurrences);
+        collect(&tree, None, &reference_breaks(&self.ft), &mut occurrences);
+        // Each DMX channel is bound once per instance of its geometry: count
+        // before building (references multiply channels).
+        let instances: usize =
+            m.dmx_channels.iter().map(|c| occurrences.get(&c.geometry.to_string()).map_or(1, Vec::len)).sum();
+        if instances > MAX_CHANNELS {
+            return Err(at(format!(
+                "DMX mode {mode_name:?} binds {instances} channel instances (its channels times the \
+                 references to their geometries), more than {MAX_CHANNELS}"
+            )));
+        }
         let mut channels = Vec::new();
         for c in &m.dmx_channels {
             let template = c.geometry.to_string();
@@ -560,53 +628,49 @@ pub fn dmx(v: DmxValue, bytes: u8) -> u64 {
 type Occurrences = BTreeMap<String, Vec<(String, Option<Vec<(u16, u16)>>)>>;
 
 /// Records, for each file geometry name, the instances it has and the
-/// breaks of the reference they sit in.
-fn collect(
-    node: &GeometryNode,
-    breaks: Option<&[(u16, u16)]>,
-    ft: &gdtf::fixture_type::FixtureType,
-    out: &mut Occurrences,
-) {
+/// breaks of the reference they sit in (`refs`: [`reference_breaks`]).
+fn collect(node: &GeometryNode, breaks: Option<&[(u16, u16)]>, refs: &ReferenceBreaks, out: &mut Occurrences) {
     if let GeometryKind::Reference(_) = node.kind {
-        let own = reference_breaks(ft, node);
+        let own = refs.get(node.template.as_str()).cloned().unwrap_or_default();
         for c in &node.children {
             // The referenced root is bound under the reference's name (pygdtf does the same).
             out.entry(c.template.clone()).or_default().push((node.name.clone(), Some(own.clone())));
             for gc in &c.children {
-                collect(gc, Some(&own), ft, out);
+                collect(gc, Some(&own), refs, out);
             }
         }
         return;
     }
     out.entry(node.template.clone()).or_default().push((node.name.clone(), breaks.map(<[_]>::to_vec)));
     for c in &node.children {
-        collect(c, breaks, ft, out);
+        collect(c, breaks, refs, out);
     }
 }
 
-/// The `(DMXBreak, DMXOffset)` pairs of the GeometryReference behind `node`.
-fn reference_breaks(ft: &gdtf::fixture_type::FixtureType, node: &GeometryNode) -> Vec<(u16, u16)> {
-    fn find<'a>(gs: &'a [Geometry], name: &str) -> Option<&'a gdtf::geometry::ReferenceGeometry> {
-        for g in gs {
-            if let Geometry::Reference(r) = g
-                && r.name.as_deref() == Some(name)
-            {
-                return Some(r);
-            }
-            if let Some(r) = find(g.children(), name) {
-                return Some(r);
-            }
+/// GeometryReference name → its `(DMXBreak, DMXOffset)` pairs.
+type ReferenceBreaks<'a> = BTreeMap<&'a str, Vec<(u16, u16)>>;
+
+/// The `(DMXBreak, DMXOffset)` pairs of every GeometryReference in the
+/// file, by name (the first in document order wins a repeated name). Made
+/// once per layout, without recursion: a lookup per reference instance
+/// used to walk the whole tree again (quadratic in a big pixel matrix).
+fn reference_breaks(ft: &gdtf::fixture_type::FixtureType) -> ReferenceBreaks<'_> {
+    let mut out = BTreeMap::new();
+    let mut stack: Vec<&Geometry> = ft.geometries.iter().rev().collect();
+    while let Some(g) = stack.pop() {
+        if let Geometry::Reference(r) = g
+            && let Some(name) = r.name.as_deref()
+        {
+            out.entry(name).or_insert_with(|| {
+                r.breaks
+                    .iter()
+                    .map(|b| (u16::from(b.dmx_break), b.dmx_offset.absolute().min(u32::from(u16::MAX)) as u16))
+                    .collect()
+            });
         }
-        None
+        stack.extend(g.children().iter().rev());
     }
-    find(&ft.geometries, &node.template)
-        .map(|r| {
-            r.breaks
-                .iter()
-                .map(|b| (u16::from(b.dmx_break), b.dmx_offset.absolute().min(u32::from(u16::MAX)) as u16))
-                .collect()
-        })
-        .unwrap_or_default()
+    out
 }
 
 fn channel(

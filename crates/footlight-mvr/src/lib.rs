@@ -29,7 +29,7 @@
 //!
 //! # Layout
 //! * [`archive`]: the checked zip, in memory.
-//! * [`xml`]: well-formedness with file, line and column.
+//! * [`xml`]: well-formedness with file, line and column; nesting depth bounded before any recursive reader runs.
 //! * [`gdtf`]: GDTF files and DMX-mode expansion (geometry walked by reference).
 //! * [`gate`]: gobo and prism wheels, blades and frost of a GDTF spot (its gate).
 //! * [`mvr`]: the MVR scene, flattened; MVR → stage axes ([`mvr::stage_matrix`]).

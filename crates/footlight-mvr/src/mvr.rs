@@ -7,6 +7,13 @@
 //! layer's, groups' and its own `Matrix`), symbols resolved through their
 //! `Symdef` (instancing, nested symbols followed to a fixed depth).
 //!
+//! Limits, so a hostile file costs an error or a warning, never the process
+//! (issue 35): the XML nests at most [`MAX_XML_DEPTH`] elements (checked
+//! before serde, which recurses once per level: a stack overflow aborts);
+//! groups and nested fixtures are followed [`MAX_DEPTH`] deep, the rest
+//! skipped with a warning; symbols [`MAX_DEPTH`] deep and
+//! [`MAX_SYMBOL_INSTANCES`] instances per scene.
+//!
 //! Units and axes: MVR is millimetres, right-handed, Z up; the stage is
 //! metres, Y up, +Z toward the audience. [`stage_matrix`] converts once,
 //! at import: x_stage = x, y_stage = z_mvr, z_stage = −y_mvr (a −90°
@@ -17,11 +24,26 @@ use crate::xml;
 use footlight_fixture::PatchError;
 use glam::{DMat3, DMat4, DQuat, DVec3};
 use serde::Deserialize;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
 
 /// Deepest symbol/group nesting followed.
 const MAX_DEPTH: usize = 32;
+/// Deepest element nesting of a `GeneralSceneDescription.xml`, checked
+/// before serde reads it ([`crate::xml::well_formed`]). Real files nest
+/// under 50 deep (`GeneralSceneDescription/Scene/Layers/Layer/ChildList`,
+/// two levels per group object, under 20 groups, then
+/// `Fixture/Addresses/Address`); groups past [`MAX_DEPTH`] are skipped with
+/// a warning anyway. serde recurses once per level with up to about 3 KiB
+/// of stack each in a debug build (nested `Fixture`s, the largest): a 2 MiB
+/// thread stack survives ~600 levels, so 128 keeps a 4× margin.
+pub const MAX_XML_DEPTH: usize = 128;
+/// Most symbol instances one scene expands: `Symbol`s followed plus the
+/// `Geometry3D`s reached through them. Symbols nest (up to [`MAX_DEPTH`]),
+/// so two symbols of the next symdef per symdef would otherwise expand to
+/// 2^32 placed files from a few kilobytes; a 2,000-seat house of symbol
+/// chairs with ten parts each is 22,000.
+pub const MAX_SYMBOL_INSTANCES: usize = 250_000;
 
 /// The scene of one MVR file, flattened.
 #[derive(Clone, Debug, Default)]
@@ -387,11 +409,17 @@ impl Mvr {
             ));
         };
         let text = xml::utf8(&label, bytes)?;
-        xml::well_formed(&label, text, "GeneralSceneDescription")?;
+        xml::well_formed(&label, text, "GeneralSceneDescription", MAX_XML_DEPTH)?;
         let gsd: GsdX = quick_xml::de::from_str(text)
             .map_err(|e| PatchError::new(&label, 0, format!("not an MVR scene description: {e}")))?;
-        let mut b =
-            Flatten { label: label.clone(), out: Scene::default(), warnings: Vec::new(), symdefs: BTreeMap::new() };
+        let mut b = Flatten {
+            label: label.clone(),
+            out: Scene::default(),
+            warnings: Vec::new(),
+            symdefs: BTreeMap::new(),
+            symbol_budget: MAX_SYMBOL_INSTANCES,
+            warned: BTreeSet::new(),
+        };
         b.out.version = format!("{}.{}", gsd.ver_major, gsd.ver_minor);
         b.out.provider = gsd.provider;
         let scene = gsd.scene.unwrap_or_default();
@@ -421,6 +449,11 @@ struct Flatten {
     out: Scene,
     warnings: Vec<PatchError>,
     symdefs: BTreeMap<String, GeometriesX>,
+    /// Symbol instances left to expand ([`MAX_SYMBOL_INSTANCES`]); at 0 the
+    /// rest are skipped, with one warning.
+    symbol_budget: usize,
+    /// Keys of the warnings given once per scene (see `warn_once`).
+    warned: BTreeSet<String>,
 }
 
 impl Flatten {
@@ -498,15 +531,50 @@ impl Flatten {
         }
     }
 
+    /// Takes one symbol instance from the budget; false (and one warning
+    /// per scene) once it is spent.
+    fn spend_symbol(&mut self) -> bool {
+        if self.symbol_budget > 0 {
+            self.symbol_budget -= 1;
+            return true;
+        }
+        self.warn_once(
+            "budget".into(),
+            format!(
+                "more than {MAX_SYMBOL_INSTANCES} symbol instances (Symbols followed and the Geometry3D they \
+                 reach); the rest are skipped (symbols that instance each other many times over?)"
+            ),
+        );
+        false
+    }
+
+    /// A warning given once per `key` (symbol problems repeat at every instance).
+    fn warn_once(&mut self, key: String, m: String) {
+        if self.warned.insert(key) {
+            self.warn(m);
+        }
+    }
+
     fn geometries(&mut self, g: &GeometriesX, world: DMat4, out: &mut Vec<(String, DMat4)>, depth: usize) {
         for f in &g.geometry3d {
+            // An object's own files are bounded by the file's size; those
+            // reached through symbols count against the budget.
+            if depth > 0 && !self.spend_symbol() {
+                return;
+            }
             let m = self.matrix(f.matrix.as_deref(), &f.file_name);
             out.push((f.file_name.clone(), world * m));
         }
         for s in &g.symbols {
+            if !self.spend_symbol() {
+                return;
+            }
             let m = world * self.matrix(s.matrix.as_deref(), "Symbol");
             if depth >= MAX_DEPTH {
-                self.warn(format!("symbol {}: symbols nested deeper than {MAX_DEPTH}; skipped", s.symdef));
+                self.warn_once(
+                    format!("deep {}", s.symdef),
+                    format!("symbol {}: symbols nested deeper than {MAX_DEPTH}; skipped", s.symdef),
+                );
                 continue;
             }
             match self.symdefs.remove(&s.symdef) {
@@ -514,10 +582,10 @@ impl Flatten {
                     self.geometries(&def, m, out, depth + 1);
                     self.symdefs.insert(s.symdef.clone(), def);
                 }
-                None => self.warn(format!(
-                    "Symbol names Symdef {:?}, which AUXData does not define (or a symbol loop)",
-                    s.symdef
-                )),
+                None => self.warn_once(
+                    format!("missing {}", s.symdef),
+                    format!("Symbol names Symdef {:?}, which AUXData does not define (or a symbol loop)", s.symdef),
+                ),
             }
         }
     }

@@ -224,7 +224,7 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
                 format!("mode {:?}: channels on DMX breaks past {MAX_BREAKS} are not decoded", l.mode),
             ));
         }
-        let overrides = override_relations(l, &mut channels);
+        let overrides = override_relations(l, &mut channels).map_err(|m| PatchError::new(&label, 0, m))?;
         modes.push(Mode { name: l.mode.clone(), channels, footprint: footprint.min(SLOTS as u16), line: 0, overrides });
     }
     if !unsupported.is_empty() {
@@ -251,6 +251,7 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
         gate: crate::gate::gate_optics(g, &layouts, &mut warnings),
         modes,
     };
+    warnings.extend(g.model_warnings());
     Ok((ty, warnings))
 }
 
@@ -842,27 +843,68 @@ pub fn cells(g: &Gdtf, ty: &FixtureType, mode: &str) -> Result<Vec<Cell>, PatchE
     if refs.len() < 2 {
         return Ok(Vec::new());
     }
-    let in_cell = |geometry: &str, cell: &str| {
-        geometry == cell || geometry.strip_prefix(cell).is_some_and(|r| r.starts_with('.'))
-    };
+    if refs.len() > MAX_CELLS {
+        return Err(PatchError::new(
+            &g.label.join("description.xml"),
+            0,
+            format!(
+                "mode {:?} has {} emitting cells, more than {MAX_CELLS}; the fixture stays one light",
+                l.mode,
+                refs.len()
+            ),
+        ));
+    }
     let slot = |c: &ChannelInfo| {
         break_base(c.dmx_break)
             .map(|b| b + c.offsets.first().copied().unwrap_or(1).saturating_sub(1).min(BREAK_STRIDE - 1))
     };
-    let mut out = Vec::new();
-    for (node, offset) in &refs {
-        let mut offsets: Vec<u16> = Vec::new();
-        for c in l.channels.iter().filter(|c| !c.offsets.is_empty()) {
-            let mine = in_cell(&c.geometry, &node.name);
-            let shared = !refs.iter().any(|(r, _)| in_cell(&c.geometry, &r.name));
-            if let (true, Some(o)) = (mine || shared, slot(c)) {
-                offsets.push(o);
-            }
+    // Each channel's slot goes to the cells whose name is its geometry
+    // instance or a `.`-prefix of it (`Cell3`, `Cell3.Beam`), or to every
+    // cell when it is in none (a shared master dimmer). Looked up by name,
+    // so the work grows with channels + cells × shared channels.
+    let mut by_name: BTreeMap<&str, Vec<usize>> = BTreeMap::new();
+    for (i, (node, _)) in refs.iter().enumerate() {
+        by_name.entry(node.name.as_str()).or_default().push(i);
+    }
+    let mut own: Vec<Vec<u16>> = vec![Vec::new(); refs.len()];
+    let mut shared: Vec<u16> = Vec::new();
+    for c in l.channels.iter().filter(|c| !c.offsets.is_empty()) {
+        let Some(o) = slot(c) else { continue };
+        let g = c.geometry.as_str();
+        let prefixes = g.match_indices('.').map(|(i, _)| &g[..i]).chain(std::iter::once(g));
+        let mut hit = false;
+        for i in prefixes.filter_map(|p| by_name.get(p)).flatten() {
+            own[*i].push(o);
+            hit = true;
         }
-        let channels: Vec<Channel> = base.channels.iter().filter(|c| offsets.contains(&c.offset)).cloned().collect();
-        let overrides = base.overrides.iter().filter(|r| offsets.contains(&r.follower.0)).copied().collect();
+        if !hit {
+            shared.push(o);
+        }
+    }
+    // The base mode's channels and overrides by slot; the type without its
+    // modes, cloned once per cell (not every mode's channels per cell).
+    let mut channel_at: BTreeMap<u16, Vec<usize>> = BTreeMap::new();
+    for (i, c) in base.channels.iter().enumerate() {
+        channel_at.entry(c.offset).or_default().push(i);
+    }
+    let mut override_at: BTreeMap<u16, Vec<usize>> = BTreeMap::new();
+    for (i, r) in base.overrides.iter().enumerate() {
+        override_at.entry(r.follower.0).or_default().push(i);
+    }
+    let template = FixtureType { modes: Vec::new(), ..ty.clone() };
+    let mut out = Vec::new();
+    for ((node, offset), own) in refs.iter().zip(own) {
+        let pick = |at: &BTreeMap<u16, Vec<usize>>| {
+            let mut picked: Vec<usize> =
+                own.iter().chain(&shared).filter_map(|o| at.get(o)).flatten().copied().collect();
+            picked.sort_unstable();
+            picked.dedup();
+            picked
+        };
+        let channels: Vec<Channel> = pick(&channel_at).into_iter().map(|i| base.channels[i].clone()).collect();
+        let overrides = pick(&override_at).into_iter().map(|i| base.overrides[i]).collect();
         let mode = Mode { name: base.name.clone(), channels, footprint: base.footprint, line: base.line, overrides };
-        let cell_ty = FixtureType { modes: vec![mode], ..ty.clone() };
+        let cell_ty = FixtureType { modes: vec![mode], ..template.clone() };
         let (_, rotation, translation) = offset.to_scale_rotation_translation();
         let rotation = Quat::from_xyzw(rotation.x as f32, rotation.y as f32, rotation.z as f32, rotation.w as f32);
         let rotation = if rotation.is_finite() { rotation.normalize() } else { Quat::IDENTITY };
@@ -872,6 +914,10 @@ pub fn cells(g: &Gdtf, ty: &FixtureType, mode: &str) -> Result<Vec<Cell>, PatchE
     Ok(out)
 }
 
+/// Most emitting cells (lights) one fixture's mode may have: a 64 × 64
+/// pixel matrix. A mode with more stays one light, with a warning.
+pub const MAX_CELLS: usize = 4096;
+
 /// The mode's GDTF `Override` relations as [`SlotOverride`]s: the master
 /// DMX channel (named `<Geometry>_<Attribute>`, GDTF's default channel
 /// name) over every instance of the follower's channel (the first part of
@@ -880,27 +926,43 @@ pub fn cells(g: &Gdtf, ty: &FixtureType, mode: &str) -> Result<Vec<Cell>, PatchE
 /// through its overrides: its own attribute becomes [`Attribute::Other`]
 /// (two dimmers would otherwise both set v). `Multiply` relations need no
 /// mapping: a shared dimmer already multiplies (v · the emitter mix, eq. 4).
-fn override_relations(l: &Layout, channels: &mut [Channel]) -> Vec<SlotOverride> {
+fn override_relations(l: &Layout, channels: &mut [Channel]) -> Result<Vec<SlotOverride>, String> {
     let slots = |c: &ChannelInfo| -> Option<(u16, Option<u16>)> {
         let base = break_base(c.dmx_break)?;
         let at = |o: u16| base + o.saturating_sub(1).min(BREAK_STRIDE - 1);
         Some((at(*c.offsets.first()?), c.offsets.get(1).map(|o| at(*o))))
     };
-    let named = |name: &str| -> Vec<(u16, Option<u16>)> {
-        l.channels.iter().filter(|c| format!("{}_{}", c.template, c.attribute) == name).filter_map(slots).collect()
-    };
-    let mut out = Vec::new();
-    for r in l.relations.iter().filter(|r| r.kind.eq_ignore_ascii_case("Override")) {
-        let Some(&master) = named(&r.master).first() else { continue };
-        let follower = r.follower.split('.').next().unwrap_or("");
-        for f in named(follower).into_iter().filter(|f| *f != master) {
-            out.push(SlotOverride { master, follower: f });
-        }
-        if let Some(ch) = channels.iter_mut().find(|c| c.offset == master.0) {
-            ch.attribute = Attribute::Other;
+    // Channel name → its instances' slots, and slot → channel: made once,
+    // not searched once per relation.
+    let mut named: BTreeMap<String, Vec<(u16, Option<u16>)>> = BTreeMap::new();
+    for c in &l.channels {
+        if let Some(s) = slots(c) {
+            named.entry(format!("{}_{}", c.template, c.attribute)).or_default().push(s);
         }
     }
-    out
+    let mut at: BTreeMap<u16, usize> = BTreeMap::new();
+    for (i, c) in channels.iter().enumerate() {
+        at.entry(c.offset).or_insert(i);
+    }
+    let mut out = Vec::new();
+    for r in l.relations.iter().filter(|r| r.kind.eq_ignore_ascii_case("Override")) {
+        let Some(&master) = named.get(&r.master).and_then(|m| m.first()) else { continue };
+        let follower = r.follower.split('.').next().unwrap_or("");
+        for &f in named.get(follower).into_iter().flatten().filter(|f| **f != master) {
+            if out.len() >= crate::gdtf::MAX_CHANNELS {
+                return Err(format!(
+                    "mode {:?}: its Override relations bind more than {} follower channels",
+                    l.mode,
+                    crate::gdtf::MAX_CHANNELS
+                ));
+            }
+            out.push(SlotOverride { master, follower: f });
+        }
+        if let Some(&i) = at.get(&master.0) {
+            channels[i].attribute = Attribute::Other;
+        }
+    }
+    Ok(out)
 }
 
 /// The `<Beam>` geometries under `node` outside references, with their matrices to the fixture.

@@ -4,6 +4,16 @@
 //! not *where*; a plain pass of quick-xml's pull reader over the text first
 //! finds syntax errors (unclosed or mismatched tags, bad attributes, broken
 //! UTF-8) with their byte position, turned here into a 1-based line and column.
+//!
+//! The same pass bounds how deeply elements nest (issue 35). The serde
+//! readers after it (quick-xml's for the MVR scene, the `gdtf` crate's for
+//! `description.xml`) recurse once per element level, and a stack overflow
+//! aborts the process (no `Result`, no unwinding), so a few kilobytes of
+//! `<Geometry><Geometry>…` used to kill `footlight run`. This pass keeps
+//! only a counter, never recurses, and refuses a document nested deeper than
+//! the reader's limit before serde sees it; the limits
+//! ([`crate::gdtf::MAX_XML_DEPTH`], [`crate::mvr::MAX_XML_DEPTH`]) are far
+//! above real files and far below what a 2 MiB thread stack survives.
 
 use footlight_fixture::PatchError;
 use quick_xml::Reader;
@@ -20,15 +30,67 @@ pub fn utf8<'a>(label: &Path, bytes: &'a [u8]) -> Result<&'a str, PatchError> {
     })
 }
 
-/// Checks that `text` is well-formed XML with one root element named `root`.
-pub fn well_formed(label: &Path, text: &str, root: &str) -> Result<(), PatchError> {
+/// The first element opened past a depth limit, and the deepest nesting seen.
+struct TooDeep {
+    /// Byte offset of the first element past the limit.
+    at: usize,
+    /// Its name.
+    name: String,
+    /// The deepest nesting in the document (counted to the end, or to the
+    /// first syntax error after the limit was passed).
+    deepest: usize,
+}
+
+/// Checks that `text` is well-formed XML with one root element named
+/// `root`, whose elements nest at most `max_depth` deep (the root is level
+/// 1, an empty element `<x/>` counts as a level). Too deep is an error at
+/// the line of the first element past the limit, naming the limit and the
+/// document's deepest nesting; nothing here recurses.
+pub fn well_formed(label: &Path, text: &str, root: &str, max_depth: usize) -> Result<(), PatchError> {
     let mut reader = Reader::from_str(text);
     reader.config_mut().check_end_names = true;
     let mut depth = 0usize;
     let mut seen_root = false;
+    let mut too_deep: Option<TooDeep> = None;
     loop {
         let at = reader.buffer_position() as usize;
-        match reader.read_event() {
+        let event = reader.read_event();
+        // Nesting first: once past the limit only the deepest level is
+        // still counted, and the first syntax error ends the count.
+        match &event {
+            Ok(Event::Start(e) | Event::Empty(e)) => {
+                let level = depth + 1;
+                if level > max_depth {
+                    let name = || String::from_utf8_lossy(e.name().as_ref()).into_owned();
+                    let t = too_deep.get_or_insert_with(|| TooDeep { at, name: name(), deepest: level });
+                    t.deepest = t.deepest.max(level);
+                }
+            }
+            Err(_) | Ok(Event::Eof) => {
+                if let Some(t) = &too_deep {
+                    let (line, col) = line_col(text.as_bytes(), t.at);
+                    return Err(PatchError::new(
+                        label,
+                        line,
+                        format!(
+                            "column {col}: elements nested {} deep (limit {max_depth}; <{}> here is the first \
+                             past it); refused before parsing, as a hostile or broken file",
+                            t.deepest, t.name
+                        ),
+                    ));
+                }
+            }
+            _ => {}
+        }
+        if too_deep.is_some() {
+            match event {
+                Ok(Event::Start(_)) => depth += 1,
+                Ok(Event::End(_)) => depth = depth.saturating_sub(1),
+                _ => {}
+            }
+            continue;
+        }
+        match event {
             Ok(Event::Start(e)) => {
                 if depth == 0 {
                     check_root(label, text, at, e.name().as_ref(), root, &mut seen_root)?;
@@ -111,16 +173,41 @@ mod tests {
     #[test]
     fn positions() {
         let p = Path::new("x.xml");
-        assert!(well_formed(p, "<a><b/></a>", "a").is_ok());
-        let e = well_formed(p, "<a>\n  <b></c>\n</a>", "a").unwrap_err();
+        assert!(well_formed(p, "<a><b/></a>", "a", 8).is_ok());
+        let e = well_formed(p, "<a>\n  <b></c>\n</a>", "a", 8).unwrap_err();
         assert_eq!(e.line, 2, "{e}");
         assert!(e.message.starts_with("column "), "{e}");
-        let e = well_formed(p, "<a>\n<b>", "a").unwrap_err();
+        let e = well_formed(p, "<a>\n<b>", "a", 8).unwrap_err();
         assert_eq!(e.line, 2, "{e}");
-        let e = well_formed(p, "<z/>", "a").unwrap_err();
+        let e = well_formed(p, "<z/>", "a", 8).unwrap_err();
         assert!(e.message.contains("expected <a>"), "{e}");
         assert_eq!(line_col(b"ab\ncd", 4), (2, 2));
         let e = utf8(p, b"<a>\n\xff</a>").unwrap_err();
         assert_eq!((e.line, e.message.starts_with("column 1")), (2, true), "{e}");
+    }
+
+    /// `<a>` + `<b>` × (n − 1), then their end tags: n levels.
+    fn nested(n: usize, leaf: &str) -> String {
+        format!("<a>\n{}{leaf}{}</a>", "<b>".repeat(n - 1), "</b>".repeat(n - 1))
+    }
+
+    #[test]
+    fn nesting_is_bounded_before_parsing() {
+        let p = Path::new("x.xml");
+        // Exactly at the limit passes; an empty element counts as a level.
+        assert!(well_formed(p, &nested(4, ""), "a", 4).is_ok());
+        assert!(well_formed(p, &nested(3, "<c/>"), "a", 4).is_ok());
+        let e = well_formed(p, &nested(4, "<c/>"), "a", 4).unwrap_err();
+        assert!(e.message.contains("nested 5 deep (limit 4; <c> here"), "{e}");
+        // The line of the first element past the limit; the deepest level counted to the end.
+        let e = well_formed(p, &nested(10_002, ""), "a", 256).unwrap_err();
+        assert_eq!(e.line, 2, "{e}");
+        assert!(e.message.contains("nested 10002 deep (limit 256; <b> here is the first past it)"), "{e}");
+        // A syntax error after the limit is passed still reports the depth.
+        let e = well_formed(p, "<a><b><b></x>", "a", 2).unwrap_err();
+        assert!(e.message.contains("nested 3 deep (limit 2"), "{e}");
+        // A syntax error before it is reported as one.
+        let e = well_formed(p, "<a></x><b><b><b>", "a", 2).unwrap_err();
+        assert!(e.message.contains("malformed XML"), "{e}");
     }
 }

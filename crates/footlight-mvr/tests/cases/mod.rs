@@ -2,6 +2,7 @@
 
 mod fuzz;
 mod gate;
+mod limits;
 mod peers;
 mod readers;
 mod show;
@@ -22,4 +23,25 @@ pub fn gdtf(stem: &str) -> PathBuf {
 /// A generated MVR file by stem.
 pub fn mvr(stem: &str) -> PathBuf {
     root().join(format!("tests/data/mvr/{stem}.mvr"))
+}
+
+/// A zip archive (deflated) of the given entries, for generated GDTF and MVR files.
+pub fn zip_of(entries: &[(&str, &[u8])]) -> Vec<u8> {
+    use std::io::Write;
+    let mut buf = std::io::Cursor::new(Vec::new());
+    let mut w = zip::ZipWriter::new(&mut buf);
+    for (name, data) in entries {
+        w.start_file(*name, zip::write::SimpleFileOptions::default()).unwrap();
+        w.write_all(data).unwrap();
+    }
+    w.finish().unwrap();
+    buf.into_inner()
+}
+
+/// A fresh temporary folder for one test.
+pub fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("footlight-mvr-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
 }
