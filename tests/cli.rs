@@ -601,6 +601,176 @@ fn replay_loop_plays_the_recording_again_until_stopped() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("--loop"), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
+/// A zip archive of `entries`, stored (not compressed): the GDTF and MVR
+/// files the tests below build (this crate has no zip writer; `flate2`
+/// gives the CRC-32).
+fn stored_zip(entries: &[(&str, &[u8])]) -> Vec<u8> {
+    // The fields shared by a local header (after its signature and version)
+    // and a central-directory entry: flags, method 0, 1980-01-01, CRC, sizes, name length.
+    let common = |crc: u32, size: u32, name: &str| {
+        let mut h = Vec::new();
+        for v in [0u16, 0, 0, 0x21] {
+            h.extend(v.to_le_bytes());
+        }
+        for v in [crc, size, size] {
+            h.extend(v.to_le_bytes());
+        }
+        h.extend((name.len() as u16).to_le_bytes());
+        h
+    };
+    let (mut out, mut central) = (Vec::new(), Vec::new());
+    for (name, data) in entries {
+        let mut crc = flate2::Crc::new();
+        crc.update(data);
+        let (crc, size, offset) = (crc.sum(), data.len() as u32, out.len() as u32);
+        out.extend(0x0403_4b50u32.to_le_bytes());
+        out.extend(20u16.to_le_bytes());
+        out.extend(common(crc, size, name));
+        out.extend(0u16.to_le_bytes()); // extra field length
+        out.extend(name.as_bytes());
+        out.extend(*data);
+        central.extend(0x0201_4b50u32.to_le_bytes());
+        central.extend([20u8, 0, 20, 0]); // made by, needed
+        central.extend(common(crc, size, name));
+        central.extend([0u8; 12]); // extra and comment lengths, disk, internal and external attributes
+        central.extend(offset.to_le_bytes());
+        central.extend(name.as_bytes());
+    }
+    let (at, len, n) = (out.len() as u32, central.len() as u32, entries.len() as u16);
+    out.extend(central);
+    out.extend(0x0605_4b50u32.to_le_bytes());
+    out.extend([0u8; 4]); // disk numbers
+    out.extend(n.to_le_bytes());
+    out.extend(n.to_le_bytes());
+    out.extend(len.to_le_bytes());
+    out.extend(at.to_le_bytes());
+    out.extend(0u16.to_le_bytes()); // comment length
+    out
+}
+
+/// A GDTF whose `description.xml` nests `depth` elements deep: a chain of
+/// `<Geometry>` under `GDTF/FixtureType/Geometries`.
+fn deep_gdtf(depth: usize) -> Vec<u8> {
+    let links = depth - 3;
+    let mut xml = String::from(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<GDTF DataVersion=\"1.2\"><FixtureType Name=\"Deep\" \
+         ShortName=\"Deep\" FixtureTypeID=\"D0000000-0000-0000-0000-000000000000\"><Geometries>",
+    );
+    for i in 0..links {
+        xml.push_str(&format!("<Geometry Name=\"G{i}\">"));
+    }
+    xml.push_str(&"</Geometry>".repeat(links));
+    xml.push_str(
+        "</Geometries><DMXModes><DMXMode Name=\"Standard\" Geometry=\"G0\"><DMXChannels/></DMXMode></DMXModes>\
+         </FixtureType></GDTF>",
+    );
+    stored_zip(&[("description.xml", xml.as_bytes())])
+}
+
+/// An MVR hanging `Deep.gdtf` (mode Standard, at 1.1) inside `groups`
+/// nested group objects; its scene nests `8 + 2 · groups` elements deep.
+fn deep_mvr(gdtf: &[u8], groups: usize) -> Vec<u8> {
+    let mut xml = String::from(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<GeneralSceneDescription verMajor=\"1\" verMinor=\"6\">\
+         <Scene><Layers><Layer name=\"Rig\" uuid=\"L1\"><ChildList>",
+    );
+    for i in 0..groups {
+        xml.push_str(&format!("<GroupObject name=\"G{i}\" uuid=\"g{i}\"><ChildList>"));
+    }
+    xml.push_str(
+        "<Fixture name=\"Deep 1\" uuid=\"F1\"><GDTFSpec>Deep.gdtf</GDTFSpec><GDTFMode>Standard</GDTFMode>\
+         <Addresses><Address break=\"0\">1</Address></Addresses><FixtureID>1</FixtureID></Fixture>",
+    );
+    xml.push_str(&"</ChildList></GroupObject>".repeat(groups));
+    xml.push_str("</ChildList></Layer></Layers></Scene></GeneralSceneDescription>");
+    stored_zip(&[("GeneralSceneDescription.xml", xml.as_bytes()), ("Deep.gdtf", gdtf)])
+}
+
+/// Runs `footlight` with `args` to its exit (at most `limit`; killed and
+/// failed past it): exit code and stderr.
+fn exit_of(args: &[&std::ffi::OsStr], limit: std::time::Duration) -> (Option<i32>, String) {
+    let child = footlight()
+        .args(args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let pid = child.id();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(child.wait_with_output());
+    });
+    match rx.recv_timeout(limit) {
+        Ok(o) => {
+            let o = o.unwrap();
+            (o.status.code(), String::from_utf8_lossy(&o.stderr).into_owned())
+        }
+        Err(_) => {
+            let _ = Command::new("kill").args(["-KILL", &pid.to_string()]).status();
+            panic!("footlight {args:?} did not exit within {limit:?}");
+        }
+    }
+}
+
+/// Issue 35 items 1 and 2: a GDTF (in a TOML patch, in an MVR) or an MVR
+/// nested 10,000 deep used to overflow the stack and abort (exit 134):
+/// `check` and `render` on the main thread, `run` on its loading thread.
+/// Now each stops with exit code 1 and an error naming the file, the line
+/// and the limit; `run` stops at start instead of serving without a patch.
+#[test]
+fn files_nested_10000_deep_exit_1_naming_the_file_and_the_limit() {
+    let dir = temp_dir("deep");
+    std::fs::write(dir.join("Deep.gdtf"), deep_gdtf(10_000)).unwrap();
+    let toml = dir.join("deep-gdtf.toml");
+    std::fs::write(
+        &toml,
+        "[[fixture]]\nid = 1\ntype = \"Deep.gdtf\"\nmode = \"Standard\"\nuniverse = 1\naddress = 1\nposition = [0, 5, 0]\n",
+    )
+    .unwrap();
+    let in_mvr = dir.join("deep-gdtf.mvr");
+    std::fs::write(&in_mvr, deep_mvr(&deep_gdtf(10_000), 0)).unwrap();
+    let groups = dir.join("deep-groups.mvr");
+    std::fs::write(&groups, deep_mvr(&deep_gdtf(10), 10_000)).unwrap();
+    // Where (file:line) and what; the column depends on the names' lengths.
+    let gdtf_error = "elements nested 10000 deep (limit 64; <Geometry> here is the first past it)";
+    let cases = [
+        (&toml, format!("{}:2: column ", dir.join("Deep.gdtf/description.xml").display()), gdtf_error),
+        (
+            &in_mvr,
+            format!("fixture \"Deep 1\" (id 1): {}:2: column ", in_mvr.join("Deep.gdtf/description.xml").display()),
+            gdtf_error,
+        ),
+        (
+            &groups,
+            format!("{}:2: column ", groups.join("GeneralSceneDescription.xml").display()),
+            "elements nested 20008 deep (limit 128; <ChildList> here is the first past it)",
+        ),
+    ];
+    let minute = std::time::Duration::from_secs(60);
+    for (patch, at, what) in &cases {
+        let (code, err) = exit_of(&["check".as_ref(), patch.as_os_str()], minute);
+        assert_eq!(code, Some(1), "check {}: {err}", patch.display());
+        assert!(
+            err.contains(at.as_str()) && err.contains(what),
+            "check {}: want {at:?}…{what:?} in\n{err}",
+            patch.display()
+        );
+        let run = ["run", "--artnet", "off", "--sacn", "off", "--http", "127.0.0.1:0", "--photons", "0", "--patch"];
+        let mut args: Vec<&std::ffi::OsStr> = run.iter().map(|a| a.as_ref()).collect();
+        args.push(patch.as_os_str());
+        let (code, err) = exit_of(&args, 3 * minute);
+        assert_eq!(code, Some(1), "run --patch {}: {err}", patch.display());
+        assert!(err.contains(at.as_str()) && err.contains(what), "run --patch {}: {err}", patch.display());
+    }
+    let png = dir.join("x.png");
+    let (code, err) = exit_of(
+        &["render".as_ref(), "--patch".as_ref(), in_mvr.as_os_str(), "--out".as_ref(), png.as_os_str()],
+        3 * minute,
+    );
+    assert_eq!(code, Some(1), "render: {err}");
+    assert!(err.contains(&cases[1].1) && err.contains(gdtf_error) && !png.exists(), "render: {err}");
+}
+
 /// `check` lists every fixture with its type, mode and DMX addresses, counts
 /// fixtures and their cells apart, names the universes actually patched, and
 /// warns about fixtures a desk cannot reach (issue 37).

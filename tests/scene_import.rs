@@ -365,6 +365,34 @@ fn the_scene_file_must_be_a_regular_file() {
     assert!(e.contains("absent.glb") && e.contains("cannot open"), "{e}");
 }
 
+/// Issue 35 item 5: glTF nests its node tree by `children` indices, not by
+/// JSON nesting, so a file of a few hundred kilobytes can be 10,000 nodes
+/// deep. The walk is iterative (`walk_nodes`: an explicit stack), so the
+/// chain loads on a 2 MiB thread stack (the daemon's loading thread) and
+/// every transform along it is applied.
+#[test]
+fn a_10000_deep_node_chain_loads_on_a_2mib_stack() {
+    let d = dir("deep-chain");
+    let depth = 10_000;
+    let mut nodes: Vec<String> =
+        (0..depth - 1).map(|k| format!(r#"{{"children":[{}],"translation":[0,0.001,0]}}"#, k + 1)).collect();
+    nodes.push(r#"{"mesh":0,"translation":[0,0.001,0]}"#.to_string());
+    let buffer = format!(r#"{{"byteLength":36,"uri":"{}"}}"#, data_uri(&tri_bytes()));
+    let text = gltf(
+        &format!("[{}]", nodes.join(",")),
+        &format!("[{POS}]"),
+        r#"[{"buffer":0,"byteLength":36}]"#,
+        &format!("[{buffer}]"),
+        "",
+    );
+    let p = write(&d, "chain.gltf", &text);
+    let s = std::thread::Builder::new().stack_size(2 << 20).spawn(move || load(&p)).unwrap().join().unwrap().unwrap();
+    assert_eq!(s.triangle_count(), 1);
+    // 10,000 steps of 1 mm up: the triangle sits at y = 10 m (f32 sums).
+    let y = s.positions[0][0].y;
+    assert!((y - 10.0).abs() < 1e-2, "{y}");
+}
+
 // --- The MVR's geometry as the scene (issue 14 item 4) -------------------------
 
 fn venue() -> PathBuf {
