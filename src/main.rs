@@ -893,7 +893,12 @@ fn fixture_summary(patch: &Patch, listing: &[footlight::fixture::patch::ListedFi
         while j + 1 < universes.len() && universes[j + 1] == universes[j] + 1 {
             j += 1;
         }
-        runs.push(if j > i { format!("{}-{}", universes[i], universes[j]) } else { universes[i].to_string() });
+        // Runs of three or more as a range, else each number.
+        if j >= i + 2 {
+            runs.push(format!("{}-{}", universes[i], universes[j]));
+        } else {
+            runs.extend(universes[i..=j].iter().map(u16::to_string));
+        }
         i = j + 1;
     }
     let unpatched = listing.iter().filter(|f| f.dmx.is_none()).count();
