@@ -377,10 +377,16 @@ async fn camera_writes_need_the_token_from_another_machine_but_not_from_loopback
         let req = req.body(axum::body::Body::from(pose)).unwrap();
         async move { app.oneshot(req).await.unwrap().status().as_u16() }
     };
-    // Orbiting turns around what the picture centres on: the cube's front
-    // face, where the start camera's centre ray (from (0, 5, 6) at the origin) meets it.
-    let focus = views.status().current.target;
-    assert!(Vec3::from_array(focus).abs_diff_eq(Vec3::new(0.0, 0.5, 0.6), 1e-3), "{focus:?}");
+    // Orbiting turns around the stage centre (issue 37): without a rig,
+    // 1 m above the floor under the scene's middle, lifted out of the cube
+    // (1.2 m high) in 0.5 m steps; the start view's target is the point of
+    // its centre ray (from (0, 5, 6) at the origin) nearest it.
+    let s = views.status();
+    let pivot = Vec3::from_array(s.limits.expect("limits").pivot);
+    assert!(pivot.abs_diff_eq(Vec3::new(0.0, 1.5, 0.0), 1e-5), "{pivot}");
+    let (eye, dir) = (Vec3::new(0.0, 5.0, 6.0), Vec3::new(0.0, -5.0, -6.0).normalize());
+    let nearest = eye + dir * (pivot - eye).dot(dir);
+    assert!(Vec3::from_array(s.current.target).abs_diff_eq(nearest, 1e-4), "{:?} vs {nearest}", s.current.target);
     assert_eq!(remote(None).await, 403, "no token");
     assert_eq!(remote(Some("guess")).await, 403, "wrong token");
     assert_eq!(views.status().writes, 0, "a refused write moves nothing");
@@ -691,7 +697,10 @@ fn window_controls_map_input_to_poses_within_limits_and_nan_safe() {
         "dy * 0.008",
         "Math.max(-1.5, Math.min(1.5",
         "e.deltaY * 0.001",
-        "Math.max(0.2, Math.min(500",
+        // The dolly: the daemon's distance range once read, 0.2-500 m before.
+        "Math.max(limits.min, Math.min(limits.max",
+        "limits = { min: 0.2, max: 500 }",
+        "limits = { min: c.limits.min_distance, max: c.limits.max_distance }",
         "Math.max(5, Math.min(120",
     ] {
         assert!(js.contains(needle), "camera.js no longer has {needle:?}: keep it and `control` in step");
@@ -891,4 +900,390 @@ fn the_moving_preview_shows_the_beams_in_haze_like_the_built_light() {
     assert!(l1 < 0.30, "rel. L1 {:.1} %", 100.0 * l1);
     // The beam reads in the preview: a visible share of the picture gains light.
     assert!(got.iter().filter(|&&x| x > 0.0).count() > (w * h / 20) as usize);
+}
+
+// ---- Issue 37: a camera that stays on the stage ----
+
+/// The bundled stage under the paper rig (its default look, no DMX), served
+/// on loopback as `footlight run` serves it, with the named views
+/// `footlight run` makes (start, frame the rig, scene camera), at 160×100
+/// without photon maps (the direct and Whitted stages are the picture).
+struct StageDaemon {
+    http: std::net::SocketAddr,
+    handle: footlight::live::daemon::DaemonHandle,
+    scene: Arc<Scene>,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl StageDaemon {
+    fn start() -> Self {
+        let scene = Arc::new(stage());
+        let (tx, rx) = std::sync::mpsc::channel();
+        let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+        let served = scene.clone();
+        let thread = std::thread::spawn(move || {
+            let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+            rt.block_on(async move {
+                let listener = footlight::live::bind_http("127.0.0.1:0".parse().unwrap()).await.unwrap();
+                let http = listener.local_addr().unwrap();
+                let patch = footlight::Patch::load(&root().join("patch/paper-rig.toml")).expect("paper rig");
+                let camera = served.camera.expect("the bundled stage has its audience camera");
+                let named = footlight::live::views::named_views(&camera, &served, Some(&patch));
+                let mut config = DaemonConfig {
+                    width: 160,
+                    height: 100,
+                    fps: 30.0,
+                    compositor: CompositorChoice::Cpu,
+                    ..DaemonConfig::default()
+                };
+                config.tracer.build.photons = None;
+                config.tracer.build.refine_passes = 0;
+                let (run_tx, run_rx) = std::sync::mpsc::channel();
+                let daemon = Daemon::new(served, Arc::new(footlight::live::Show::new(patch)), camera, config)
+                    .named_views(named)
+                    .serve(listener)
+                    .on_running(run_tx);
+                let announce = tokio::task::spawn_blocking(move || {
+                    let handle = run_rx.recv().unwrap();
+                    tx.send((http, handle)).unwrap();
+                });
+                daemon
+                    .run(async move {
+                        let _ = stop_rx.await;
+                    })
+                    .await
+                    .unwrap();
+                let _ = announce.await;
+            });
+        });
+        let (http, handle) = rx.recv_timeout(Duration::from_secs(300)).expect("the daemon starts");
+        Self { http, handle, scene, stop: Some(stop_tx), thread: Some(thread) }
+    }
+
+    /// Waits until the camera is still and every light is built for its
+    /// view (bounded; no speed is asserted), then returns the camera status.
+    fn still(&self) -> footlight::live::ViewStatus {
+        let t = Instant::now();
+        loop {
+            let s = (self.handle.status)();
+            if s.view.phase == Phase::Still
+                && s.lights.iter().all(|l| l.build.as_ref().is_some_and(|b| b.stage == Stage::Ready))
+            {
+                return s.view;
+            }
+            assert!(t.elapsed() < Duration::from_secs(240), "never still: {:?}", s.view);
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Mean luma (Rec. 709 weights on the sRGB codes, 0-255) of the
+    /// daemon's picture once still.
+    fn luma(&self) -> f64 {
+        self.still();
+        mean_luma(&png_after_now(self.http))
+    }
+
+    /// The scene's bounds (every vertex), grown to hold the start camera's
+    /// eye (the audience sits outside an open-fronted set).
+    fn bounds(&self) -> (Vec3, Vec3) {
+        let eye = self.scene.camera.unwrap().position;
+        let all = self.scene.positions.iter().flatten();
+        (all.clone().fold(eye, |a, p| a.min(*p)), all.fold(eye, |a, p| a.max(*p)))
+    }
+}
+
+impl Drop for StageDaemon {
+    fn drop(&mut self) {
+        if let Some(stop) = self.stop.take() {
+            let _ = stop.send(());
+        }
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn mean_luma(img: &image::RgbImage) -> f64 {
+    let sum: f64 =
+        img.pixels().map(|p| 0.2126 * f64::from(p[0]) + 0.7152 * f64::from(p[1]) + 0.0722 * f64::from(p[2])).sum();
+    sum / f64::from(img.width() * img.height()).max(1.0)
+}
+
+fn inside(p: [f32; 3], (lo, hi): (Vec3, Vec3)) -> bool {
+    let p = Vec3::from_array(p);
+    p.cmpge(lo - Vec3::splat(1e-3)).all() && p.cmple(hi + Vec3::splat(1e-3)).all()
+}
+
+/// Issue 37, item 5: "a 200 px drag orbits around a pivot on the back wall,
+/// 22 m away: the camera lands outside the set at (−20.9, 8.6, −8.6) and
+/// the picture goes black". Drags of 500 px each way, written as the page
+/// writes them (its arithmetic is [`control`]'s; each step a `POST
+/// /api/camera` with the pose the page holds, the daemon confining it),
+/// end with the eye inside the scene's bounds and a lit picture; a dolly
+/// far out stops inside too.
+#[test]
+fn drags_of_500_px_each_way_over_http_keep_the_camera_on_the_stage_and_the_picture_lit() {
+    use footlight::live::views::{Control, control};
+    let d = StageDaemon::start();
+    let start = d.still();
+    let lit = d.luma();
+    assert!(lit > 10.0, "the paper rig's default look lights the stage: mean luma {lit:.1}");
+    let bounds = d.bounds();
+    assert!(inside(start.current.position, bounds));
+    let limits = start.limits.expect("the stage has limits");
+    eprintln!("start {:?}, pivot {:?}, picture luma {lit:.1}", start.current, limits.pivot);
+    // The start view orbits about the stage centre, not the back wall (22 m off).
+    let radius = Vec3::from_array(start.current.position).distance(Vec3::from_array(start.current.target));
+    assert!(radius < 18.0, "the orbit radius is {radius} m");
+
+    let post = |pose: &Pose| http_post(d.http, "/api/camera", &serde_json::to_string(pose).unwrap(), None);
+    for dx in [10.0f32, -10.0] {
+        assert_eq!(http_post(d.http, "/api/camera", r#"{"view": "start"}"#, None), 204);
+        let mut pose = d.still().current;
+        for _ in 0..50 {
+            pose = control(&pose, Control::Drag { dx, dy: 0.0, pan: false, height: 100.0 });
+            assert_eq!(post(&pose), 204);
+        }
+        let s = d.still();
+        let luma = d.luma();
+        eprintln!(
+            "500 px {}: asked for {:?}, got {:?}, luma {luma:.1}",
+            if dx > 0.0 { "right" } else { "left" },
+            pose.position,
+            s.current.position
+        );
+        assert!(
+            inside(s.current.position, bounds),
+            "the eye left the set: {:?} outside {bounds:?}",
+            s.current.position
+        );
+        assert!(luma > 0.3 * lit, "the picture went dark: mean luma {luma:.1} against {lit:.1} at the start");
+    }
+
+    // Dolly far out (30 wheel notches, each e^0.1 at most e per event): the eye stops inside.
+    let mut pose = d.still().current;
+    for _ in 0..30 {
+        pose = control(&pose, Control::Wheel { pixels: 1000.0, fov: false });
+        assert_eq!(post(&pose), 204);
+    }
+    let s = (d.handle.status)().view;
+    let r = Vec3::from_array(s.current.position).distance(Vec3::from_array(s.current.target));
+    assert!(inside(s.current.position, bounds) && r <= limits.max_distance + 1e-3, "{:?} at {r} m", s.current);
+}
+
+/// Headless Chromium on one page, driven over the DevTools protocol
+/// (loopback only): evaluate scripts, dispatch real mouse input.
+struct DevTools {
+    child: std::process::Child,
+    ws: tokio_tungstenite::tungstenite::WebSocket<
+        tokio_tungstenite::tungstenite::stream::MaybeTlsStream<std::net::TcpStream>,
+    >,
+    id: u64,
+    dir: std::path::PathBuf,
+}
+
+impl DevTools {
+    fn open(chromium: &str, url: &str) -> Self {
+        use std::io::{BufRead, BufReader, Read, Write};
+        let dir = std::env::temp_dir().join(format!("footlight-walk-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let child = std::process::Command::new(chromium)
+            .args(["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run"])
+            .args(["--disable-background-networking", "--disable-component-update", "--disable-sync"])
+            .args(["--remote-debugging-address=127.0.0.1", "--remote-debugging-port=0", "--window-size=1400,900"])
+            .arg(format!("--user-data-dir={}", dir.display()))
+            .arg(url)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        let t = Instant::now();
+        let port: u16 = loop {
+            if let Some(p) = std::fs::read_to_string(dir.join("DevToolsActivePort"))
+                .ok()
+                .and_then(|s| s.lines().next().and_then(|l| l.trim().parse().ok()))
+            {
+                break p;
+            }
+            assert!(t.elapsed() < Duration::from_secs(60), "Chromium did not open its DevTools port");
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        // GET /json/list (the endpoint keeps the connection open: read by Content-Length).
+        let list = || -> serde_json::Value {
+            let mut s = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
+            s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+            write!(s, "GET /json/list HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n").unwrap();
+            let mut r = BufReader::new(s);
+            let mut len = 0;
+            loop {
+                let mut line = String::new();
+                r.read_line(&mut line).unwrap();
+                if let Some(v) = line.to_ascii_lowercase().strip_prefix("content-length:") {
+                    len = v.trim().parse().unwrap();
+                }
+                if line.trim().is_empty() {
+                    break;
+                }
+            }
+            let mut body = vec![0; len];
+            r.read_exact(&mut body).unwrap();
+            serde_json::from_slice(&body).unwrap()
+        };
+        let page = loop {
+            let l = list();
+            if let Some(p) = l.as_array().unwrap().iter().find(|p| p["type"] == "page" && p["url"] == url) {
+                break p["webSocketDebuggerUrl"].as_str().unwrap().to_string();
+            }
+            assert!(t.elapsed() < Duration::from_secs(60), "no page in {l}");
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        let (ws, _) = tokio_tungstenite::tungstenite::connect(page).unwrap();
+        Self { child, ws, id: 0, dir }
+    }
+
+    /// Sends a DevTools command and returns its result (or its error).
+    fn call(&mut self, method: &str, params: serde_json::Value) -> Result<serde_json::Value, serde_json::Value> {
+        use tokio_tungstenite::tungstenite::Message;
+        self.id += 1;
+        let msg = serde_json::json!({"id": self.id, "method": method, "params": params});
+        self.ws.send(Message::text(msg.to_string())).unwrap();
+        loop {
+            let Message::Text(t) = self.ws.read().unwrap() else { continue };
+            let v: serde_json::Value = serde_json::from_str(&t).unwrap();
+            if v["id"] == self.id {
+                return if v["error"].is_null() { Ok(v["result"].clone()) } else { Err(v) };
+            }
+        }
+    }
+
+    /// Evaluates `expr` in the page (a promise is awaited) and returns its
+    /// JSON value; tries again while the page is still loading.
+    fn eval(&mut self, expr: &str) -> serde_json::Value {
+        for _ in 0..100 {
+            let params = serde_json::json!({"expression": expr, "awaitPromise": true, "returnByValue": true});
+            match self.call("Runtime.evaluate", params) {
+                Ok(r) => {
+                    assert!(r["exceptionDetails"].is_null(), "{expr}: {r}");
+                    return r["result"]["value"].clone();
+                }
+                Err(e) => eprintln!("DevTools: {e}; trying again"),
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        panic!("{expr}: the page never answered");
+    }
+
+    /// A real mouse drag with the left button: pressed at (`x`, `y`), moved
+    /// `dx` pixels in 10 px steps, released.
+    fn drag(&mut self, x: f64, y: f64, dx: f64) {
+        let mouse = |kind: &str, x: f64, buttons: u32| serde_json::json!({"type": kind, "x": x, "y": y, "button": "left", "buttons": buttons, "clickCount": 1});
+        self.call("Input.dispatchMouseEvent", mouse("mouseMoved", x, 0)).unwrap();
+        self.call("Input.dispatchMouseEvent", mouse("mousePressed", x, 1)).unwrap();
+        let steps = (dx.abs() / 10.0).round() as i32;
+        for i in 1..=steps {
+            let at = x + dx * f64::from(i) / f64::from(steps);
+            self.call("Input.dispatchMouseEvent", mouse("mouseMoved", at, 1)).unwrap();
+            std::thread::sleep(Duration::from_millis(15));
+        }
+        self.call("Input.dispatchMouseEvent", mouse("mouseReleased", x + dx, 0)).unwrap();
+    }
+}
+
+impl Drop for DevTools {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+/// Issue 37, "done means": real mouse drags of 500 px left and right on the
+/// page's picture in headless Chromium (Input.dispatchMouseEvent, the
+/// browser's own pointer events into `camera.js`) keep the camera inside
+/// the scene's bounds and the page's picture lit. Skips without Chromium
+/// unless FOOTLIGHT_REQUIRE_BROWSER is set.
+#[test]
+fn headless_chromium_drags_500_px_each_way_and_the_picture_stays_on_the_stage() {
+    let chromium = ["chromium", "chromium-browser"]
+        .into_iter()
+        .find(|c| std::process::Command::new(c).arg("--version").output().map(|o| o.status.success()).unwrap_or(false));
+    let Some(chromium) = chromium else {
+        assert!(std::env::var_os("FOOTLIGHT_REQUIRE_BROWSER").is_none(), "chromium required but not installed");
+        eprintln!("skipping: chromium not installed");
+        return;
+    };
+    let d = StageDaemon::start();
+    let start = d.still();
+    let bounds = d.bounds();
+    let url = format!("http://{}/", d.http);
+    let mut page = DevTools::open(chromium, &url);
+    // The page's picture, settled on the daemon's frame `number` or later:
+    // its mean luma (the WebGL2 canvas; the pushed pictures' <img> else).
+    let picture = |page: &mut DevTools| -> f64 {
+        let number = (d.handle.status)().frame + 2;
+        let v = page.eval(&format!(
+            "new Promise((ok, fail) => {{ const t0 = performance.now(); const t = () => {{
+               const f = window.__footlight;
+               if (f && f.frame >= {number} && f.composites > 0 && f.busy === 0 && !f.dirty) {{
+                 requestAnimationFrame(() => ok({{ mode: f.mode, pixels: f.pixels() }}));
+               }} else if (f && f.mode === 'pictures' && f.frame >= {number}) {{
+                 const img = document.getElementById('stage'), c = document.createElement('canvas');
+                 c.width = img.naturalWidth; c.height = img.naturalHeight;
+                 const g = c.getContext('2d'); g.drawImage(img, 0, 0);
+                 const d = g.getImageData(0, 0, c.width, c.height).data; let s = 0;
+                 for (let i = 0; i < d.length; i += 4) s += 0.2126 * d[i] + 0.7152 * d[i + 1] + 0.0722 * d[i + 2];
+                 ok({{ mode: f.mode, luma: s / (d.length / 4) }});
+               }} else if (performance.now() - t0 > 120000) {{ fail(new Error(JSON.stringify(f))); }}
+               else setTimeout(t, 20); }}; t(); }})"
+        ));
+        if let Some(l) = v["luma"].as_f64() {
+            return l;
+        }
+        let p = &v["pixels"];
+        let rgb = base64::decode(p["rgb"].as_str().unwrap_or_else(|| panic!("no pixels: {v}"))).unwrap();
+        let img =
+            image::RgbImage::from_raw(p["width"].as_u64().unwrap() as u32, p["height"].as_u64().unwrap() as u32, rgb)
+                .expect("RGB pixels");
+        mean_luma(&img)
+    };
+    // The page holds the daemon's pose (camera.js polls /api/views).
+    let has_pose = "new Promise(ok => { const t = () => window.__footlightCamera && window.__footlightCamera.pose ? ok(true) : setTimeout(t, 20); t(); })";
+    assert_eq!(page.eval(has_pose), serde_json::json!(true));
+    let lit = picture(&mut page);
+    assert!(lit > 10.0, "the page shows the lit stage: mean luma {lit:.1}");
+    // Room for a 500 px drag either way inside the window: the page moved
+    // 600 px right (a test-only layout change; the page's script is untouched).
+    let rect = page.eval(
+        "(() => { document.body.style.paddingLeft = '600px';
+          const el = [...document.querySelectorAll('#view, #stage')].find(e => e.offsetParent !== null);
+          const r = el.getBoundingClientRect(); return [r.left + r.width / 2, r.top + r.height / 2]; })()",
+    );
+    let (x, y) = (rect[0].as_f64().unwrap(), rect[1].as_f64().unwrap());
+    for dx in [500.0, -500.0] {
+        let writes = (d.handle.status)().view.writes;
+        let before = page.eval("window.__footlightCamera.pose.position");
+        page.drag(x, y, dx);
+        // The page's last write lands (one in flight at a time), then the view settles.
+        let t = Instant::now();
+        while (d.handle.status)().view.writes < writes + 5 || (d.handle.status)().view.phase == Phase::Moving {
+            assert!(t.elapsed() < Duration::from_secs(60), "the drag wrote nothing: {:?}", (d.handle.status)().view);
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let s = d.still();
+        let luma = picture(&mut page);
+        eprintln!(
+            "page drag {dx} px from {before}: eye {:?}, writes {}, luma {luma:.1} (start {lit:.1})",
+            s.current.position,
+            s.writes - writes
+        );
+        assert_ne!(s.current.position, start.current.position, "the drag moved the camera");
+        assert!(
+            inside(s.current.position, bounds),
+            "the eye left the set: {:?} outside {bounds:?}",
+            s.current.position
+        );
+        assert!(luma > 0.3 * lit, "the page's picture went dark: mean luma {luma:.1} against {lit:.1}");
+    }
 }

@@ -226,8 +226,9 @@ pub fn run(
     let ready = || stages().is_none_or(|s| s >= 4);
     wait(&ready, Duration::from_secs(600))?;
 
-    // Orbit: a write every 1/30 s around what the start view centres on.
-    let orbit = crate::live::views::Pose::focused(scene, &camera);
+    // Orbit: a write every 1/30 s about the start view's target, the
+    // stage centre (as the page orbits; each write confined to the stage).
+    let orbit = (handle.status)().view.current;
     let mut frames = handle.frames.clone();
     frames.borrow_and_update();
     let t0 = Instant::now();

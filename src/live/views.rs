@@ -24,16 +24,26 @@
 //!    that has not moved meanwhile; the others are rebuilt.
 //!
 //! Views come from the scene's glTF camera, the patch's `[camera]` and
-//! `[[view]]` tables, and views saved from the page (kept in memory only,
-//! never written to a file). Poses are position + target + vertical field of
-//! view: a glTF camera keeps its roll in [`Pose::up`]
+//! `[[view]]` tables, [`FRAME_VIEW`] (the rig and the stage from a
+//! designer's seat, [`frame_rig`]) and views saved from the page (kept in
+//! memory only, never written to a file). Poses are position + target +
+//! vertical field of view: a glTF camera keeps its roll in [`Pose::up`]
 //! (orbiting levels the horizon, as on the page).
+//!
+//! **A camera that stays on the stage** (issue 37). Every written pose is
+//! confined by the scene's [`StageLimits`] (eye and target in the room, the
+//! dolly's range, never behind a wall: `scene::camera`'s module doc), so a
+//! drag from the page, the window or a named view can never leave the set.
+//! The start view orbits about the stage centre: its target is the point
+//! of its centre ray nearest the pivot ([`Pose::centred`]), not the
+//! surface the ray meets (the back wall, 22 m away on the bundled stage).
 
 use super::daemon::StopSignal;
 use super::tracer::{Kept, Stage, Tracer};
 use crate::Light;
 use crate::render::whitted::{RecursionLimits, expand};
 use crate::render::{Display, Sampling, View};
+use crate::scene::camera::{Bounds, StageLimits, fov_to_fit, frame_distance};
 use crate::scene::{Camera, Scene};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -121,6 +131,21 @@ impl Pose {
         let forward = -camera.basis.z_axis;
         let t = scene.accel.intersect(camera.position, forward, f32::INFINITY).map_or(10.0, |h| h.t);
         let t = if t.is_finite() && t > 0.05 { t } else { 10.0 };
+        Self { target: (camera.position + forward * t).to_array(), ..Self::of(camera) }
+    }
+
+    /// The pose of `camera` with its target the point of the centre ray
+    /// nearest `pivot` (the stage centre, what orbiting then turns around):
+    /// the picture is the camera's own, and an orbit swings about the
+    /// stage, not about the wall behind it. A pivot behind the eye (or
+    /// nearer than [`crate::scene::camera::MIN_DISTANCE`] along the ray)
+    /// falls back to [`Pose::focused`].
+    pub fn centred(scene: &Scene, camera: &Camera, pivot: Vec3) -> Self {
+        let forward = -camera.basis.z_axis;
+        let t = (pivot - camera.position).dot(forward);
+        if !(t.is_finite() && t >= crate::scene::camera::MIN_DISTANCE) {
+            return Self::focused(scene, camera);
+        }
         Self { target: (camera.position + forward * t).to_array(), ..Self::of(camera) }
     }
 
@@ -324,6 +349,8 @@ pub enum ViewSource {
     Patch,
     /// Saved from the page (in memory only).
     Saved,
+    /// Made from the rig and the stage ([`FRAME_VIEW`]).
+    Rig,
 }
 
 /// A named view.
@@ -337,13 +364,158 @@ pub struct NamedView {
     pub source: ViewSource,
 }
 
-/// The named views of a scene and patch: the start view, the glTF camera,
-/// the patch's `[camera]` and its `[[view]]` entries, in that order.
+/// The name of the view that frames the rig and the stage ([`frame_rig`]).
+pub const FRAME_VIEW: &str = "frame the rig";
+/// How far [`FRAME_VIEW`] looks down at the stage centre (degrees): a
+/// desk at the back of raked stalls, or the front of a circle.
+pub const FRAME_PITCH_DEG: f32 = 10.0;
+/// Vertical field of view of [`FRAME_VIEW`] (degrees), widened (up to
+/// [`FRAME_MAX_FOV_DEG`]) when a wall keeps the eye closer than the framing
+/// distance.
+pub const FRAME_FOV_DEG: f32 = 50.0;
+/// The widest field of view [`FRAME_VIEW`] takes to fit the rig (degrees).
+pub const FRAME_MAX_FOV_DEG: f32 = 100.0;
+/// How far from the picture's centre to its edge the outermost framed
+/// point may sit (a 10 % border).
+pub const FRAME_FILL: f32 = 0.9;
+/// The picture aspect [`FRAME_VIEW`] is framed for: 1 (square), so the
+/// frame holds in every landscape or square picture; a wider picture shows
+/// more at the sides.
+pub const FRAME_ASPECT: f32 = 1.0;
+/// Widest half-angle of a beam's footprint that framing follows (degrees):
+/// a flood's edge rays would reach the walls.
+const FOOTPRINT_HALF_ANGLE_DEG: f32 = 30.0;
+
+/// The rig as the camera sees it: where the lights hang, where their beams
+/// are focused (axis hits) and their footprints' edges (the edge rays'
+/// hits). Made from the lit lights, or from every light when none is lit
+/// (an MVR show starts black).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Rig {
+    /// The lights' positions.
+    pub fixtures: Vec<Vec3>,
+    /// Each beam axis's first opaque hit (beams into the void left out).
+    pub focus: Vec<Vec3>,
+    /// Hits of the rays at each footprint's edge (four per light, at its
+    /// cut-off up to 30° off the axis).
+    pub footprints: Vec<Vec3>,
+}
+
+impl Rig {
+    /// The rig of `lights` (each light with its k_i) over `scene`: the lit
+    /// ones (k_i luminance above 0), or all when none is lit.
+    pub fn of(scene: &Scene, lights: &[(&Light, Vec3)]) -> Self {
+        let luminance = |k: Vec3| k.dot(Vec3::new(0.2126, 0.7152, 0.0722));
+        let lit: Vec<&Light> = lights.iter().filter(|(_, k)| luminance(*k) > 0.0).map(|(l, _)| *l).collect();
+        let chosen: Vec<&Light> = if lit.is_empty() { lights.iter().map(|(l, _)| *l).collect() } else { lit };
+        let mut rig = Self::default();
+        for light in chosen.into_iter().filter(|l| l.position.is_finite()) {
+            rig.fixtures.push(light.position);
+            let axis = light.axis();
+            rig.focus.extend(crate::scene::camera::focus_point(scene, light.position, axis));
+            let half = light.beam.cos_cutoff().clamp(-1.0, 1.0).acos().min(FOOTPRINT_HALF_ANGLE_DEG.to_radians());
+            for side in [Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Y] {
+                let edge = light.rotation * glam::Quat::from_axis_angle(side.cross(Vec3::NEG_Z), half) * Vec3::NEG_Z;
+                rig.footprints.extend(crate::scene::camera::focus_point(scene, light.position, edge));
+            }
+        }
+        rig
+    }
+
+    /// True when there are no lights.
+    pub fn is_empty(&self) -> bool {
+        self.fixtures.is_empty()
+    }
+}
+
+/// [`FRAME_VIEW`]: a level camera looking at `limits.pivot` (the stage
+/// centre, so an orbit from it turns about the stage) from
+/// [`FRAME_PITCH_DEG`] above, in the plan direction `start` looks (the
+/// audience's side), as far back as the lit stage (the focus points and
+/// footprints of `rig`), the pivot and the fixtures no nearer the audience
+/// than all that they light need to fit a [`FRAME_FOV_DEG`] picture
+/// ([`frame_distance`]): a front-of-house bar over the seats hangs behind
+/// the designer and is left out. Without a rig, the corners of the scene's
+/// `bounds` instead. The eye may sit outside the scene's bounds (in an
+/// open house, in front of the set; the room then grows to hold it, as it
+/// holds every named view's eye), but never behind a wall
+/// ([`crate::scene::camera::behind_wall`]): if one kept it nearer, the
+/// field of view widens to fit ([`fov_to_fit`], at most
+/// [`FRAME_MAX_FOV_DEG`]).
+pub fn frame_rig(scene: &Scene, rig: &Rig, bounds: &Bounds, start: &Camera, limits: &StageLimits) -> Pose {
+    let pivot = limits.pivot;
+    // The audience's side: where the start camera looks, in plan.
+    let plan = {
+        let f = -start.basis.z_axis;
+        Vec3::new(f.x, 0.0, f.z).try_normalize().unwrap_or(Vec3::NEG_Z)
+    };
+    // What is lit, and the fixtures no nearer the audience than all of it
+    // (a front-of-house bar hangs over the seats, behind the designer).
+    let mut points: Vec<Vec3> = rig.focus.iter().chain(&rig.footprints).copied().collect();
+    let downstage = points.iter().map(|p| (*p - pivot).dot(plan)).fold(0.0, f32::min);
+    points.extend(rig.fixtures.iter().filter(|f| (**f - pivot).dot(plan) >= downstage));
+    if points.is_empty() {
+        points = (0..8)
+            .map(|i| {
+                let pick = |bit: usize, lo: f32, hi: f32| if i & bit == 0 { lo } else { hi };
+                let (a, b) = (bounds.min, bounds.max);
+                Vec3::new(pick(1, a.x, b.x), pick(2, a.y, b.y), pick(4, a.z, b.z))
+            })
+            .collect();
+    }
+    points.push(pivot);
+    let pitch = FRAME_PITCH_DEG.to_radians();
+    let forward = plan * pitch.cos() - Vec3::Y * pitch.sin();
+    let fov = FRAME_FOV_DEG.to_radians();
+    let s = frame_distance(&points, pivot, forward, fov, FRAME_ASPECT, FRAME_FILL).max(limits.min_distance);
+    let (eye, fov) = match crate::scene::camera::behind_wall(scene, pivot, pivot - forward * s) {
+        Some(t) => {
+            let eye = pivot - forward * (t - crate::scene::camera::WALL_MARGIN).max(limits.min_distance);
+            (eye, fov_to_fit(&points, eye, pivot, FRAME_ASPECT, FRAME_FILL).clamp(fov, FRAME_MAX_FOV_DEG.to_radians()))
+        }
+        None => (pivot - forward * s, fov),
+    };
+    Pose { position: eye.to_array(), target: pivot.to_array(), fov_y: fov.to_degrees(), up: None }
+}
+
+/// The walking limits of `scene` with these named views: the pivot from
+/// the [`FRAME_VIEW`] view's target when the list has one (it is the stage
+/// centre), else from the scene's bounds ([`crate::scene::camera::stage_centre`]);
+/// the room holds every named view's eye and `start`'s. `None` for an empty
+/// scene (nothing to stay in).
+pub fn stage_limits(scene: &Scene, start: &Camera, named: &[NamedView]) -> Option<StageLimits> {
+    let bounds = Bounds::of_scene(scene)?;
+    let pivot = named
+        .iter()
+        .find(|v| v.source == ViewSource::Rig)
+        .map(|v| Vec3::from_array(v.pose.target))
+        .unwrap_or_else(|| crate::scene::camera::stage_centre(scene, &bounds, &[]));
+    let eyes: Vec<Vec3> =
+        named.iter().map(|v| Vec3::from_array(v.pose.position)).chain(std::iter::once(start.position)).collect();
+    Some(StageLimits::new(bounds, &eyes, pivot))
+}
+
+/// The named views of a scene and patch: the start view, [`FRAME_VIEW`],
+/// the glTF camera, the patch's `[camera]` and its `[[view]]` entries, in
+/// that order. The stage centre comes from the patch's default look
+/// ([`Rig::of`]: its lit lights' focus points, or every light's when none
+/// is lit), else from the scene's bounds; the start view and the glTF
+/// camera orbit about it ([`Pose::centred`]).
 pub fn named_views(start: &Camera, scene: &Scene, patch: Option<&crate::Patch>) -> Vec<NamedView> {
-    let mut out =
-        vec![NamedView { name: "start".into(), pose: Pose::focused(scene, start), source: ViewSource::Start }];
+    let rig = patch.map_or_else(Rig::default, |p| {
+        let lights = p.lights();
+        let k = p.default_k();
+        Rig::of(scene, &lights.iter().zip(k).collect::<Vec<_>>())
+    });
+    let bounds = Bounds::of_scene(scene);
+    let pivot = bounds.map(|b| crate::scene::camera::stage_centre(scene, &b, &rig.focus));
+    let centred = |camera: &Camera| match pivot {
+        Some(p) => Pose::centred(scene, camera, p),
+        None => Pose::focused(scene, camera),
+    };
+    let mut out = vec![NamedView { name: "start".into(), pose: centred(start), source: ViewSource::Start }];
     if let Some(c) = &scene.camera {
-        out.push(NamedView { name: "scene camera".into(), pose: Pose::focused(scene, c), source: ViewSource::Scene });
+        out.push(NamedView { name: "scene camera".into(), pose: centred(c), source: ViewSource::Scene });
     }
     if let Some(p) = patch {
         if let Some(c) = &p.camera {
@@ -365,6 +537,16 @@ pub fn named_views(start: &Camera, scene: &Scene, patch: Option<&crate::Patch>) 
             out.retain(|o| o.name != v.name);
             out.push(NamedView { name: v.name.clone(), pose, source: ViewSource::Patch });
         }
+    }
+    // The frame view, second in the list (key `2` in the window); a patch
+    // view of the same name replaces it.
+    if let (Some(bounds), Some(pivot)) = (bounds, pivot)
+        && !out.iter().any(|v| v.name == FRAME_VIEW)
+    {
+        let eyes: Vec<Vec3> = out.iter().map(|v| Vec3::from_array(v.pose.position)).collect();
+        let limits = StageLimits::new(bounds, &eyes, pivot);
+        let pose = frame_rig(scene, &rig, &bounds, start, &limits);
+        out.insert(1, NamedView { name: FRAME_VIEW.into(), pose, source: ViewSource::Rig });
     }
     out
 }
@@ -488,6 +670,36 @@ pub struct ViewStatus {
     pub last_restored: usize,
     /// The view cache.
     pub cache: ViewCacheStatus,
+    /// Where the camera may go (`None`: an empty scene, no limits).
+    pub limits: Option<LimitsStatus>,
+}
+
+/// The walking limits in the status ([`StageLimits`]): the page keeps its
+/// dolly within the distance range.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct LimitsStatus {
+    /// The stage centre (m).
+    pub pivot: [f32; 3],
+    /// The room's lowest corner (m).
+    pub room_min: [f32; 3],
+    /// The room's highest corner (m).
+    pub room_max: [f32; 3],
+    /// Nearest the eye comes to the target (m).
+    pub min_distance: f32,
+    /// Farthest the eye goes from the target (m).
+    pub max_distance: f32,
+}
+
+impl From<&StageLimits> for LimitsStatus {
+    fn from(l: &StageLimits) -> Self {
+        Self {
+            pivot: l.pivot.to_array(),
+            room_min: l.room.min.to_array(),
+            room_max: l.room.max.to_array(),
+            min_distance: l.min_distance,
+            max_distance: l.max_distance,
+        }
+    }
 }
 
 /// The view cache in the status.
@@ -531,6 +743,8 @@ pub struct Views {
     height: u32,
     limits: RecursionLimits,
     settings: ViewSettings,
+    /// Where a written pose may go ([`StageLimits`]; `None`: an empty scene).
+    stage: Option<StageLimits>,
     state: Mutex<State>,
     wake: Notify,
     /// Display settings written over HTTP (`POST /api/display`), taken by
@@ -551,7 +765,8 @@ impl Views {
     ) -> Self {
         let view = tracer.view();
         let (width, height) = (view.width(), view.height());
-        let pose = Pose::focused(&scene, &start);
+        let stage = stage_limits(&scene, &start, &named);
+        let pose = stage.map_or_else(|| Pose::focused(&scene, &start), |l| Pose::centred(&scene, &start, l.pivot));
         Self {
             scene,
             tracer,
@@ -559,6 +774,7 @@ impl Views {
             height,
             limits,
             settings,
+            stage,
             state: Mutex::new(State {
                 target: start,
                 pose,
@@ -586,15 +802,47 @@ impl Views {
         &self.settings
     }
 
+    /// The walking limits (`None`: an empty scene).
+    pub fn stage_limits(&self) -> Option<&StageLimits> {
+        self.stage.as_ref()
+    }
+
+    /// `pose` confined to the stage ([`StageLimits::confine`]: in the room,
+    /// the dolly's range, never behind a wall); its field of view and roll
+    /// are kept (the roll is dropped only if the confined eye looks along
+    /// it). An unusable pose is refused.
+    pub fn confine(&self, pose: Pose) -> Result<Pose, String> {
+        pose.camera()?;
+        let Some(stage) = &self.stage else { return Ok(pose) };
+        let c = stage.confine(&self.scene, Vec3::from_array(pose.position), Vec3::from_array(pose.target));
+        if !c.moved {
+            return Ok(pose);
+        }
+        let moved = Pose { position: c.eye.to_array(), target: c.target.to_array(), ..pose };
+        match moved.camera() {
+            Ok(_) => Ok(moved),
+            Err(_) => Ok(Pose { up: None, ..moved }),
+        }
+    }
+
     /// A camera write: the preview follows it at once; the full view is
-    /// built once no write came for [`ViewSettings::settle`].
+    /// built once no write came for [`ViewSettings::settle`]. The camera is
+    /// confined to the stage ([`Views::confine`]).
     pub fn move_to(&self, camera: Camera) {
-        self.write(camera, Pose::focused(&self.scene, &camera));
+        let pose = match &self.stage {
+            Some(stage) => Pose::centred(&self.scene, &camera, stage.pivot),
+            None => Pose::focused(&self.scene, &camera),
+        };
+        if self.move_to_pose(pose).is_err() {
+            self.write(camera, pose);
+        }
     }
 
     /// A camera write as a pose (the page's and the window's moves keep
-    /// their orbit target this way); refused when the pose is unusable.
+    /// their orbit target this way), confined to the stage
+    /// ([`Views::confine`]); refused when the pose is unusable.
     pub fn move_to_pose(&self, pose: Pose) -> Result<(), String> {
+        let pose = self.confine(pose)?;
         self.write(pose.camera()?, pose);
         Ok(())
     }
@@ -717,6 +965,7 @@ impl Views {
                 hits: st.cache.hits(),
                 misses: st.cache.misses(),
             },
+            limits: self.stage.as_ref().map(LimitsStatus::from),
         }
     }
 
@@ -1051,6 +1300,85 @@ mod tests {
         assert!((dist(&p.dolly(1e-9)) - 0.2).abs() < 1e-5);
         assert_eq!(p.zoom(100.0).fov_y, 120.0);
         assert_eq!(p.zoom(f32::NAN), p);
+    }
+
+    /// A 20 m deck at y = 0 (one-sided, facing up).
+    fn deck() -> Scene {
+        let mut b = crate::scene::SceneBuilder::new();
+        let m = b.add_material(crate::scene::Material::lambert("deck", Vec3::splat(0.5)));
+        let (a, c) = (-10.0, 10.0);
+        b.add_quad(Vec3::new(a, 0.0, c), Vec3::new(c, 0.0, c), Vec3::new(c, 0.0, a), Vec3::new(a, 0.0, a), m);
+        b.build()
+    }
+
+    fn spot(from: Vec3, at: Vec3) -> Light {
+        Light::aimed(from, at, crate::Beam::Spot(crate::fixture::SpotBeam::from_beam_field(20.0, 30.0)))
+    }
+
+    #[test]
+    fn centred_targets_the_point_of_the_centre_ray_nearest_the_pivot() {
+        let scene = deck();
+        let camera = Camera::look_at(Vec3::new(0.0, 2.0, 10.0), Vec3::new(0.0, 2.0, 0.0), 0.7);
+        // The ray is x = 0, y = 2: the nearest point to (1, 1, −2) is (0, 2, −2).
+        let p = Pose::centred(&scene, &camera, Vec3::new(1.0, 1.0, -2.0));
+        assert!(Vec3::from_array(p.target).abs_diff_eq(Vec3::new(0.0, 2.0, -2.0), 1e-5), "{p:?}");
+        assert!(same_camera(&p.camera().unwrap(), &camera), "the picture is the camera's own");
+        // A pivot behind the eye: the surface the centre ray meets (here none: 10 m ahead).
+        let behind = Pose::centred(&scene, &camera, Vec3::new(0.0, 1.0, 20.0));
+        assert_eq!(behind, Pose::focused(&scene, &camera));
+    }
+
+    #[test]
+    fn the_frame_view_holds_the_lit_rig_and_its_footprints_from_a_designers_pitch() {
+        let scene = deck();
+        let lights = [
+            spot(Vec3::new(-4.0, 6.0, 3.0), Vec3::new(-1.0, 0.0, -1.0)),
+            spot(Vec3::new(4.0, 6.0, 3.0), Vec3::new(1.0, 0.0, -1.0)),
+            spot(Vec3::new(0.0, 7.0, -6.0), Vec3::new(0.0, 0.0, -2.0)),
+            // Dark, far off stage right: not framed while others are lit.
+            spot(Vec3::new(-9.0, 6.0, 9.0), Vec3::new(-9.0, 0.0, 9.0)),
+        ];
+        let k = [Vec3::splat(100.0), Vec3::splat(100.0), Vec3::splat(50.0), Vec3::ZERO];
+        let with_k: Vec<(&Light, Vec3)> = lights.iter().zip(k).collect();
+        let rig = Rig::of(&scene, &with_k);
+        assert_eq!(rig.fixtures.len(), 3, "the lit lights only");
+        assert_eq!(rig.focus.len(), 3);
+        assert_eq!(rig.footprints.len(), 12, "four edge hits per light");
+        // All dark: every light.
+        let dark: Vec<(&Light, Vec3)> = lights.iter().map(|l| (l, Vec3::ZERO)).collect();
+        assert_eq!(Rig::of(&scene, &dark).fixtures.len(), 4);
+
+        let bounds = Bounds::of_scene(&scene).unwrap();
+        let pivot = crate::scene::camera::stage_centre(&scene, &bounds, &rig.focus);
+        let start = Camera::look_at(Vec3::new(3.0, 1.7, 14.0), Vec3::new(3.0, 1.7, 0.0), 0.7);
+        let limits = StageLimits::new(bounds, &[start.position], pivot);
+        let pose = frame_rig(&scene, &rig, &bounds, &start, &limits);
+        let cam = pose.camera().unwrap();
+        assert_eq!(Vec3::from_array(pose.target), pivot, "it looks at the stage centre");
+        // Looking the way the start camera looks (−Z), 10° down.
+        let forward = -cam.basis.z_axis;
+        assert!((forward.y + FRAME_PITCH_DEG.to_radians().sin()).abs() < 1e-5 && forward.x.abs() < 1e-5, "{forward}");
+        assert_eq!(pose.fov_y, FRAME_FOV_DEG, "nothing in the way: the plain field");
+        let tan = (pose.fov_y.to_radians() / 2.0).tan();
+        let mut worst = 0.0f32;
+        // The lit stage, and the fixtures no nearer the audience (+Z here)
+        // than all of it: the upstage one; the two at z = 3 hang over the seats.
+        let lit: Vec<Vec3> = rig.focus.iter().chain(&rig.footprints).copied().collect();
+        let front = lit.iter().map(|p| p.z).fold(pivot.z, f32::max);
+        let hung: Vec<Vec3> = rig.fixtures.iter().copied().filter(|f| f.z <= front).collect();
+        assert_eq!(hung, [Vec3::new(0.0, 7.0, -6.0)]);
+        for p in lit.iter().chain(&hung) {
+            let local = cam.basis.transpose() * (*p - cam.position);
+            let (u, v) = (local.x / -local.z / (tan * FRAME_ASPECT), local.y / -local.z / tan);
+            worst = worst.max(u.abs()).max(v.abs());
+            assert!(-local.z > 0.0 && u.abs() <= FRAME_FILL + 1e-4 && v.abs() <= FRAME_FILL + 1e-4, "{p}: ({u}, {v})");
+        }
+        assert!((worst - FRAME_FILL).abs() < 1e-3, "the frame is tight: {worst}");
+
+        // In the list: second, after the start view, which orbits the same pivot.
+        let patchless = named_views(&start, &scene, None);
+        assert_eq!(patchless.iter().map(|v| v.name.as_str()).collect::<Vec<_>>(), ["start", FRAME_VIEW]);
+        assert_eq!(patchless[1].source, ViewSource::Rig);
     }
 
     #[test]

@@ -9,6 +9,14 @@
 //   drag with shift / right button / two fingers   pan
 //   wheel, pinch                           dolly (towards the target)
 //   alt + wheel                            field of view
+//   "frame the rig"                        the named view of the rig and the stage
+//
+// The daemon confines every pose it is sent to the stage (issue 37: in the
+// room, never behind a wall; src/scene/camera.rs): this page keeps the pose
+// it asked for while a drag lasts, so orbiting back past a wall restores
+// the distance, and takes the daemon's pose once the camera is still. The
+// dolly stays within the daemon's distance range (`camera.limits` of
+// /api/views), so the wheel has no dead travel beyond it.
 //
 // Writes go to POST /api/camera, at most one in flight (the newest pose
 // replaces a waiting one), so a fast drag never queues requests. From
@@ -34,12 +42,16 @@ const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a
 const norm = a => mul(a, 1 / (len(a) || 1));
 
 let pose = null; // { position, target, fov_y }
+let limits = { min: 0.2, max: 500 }; // the dolly's range, from the daemon's camera.limits
 let sending = false, waiting = null;
+// Tests read the page's pose here (the headless-browser drag test).
+window.__footlightCamera = { get pose() { return pose; }, get limits() { return limits; } };
 const panel = document.createElement('div');
 panel.id = 'camera-panel';
 panel.innerHTML = `
   <div style="margin:6px 0"><b>camera</b> <span id="camera-state" style="color:#999"></span></div>
   <select id="camera-views" style="max-width:220px"></select>
+  <button id="camera-frame" title="the rig and the stage from a designer's seat">frame the rig</button>
   <input id="camera-name" placeholder="view name" size="12" maxlength="64">
   <button id="camera-save">save view</button>
   <div id="camera-error" style="color:#f88"></div>`;
@@ -100,7 +112,7 @@ function pan(dx, dy, height) {
 
 function dolly(factor) {
   const off = sub(pose.position, pose.target);
-  const r = Math.max(0.2, Math.min(500, len(off) * factor));
+  const r = Math.max(limits.min, Math.min(limits.max, len(off) * factor));
   pose.position = add(pose.target, mul(norm(off), r));
 }
 
@@ -162,6 +174,7 @@ async function refresh() {
   try {
     const v = await (await fetch('/api/views', { cache: 'no-store' })).json();
     const c = v.camera;
+    if (c.limits) limits = { min: c.limits.min_distance, max: c.limits.max_distance };
     if (!sending && !waiting && c.phase === 'still') pose = c.current;
     if (!pose) pose = c.current;
     document.getElementById('camera-state').textContent =
@@ -190,6 +203,9 @@ function setupPanel() {
     if (!e.target.value) return;
     if (await send({ view: e.target.value })) pose = null;
     e.target.value = '';
+  });
+  document.getElementById('camera-frame').addEventListener('click', async () => {
+    if (await send({ view: 'frame the rig' })) pose = null;
   });
   document.getElementById('camera-save').addEventListener('click', async () => {
     const name = document.getElementById('camera-name').value;
