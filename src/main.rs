@@ -572,12 +572,31 @@ fn load_scene(args: &SceneArgs) -> Result<(PathBuf, Scene)> {
 }
 
 /// Patch camera first, then the scene's, then a seat in the stalls.
+/// The patch's camera, else the scene's, else (an MVR venue has none) the
+/// "frame the rig" view: the lit rig and the stage from a designer's height,
+/// instead of a seat level with the deck.
 fn choose_camera(scene: &Scene, patch: &Patch) -> Camera {
-    patch
-        .camera
-        .map(|c| Camera::look_at(c.position, c.look_at, c.fov_y))
-        .or(scene.camera)
-        .unwrap_or_else(|| Camera::look_at(Vec3::new(0.0, 1.7, 14.0), Vec3::new(0.0, 1.5, 0.0), 40f32.to_radians()))
+    if let Some(c) = patch.camera.map(|c| Camera::look_at(c.position, c.look_at, c.fov_y)).or(scene.camera) {
+        return c;
+    }
+    let seat = Camera::look_at(Vec3::new(0.0, 1.7, 14.0), Vec3::new(0.0, 1.5, 0.0), 40f32.to_radians());
+    let framed = footlight::live::views::named_views(&seat, scene, Some(patch))
+        .into_iter()
+        .find(|v| v.name == footlight::live::views::FRAME_VIEW)
+        .and_then(|v| v.pose.camera().ok());
+    match framed {
+        Some(c) => {
+            let p = c.position;
+            tracing::info!(
+                "camera: no camera in the patch or scene; framing the rig from ({:.1}, {:.1}, {:.1}) m",
+                p.x,
+                p.y,
+                p.z
+            );
+            c
+        }
+        None => seat,
+    }
 }
 
 /// The stop signal: SIGINT (Ctrl-C) or SIGTERM. Installed as soon as the
@@ -908,7 +927,8 @@ fn fixture_summary(patch: &Patch, listing: &[footlight::fixture::patch::ListedFi
         _ => format!(" on universes {}", runs.join(", ")),
     };
     let loose = if unpatched > 0 && !runs.is_empty() { format!(", {unpatched} not patched") } else { String::new() };
-    format!("{} fixtures{cells}{on}{loose}", listing.len())
+    let fixtures = if listing.len() == 1 { "1 fixture".to_string() } else { format!("{} fixtures", listing.len()) };
+    format!("{fixtures}{cells}{on}{loose}")
 }
 
 /// Refuses to replace a file the user already has, unless `force`.

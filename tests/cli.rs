@@ -798,3 +798,21 @@ fn check_lists_fixtures_with_their_addresses_and_warns_about_unaddressed_ones() 
     assert!(summary.ends_with("ok, 148 fixtures (336 lights: cells counted) on universes 1-5"), "{summary}");
     assert!(out.lines().any(|l| l.contains(" cells]  DMX ")), "a pixel bar's cells are folded: {out}");
 }
+
+/// An MVR whose venue has no camera opens on the "frame the rig" view, from
+/// above the deck (issue 36 item 6), not on a seat level with the deck.
+#[test]
+fn an_mvr_without_a_camera_is_framed_from_a_designers_height() {
+    let dir = temp_dir("mvr-frame");
+    let o = footlight()
+        .args(["render", "--patch", "tests/data/mvr/venue.mvr", "--width", "40", "--height", "25", "--photons", "0"])
+        .arg("--out")
+        .arg(dir.join("venue.png"))
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{log}");
+    let at = log.split("framing the rig from (").nth(1).expect("the framed camera is logged");
+    let xyz: Vec<f32> = at.split(')').next().unwrap().split(", ").map(|v| v.parse().unwrap()).collect();
+    assert!(xyz.iter().all(|v| v.is_finite()) && xyz[1] > 2.0 && xyz[1] < 10.0, "eye {xyz:?}: above the deck");
+}
