@@ -40,6 +40,11 @@ impl Daemon {
     /// The daemon over the bundled stage with the replay patch, on loopback
     /// only: the same `footlight::live::Daemon` the binary runs.
     fn start(source: Source) -> Self {
+        Self::start_with(source, replay_patch)
+    }
+
+    /// [`Daemon::start`] with another patch.
+    fn start_with(source: Source, patch: fn() -> footlight::Patch) -> Self {
         let (tx, rx) = std::sync::mpsc::channel();
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
         let thread = std::thread::spawn(move || {
@@ -47,7 +52,7 @@ impl Daemon {
             rt.block_on(async move {
                 let scene = Arc::new(stage());
                 let camera = scene.camera.unwrap();
-                let show = Arc::new(Show::new(replay_patch()));
+                let show = Arc::new(Show::new(patch()));
                 let listener = footlight::live::bind_http("127.0.0.1:0".parse().unwrap()).await.unwrap();
                 let http = listener.local_addr().unwrap();
                 let dmx = match source {
@@ -219,6 +224,59 @@ fn frames_at_marked_cues_match_golden_images() {
             fail_with_diff(name, &actual, &expected, &format!("mean |Δ| {mean:.3}"));
         }
     }
+}
+
+fn show150_patch() -> footlight::Patch {
+    footlight_mvr::load_patch(&root().join("tests/data/mvr/show150.mvr")).expect("show150.mvr")
+}
+
+/// Issue 37: the README's MVR demo starts lit. `show150-look.pcapng`
+/// (recorded by `tools/show_look.py`, see tests/replays/README.md) played
+/// through show150.mvr: every one of the 336 lights is lit, the moving heads
+/// move during the recording, and the picture is lit and coloured.
+#[test]
+fn show150_look_recording_lights_the_mvr_show_in_colour_and_moves_its_heads() {
+    // The recording itself: 44 heads turn between two moments 5 s apart
+    // (the file's decoded states, independent of the daemon's timing).
+    let rec = footlight_dmx::Recording::open(recording("show150-look.pcapng")).unwrap();
+    let show = Show::new(show150_patch());
+    let axes = |at: f64| -> Vec<glam::Vec3> {
+        let frames = footlight_dmx::state_at(&rec, Duration::from_secs_f64(at), show.input_patch()).unwrap();
+        let mut universes = footlight::fixture::Universes::new();
+        for f in &frames {
+            universes.set(f.universe, &f.slots);
+        }
+        show.decode(&universes).iter().map(|i| i.light.axis()).collect()
+    };
+    let (a, b) = (axes(2.5), axes(7.5));
+    let turned = a.iter().zip(&b).filter(|(a, b)| a.angle_between(**b).to_degrees() > 2.0).count();
+    assert_eq!(turned, 44, "the 44 spots turn, nothing else does");
+
+    // Through the daemon (infinite speed: the last look, which is the first).
+    let daemon = Daemon::start_with(Source::Replay("show150-look.pcapng"), show150_patch);
+    let t = Instant::now();
+    let status = loop {
+        let s = daemon.status();
+        let lights = s["lights"].as_array().unwrap();
+        if s["input"]["packets"].as_u64() == Some(rec.dmx_packets() as u64)
+            && lights.iter().all(|l| l["stage"] != "queued")
+        {
+            break s;
+        }
+        assert!(t.elapsed() < Duration::from_secs(300), "lights never built: {s}");
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let lights = status["lights"].as_array().unwrap();
+    assert_eq!(lights.len(), 336, "148 fixtures, 336 lights (cells counted)");
+    let dark: Vec<&serde_json::Value> =
+        lights.iter().filter(|l| l["intensity"].as_f64().is_none_or(|i| i <= 0.0)).map(|l| &l["name"]).collect();
+    assert!(dark.is_empty(), "every light is lit; dark: {dark:?}");
+    let frame = daemon.frame();
+    let n = (frame.width() * frame.height()) as f64;
+    let mean = frame.as_raw().iter().map(|&c| f64::from(c)).sum::<f64>() / (3.0 * n);
+    let coloured = frame.pixels().filter(|p| p.0.iter().max().unwrap() - p.0.iter().min().unwrap() > 60).count();
+    assert!(mean > 10.0, "the stage is lit: mean {mean:.1}");
+    assert!(coloured as f64 > 0.05 * n, "the stage is coloured: {coloured} of {n} pixels");
 }
 
 fn artdmx(sequence: u8, level: u8) -> Vec<u8> {
