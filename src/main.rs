@@ -988,12 +988,11 @@ fn render(args: RenderArgs) -> Result<()> {
         bail!("--refine {}: refinement needs photons (--photons is 0)", args.refine);
     }
     let universes = still_universes(&args, &show)?;
-    // Only what the look lights is built: a dark light adds exactly 0 to eq. 5.
-    let all = jobs_for(&show, &universes);
-    let lights = all.len();
-    let jobs: Vec<LightJob> = all.into_iter().filter(|j| j.k != Vec3::ZERO).collect();
-    if jobs.len() < lights {
-        tracing::info!("{} of {lights} lights are lit; the dark ones are not built", jobs.len());
+    // render_still_hazy builds only the lit ones (a dark light adds exactly 0 to eq. 5).
+    let jobs = jobs_for(&show, &universes);
+    let lit = jobs.iter().filter(|j| j.k != Vec3::ZERO).count();
+    if lit < jobs.len() {
+        tracing::info!("{lit} of {} lights are lit; the dark ones are not built", jobs.len());
     }
     // Haze from the patch's [haze] at the hazer channel's density (issue 15).
     let haze = show.patch().haze.as_ref().and_then(|spec| {

@@ -118,6 +118,13 @@ pub fn render_still_hazy(
         refine_passes: settings.refine_passes,
     };
     for (i, job) in jobs.iter().enumerate() {
+        // Only what the look lights is built: a dark light adds exactly 0 to
+        // eq. 5. Lit lights keep their index, so their photon seeds are the
+        // daemon's.
+        if job.k == Vec3::ZERO {
+            buffers.push(LightBuffer::empty(settings.width.max(1), settings.height.max(1)));
+            continue;
+        }
         let mut build = LightBuild::new(job.light.clone(), i, build_settings, Cancel::never());
         let mut buffer = build.whitted(scene, &view).and_then(|b| {
             if build.has_photons() {
