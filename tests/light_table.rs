@@ -6,149 +6,21 @@
 //! is read with `Runtime.evaluate` on its DOM; a screenshot is written to
 //! the temp folder for a look.
 
+use crate::common::browser::{Browser, chromium};
 use crate::common::*;
 use crate::live::ShowDaemon;
 use footlight::fixture::{Attribute, FixtureModel};
-use std::net::SocketAddr;
 use std::time::{Duration, Instant};
-use tokio_tungstenite::tungstenite::{self, Message};
 
-/// Headless Chromium driven over the DevTools protocol (loopback only).
-struct Browser {
-    child: std::process::Child,
-    ws: tungstenite::WebSocket<tungstenite::stream::MaybeTlsStream<std::net::TcpStream>>,
-    id: u64,
-}
-
-impl Browser {
-    /// Opens `url` in a `width`×`height` viewport.
-    fn open(chromium: &str, url: &str, width: u32, height: u32) -> Self {
-        let dir = std::env::temp_dir().join(format!("footlight-light-table-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        let child = std::process::Command::new(chromium)
-            .args(["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run"])
-            .args(["--disable-background-networking", "--disable-component-update", "--disable-sync"])
-            .args(["--remote-debugging-address=127.0.0.1", "--remote-debugging-port=0"])
-            .arg(format!("--window-size={width},{height}"))
-            .arg(format!("--user-data-dir={}", dir.display()))
-            .arg(url)
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .unwrap();
-        let t = Instant::now();
-        let port: u16 = loop {
-            if let Some(p) = std::fs::read_to_string(dir.join("DevToolsActivePort"))
-                .ok()
-                .and_then(|s| s.lines().next().and_then(|l| l.trim().parse().ok()))
-            {
-                break p;
-            }
-            assert!(t.elapsed() < Duration::from_secs(60), "Chromium did not open its DevTools port");
-            std::thread::sleep(Duration::from_millis(50));
-        };
-        let devtools = SocketAddr::from(([127, 0, 0, 1], port));
-        let page = loop {
-            let list = devtools_list(devtools);
-            if let Some(p) = list.as_array().unwrap().iter().find(|p| p["type"] == "page" && p["url"] == url) {
-                break p["webSocketDebuggerUrl"].as_str().unwrap().to_string();
-            }
-            assert!(t.elapsed() < Duration::from_secs(60), "no page in {list}");
-            std::thread::sleep(Duration::from_millis(50));
-        };
-        let (ws, _) = tungstenite::connect(page).unwrap();
-        let mut browser = Self { child, ws, id: 0 };
-        // The viewport exactly, whatever the window's frame takes.
-        browser.call(
-            "Emulation.setDeviceMetricsOverride",
-            serde_json::json!({"width": width, "height": height, "deviceScaleFactor": 1, "mobile": false}),
-        );
-        browser
-    }
-
-    /// One DevTools command; its `result`, or the error.
-    fn try_call(&mut self, method: &str, params: serde_json::Value) -> Result<serde_json::Value, serde_json::Value> {
-        self.id += 1;
-        let msg = serde_json::json!({"id": self.id, "method": method, "params": params});
-        self.ws.send(Message::text(msg.to_string())).unwrap();
-        loop {
-            let Message::Text(t) = self.ws.read().unwrap() else { continue };
-            let v: serde_json::Value = serde_json::from_str(&t).unwrap();
-            if v["id"] == self.id {
-                return if v["error"].is_null() { Ok(v["result"].clone()) } else { Err(v) };
-            }
-        }
-    }
-
-    fn call(&mut self, method: &str, params: serde_json::Value) -> serde_json::Value {
-        self.try_call(method, params).unwrap_or_else(|e| panic!("{method}: {e}"))
-    }
-
-    /// Evaluates `expr` (a promise is awaited) and returns its JSON value;
-    /// tries again while the page is still loading (its context replaced).
-    fn eval(&mut self, expr: &str) -> serde_json::Value {
-        let params = serde_json::json!({"expression": expr, "awaitPromise": true, "returnByValue": true});
-        for _ in 0..100 {
-            match self.try_call("Runtime.evaluate", params.clone()) {
-                Ok(r) => {
-                    assert!(r["exceptionDetails"].is_null(), "{expr}: {r}");
-                    return r["result"]["value"].clone();
-                }
-                Err(e) => eprintln!("DevTools: {e}; trying again"),
-            }
-            std::thread::sleep(Duration::from_millis(100));
-        }
-        panic!("{expr}: the page never answered");
-    }
-
-    /// A PNG of the viewport.
-    fn screenshot(&mut self) -> Vec<u8> {
-        let r = self.call("Page.captureScreenshot", serde_json::json!({"format": "png"}));
-        base64::decode(r["data"].as_str().unwrap()).unwrap()
-    }
-}
-
-impl Drop for Browser {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-/// `GET /json/list` of the DevTools HTTP endpoint (it keeps the connection
-/// open, so the body is read by its Content-Length).
-fn devtools_list(addr: SocketAddr) -> serde_json::Value {
-    use std::io::{BufRead, BufReader, Read, Write};
-    let mut s = std::net::TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
-    write!(s, "GET /json/list HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
-    let mut r = BufReader::new(s);
-    let mut len = 0;
-    loop {
-        let mut line = String::new();
-        r.read_line(&mut line).unwrap();
-        if let Some(v) = line.to_ascii_lowercase().strip_prefix("content-length:") {
-            len = v.trim().parse().unwrap();
-        }
-        if line.trim().is_empty() {
-            break;
-        }
-    }
-    let mut body = vec![0; len];
-    r.read_exact(&mut body).unwrap();
-    serde_json::from_slice(&body).unwrap()
-}
-
-fn chromium() -> Option<&'static str> {
-    let found = ["chromium", "chromium-browser"]
-        .into_iter()
-        .find(|c| std::process::Command::new(c).arg("--version").output().map(|o| o.status.success()).unwrap_or(false));
-    if found.is_none() {
-        assert!(std::env::var_os("FOOTLIGHT_REQUIRE_BROWSER").is_none(), "chromium required but not installed");
-        eprintln!("skipping: chromium not installed");
-    }
-    found
+/// Opens `url` with exactly a `width`×`height` viewport, whatever the
+/// window's frame takes.
+fn open_at(chromium: &str, url: &str, width: u32, height: u32) -> Browser {
+    let mut browser = Browser::open(chromium, url, (width, height));
+    browser.call(
+        "Emulation.setDeviceMetricsOverride",
+        serde_json::json!({"width": width, "height": height, "deviceScaleFactor": 1, "mobile": false}),
+    );
+    browser
 }
 
 /// The page's table once it shows `rows` rows and `lit` lit fixtures (waits
@@ -258,7 +130,7 @@ fn light_table_fits_1280_px_with_one_row_per_fixture_cells_folded_and_lit_fixtur
     assert!(!fixtures[0].1, "the patch's first fixture is dark: the lit ones must move up");
     let bar = fixtures.iter().find(|f| f.2 == 8 && f.1).expect("a lit pixel bar").0;
 
-    let mut browser = Browser::open(chromium, &format!("http://{}/", daemon.http), 1280, 800);
+    let mut browser = open_at(chromium, &format!("http://{}/", daemon.http), 1280, 800);
     let folded = table(&mut browser, fixtures.len(), lit.len());
     assert_eq!((folded["width"].as_u64(), folded["height"].as_u64()), (Some(1280), Some(800)));
     assert_fits(&folded, 1280.0);

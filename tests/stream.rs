@@ -11,6 +11,7 @@
 //! sockets need real time: every wait is a generous upper bound (the
 //! assertions are about what happens, never how fast).
 
+use crate::common::browser::{Browser, chromium};
 use crate::common::*;
 use footlight::live::{DaemonConfig, DmxSource, Frame, Show};
 use footlight::render::buffer::LightBuffer;
@@ -157,140 +158,18 @@ impl Drop for Daemon {
     }
 }
 
-/// Headless Chromium driven over the DevTools protocol (loopback only).
-struct Browser {
-    child: std::process::Child,
-    ws: tungstenite::WebSocket<tungstenite::stream::MaybeTlsStream<std::net::TcpStream>>,
-    id: u64,
-}
-
-impl Browser {
-    fn open(chromium: &str, url: &str) -> Self {
-        static N: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
-        let n = N.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let dir = std::env::temp_dir().join(format!("footlight-stream-{}-{n}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        let child = std::process::Command::new(chromium)
-            .args(["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run"])
-            .args(["--disable-background-networking", "--disable-component-update", "--disable-sync"])
-            .args(["--remote-debugging-address=127.0.0.1", "--remote-debugging-port=0", "--window-size=900,700"])
-            .arg(format!("--user-data-dir={}", dir.display()))
-            .arg(url)
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .unwrap();
-        let t = Instant::now();
-        let port: u16 = loop {
-            if let Some(p) = std::fs::read_to_string(dir.join("DevToolsActivePort"))
-                .ok()
-                .and_then(|s| s.lines().next().and_then(|l| l.trim().parse().ok()))
-            {
-                break p;
-            }
-            assert!(t.elapsed() < Duration::from_secs(60), "Chromium did not open its DevTools port");
-            std::thread::sleep(Duration::from_millis(50));
-        };
-        let devtools = SocketAddr::from(([127, 0, 0, 1], port));
-        let page = loop {
-            let list = devtools_list(devtools);
-            if let Some(p) = list.as_array().unwrap().iter().find(|p| p["type"] == "page" && p["url"] == url) {
-                break p["webSocketDebuggerUrl"].as_str().unwrap().to_string();
-            }
-            assert!(t.elapsed() < Duration::from_secs(60), "no page in {list}");
-            std::thread::sleep(Duration::from_millis(50));
-        };
-        let (ws, _) = tungstenite::connect(page).unwrap();
-        Self { child, ws, id: 0 }
-    }
-
-    /// Evaluates `expr` (a promise is awaited) and returns its JSON value;
-    /// tries again while the page is still loading (its context replaced).
-    fn eval(&mut self, expr: &str) -> serde_json::Value {
-        for _ in 0..100 {
-            match self.try_eval(expr) {
-                Ok(v) => return v,
-                Err(e) => eprintln!("DevTools: {e}; trying again"),
-            }
-            std::thread::sleep(Duration::from_millis(100));
-        }
-        panic!("{expr}: the page never answered");
-    }
-
-    fn try_eval(&mut self, expr: &str) -> Result<serde_json::Value, serde_json::Value> {
-        self.id += 1;
-        let msg = serde_json::json!({"id": self.id, "method": "Runtime.evaluate",
-            "params": {"expression": expr, "awaitPromise": true, "returnByValue": true}});
-        self.ws.send(Message::text(msg.to_string())).unwrap();
-        loop {
-            let Message::Text(t) = self.ws.read().unwrap() else { continue };
-            let v: serde_json::Value = serde_json::from_str(&t).unwrap();
-            if v["id"] == self.id {
-                if !v["error"].is_null() {
-                    return Err(v);
-                }
-                assert!(v["result"]["exceptionDetails"].is_null(), "{expr}: {v}");
-                return Ok(v["result"]["result"]["value"].clone());
-            }
-        }
-    }
-
-    /// Waits (in the page, up to 60 s) until the canvas shows frame `number`
-    /// or later with nothing left to composite; returns the probe and pixels.
-    fn settled(&mut self, number: u64) -> serde_json::Value {
-        self.eval(&format!(
-            "new Promise((ok, fail) => {{ const t0 = performance.now(); const t = () => {{
-               const f = window.__footlight;
-               if (f && f.frame >= {number} && f.composites > 0 && f.busy === 0 && !f.dirty) {{
-                 requestAnimationFrame(() => ok({{ counts: f.counts, mode: f.mode, frame: f.frame, webgl: f.webgl,
-                   error: f.error, pixels: f.pixels() }}));
-               }} else if (performance.now() - t0 > 60000) {{ fail(new Error(JSON.stringify(f))); }}
-               else setTimeout(t, 20); }}; t(); }})"
-        ))
-    }
-}
-
-/// `GET /json/list` of the DevTools HTTP endpoint (it keeps the connection
-/// open, so the body is read by its Content-Length).
-fn devtools_list(addr: SocketAddr) -> serde_json::Value {
-    use std::io::{BufRead, BufReader, Read, Write};
-    let mut s = std::net::TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
-    write!(s, "GET /json/list HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
-    let mut r = BufReader::new(s);
-    let mut len = 0;
-    loop {
-        let mut line = String::new();
-        r.read_line(&mut line).unwrap();
-        if let Some(v) = line.to_ascii_lowercase().strip_prefix("content-length:") {
-            len = v.trim().parse().unwrap();
-        }
-        if line.trim().is_empty() {
-            break;
-        }
-    }
-    let mut body = vec![0; len];
-    r.read_exact(&mut body).unwrap();
-    serde_json::from_slice(&body).unwrap()
-}
-
-impl Drop for Browser {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn chromium() -> Option<&'static str> {
-    let found = ["chromium", "chromium-browser"]
-        .into_iter()
-        .find(|c| std::process::Command::new(c).arg("--version").output().map(|o| o.status.success()).unwrap_or(false));
-    if found.is_none() {
-        assert!(std::env::var_os("FOOTLIGHT_REQUIRE_BROWSER").is_none(), "chromium required but not installed");
-        eprintln!("skipping: chromium not installed");
-    }
-    found
+/// Waits (in the page, up to 60 s) until the canvas shows frame `number`
+/// or later with nothing left to composite; returns the probe and pixels.
+fn settled(browser: &mut Browser, number: u64) -> serde_json::Value {
+    browser.eval(&format!(
+        "new Promise((ok, fail) => {{ const t0 = performance.now(); const t = () => {{
+           const f = window.__footlight;
+           if (f && f.frame >= {number} && f.composites > 0 && f.busy === 0 && !f.dirty) {{
+             requestAnimationFrame(() => ok({{ counts: f.counts, mode: f.mode, frame: f.frame, webgl: f.webgl,
+               error: f.error, pixels: f.pixels() }}));
+           }} else if (performance.now() - t0 > 60000) {{ fail(new Error(JSON.stringify(f))); }}
+           else setTimeout(t, 20); }}; t(); }})"
+    ))
 }
 
 fn canvas(v: &serde_json::Value) -> Vec<u8> {
@@ -306,7 +185,7 @@ fn chromium_composites_the_paper_rig_from_the_buffer_stream_like_the_server() {
     let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
     let states = [[255, 128, 200, 0, 60, 255], [40, 255, 0, 255, 255, 10], [0, 0, 0, 0, 0, 0], [255; 6]];
     let status = daemon.set(&sock, states[0]);
-    let mut browser = Browser::open(chromium, &format!("http://{}/", daemon.http));
+    let mut browser = Browser::open(chromium, &format!("http://{}/", daemon.http), (900, 700));
     let mut buffers_after_connect = None;
     let mut pictures: Vec<Vec<u8>> = Vec::new();
     let mut number = status["frame"].as_u64().unwrap();
@@ -314,7 +193,7 @@ fn chromium_composites_the_paper_rig_from_the_buffer_stream_like_the_server() {
         if i > 0 {
             number = daemon.set(&sock, *levels)["frame"].as_u64().unwrap();
         }
-        let page = browser.settled(number);
+        let page = settled(&mut browser, number);
         assert_eq!(page["mode"], "buffers", "the page composites on its GPU: {page}");
         let got = canvas(&page);
         let want = image::load_from_memory(&http_get(daemon.http, "/api/frame.png").1).unwrap().to_rgb8();
@@ -335,7 +214,7 @@ fn chromium_composites_the_paper_rig_from_the_buffer_stream_like_the_server() {
     assert!(s["stream"]["frame_messages"].as_u64().unwrap() >= states.len() as u64);
     drop(browser);
     // The fallback: the page asks for pushed pictures and shows the server's PNG.
-    let mut browser = Browser::open(chromium, &format!("http://{}/?pictures", daemon.http));
+    let mut browser = Browser::open(chromium, &format!("http://{}/?pictures", daemon.http), (900, 700));
     let shown = browser.eval(
         "new Promise((ok, fail) => { const t0 = performance.now(); const t = () => {
            const f = window.__footlight, img = document.getElementById('stage');
@@ -403,14 +282,14 @@ fn chromium_draws_the_fixture_bodies_like_the_server() {
         }
     };
     let mut number = set(&rest)["frame"].as_u64().unwrap();
-    let mut browser = Browser::open(chromium, &format!("http://{}/", daemon.http));
+    let mut browser = Browser::open(chromium, &format!("http://{}/", daemon.http), (900, 700));
     let mut pictures = Vec::new();
     let mut body_messages = Vec::new();
     for (i, slots) in [rest, panned, dimmed].iter().enumerate() {
         if i > 0 {
             number = set(slots)["frame"].as_u64().unwrap();
         }
-        let page = browser.settled(number);
+        let page = settled(&mut browser, number);
         assert_eq!(page["mode"], "buffers", "{page}");
         assert!(page["error"].is_null(), "{page}");
         let got = canvas(&page);
@@ -846,8 +725,8 @@ fn chromium_rolls_highlights_off_like_the_cpu() {
     let k = Vec3::splat(20.0 / display.exposure);
     let first = Arc::new(Frame { k: Arc::new(vec![k]), display, ..(*frame(1, W, H, buffer.clone(), 1)).clone() });
     let server = serve(first);
-    let mut browser = Browser::open(chromium, &format!("http://{}/", server.addr));
-    let page = browser.settled(1);
+    let mut browser = Browser::open(chromium, &format!("http://{}/", server.addr), (900, 700));
+    let page = settled(&mut browser, 1);
     assert_eq!(page["mode"], "buffers", "{page}");
     let got = canvas(&page);
     let linear = footlight::render::composite::composite(&[&buffer], &[k], W, H);

@@ -435,14 +435,7 @@ async fn camera_writes_need_the_token_from_another_machine_but_not_from_loopback
 
 #[test]
 fn headless_chromium_drags_on_the_page_and_the_picture_changes() {
-    let chromium = ["chromium", "chromium-browser"]
-        .into_iter()
-        .find(|c| std::process::Command::new(c).arg("--version").output().map(|o| o.status.success()).unwrap_or(false));
-    let Some(chromium) = chromium else {
-        assert!(std::env::var_os("FOOTLIGHT_REQUIRE_BROWSER").is_none(), "chromium required but not installed");
-        eprintln!("skipping: chromium not installed");
-        return;
-    };
+    let Some(chromium) = crate::common::browser::chromium() else { return };
     let (tx, rx) = std::sync::mpsc::channel();
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
     let thread = std::thread::spawn(move || {
@@ -1072,133 +1065,6 @@ fn drags_of_500_px_each_way_over_http_keep_the_camera_on_the_stage_and_the_pictu
     assert!(inside(s.current.position, bounds) && r <= limits.max_distance + 1e-3, "{:?} at {r} m", s.current);
 }
 
-/// Headless Chromium on one page, driven over the DevTools protocol
-/// (loopback only): evaluate scripts, dispatch real mouse input.
-struct DevTools {
-    child: std::process::Child,
-    ws: tokio_tungstenite::tungstenite::WebSocket<
-        tokio_tungstenite::tungstenite::stream::MaybeTlsStream<std::net::TcpStream>,
-    >,
-    id: u64,
-    dir: std::path::PathBuf,
-}
-
-impl DevTools {
-    fn open(chromium: &str, url: &str) -> Self {
-        use std::io::{BufRead, BufReader, Read, Write};
-        let dir = std::env::temp_dir().join(format!("footlight-walk-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        let child = std::process::Command::new(chromium)
-            .args(["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run"])
-            .args(["--disable-background-networking", "--disable-component-update", "--disable-sync"])
-            .args(["--remote-debugging-address=127.0.0.1", "--remote-debugging-port=0", "--window-size=1400,900"])
-            .arg(format!("--user-data-dir={}", dir.display()))
-            .arg(url)
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .unwrap();
-        let t = Instant::now();
-        let port: u16 = loop {
-            if let Some(p) = std::fs::read_to_string(dir.join("DevToolsActivePort"))
-                .ok()
-                .and_then(|s| s.lines().next().and_then(|l| l.trim().parse().ok()))
-            {
-                break p;
-            }
-            assert!(t.elapsed() < Duration::from_secs(60), "Chromium did not open its DevTools port");
-            std::thread::sleep(Duration::from_millis(50));
-        };
-        // GET /json/list (the endpoint keeps the connection open: read by Content-Length).
-        let list = || -> serde_json::Value {
-            let mut s = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
-            s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
-            write!(s, "GET /json/list HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n").unwrap();
-            let mut r = BufReader::new(s);
-            let mut len = 0;
-            loop {
-                let mut line = String::new();
-                r.read_line(&mut line).unwrap();
-                if let Some(v) = line.to_ascii_lowercase().strip_prefix("content-length:") {
-                    len = v.trim().parse().unwrap();
-                }
-                if line.trim().is_empty() {
-                    break;
-                }
-            }
-            let mut body = vec![0; len];
-            r.read_exact(&mut body).unwrap();
-            serde_json::from_slice(&body).unwrap()
-        };
-        let page = loop {
-            let l = list();
-            if let Some(p) = l.as_array().unwrap().iter().find(|p| p["type"] == "page" && p["url"] == url) {
-                break p["webSocketDebuggerUrl"].as_str().unwrap().to_string();
-            }
-            assert!(t.elapsed() < Duration::from_secs(60), "no page in {l}");
-            std::thread::sleep(Duration::from_millis(50));
-        };
-        let (ws, _) = tokio_tungstenite::tungstenite::connect(page).unwrap();
-        Self { child, ws, id: 0, dir }
-    }
-
-    /// Sends a DevTools command and returns its result (or its error).
-    fn call(&mut self, method: &str, params: serde_json::Value) -> Result<serde_json::Value, serde_json::Value> {
-        use tokio_tungstenite::tungstenite::Message;
-        self.id += 1;
-        let msg = serde_json::json!({"id": self.id, "method": method, "params": params});
-        self.ws.send(Message::text(msg.to_string())).unwrap();
-        loop {
-            let Message::Text(t) = self.ws.read().unwrap() else { continue };
-            let v: serde_json::Value = serde_json::from_str(&t).unwrap();
-            if v["id"] == self.id {
-                return if v["error"].is_null() { Ok(v["result"].clone()) } else { Err(v) };
-            }
-        }
-    }
-
-    /// Evaluates `expr` in the page (a promise is awaited) and returns its
-    /// JSON value; tries again while the page is still loading.
-    fn eval(&mut self, expr: &str) -> serde_json::Value {
-        for _ in 0..100 {
-            let params = serde_json::json!({"expression": expr, "awaitPromise": true, "returnByValue": true});
-            match self.call("Runtime.evaluate", params) {
-                Ok(r) => {
-                    assert!(r["exceptionDetails"].is_null(), "{expr}: {r}");
-                    return r["result"]["value"].clone();
-                }
-                Err(e) => eprintln!("DevTools: {e}; trying again"),
-            }
-            std::thread::sleep(Duration::from_millis(100));
-        }
-        panic!("{expr}: the page never answered");
-    }
-
-    /// A real mouse drag with the left button: pressed at (`x`, `y`), moved
-    /// `dx` pixels in 10 px steps, released.
-    fn drag(&mut self, x: f64, y: f64, dx: f64) {
-        let mouse = |kind: &str, x: f64, buttons: u32| serde_json::json!({"type": kind, "x": x, "y": y, "button": "left", "buttons": buttons, "clickCount": 1});
-        self.call("Input.dispatchMouseEvent", mouse("mouseMoved", x, 0)).unwrap();
-        self.call("Input.dispatchMouseEvent", mouse("mousePressed", x, 1)).unwrap();
-        let steps = (dx.abs() / 10.0).round() as i32;
-        for i in 1..=steps {
-            let at = x + dx * f64::from(i) / f64::from(steps);
-            self.call("Input.dispatchMouseEvent", mouse("mouseMoved", at, 1)).unwrap();
-            std::thread::sleep(Duration::from_millis(15));
-        }
-        self.call("Input.dispatchMouseEvent", mouse("mouseReleased", x + dx, 0)).unwrap();
-    }
-}
-
-impl Drop for DevTools {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-        let _ = std::fs::remove_dir_all(&self.dir);
-    }
-}
-
 /// Issue 37, "done means": real mouse drags of 500 px left and right on the
 /// page's picture in headless Chromium (Input.dispatchMouseEvent, the
 /// browser's own pointer events into `camera.js`) keep the camera inside
@@ -1206,22 +1072,15 @@ impl Drop for DevTools {
 /// unless FOOTLIGHT_REQUIRE_BROWSER is set.
 #[test]
 fn headless_chromium_drags_500_px_each_way_and_the_picture_stays_on_the_stage() {
-    let chromium = ["chromium", "chromium-browser"]
-        .into_iter()
-        .find(|c| std::process::Command::new(c).arg("--version").output().map(|o| o.status.success()).unwrap_or(false));
-    let Some(chromium) = chromium else {
-        assert!(std::env::var_os("FOOTLIGHT_REQUIRE_BROWSER").is_none(), "chromium required but not installed");
-        eprintln!("skipping: chromium not installed");
-        return;
-    };
+    let Some(chromium) = crate::common::browser::chromium() else { return };
     let d = StageDaemon::start();
     let start = d.still();
     let bounds = d.bounds();
     let url = format!("http://{}/", d.http);
-    let mut page = DevTools::open(chromium, &url);
+    let mut page = crate::common::browser::Browser::open(chromium, &url, (1400, 900));
     // The page's picture, settled on the daemon's frame `number` or later:
     // its mean luma (the WebGL2 canvas; the pushed pictures' <img> else).
-    let picture = |page: &mut DevTools| -> f64 {
+    let picture = |page: &mut crate::common::browser::Browser| -> f64 {
         let number = (d.handle.status)().frame + 2;
         let v = page.eval(&format!(
             "new Promise((ok, fail) => {{ const t0 = performance.now(); const t = () => {{

@@ -2,6 +2,8 @@
 
 #![allow(dead_code)]
 
+pub mod browser;
+
 use footlight::fixture::{Beam, Light, SpotBeam};
 use footlight::render::RecursionLimits;
 use footlight::render::view::{Sampling, View};
