@@ -1042,7 +1042,7 @@ fn render(args: RenderArgs) -> Result<()> {
     tracing::info!(
         "view {:.0} ms, {} light buffers {:.0} ms ({} pixels re-shaded for anti-aliasing), photon maps {:.0} ms, haze {:.0} ms, composite {:.1} ms",
         t.view.as_secs_f64() * 1e3,
-        still.buffers.len(),
+        lit,
         t.lights.as_secs_f64() * 1e3,
         still.reshaded,
         t.photons.as_secs_f64() * 1e3,
