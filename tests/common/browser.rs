@@ -113,10 +113,19 @@ impl Browser {
         panic!("{expr}: the page never answered");
     }
 
-    /// A PNG of the viewport.
+    /// A PNG of the viewport. Headless Chromium answers "Unable to capture
+    /// screenshot" while a frame is not yet painted (seen in CI on a loaded
+    /// 2-core machine), so that error is tried again for up to 20 s.
     pub fn screenshot(&mut self) -> Vec<u8> {
-        let r = self.call("Page.captureScreenshot", serde_json::json!({"format": "png"}));
-        base64::decode(r["data"].as_str().unwrap()).unwrap()
+        let params = serde_json::json!({"format": "png"});
+        for _ in 0..100 {
+            match self.try_call("Page.captureScreenshot", params.clone()) {
+                Ok(r) => return base64::decode(r["data"].as_str().unwrap()).unwrap(),
+                Err(e) => eprintln!("DevTools: {e}; trying again"),
+            }
+            std::thread::sleep(Duration::from_millis(200));
+        }
+        panic!("Page.captureScreenshot never succeeded");
     }
 
     /// A real mouse drag with the left button: pressed at (`x`, `y`), moved
