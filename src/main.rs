@@ -4,9 +4,7 @@
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use footlight::live::{Daemon, DaemonConfig, Decode, DmxSource, Show, TracerSettings};
-use footlight::render::display::{
-    Display, balanced, check_finite, parse_white_balance, write_exr, write_pfm, write_png,
-};
+use footlight::render::display::{Display, balanced, check_finite, white_balance_for, write_exr, write_pfm, write_png};
 use footlight::render::photon::PhotonSettings;
 use footlight::render::still::{LightJob, StillHaze, render_still_hazy};
 use footlight::render::{BuildSettings, RecursionLimits, RenderSettings, Sampling};
@@ -54,6 +52,12 @@ mod flags {
     /// `--rolloff`: off, on, or the display-linear level shown as white.
     pub fn rolloff(v: &str) -> Result<Rolloff, String> {
         footlight::render::display::parse_rolloff(v).map(Rolloff)
+    }
+
+    /// `--white-balance` of `run`: auto, none, tungsten or 1000-25000 K (`auto` is
+    /// resolved on the loaded rig).
+    pub fn white_balance(v: &str) -> Result<String, String> {
+        footlight::render::display::white_balance_for(v, None).map(|_| v.trim().to_string())
     }
 
     /// A parsed `--rolloff` (`None`: clip at display white).
@@ -265,6 +269,12 @@ struct RunArgs {
     /// white) or the level shown as white, e.g. 8 (docs/rendering.md).
     #[arg(long, value_name = "off|on|WHITE", value_parser = flags::rolloff)]
     rolloff: Option<flags::Rolloff>,
+    /// White balance of the live picture: auto (the rig's own white at full: its tungsten
+    /// lamps' when it has any, else the luminous-flux-weighted white of every source), none,
+    /// tungsten (3200 K neutral) or a colour temperature such as 5600K; changed live with
+    /// `POST /api/display`.
+    #[arg(long, default_value = "auto", value_parser = flags::white_balance)]
+    white_balance: String,
     /// Fixture bodies over the picture: auto (on for an MVR patch, from its GDTF models), on (TOML
     /// fixtures get an estimated box), or off.
     #[arg(long, value_enum, default_value_t = BodiesChoice::Auto)]
@@ -349,8 +359,10 @@ struct RenderArgs {
     /// An existing file is never replaced without --force.
     #[arg(long)]
     out: PathBuf,
-    /// White balance: none, tungsten (3200 K neutral) or a colour temperature such as 5600K.
-    #[arg(long, default_value = "tungsten")]
+    /// White balance: auto (the rig's own white at full: its tungsten lamps' when it has any,
+    /// else the luminous-flux-weighted white of every source), none, tungsten (3200 K
+    /// neutral) or a colour temperature such as 5600K.
+    #[arg(long, default_value = "auto")]
     white_balance: String,
     /// Replace an existing output file.
     #[arg(long)]
@@ -729,6 +741,7 @@ fn run_daemon(
             height: args.height,
             fps: args.fps,
             display,
+            white_balance: Some(args.white_balance.clone()),
             compositor: args.compositor,
             tracer: TracerSettings { build: BuildSettings { photons, ..defaults.tracer.build }, ..defaults.tracer },
             ..defaults
@@ -960,7 +973,8 @@ fn record(args: RecordArgs) -> Result<()> {
 
 fn render(args: RenderArgs) -> Result<()> {
     check_output(&args.out, args.force)?;
-    let gains = parse_white_balance(&args.white_balance).map_err(|e| anyhow::anyhow!("--white-balance {e}"))?;
+    // Checked before anything loads; `auto` is resolved on the loaded rig below.
+    white_balance_for(&args.white_balance, None).map_err(|e| anyhow::anyhow!("--white-balance {e}"))?;
     let format = match args.out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
         Some("png") => "png",
         Some("exr") => "exr",
@@ -969,6 +983,10 @@ fn render(args: RenderArgs) -> Result<()> {
     };
     let (scene, patch) = load_inputs(&args.input)?;
     let camera = choose_camera(&scene, &patch);
+    let white = white_balance_for(&args.white_balance, patch.rig_white().as_ref())
+        .map_err(|e| anyhow::anyhow!("--white-balance {e}"))?;
+    tracing::info!("white balance {}: {}", white.setting, white.note);
+    let gains = white.gains;
     let show = Show::new(patch);
     let settings = RenderSettings {
         width: args.width,

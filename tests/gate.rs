@@ -97,7 +97,10 @@ fn render_matches_golden(name: &str, args: &[&str]) -> usize {
         .current_dir(root())
         .arg("render")
         .args(args)
-        .args(["--photons", "0", "--width", "480", "--height", "300", "--force", "--out"])
+        // The goldens were made under the 3200 K balance, the default before
+        // `--white-balance auto` (which balances these 7000 K spots for 7000 K).
+        .args(["--photons", "0", "--width", "480", "--height", "300", "--white-balance", "tungsten"])
+        .args(["--force", "--out"])
         .arg(&out)
         .output()
         .unwrap();

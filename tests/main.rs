@@ -48,3 +48,5 @@ mod views;
 mod gate;
 // Pixel cells of MVR pixel bars against the eq. 1 renderer.
 mod pixels;
+// LED rigs without GDTF emitters: white at full under --white-balance auto, one note per type.
+mod led_white;

@@ -35,6 +35,10 @@ GDTF files (tests/data/gdtf/):
   Footlight@SpectralLed.gdtf  RGBW LED whose emitters carry measured spectra (Gaussian
                           lines, a phosphor white; green also at Physical 50); mode 5ch
   Footlight@CmySpot.gdtf  discharge spot with measured C/M/Y flag filters; mode 4ch
+  Footlight@PixelBar16.gdtf  16-cell RGBW pixel bar with no <Emitter>: colours only in the
+                          attribute definitions' Color (xyY); mode 65ch
+  Footlight@LedRyWw.gdtf  RGB + amber (RY) + warm white (WW) can, no <Emitter>; RY and WW
+                          without a Color (GDTF Annex B's nominal colours); mode 6ch
 
 MVR files (tests/data/mvr/):
   features.mvr   layers, classes, group objects, focus points, truss and scene
@@ -49,6 +53,8 @@ MVR files (tests/data/mvr/):
                  primitives-only par (known dimensions; tests/bodies.rs)
   cells.mvr      two Fan4 5 m up: each cell's beam along its own matrix; Fan 2 (5ch at 1.11)
                  has the Override master
+  led-bars.mvr   two PixelBar16 and a LedRyWw 4 m over a grey GLB floor (LED colour
+                 without emitters, white balance auto)
   ../textures/checker.jpg  a baseline JPEG of flat 8x8 blocks (JPEG_BLOCKS), encoded here
   bad-*.mvr      refused archives: a `..` path, an absolute path, a >100:1 entry,
                  a header claiming > 1 GiB; and malformed XML (line/column test)
@@ -1304,6 +1310,111 @@ def bodies_mvr():
     return zip_bytes(entries)
 
 
+# --- LED colour without emitters (issue 36 item 1) -----------------------------
+# Real LED fixtures' GDTF files (pixel bars, panels) often define no <Emitter>:
+# their ColorAdd_* channels link none, and the colour is only in the attribute
+# definitions' Color (CIE xyY), or nowhere. Footlight@PixelBar16.gdtf gives every
+# ColorAdd attribute a Color (in the sRGB gamut, so the test's own xyY -> linear
+# sRGB needs no gamut fit); Footlight@LedRyWw.gdtf gives R/G/B theirs and none to
+# RY and WW (Footlight falls back to GDTF Annex B's nominal colours, estimated).
+# led-bars.mvr hangs two bars and one can 4 m over a grey floor (known answers:
+# crates/footlight-mvr/tests/cases/colour_without_emitters.rs, tests/led_white.rs).
+LED_COLOURS = {
+    "ColorAdd_R": "0.6200,0.3350,20",
+    "ColorAdd_G": "0.3100,0.5850,70",
+    "ColorAdd_B": "0.1580,0.0750,8",
+    "ColorAdd_W": "0.3220,0.3318,100",
+}
+LED_EXTRA = {"ColorAdd_RY": ("Color.RGB", "ColorComponent", "Amber"), "ColorAdd_WW": ("Color.RGB", "ColorComponent", "WW")}
+PIXELBAR_CELLS = 16
+
+
+def led_attribute_definitions(names, colours):
+    """attribute_definitions(names) with a Color on the attributes in `colours` (ColorRGB group)."""
+    groups = [el("FeatureGroup", [el("Feature", Name=f) for f in fs], Name=g, Pretty=g) for g, fs in FEATURES.items()]
+    atts = []
+    for n in names:
+        feature, unit, pretty = ATTRIBUTES.get(n) or LED_EXTRA[n]
+        group = "ColorRGB" if n.startswith("ColorAdd_") else None
+        atts.append(el("Attribute", Name=n, Pretty=pretty, ActivationGroup=group, Feature=feature, PhysicalUnit=unit, Color=colours.get(n)))
+    return el(
+        "AttributeDefinitions",
+        [
+            el("ActivationGroups", [el("ActivationGroup", Name="PanTilt"), el("ActivationGroup", Name="ColorRGB")]),
+            el("FeatureGroups", groups),
+            el("Attributes", atts),
+        ],
+    )
+
+
+def led_without_emitters(name, names, colours, physical, models, geometries, modes, description):
+    """A fixture type (as fixture_type) whose AttributeDefinitions are led_attribute_definitions(names, colours)."""
+    known = [n for n in names if n in ATTRIBUTES]
+    text = fixture_type(name, name, known, [], physical, models, geometries, modes, description)
+    plain = attribute_definitions(known)
+    assert text.count(plain) == 1
+    return text.replace(plain, led_attribute_definitions(names, colours), 1)
+
+
+def no_emitters_physical():
+    return [el("Emitters"), el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
+
+
+def pixel_bar16():
+    """16-cell RGBW pixel bar, 1 m, no emitters: mode 65ch (master dimmer, then R G B W per cell)."""
+    rgbw = ["ColorAdd_R", "ColorAdd_G", "ColorAdd_B", "ColorAdd_W"]
+    models = [model("Body", 1.0, 0.06, 0.08, "Cube"), model("Pixel", 0.06, 0.04, 0.01, "Cube")]
+    pixel = beam("Pixel", "Pixel", m4(), LampType="LED", PowerConsumption="10", LuminousFlux="400", ColorTemperature="6000", BeamAngle="20", FieldAngle="30", BeamRadius="0.02", BeamType="Wash")
+    x0 = -0.5 + 0.5 / PIXELBAR_CELLS
+    cells = [
+        el("GeometryReference", [el("Break", DMXOffset=str(2 + 4 * k), DMXBreak="1")], Name=f"Pixel{k + 1}", Geometry="Pixel", Model="Pixel", Position=m4(x0 + k / PIXELBAR_CELLS, 0, -0.04))
+        for k in range(PIXELBAR_CELLS)
+    ]
+    tree = el("Geometry", cells, Name="Bar", Model="Body", Position=m4())
+    chans = [simple("Bar", [1], "Dimmer")] + [simple("Pixel", [1 + k], a) for k, a in enumerate(rgbw)]
+    text = led_without_emitters(
+        "PixelBar16", ["Dimmer"] + rgbw, LED_COLOURS, no_emitters_physical(), models, [tree, pixel],
+        [mode("65ch", "Bar", chans)], "16-cell RGBW pixel bar without emitters; colours in the attribute definitions (test data, estimated values)",
+    )
+    return text, {}
+
+
+def led_ry_ww():
+    """RGB + amber (RY) + warm white (WW) LED can, no emitters; RY and WW have no Color: mode 6ch."""
+    names = ["Dimmer", "ColorAdd_R", "ColorAdd_G", "ColorAdd_B", "ColorAdd_RY", "ColorAdd_WW"]
+    colours = {k: v for k, v in LED_COLOURS.items() if k != "ColorAdd_W"}
+    physical, models, tree = led_can(el("Emitters"), PowerConsumption="60", LuminousFlux="1500", BeamAngle="25", FieldAngle="40")
+    chans = [simple("Front", [1 + k], a) for k, a in enumerate(names)]
+    text = led_without_emitters(
+        "LedRyWw", names, colours, physical, models, [tree], [mode("6ch", "Can", chans)],
+        "RGB + amber + warm white LED can without emitters; RY and WW without a Color (test data, estimated values)",
+    )
+    return text, {}
+
+
+LED_TYPES = {"Footlight@PixelBar16.gdtf": pixel_bar16, "Footlight@LedRyWw.gdtf": led_ry_ww}
+
+
+def led_bars_mvr():
+    """led-bars.mvr: two PixelBar16 (65ch at 1.1 and 1.101) 4 m up, 2 m apart along stage x, beams
+    down, and a LedRyWw (6ch at 1.201) 4 m up at stage z = -2 m, over a 12 m x 8 m grey (0.5) floor."""
+    lights, scenery = uid("class/Lighting"), uid("class/Scenery")
+    fixtures = [
+        fixture_xml("Bar 1", "Footlight@PixelBar16.gdtf", "65ch", 901, 1, mvr_matrix(-1000, 0, 4000), [(0, 1)], lights),
+        fixture_xml("Bar 2", "Footlight@PixelBar16.gdtf", "65ch", 902, 2, mvr_matrix(1000, 0, 4000), [(0, 101)], lights),
+        fixture_xml("Can RY WW", "Footlight@LedRyWw.gdtf", "6ch", 903, 1, mvr_matrix(0, 2000, 4000), [(0, 201)], lights),
+    ]
+    floor = el("SceneObject", [el("Matrix", mvr_matrix(0, 0, 0)), el("Classing", scenery), el("Geometries", [el("Geometry3D", fileName="floor.glb")])], name="Floor", uuid=uid("led-bars/floor"))
+    layers = [el("Layer", [el("ChildList", [floor] + fixtures)], name="LED rig", uuid=uid("layer/led-bars"))]
+    aux = [el("Class", name="Lighting", uuid=lights), el("Class", name="Scenery", uuid=scenery)]
+    floor_v = [(-6.0, 0.0, -4.0), (6.0, 0.0, -4.0), (6.0, 0.0, 4.0), (-6.0, 0.0, 4.0)]
+    entries = {"GeneralSceneDescription.xml": gsd(layers, aux), "floor.glb": glb_bytes(floor_v, [(0, 3, 2), (0, 2, 1)], (0.5, 0.5, 0.5), "floor")}
+    for spec, make in LED_TYPES.items():
+        text, media = make()
+        entries[spec] = zip_bytes({"description.xml": text, **media})
+    return zip_bytes(entries)
+
+
 def outputs():
     files = {}
     for name in TYPES:
@@ -1314,6 +1425,9 @@ def outputs():
     files[MVR_DIR / "venue.mvr"] = venue_mvr()
     files[MVR_DIR / "bodies.mvr"] = bodies_mvr()
     files[MVR_DIR / "cells.mvr"] = cells_mvr()
+    for name, make in LED_TYPES.items():
+        files[GDTF_DIR / name] = zip_bytes({"description.xml": make()[0]})
+    files[MVR_DIR / "led-bars.mvr"] = led_bars_mvr()
     files[ROOT / "tests" / "data" / "textures" / "checker.jpg"] = jpeg_gray_blocks(JPEG_BLOCKS)
     for name, data in bad_files().items():
         files[MVR_DIR / name] = data

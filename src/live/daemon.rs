@@ -69,6 +69,11 @@ pub struct DaemonConfig {
     /// The token non-loopback clients send with camera writes; `None`: one
     /// is made when the preview binds a non-loopback address (and logged).
     pub http_token: Option<String>,
+    /// White balance to resolve on the patch at start (`auto`, `none`,
+    /// `tungsten`, `5600K`: [`crate::render::display::white_balance_for`]),
+    /// replacing `display`'s gains; `None` keeps them (what `footlight run`
+    /// passes: `--white-balance`, default `auto`).
+    pub white_balance: Option<String>,
 }
 
 impl Default for DaemonConfig {
@@ -86,6 +91,7 @@ impl Default for DaemonConfig {
             shutdown_grace: Duration::from_millis(500),
             views: ViewSettings::default(),
             http_token: None,
+            white_balance: None,
         }
     }
 }
@@ -411,7 +417,25 @@ impl Daemon {
         let named = if named.is_empty() { super::views::named_views(&camera, &scene, None) } else { named };
         let bodies = bodies.map(|m| super::bodies::LiveBodies::new(m, scene.clone()));
         let views = Arc::new(Views::new(scene, tracer.clone(), camera, named, config.limits, config.views));
-        let (choice, display) = (config.compositor, config.display);
+        // White balance (issue 36 item 7): `config.white_balance` on this rig
+        // (`auto`: its own white at full); without one, the display's gains.
+        let rig_white = show.as_ref().and_then(|s| s.patch().rig_white());
+        let mut display = config.display;
+        let white = config
+            .white_balance
+            .as_deref()
+            .and_then(|v| match crate::render::display::white_balance_for(v, rig_white.as_ref()) {
+                Ok(c) => Some(c),
+                Err(e) => {
+                    tracing::warn!("white balance {e}; the display's gains are kept");
+                    None
+                }
+            })
+            .unwrap_or_else(|| crate::render::display::WhiteChoice::of_gains(display.white_balance));
+        display.white_balance = white.gains;
+        tracing::info!("white balance {}: {}", white.setting, white.note);
+        views.set_white(white, rig_white);
+        let choice = config.compositor;
         let gpu = tokio::task::spawn_blocking(move || crate::gpu::GpuFrames::open(choice, w, h, display))
             .await
             .map_err(|e| task_error("GPU setup", e))?

@@ -750,6 +750,18 @@ pub struct Views {
     /// Display settings written over HTTP (`POST /api/display`), taken by
     /// the frame clock on its next tick ([`Views::take_display`]).
     display: Mutex<Option<Display>>,
+    /// The white balance in force and the rig's white (`auto`), for `/api/display`.
+    white: Mutex<WhiteState>,
+}
+
+/// The white balance in force ([`Views::white`]) and the rig's white that
+/// `auto` resolves to.
+#[derive(Clone, Debug)]
+pub struct WhiteState {
+    /// The setting and its gains.
+    pub choice: crate::render::display::WhiteChoice,
+    /// The rig's white at full (`None`: no lamp in the patch).
+    pub rig: Option<footlight_fixture::patch::RigWhite>,
 }
 
 impl Views {
@@ -790,6 +802,10 @@ impl Views {
             }),
             wake: Notify::new(),
             display: Mutex::new(None),
+            white: Mutex::new(WhiteState {
+                choice: crate::render::display::WhiteChoice::of_gains(Display::default().white_balance),
+                rig: None,
+            }),
         }
     }
 
@@ -917,6 +933,21 @@ impl Views {
     /// (exposure, white balance, roll-off): uniforms only, no rebuild.
     pub fn set_display(&self, display: Display) {
         *self.display.lock().unwrap_or_else(|e| e.into_inner()) = Some(display);
+    }
+
+    /// Records the white balance in force and the rig's white (the daemon at
+    /// start, `POST /api/display` on a change).
+    pub fn set_white(
+        &self,
+        choice: crate::render::display::WhiteChoice,
+        rig: Option<footlight_fixture::patch::RigWhite>,
+    ) {
+        *self.white.lock().unwrap_or_else(|e| e.into_inner()) = WhiteState { choice, rig };
+    }
+
+    /// The white balance in force and the rig's white.
+    pub fn white(&self) -> WhiteState {
+        self.white.lock().unwrap_or_else(|e| e.into_inner()).clone()
     }
 
     /// The display settings written since the last call, if any (the frame clock).

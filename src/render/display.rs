@@ -2,9 +2,10 @@
 //!
 //! Exposure is a fixed user setting, never automatic: by default a white
 //! Lambert surface under 1000 lx (luminance 1000/π cd/m²) is display white.
-//! White balance is a camera's: by default a 3200 K tungsten lamp at full
-//! is neutral (Vierjahn 2010, section 3.3; gains from footlight-photometry,
-//! luminance-preserving).
+//! White balance is a camera's (Vierjahn 2010, section 3.3; gains from
+//! footlight-photometry, luminance-preserving): [`Display::default`] makes
+//! a 3200 K tungsten lamp at full neutral; `render` and `run` default to
+//! `auto`, the rig's own white at full ([`white_balance_for`]).
 //! Values above white clip at the display, like an overexposed camera,
 //! unless the display has a highlight roll-off ([`HighlightRolloff`], on by
 //! default in the live daemon): then beams brighter than white keep their
@@ -248,9 +249,10 @@ pub fn check_finite(linear: &[Vec3]) -> Result<(), (usize, Vec3)> {
     }
 }
 
-/// White balance gains from a command-line value: `none` (gains 1),
-/// `tungsten` (3200 K at full is neutral, the default) or a colour
-/// temperature in kelvin (a Planckian source at that temperature is neutral).
+/// White balance gains from an explicit value: `none` (gains 1),
+/// `tungsten` (3200 K at full is neutral) or a colour temperature in kelvin
+/// (a Planckian source at that temperature is neutral). `auto` needs the
+/// rig: [`white_balance_for`].
 pub fn parse_white_balance(value: &str) -> Result<Vec3, String> {
     use footlight_photometry::{Lamp, WhiteBalance};
     let v = value.trim();
@@ -263,11 +265,67 @@ pub fn parse_white_balance(value: &str) -> Result<Vec3, String> {
     let kelvin: f32 = v
         .trim_end_matches(['K', 'k'])
         .parse()
-        .map_err(|_| format!("{value:?}: expected none, tungsten or a colour temperature such as 5600K"))?;
+        .map_err(|_| format!("{value:?}: expected auto, none, tungsten or a colour temperature such as 5600K"))?;
     if !(1000.0..=25_000.0).contains(&kelvin) {
         return Err(format!("{value:?}: colour temperature must be 1000-25000 K"));
     }
     Ok(WhiteBalance::for_lamp(&Lamp::Discharge { cct: kelvin }, 1.0).gains)
+}
+
+/// A white balance as asked for (`--white-balance`, `POST /api/display`)
+/// and what it resolved to.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WhiteChoice {
+    /// As asked: `auto`, `none`, `tungsten` or a temperature (`5600K`).
+    pub setting: String,
+    /// The per-channel gains in force.
+    pub gains: Vec3,
+    /// What they make neutral, in words (`auto`: the rig's white, see
+    /// [`footlight_fixture::patch::RigWhite`]).
+    pub note: String,
+}
+
+impl WhiteChoice {
+    /// Names `gains` set directly (a library caller's [`Display`]):
+    /// `tungsten` or `none` when they are those, else `custom`.
+    pub fn of_gains(gains: Vec3) -> Self {
+        let (setting, note) = if gains == footlight_photometry::WhiteBalance::default().gains {
+            ("tungsten", "3200 K: tungsten at full")
+        } else if gains == Vec3::ONE {
+            ("none", "no white balance: linear sRGB as rendered")
+        } else {
+            ("custom", "gains set by the caller")
+        };
+        Self { setting: setting.into(), gains, note: note.into() }
+    }
+}
+
+/// The white balance for `value` on a rig whose white is `rig`
+/// ([`footlight_fixture::Patch::rig_white`]): `auto` makes the rig's own
+/// white at full neutral (its tungsten at their CCT when it has tungsten
+/// lamps, so the paper's rig keeps the 3200 K gains bit for bit; else the
+/// luminous-flux-weighted white of every source at full), or tungsten
+/// 3200 K when the patch has no lamp; anything else as
+/// [`parse_white_balance`].
+pub fn white_balance_for(value: &str, rig: Option<&footlight_fixture::patch::RigWhite>) -> Result<WhiteChoice, String> {
+    use footlight_photometry::WhiteBalance;
+    let v = value.trim();
+    if v.eq_ignore_ascii_case("auto") {
+        let (gains, note) = match rig {
+            Some(w) => (WhiteBalance::for_colour(w.rgb).gains, w.describe()),
+            None => (WhiteBalance::default().gains, "3200 K: no lamp in the patch, tungsten at full".to_string()),
+        };
+        return Ok(WhiteChoice { setting: "auto".into(), gains, note });
+    }
+    let gains = parse_white_balance(v)?;
+    let note = if v.eq_ignore_ascii_case("none") {
+        "no white balance: linear sRGB as rendered".to_string()
+    } else if v.eq_ignore_ascii_case("tungsten") {
+        "3200 K: tungsten at full".to_string()
+    } else {
+        format!("{} K: a Planckian source at that temperature", v.trim_end_matches(['K', 'k']).trim())
+    };
+    Ok(WhiteChoice { setting: v.to_ascii_lowercase(), gains, note })
 }
 
 /// `linear` (cd/m²) times per-channel white-balance `gains`: what the HDR
@@ -433,5 +491,23 @@ mod tests {
     fn finite_check_finds_nan() {
         assert_eq!(check_finite(&[Vec3::ONE, Vec3::new(0.0, f32::NAN, 0.0)]).unwrap_err().0, 1);
         assert!(check_finite(&[Vec3::ZERO]).is_ok());
+    }
+
+    #[test]
+    fn auto_white_balance_keeps_the_tungsten_gains_on_a_tungsten_rig() {
+        use footlight_photometry::WhiteBalance;
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let paper = footlight_fixture::Patch::load(&root.join(crate::PAPER_PATCH)).unwrap();
+        let auto = white_balance_for("auto", paper.rig_white().as_ref()).unwrap();
+        assert_eq!(auto.gains, WhiteBalance::default().gains, "bit for bit: the goldens do not move");
+        assert_eq!(auto.setting, "auto");
+        assert!(auto.note.starts_with("3200 K"), "{}", auto.note);
+        assert_eq!(white_balance_for("AUTO", None).unwrap().gains, WhiteBalance::default().gains);
+        for v in ["none", "tungsten", "5600K", "4000"] {
+            let c = white_balance_for(v, paper.rig_white().as_ref()).unwrap();
+            assert_eq!(c.gains, parse_white_balance(v).unwrap(), "{v}");
+        }
+        let e = white_balance_for("blue", None).unwrap_err();
+        assert!(e.contains("auto") && e.contains("tungsten"), "{e}");
     }
 }

@@ -8,7 +8,7 @@
 //! * `POST /api/views`: `{"name": "…"}` saves the current camera under that
 //!   name, in memory only (201 with the view).
 //! * `GET /api/display`: the display settings of the latest frame.
-//! * `POST /api/display`: `{"white_lux": 500, "white_balance": "5600K",
+//! * `POST /api/display`: `{"white_lux": 500, "white_balance": "auto" | "5600K",
 //!   "rolloff": "on" | "off" | 8}` (each optional) changes exposure, white
 //!   balance and highlight roll-off from the next frame on, in every
 //!   compositor (uniforms, no rebuild); answers 200 with the new settings.
@@ -208,18 +208,28 @@ pub(super) async fn post_view(State(app): State<App>, req: Request) -> Response 
 struct DisplayWrite {
     /// Illuminance on a white Lambert surface shown as white (lx).
     white_lux: Option<f32>,
-    /// `none`, `tungsten` or a colour temperature (`5600K`).
+    /// `auto` (the rig's own white at full), `none`, `tungsten` or a
+    /// colour temperature (`5600K`).
     white_balance: Option<String>,
     /// `on`, `off`, or the level shown as white (a number over 1).
     rolloff: Option<serde_json::Value>,
 }
 
-/// The display settings as JSON (what `GET /api/display` answers).
-fn display_json(d: &crate::render::Display) -> serde_json::Value {
+/// The display settings as JSON (what `GET /api/display` answers): the
+/// white balance as its gains, the setting in force (`auto`, `tungsten`…),
+/// what it makes neutral, and the rig's own white (what `auto` gives).
+fn display_json(d: &crate::render::Display, white: Option<&crate::live::views::WhiteState>) -> serde_json::Value {
+    let rig = white.and_then(|w| w.rig.as_ref()).map(|r| {
+        serde_json::json!({ "xy": r.xy.to_array(), "cct_k": r.cct_k, "lights": r.lights, "tungsten": r.tungsten,
+            "note": r.describe() })
+    });
     serde_json::json!({
         "exposure": d.exposure,
         "white_lux": std::f32::consts::PI / d.exposure,
         "white_balance": d.white_balance.to_array(),
+        "white_balance_setting": white.map(|w| w.choice.setting.clone()),
+        "white_balance_note": white.map(|w| w.choice.note.clone()),
+        "rig_white": rig,
         "rolloff": d.rolloff.map(|r| serde_json::json!({ "knee": r.knee, "white": r.white })),
     })
 }
@@ -227,12 +237,13 @@ fn display_json(d: &crate::render::Display) -> serde_json::Value {
 /// `GET /api/display`.
 pub(super) async fn get_display(State(app): State<App>) -> Response {
     let display = app.state.frames.borrow().display;
-    axum::Json(display_json(&display)).into_response()
+    let white = app.state.views.as_ref().map(|v| v.white());
+    axum::Json(display_json(&display, white.as_ref())).into_response()
 }
 
 /// `POST /api/display`.
 pub(super) async fn post_display(State(app): State<App>, req: Request) -> Response {
-    use crate::render::display::{parse_rolloff, parse_white_balance};
+    use crate::render::display::{parse_rolloff, white_balance_for};
     let (views, write) = match authorized_json::<DisplayWrite>(&app, req).await {
         Ok(x) => x,
         Err(r) => return r,
@@ -244,9 +255,13 @@ pub(super) async fn post_display(State(app): State<App>, req: Request) -> Respon
         }
         d.exposure = std::f32::consts::PI / lux;
     }
+    let mut white = views.white();
     if let Some(wb) = &write.white_balance {
-        match parse_white_balance(wb) {
-            Ok(g) => d.white_balance = g,
+        match white_balance_for(wb, white.rig.as_ref()) {
+            Ok(c) => {
+                d.white_balance = c.gains;
+                white.choice = c;
+            }
             Err(e) => return error(StatusCode::BAD_REQUEST, format!("white_balance {e}")),
         }
     }
@@ -267,7 +282,8 @@ pub(super) async fn post_display(State(app): State<App>, req: Request) -> Respon
         }
     }
     views.set_display(d);
-    axum::Json(display_json(&d)).into_response()
+    views.set_white(white.choice.clone(), white.rig.clone());
+    axum::Json(display_json(&d, Some(&white))).into_response()
 }
 
 /// `GET /api/views`.

@@ -31,6 +31,7 @@
 //! * [`archive`]: the checked zip, in memory.
 //! * [`xml`]: well-formedness with file, line and column; nesting depth bounded before any recursive reader runs.
 //! * [`gdtf`]: GDTF files and DMX-mode expansion (geometry walked by reference).
+//! * [`colour`]: LED colour of `ColorAdd_*` channels without an `<Emitter>` (attribute colours, GDTF Annex B).
 //! * [`gate`]: gobo and prism wheels, blades and frost of a GDTF spot (its gate).
 //! * [`mvr`]: the MVR scene, flattened; MVR → stage axes ([`mvr::stage_matrix`]).
 //! * [`show`]: GDTF → `FixtureType`, MVR → `Patch` ([`load_mvr`], [`load_patch`], [`check_patch`]).
@@ -39,6 +40,7 @@
 
 pub mod archive;
 pub mod body;
+pub mod colour;
 pub mod gate;
 pub mod gdtf;
 pub mod mvr;

@@ -14,7 +14,10 @@
 //!   beam's field/beam ratio); `Focus1` → focus 0..1; `Iris` → iris fraction;
 //! * `ColorAdd_*` with an emitter → LED emitters: from the emitter's
 //!   measured spectrum (`<Measurement>`) when it has one, else its CIE xy;
-//!   Y share from the `Color` (see `emitter`); `ColorSub_C/M/Y` → CMY
+//!   Y share from the `Color` (see `emitter`); `ColorAdd_*` without an
+//!   emitter (files that define none) → LED emitters from the attribute
+//!   definitions' `Color`, else GDTF Annex B's nominal colours (estimated;
+//!   [`crate::colour`]), said once per type; `ColorSub_C/M/Y` → CMY
 //!   flags over the beam's CCT, each from its `Filter`'s measured
 //!   transmission where there is one (see `cmy_filters`), else ideal bands;
 //!   otherwise the lamp type (tungsten/halogen dims redder, discharge and
@@ -117,8 +120,12 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
     let cct = if (1000.0..=20000.0).contains(&beam.cct_k) { beam.cct_k as f32 } else { 6000.0 };
     let mut mix_names: Vec<String> = Vec::new();
     let mut emitters = Vec::new();
+    // ColorAdd_* channels no <Emitter> colours (many real files define none):
+    // mixed from the attribute definitions' colours, else GDTF's nominal ones
+    // (`crate::colour`), said once per type.
+    let mut uncoloured: Vec<String> = Vec::new();
     for c in all().filter(|c| c.attribute.starts_with("ColorAdd_")) {
-        if mix_names.contains(&c.attribute) || mix_names.len() >= MAX_MIX {
+        if mix_names.contains(&c.attribute) || uncoloured.contains(&c.attribute) {
             continue;
         }
         let e = c
@@ -127,19 +134,17 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
             .find_map(|f| f.emitter.as_deref())
             .and_then(|name| g.ft.physical_descriptions.emitters.iter().find(|e| e.name.as_deref() == Some(name)));
         match e.and_then(|e| emitter(e, &c.attribute.to_ascii_lowercase())) {
-            Some(em) => {
+            Some(em) if mix_names.len() < MAX_MIX => {
                 emitters.push(em);
                 mix_names.push(c.attribute.clone());
             }
-            None => warnings.push(PatchError::new(
-                &label,
-                0,
-                format!(
-                    "{}: no emitter with a measured spectrum or a CIE colour; the channel is decoded but not mixed",
-                    c.attribute
-                ),
-            )),
+            Some(_) => {}
+            None => uncoloured.push(c.attribute.clone()),
         }
+    }
+    if !uncoloured.is_empty() {
+        let note = attribute_emitters(g, &uncoloured, &mut emitters, &mut mix_names);
+        warnings.push(PatchError::new(&label, 0, note));
     }
     let cmy = ["ColorSub_C", "ColorSub_M", "ColorSub_Y"];
     let lamp = if !emitters.is_empty() {
@@ -397,6 +402,74 @@ fn colour_wheel(g: &Gdtf, layouts: &[Layout], warnings: &mut Vec<PatchError>) ->
             }
         })
         .collect()
+}
+
+/// Emitters for the `ColorAdd_*` channels in `uncoloured` (no `<Emitter>`
+/// colours them): from the file's attribute definitions' `Color` (CIE xyY),
+/// else GDTF's nominal attribute colours (estimated; [`crate::colour`]),
+/// each through [`Emitter::new`] like an emitter's CIE colour without a
+/// measurement. Appends them (up to [`MAX_MIX`] mixed channels in all) and
+/// returns the type's one note, e.g. `Astera AX2: no emitters;
+/// ColorAdd_R/G/B/W mixed from the attribute definitions' colours
+/// (estimated primaries for ColorAdd_RY: GDTF Annex B's nominal colours)`.
+fn attribute_emitters(g: &Gdtf, uncoloured: &[String], emitters: &mut Vec<Emitter>, mix: &mut Vec<String>) -> String {
+    use crate::colour::{Source, primaries, short_list};
+    let defs = &g.ft.attribute_definitions;
+    let colour = |a: &str| {
+        defs.attributes
+            .iter()
+            .find(|d| d.name.as_ref().is_some_and(|n| n.as_ref().eq_ignore_ascii_case(a)))
+            .and_then(|d| d.color.as_ref())
+            .map(|c| [c.x, c.y, c.z])
+    };
+    let (primaries, unknown) = primaries(uncoloured, &colour);
+    let mut dropped: Vec<&str> = Vec::new();
+    let mut used: Vec<&crate::colour::Primary> = Vec::new();
+    for p in &primaries {
+        if mix.len() >= MAX_MIX {
+            dropped.push(&p.attribute);
+            continue;
+        }
+        emitters.push(Emitter::new(p.attribute.to_ascii_lowercase(), Chroma::Xy(p.xy), p.share));
+        mix.push(p.attribute.clone());
+        used.push(p);
+    }
+    let names =
+        |s: Source| -> Vec<&str> { used.iter().filter(|p| p.source == s).map(|p| p.attribute.as_str()).collect() };
+    let (file, nominal) = (names(Source::File), names(Source::Nominal));
+    let mut note = if g.ft.physical_descriptions.emitters.is_empty() {
+        format!("{}: no emitters", g.name())
+    } else {
+        let all: Vec<&str> = uncoloured.iter().map(String::as_str).collect();
+        format!("{}: no emitter for {}", g.name(), short_list(&all))
+    };
+    match (file.is_empty(), nominal.is_empty()) {
+        (false, true) => note += &format!("; {} mixed from the attribute definitions' colours", short_list(&file)),
+        (false, false) => {
+            note += &format!(
+                "; {} mixed from the attribute definitions' colours (estimated primaries for {}: GDTF Annex B's nominal colours)",
+                short_list(&file),
+                short_list(&nominal)
+            )
+        }
+        (true, false) => {
+            note +=
+                &format!("; {} mixed from estimated primaries (GDTF Annex B's nominal colours)", short_list(&nominal))
+        }
+        (true, true) => {}
+    }
+    let weighted: Vec<&str> = used.iter().filter(|p| p.weighted).map(|p| p.attribute.as_str()).collect();
+    if !weighted.is_empty() {
+        note += &format!("; luminous shares of {} by equal-white weighting (no usable Y)", short_list(&weighted));
+    }
+    if !unknown.is_empty() {
+        let u: Vec<&str> = unknown.iter().map(String::as_str).collect();
+        note += &format!("; {}: no colour known, decoded but not mixed", short_list(&u));
+    }
+    if !dropped.is_empty() {
+        note += &format!("; {}: past {MAX_MIX} mixed channels, not mixed", short_list(&dropped));
+    }
+    note
 }
 
 /// An LED emitter from a GDTF `<Emitter>`: from its measured spectrum when

@@ -29,11 +29,13 @@ pub mod file;
 pub mod haze;
 mod listing;
 pub mod views;
+mod white;
 
 pub use file::PatchFile;
 pub use haze::HazeSpec;
 pub use listing::ListedFixture;
 pub use views::ViewSpec;
+pub use white::RigWhite;
 
 use crate::beam::{Beam, SpotBeam};
 use crate::error::PatchError;

@@ -1,5 +1,6 @@
 //! Test modules and shared helpers.
 
+mod colour_without_emitters;
 mod fuzz;
 mod gate;
 mod limits;
