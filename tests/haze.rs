@@ -10,6 +10,7 @@ use footlight::render::RecursionLimits;
 use footlight::render::buffer::{HazeBuffer, LightBuffer};
 use footlight::render::composite;
 use footlight::render::media::reference::{HazyReference, path_traced_ray, render_hazy_eq1};
+use footlight::render::media::resolve::surface_transmittance;
 use footlight::render::media::{HazeQuality, HazeView, Medium, integrate_ray, render_inscatter, resolve};
 use footlight::render::view::Sampling;
 use footlight::scene::{Camera, Scene, SceneBuilder};
@@ -156,7 +157,7 @@ fn single_scattering_matches_simpson_quadrature() {
             }
             let rel = (got - reference).abs() / reference;
             assert!(rel < 0.01, "pixel ({x},{y}): renderer {got:e} vs Simpson {reference:e} (rel {rel:.4})");
-            let rel1 = (f64::from(ss * direct.a1) - reference).abs() / reference;
+            let rel1 = (f64::from(ss * direct.a1()) - reference).abs() / reference;
             assert!(rel1 < 0.01, "ray ({x},{y}): {rel1}");
             checked += 1;
         }
@@ -185,7 +186,7 @@ fn a_box_in_the_beam_leaves_a_dark_wedge() {
     let (q_with, q_without) = (q(Some((v3(bl), v3(bh)))), q(None));
     assert!(q_with < 0.7 * q_without, "the wedge removes a good part of the beam: {q_with} vs {q_without}");
     for (got, reference) in [(with, q_with), (without, q_without)] {
-        let rel = (f64::from(0.1 * got.a1) - reference).abs() / reference;
+        let rel = (f64::from(0.1 * got.a1()) - reference).abs() / reference;
         assert!(rel < 0.01, "{got:?} vs {reference} (rel {rel})");
     }
     // Shadow rays straight up carry −0.0 components (−(0, −1, 0)); the BVH
@@ -395,9 +396,9 @@ fn multiple_scattering_approximation_against_a_volume_path_tracer() {
         let (o, d) = (Vec3::new(0.4, y, 10.0), Vec3::NEG_Z);
         let mc = path_traced_ray(&medium, &light, o, d, f32::INFINITY, 40_000, 64, 0xBEA1 + k as u64);
         medium.multiple = false;
-        let ss = f64::from(medium.sigma_s * integrate_ray(&empty, &medium, &light, o, d, f32::INFINITY, 128).a1);
+        let ss = f64::from(medium.sigma_s * integrate_ray(&empty, &medium, &light, o, d, f32::INFINITY, 128).a1());
         medium.multiple = true;
-        let sim = f64::from(medium.sigma_s * integrate_ray(&empty, &medium, &light, o, d, f32::INFINITY, 128).a1);
+        let sim = f64::from(medium.sigma_s * integrate_ray(&empty, &medium, &light, o, d, f32::INFINITY, 128).a1());
         assert!((mc.single - ss).abs() < 0.03 * ss, "y {y}: path-traced order 1 {} vs renderer {ss}", mc.single);
         assert!(mc.all > ss, "multiple scattering adds light");
         err_single += (ss - mc.all).abs() / mc.all;
@@ -774,9 +775,9 @@ fn volume_photons_capture_the_multiply_scattered_light() {
     for (k, y) in [4.0f32, 2.5, 1.0].into_iter().enumerate() {
         let (o, d) = (Vec3::new(0.4, y, 10.0), Vec3::NEG_Z);
         let mc = path_traced_ray(&medium, &light, o, d, f32::INFINITY, 200_000, 64, 0x5CA7 + k as u64);
-        let single = f64::from(medium.sigma_s * integrate_ray(&empty, &medium, &light, o, d, f32::INFINITY, 128).a1);
+        let single = f64::from(medium.sigma_s * integrate_ray(&empty, &medium, &light, o, d, f32::INFINITY, 128).a1());
         let sim_medium = Medium { multiple: true, ..medium };
-        let sim = f64::from(medium.sigma_s * integrate_ray(&empty, &sim_medium, &light, o, d, f32::INFINITY, 128).a1);
+        let sim = f64::from(medium.sigma_s * integrate_ray(&empty, &sim_medium, &light, o, d, f32::INFINITY, 128).a1());
         let est = f64::from(multiple_along_ray(&medium, &photons, o, d, f32::INFINITY));
         println!(
             "y {y}: path-traced {:.4e} ± {:.1e} (order 1 {:.4e}), photons {est:.4e}, single {single:.4e}",
@@ -846,4 +847,57 @@ fn volume_photons_reweighted_to_a_density_match_the_path_tracer_there() {
     let surface = LightBuffer::empty(w, h);
     let got = resolve(&hv, &full, light.position, &surface, Some(&haze), d).to_dense();
     assert!(got.iter().zip(&term).all(|(v, t)| *v == Vec3::splat(*t)), "the held term, exactly");
+}
+
+/// Issue 34 item 5: at optical depths where the extinguished integral a1
+/// underflows f32 (~87 and beyond) the beam used to show unattenuated
+/// (σ_s 10 /m: 10⁵ times too bright). The picture's energy must fall as σ_t
+/// grows for any optical depth, up to 1e30 /m, and stay finite.
+#[test]
+fn dense_haze_dims_the_beam_monotonically_at_any_optical_depth() {
+    let scene = stage();
+    let patch = paper_patch();
+    let v = view(&scene, scene.camera.unwrap(), 60, 38, Sampling::Geometry, 0);
+    let hv = HazeView::new(&scene, &v.gbuffer);
+    let (lo, hi) = footlight::render::media::medium::scene_bounds(&scene).unwrap();
+    let light = &patch.lights()[0];
+    let (surface, _) = v.render_light(&scene, light, None);
+    let energy = |ss: f32, sa: f32| -> f64 {
+        let medium = Medium::new(ss, sa, 0.7, lo, hi).unwrap();
+        let haze = render_inscatter(&scene, &hv, light, &medium, HazeQuality::REFINED);
+        let out = resolve(&hv, &medium, light.position, &surface, Some(&haze), 1.0);
+        assert!(out.check().is_ok(), "σ_s {ss} σ_a {sa}: {:?}", out.check());
+        out.to_dense().iter().map(|p| f64::from(p.x + p.y + p.z)).sum()
+    };
+    let clear: f64 = surface.to_dense().iter().map(|p| f64::from(p.x + p.y + p.z)).sum();
+    // σ_s fixed, σ_a up to optical depths of 1e31 across the stage.
+    let mut last = f64::INFINITY;
+    for sa in [0.0f32, 0.01, 0.1, 1.0, 3.0, 10.0, 30.0, 100.0, 1e3, 1e4, 1e6, 1e30] {
+        let e = energy(0.05, sa);
+        assert!(e.is_finite() && e <= last * (1.0 + 1e-6), "σ_a {sa}: energy {e} after {last}");
+        last = e;
+    }
+    // What opaque haze leaves: the surface light whose paths (camera and
+    // light) never enter the haze box, nothing else.
+    let opaque = Medium::new(0.05, 1e30, 0.7, lo, hi).unwrap();
+    let outside: f64 = surface
+        .to_dense()
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| surface_transmittance(&hv, &opaque, light.position, *i) == 1.0)
+        .map(|(_, p)| f64::from(p.x + p.y + p.z))
+        .sum();
+    assert!(outside < 0.5 * clear, "most of the lit surface is in the haze box: {outside} of {clear}");
+    assert!((last - outside).abs() <= 1e-6 * clear, "opaque haze leaves {last}, outside the box {outside} of {clear}");
+
+    // σ_s itself up to 1e30 (σ_a 0): no light is extinguished, it is
+    // scattered, and single scattering seen through an optically thick
+    // haze tends to the lit skin of the box where the beam and the view
+    // enter it (σ_s/σ_t · p f / r², whatever σ_s): finite, converging, and
+    // below the clear picture. Before, σ_s 10 gave 1e5 times the clear one.
+    let thick: Vec<f64> = [100.0f32, 1e4, 1e30].iter().map(|&ss| energy(ss, 0.0)).collect();
+    for (ss, e) in [100.0, 1e4, 1e30].iter().zip(&thick) {
+        assert!(e.is_finite() && *e < clear, "σ_s {ss}: energy {e} (clear {clear})");
+        assert!((e - thick[0]).abs() <= 0.2 * thick[0], "σ_s {ss}: {e} does not converge ({thick:?})");
+    }
 }

@@ -465,9 +465,9 @@ pub fn run(
         let (o, d) = (Vec3::new(0.4, y, 10.0), Vec3::NEG_Z);
         let mc = path_traced_ray(&dense, &spot, o, d, f32::INFINITY, paths, 64, 0x4A2E + k as u64);
         dense.multiple = false;
-        let single = f64::from(dense.sigma_s * integrate_ray(&empty, &dense, &spot, o, d, f32::INFINITY, 128).a1);
+        let single = f64::from(dense.sigma_s * integrate_ray(&empty, &dense, &spot, o, d, f32::INFINITY, 128).a1());
         dense.multiple = true;
-        let similarity = f64::from(dense.sigma_s * integrate_ray(&empty, &dense, &spot, o, d, f32::INFINITY, 128).a1);
+        let similarity = f64::from(dense.sigma_s * integrate_ray(&empty, &dense, &spot, o, d, f32::INFINITY, 128).a1());
         multiple.push(MultiplePoint { height: y, path_traced: mc.all, std_error: mc.std_error, single, similarity });
     }
     let (volume, volume_density) = run_volume(paths, (w, h), repeats);
@@ -570,9 +570,9 @@ pub fn run_volume(paths: usize, size: (u32, u32), repeats: usize) -> (Vec<Volume
         for (k, &(o, d)) in rays.iter().enumerate() {
             let mc = path_traced_ray(&m, &spot, o, d, f32::INFINITY, paths, 64, 0x7A11 + k as u64);
             m.multiple = false;
-            let single = f64::from(m.sigma_s * integrate_ray(&empty, &m, &spot, o, d, f32::INFINITY, 128).a1);
+            let single = f64::from(m.sigma_s * integrate_ray(&empty, &m, &spot, o, d, f32::INFINITY, 128).a1());
             m.multiple = true;
-            let similarity = f64::from(m.sigma_s * integrate_ray(&empty, &m, &spot, o, d, f32::INFINITY, 128).a1);
+            let similarity = f64::from(m.sigma_s * integrate_ray(&empty, &m, &spot, o, d, f32::INFINITY, 128).a1());
             m.multiple = false;
             let est = f64::from(multiple_along_ray(&m, &photons, o, d, f32::INFINITY));
             p.reference += mc.all - mc.single;

@@ -64,6 +64,26 @@ fn render(scene: &Scene, camera: Camera, lights: &[Lit], photons: usize) -> Resu
     }
 }
 
+/// The composite of `light` (k = 1000 cd, white) over `scene` in a haze of
+/// σ_s `sigma_s` (σ_a 0, g 0.7) filling the scene's box up to 2.5 m, with
+/// the beam's in-scattering and both extinctions ([`crate::render::media`]).
+fn hazy(scene: &Scene, camera: Camera, light: &Light, sigma_s: f32) -> Result<Vec<Vec3>, String> {
+    use crate::render::media::{HazeQuality, HazeView, Medium, render_inscatter, resolve};
+    let view = View::build(scene, camera, W, H, Sampling::Adaptive, RecursionLimits::default());
+    let medium = Medium::new(sigma_s, 0.0, 0.7, Vec3::new(-5.0, -0.01, -5.0), Vec3::new(5.0, 2.5, 5.0))
+        .map_err(|e| e.to_string())?;
+    let hv = HazeView::new(scene, &view.gbuffer);
+    let (surface, _) = view.render_light(scene, light, None);
+    let haze = render_inscatter(scene, &hv, light, &medium, HazeQuality::REFINED);
+    let buffer = resolve(&hv, &medium, light.position, &surface, Some(&haze), 1.0);
+    buffer.check().map_err(|e| format!("{e:?}"))?;
+    let img = composite(&[&buffer], &[Vec3::splat(1000.0)], W, H);
+    match crate::render::display::check_finite(&img) {
+        Ok(()) => Ok(img),
+        Err((i, v)) => Err(format!("composite pixel {i} = {v}")),
+    }
+}
+
 fn case(
     name: &str,
     result: Result<Vec<Vec3>, String>,
@@ -144,6 +164,40 @@ pub fn run_matrix(photons: usize) -> Vec<StressCase> {
         let r =
             render(&b.build(), down(scale), &[(omni(Vec3::new(0.3, 2.0, -0.2) * scale), Vec3::splat(1000.0))], photons);
         out.push(case(name, r, Some(plane_bound(rho, &[(1000.0, h)])), some_light));
+    }
+    // Haze at optical depths from 0.2 to 1e30 across the box (issue 34):
+    // the picture's energy falls with σ_s once σ_s passes 1/L, and never
+    // exceeds the clear picture's at depth ≥ 40.
+    {
+        let (b, _) = plane(1.0, rho);
+        let scene = b.build();
+        let light =
+            Light::aimed(Vec3::new(0.0, 2.0, 0.0), Vec3::ZERO, Beam::Spot(SpotBeam::from_beam_field(20.0, 30.0)));
+        let camera = Camera::look_at(Vec3::new(0.0, 1.0, 4.0), Vec3::new(0.0, 0.8, 0.0), 0.9);
+        let energy = |img: &[Vec3]| img.iter().map(|p| f64::from(p.element_sum())).sum::<f64>();
+        let clear = hazy(&scene, camera, &light, 0.0);
+        let clear_energy = clear.as_deref().map_or(f64::NAN, energy);
+        let mut last = f64::INFINITY;
+        for sigma_s in [0.05f32, 10.0, 1e4, 1e30] {
+            let r = hazy(&scene, camera, &light, sigma_s);
+            let this = r.as_deref().map_or(f64::NAN, energy);
+            let dense = sigma_s >= 10.0;
+            out.push(case(
+                &format!("haze σ_s {sigma_s:e} /m (optical depth up to {:e})", sigma_s * 5.0),
+                r,
+                None,
+                |_| {
+                    if dense && !(this <= last * (1.0 + 1e-6) && this <= clear_energy) {
+                        Err(format!("energy {this:e} after {last:e} (clear {clear_energy:e})"))
+                    } else {
+                        Ok(())
+                    }
+                },
+            ));
+            if dense {
+                last = this;
+            }
+        }
     }
     {
         let (b, _) = plane(4.0, rho);

@@ -74,7 +74,7 @@ pub fn render_hazy_eq1(
                 let i = y * w + x;
                 for (light, k) in lights.iter().zip(k) {
                     let s = integrate_ray(scene, &m, light, cam, hv.dir(i), hv.t_hit(i), r.samples);
-                    *px += *k * (m.sigma_s * s.a1);
+                    *px += *k * (m.sigma_s * s.a1());
                 }
             }
         });

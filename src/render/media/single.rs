@@ -42,7 +42,7 @@
 use super::medium::Medium;
 use crate::fixture::Light;
 use crate::render::buffer::{HazeBuffer, LightBuffer, TILE};
-use crate::render::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT};
+use crate::render::gbuffer::{CENTRE_SAMPLE, GBuffer, NO_HIT, PrimarySample};
 use crate::scene::{Camera, Scene};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -92,13 +92,18 @@ impl HazeView {
         let mut t_hit = Vec::with_capacity((w * h) as usize);
         for y in 0..h {
             for x in 0..w {
-                let s = gbuffer.samples[(y * w + x) as usize][CENTRE_SAMPLE];
+                let samples = &gbuffer.samples[(y * w + x) as usize];
                 let d = camera.direction(x as f32 + 0.5, y as f32 + 0.5, w, h);
-                let t = if s.triangle == NO_HIT {
-                    f32::INFINITY
-                } else {
-                    scene.point_on(s.triangle, s.u, s.v).distance(camera.position)
+                let depth = |s: &PrimarySample| {
+                    (s.triangle != NO_HIT).then(|| scene.point_on(s.triangle, s.u, s.v).distance(camera.position))
                 };
+                // A silhouette pixel whose centre ray misses but whose other
+                // samples hit (their light is in the surface buffer) takes
+                // the nearest of their depths, so that light is extinguished
+                // like its neighbours' instead of passing the haze untouched.
+                let t = depth(&samples[CENTRE_SAMPLE])
+                    .or_else(|| samples.iter().filter_map(depth).reduce(f32::min))
+                    .unwrap_or(f32::INFINITY);
                 dirs.push(d);
                 t_hit.push(t);
             }
@@ -132,23 +137,57 @@ impl HazeView {
 }
 
 /// The in-scattered light of one camera ray at unit intensity, per unit σ_s.
+///
+/// The extinguished integral a1 is kept as its optical depth κ = ln(a0 / a1)
+/// rather than as a1 itself: at optical depths past ~87 (σ_s 5 /m across a
+/// stage) a1 underflows in f32, and a κ computed from an underflowed a1 was
+/// 0 (the beam shown unattenuated, 10⁵ times too bright at σ_s 10 /m).
+/// [`integrate_ray`] sums a1 relative to its least-extinguished sample
+/// (log-sum-exp), so κ stays exact to any depth; a1 is only formed on demand.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct InScatter {
     /// ∫ p f_ε g / r² dt without extinction.
     pub a0: f32,
-    /// The same with T_cam · T_light at the medium's density.
-    pub a1: f32,
+    /// Effective optical depth κ = ln(a0 / a1) ≥ 0, a1 the same integral with
+    /// T_cam · T_light at the medium's density; [`KAPPA_OPAQUE`] when no
+    /// light gets through. 0 when a0 = 0.
+    pub kappa: f32,
 }
 
+/// κ of a ray whose every sample is extinguished past f32 (τ = ∞): finite,
+/// so d·κ stays a number for every density d ≤ 1 and exp(−d κ) is 0 for
+/// any d > 1e-28, and exactly 1 at d = 0 (no haze, no extinction).
+pub const KAPPA_OPAQUE: f32 = 1e30;
+
 impl InScatter {
-    /// Effective optical depth κ = −ln(a1 / a0) (0 when a0 = 0).
+    /// The integral with extinction, a1 = a0 exp(−κ) (0 where it underflows).
+    pub fn a1(&self) -> f32 {
+        if self.a0 > 0.0 { self.a0 * (-self.kappa).exp() } else { 0.0 }
+    }
+
+    /// Effective optical depth κ (0 when a0 = 0).
     pub fn kappa(&self) -> f32 {
-        if self.a0 > 0.0 && self.a1 > 0.0 { (self.a0 / self.a1).ln().max(0.0) } else { 0.0 }
+        if self.a0 > 0.0 { self.kappa } else { 0.0 }
     }
 
     /// The stored pixel (a0, κ, 0).
     pub fn pixel(&self) -> Vec3 {
         if self.a0 > 0.0 && self.a0.is_finite() { Vec3::new(self.a0, self.kappa(), 0.0) } else { Vec3::ZERO }
+    }
+
+    /// The weighted mean of `parts` (weight, value): a0 averages linearly,
+    /// a1 too, taken relative to the smallest κ so that it never underflows.
+    fn mean(parts: &[(f32, InScatter)]) -> InScatter {
+        let lit = || parts.iter().filter(|(w, c)| *w > 0.0 && c.a0 > 0.0);
+        let Some(m) = lit().map(|(_, c)| c.kappa).reduce(f32::min) else { return InScatter::default() };
+        let wsum: f32 = parts.iter().map(|(w, _)| *w).sum();
+        let (a0, a1_rel) =
+            lit().fold((0.0f32, 0.0f32), |(a, b), (w, c)| (a + w * c.a0, b + w * c.a0 * (-(c.kappa - m)).exp()));
+        if !(wsum > 0.0) || !(a0 > 0.0) {
+            return InScatter::default();
+        }
+        let kappa = if a1_rel > 0.0 { ((a0 / a1_rel).ln() + m).clamp(0.0, KAPPA_OPAQUE) } else { KAPPA_OPAQUE };
+        InScatter { a0: a0 / wsum, kappa }
     }
 }
 
@@ -234,9 +273,26 @@ pub fn cone_interval(
     out
 }
 
+/// The optical depth whose transmittance is the mean of e^(−e) over a
+/// stratum where e runs linearly from `near` to `far`:
+/// e^(−min) (1 − e^(−Δ)) / Δ, as a depth (so it never underflows).
+fn stratum_depth(near: f32, far: f32) -> f32 {
+    let (lo, span) = (near.min(far), (far - near).abs());
+    if span < 1e-3 {
+        0.5 * (near + far)
+    } else if span.is_finite() {
+        lo - (-(-span).exp_m1() / span).ln()
+    } else {
+        lo + f32::MAX.ln()
+    }
+}
+
 /// Single scattering of `light` (1 cd) along one camera ray: `origin` +
 /// t·`dir` (unit), t from 0 to `t_surface` (∞: no surface), with `samples`
-/// equiangular midpoints inside the cone. Occlusion by `scene` included.
+/// equiangular strata inside the cone: pattern, phase and occlusion at each
+/// stratum's midpoint, the transmittance averaged over the stratum (optical
+/// depth linear across it), so a stratum many mean free paths long is
+/// weighted by what light gets through it, not by its midpoint.
 pub fn integrate_ray(
     scene: &Scene,
     medium: &Medium,
@@ -261,10 +317,48 @@ pub fn integrate_ray(
         return InScatter::default();
     }
     let (sigma_t, sigma_tl) = (medium.sigma_t(), medium.sigma_t_light());
-    let mut out = InScatter::default();
+    // Optical depth (camera side + light side) at t.
+    let depth_at = |t: f32| {
+        let x = origin + dir * t;
+        sigma_t * (t.clamp(tb0, tb1) - tb0) + sigma_tl * medium.length_inside(x, light.position)
+    };
+    // A sliver of haze (the ray grazes the box or the cone, or meets a
+    // surface on the box's face): the θ strata would collapse onto a few
+    // representable t and lose the depth across them, so it is one stratum
+    // in t: a0 = h Δt / r², the transmittance averaged over Δt. As σ_t → ∞
+    // this tends to the optically thick skin's σ_s/σ_t · h / r², not ∞.
+    if t1 - t0 <= 16.0 * n as f32 * f32::EPSILON * t0.abs().max(t1.abs()).max(1.0) {
+        let t = 0.5 * (t0 + t1);
+        let x = origin + dir * t;
+        let to_x = x - light.position;
+        let r = to_x.length();
+        if !(r > 1e-6) || !r.is_finite() || !(t1 > t0) {
+            return InScatter::default();
+        }
+        let w_in = to_x / r;
+        let f = light.pattern_toward(w_in);
+        if f <= 0.0 || scene.accel.occluded(x, -w_in, r * (1.0 - 1e-4)) {
+            return InScatter::default();
+        }
+        let a0 = medium.phase(w_in.dot(-dir)) * f * (t1 - t0) / (r * r);
+        let kappa = stratum_depth(depth_at(t0), depth_at(t1));
+        return if a0 > 0.0 && a0.is_finite() {
+            InScatter { a0, kappa: kappa.clamp(0.0, KAPPA_OPAQUE) }
+        } else {
+            InScatter::default()
+        };
+    }
+    // a1 = exp(−shift) · a1_rel: shift is the least optical depth so far, so
+    // the largest term is h·1 and nothing underflows (log-sum-exp).
+    let (mut a0, mut a1_rel, mut shift) = (0.0f32, 0.0f32, f32::INFINITY);
+    let mut depth_lo = depth_at(t0);
     for k in 0..n {
         let th = th0 + (k as f32 + 0.5) * step;
         let t = delta + d * th.tan();
+        // The stratum's far end: its depth is the next stratum's near end.
+        let depth_hi =
+            if k + 1 == n { depth_at(t1) } else { depth_at(delta + d * (th0 + (k + 1) as f32 * step).tan()) };
+        let depth_near = std::mem::replace(&mut depth_lo, depth_hi);
         let x = origin + dir * t;
         let to_x = x - light.position;
         let r = to_x.length();
@@ -281,14 +375,26 @@ pub fn integrate_ray(
         if scene.accel.occluded(x, -w_in, r * (1.0 - 1e-4)) {
             continue;
         }
-        let tau_cam = t.clamp(tb0, tb1) - tb0;
-        let tau_light = medium.length_inside(x, light.position);
-        out.a0 += h;
-        out.a1 += h * (-(sigma_t * tau_cam + sigma_tl * tau_light)).exp();
+        a0 += h;
+        // The transmittance averaged over the stratum with the optical depth
+        // linear across it ([`stratum_depth`]): a stratum many mean free
+        // paths long is weighted by the light that gets out of its near end
+        // (the midpoint value would miss it by e^(−Δ/2)·Δ).
+        let depth = stratum_depth(depth_near, depth_hi);
+        if depth.is_finite() {
+            if depth < shift {
+                a1_rel = if shift.is_finite() { a1_rel * (-(shift - depth)).exp() } else { 0.0 };
+                shift = depth;
+            }
+            a1_rel += h * (-(depth - shift)).exp();
+        }
     }
-    // dt / r² = dθ / D.
-    let scale = step / d;
-    InScatter { a0: out.a0 * scale, a1: out.a1 * scale }
+    if !(a0 > 0.0) {
+        return InScatter::default();
+    }
+    // κ = ln(a0 / a1) = ln(a0 / a1_rel) + shift; dt / r² = dθ / D scales a0.
+    let kappa = if a1_rel > 0.0 { ((a0 / a1_rel).ln() + shift).clamp(0.0, KAPPA_OPAQUE) } else { KAPPA_OPAQUE };
+    InScatter { a0: a0 * (step / d), kappa }
 }
 
 /// Renders `light`'s haze buffer (a0, κ per pixel, tile-sparse) for the
@@ -369,22 +475,22 @@ pub fn render_inscatter(
             (cx_a, cy_b, (1.0 - fx) * fy),
             (cx_b, cy_b, fx * fy),
         ];
-        let mut sum = InScatter::default();
+        let mut parts = [(0.0f32, InScatter::default()); 4];
         let mut wsum = 0.0;
-        let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
+        let (mut lo, mut hi, mut a0_max) = (f32::INFINITY, 0.0f32, 0.0f32);
         let mut depth_edge = false;
-        for (cx, cy, wb) in corners {
+        for (part, (cx, cy, wb)) in parts.iter_mut().zip(corners) {
             let c = coarse_at(cx, cy);
             let wd = depth_weight(t_here, hv.t_hit[rep(cy, h) * w + rep(cx, w)]);
             depth_edge |= wd < 0.5;
-            lo = lo.min(c.a1);
-            hi = hi.max(c.a1);
+            lo = lo.min(c.a1());
+            hi = hi.max(c.a1());
+            a0_max = a0_max.max(c.a0);
             let wt = wb * wd;
-            sum.a0 += wt * c.a0;
-            sum.a1 += wt * c.a1;
+            *part = (wt, c);
             wsum += wt;
         }
-        if hi <= 0.0 && !in_bounds(x, y) {
+        if a0_max <= 0.0 && !in_bounds(x, y) {
             return Vec3::ZERO;
         }
         // Edge: neighbours differ by over 20 % (beam or shadow edge), or
@@ -393,7 +499,7 @@ pub fn render_inscatter(
         if quality.refine_edges && edge {
             trace(i).pixel()
         } else if wsum > 1e-6 {
-            InScatter { a0: sum.a0 / wsum, a1: sum.a1 / wsum }.pixel()
+            InScatter::mean(&parts).pixel()
         } else if in_bounds(x, y) {
             // No neighbour at this depth (a thin object): trace it.
             trace(i).pixel()
