@@ -148,6 +148,10 @@ enum Command {
     Check {
         /// The patch file (TOML or MVR).
         patch: PathBuf,
+        /// List every fixture on its own line; without it a show of more than 40 fixtures is
+        /// listed in runs of one type and mode.
+        #[arg(long)]
+        list: bool,
     },
     /// Measure the paper's figure 6 ratios and anti-aliasing error; writes a report.
     Bench(BenchArgs),
@@ -439,7 +443,7 @@ fn main() -> std::process::ExitCode {
             run.replay = Some(file);
             self::run(*run)
         }
-        Command::Check { patch } => check(&patch),
+        Command::Check { patch, list } => check(&patch, list),
         Command::Bench(args) => bench_command(args),
     };
     match result {
@@ -454,7 +458,7 @@ fn main() -> std::process::ExitCode {
 fn bench_command(mut args: BenchArgs) -> Result<()> {
     // The paper's figures are measured on the paper's rig.
     args.input.patch.get_or_insert_with(|| PathBuf::from(footlight::PAPER_PATCH));
-    let (scene, patch) = load_inputs(&args.input)?;
+    let (scene, patch, _) = load_inputs(&args.input)?;
     let camera = choose_camera(&scene, &patch);
     if args.walk_only {
         let (size, seconds, photons) = if args.quick {
@@ -537,7 +541,7 @@ fn resolve(path: &Path) -> PathBuf {
     if from_checkout.exists() { from_checkout } else { path.to_path_buf() }
 }
 
-fn load_inputs(args: &SceneArgs) -> Result<(Scene, Patch)> {
+fn load_inputs(args: &SceneArgs) -> Result<(Scene, Patch, footlight::live::ImportStatus)> {
     let t = std::time::Instant::now();
     let (scene_path, scene) = load_scene(args)?;
     tracing::info!(
@@ -549,9 +553,52 @@ fn load_inputs(args: &SceneArgs) -> Result<(Scene, Patch)> {
         t.elapsed().as_secs_f64() * 1e3
     );
     // A TOML patch, or an MVR show whose fixtures come from its GDTF files.
-    let patch = footlight_mvr::load_patch(&resolve(args.patch()))?;
+    let patch_path = resolve(args.patch());
+    let checked = footlight_mvr::check_report(&patch_path).map_err(|e| problems(&patch_path, &e))?;
+    let import = footlight::live::ImportStatus::of(&checked);
+    log_import(&patch_path, &checked);
+    let patch = checked.patch;
     tracing::info!("{}: {}", patch.path.display(), fixture_summary(&patch, &patch.listing()));
-    Ok((scene, patch))
+    Ok((scene, patch, import))
+}
+
+/// A patch's errors as one error: each on its own line (they are said once
+/// per file and problem already), at most 20.
+fn problems(path: &Path, errors: &[footlight::fixture::PatchError]) -> anyhow::Error {
+    const SHOWN: usize = 20;
+    let mut lines: Vec<String> = errors.iter().take(SHOWN).map(ToString::to_string).collect();
+    match errors.len() {
+        0 => lines.push(format!("{}: invalid patch", path.display())),
+        n if n > SHOWN => lines.push(format!("… and {} more (`footlight check {}`)", n - SHOWN, path.display())),
+        _ => {}
+    }
+    anyhow::anyhow!(lines.join("\n"))
+}
+
+/// What `run` and `render` say of an import at start, once: each fixture
+/// type's summary (a missing GDTF, a type partly modelled: a warning) and
+/// the warnings, or how many there are and where `footlight check` lists them.
+fn log_import(path: &Path, checked: &footlight_mvr::Checked) {
+    /// Warnings printed at start before they are only counted.
+    const SHOWN: usize = 5;
+    for t in &checked.types {
+        match t.status {
+            footlight_mvr::Modelled::Modelled => tracing::info!("fixture type {t}"),
+            _ => tracing::warn!("fixture type {t}"),
+        }
+    }
+    for n in &checked.notes {
+        tracing::info!("{n}");
+    }
+    if checked.warnings.len() <= SHOWN {
+        checked.warnings.iter().for_each(|w| tracing::warn!("{w}"));
+    } else {
+        tracing::warn!(
+            "{} import warnings (each said once, with its file and line): `footlight check {}` lists them",
+            checked.warnings.len(),
+            path.display()
+        );
+    }
 }
 
 /// The scene: `--scene`, else an MVR patch's own geometry (issue 14), else the bundled stage.
@@ -698,7 +745,7 @@ fn run_daemon(
         let listener = footlight::live::bind_http(args.http).await?;
         let input = args.input.clone();
         let loading = tokio::task::spawn_blocking(move || load_inputs(&input));
-        let (scene, patch) = tokio::select! {
+        let (scene, patch, import) = tokio::select! {
             loaded = loading => loaded.context("loading the scene")??,
             _ = &mut stop => return Ok(()),
         };
@@ -766,6 +813,7 @@ fn run_daemon(
             .input(source)
             .serve(listener)
             .named_views(named)
+            .import_status(import)
             .bodies(bodies)
             .on_running(running_tx);
         if let Some(tap) = tap {
@@ -866,10 +914,17 @@ fn jobs_for(show: &Show, universes: &footlight::fixture::Universes) -> Vec<Light
     show.decode(universes).into_iter().map(|i| LightJob { light: i.light, k_full: i.k_full, k: i.k }).collect()
 }
 
-fn check(path: &Path) -> Result<()> {
-    match footlight_mvr::check_patch(path) {
-        Ok((patch, warnings)) => {
-            for w in &warnings {
+/// `footlight check`: notes and warnings (each said once, with its file,
+/// line and the fixtures it concerns), the scene, the fixtures (each, or in
+/// runs of one type and mode past [`MAX_LISTED`] unless `list_all`), one
+/// summary line per fixture type, and the verdict.
+fn check(path: &Path, list_all: bool) -> Result<()> {
+    match footlight_mvr::check_report(path) {
+        Ok(checked) => {
+            for n in &checked.notes {
+                eprintln!("note: {n}");
+            }
+            for w in &checked.warnings {
                 eprintln!("warning: {w}");
             }
             if footlight_mvr::is_mvr(path) {
@@ -889,11 +944,25 @@ fn check(path: &Path) -> Result<()> {
                     );
                 }
             }
+            let patch = &checked.patch;
             let listing = patch.listing();
-            for fixture in &listing {
-                println!("{fixture}");
+            if list_all || listing.len() <= MAX_LISTED {
+                listing.iter().for_each(|f| println!("{f}"));
+            } else {
+                let runs = fixture_runs(&listing);
+                runs.iter().for_each(|r| println!("{r}"));
+                println!(
+                    "({} fixtures in {} runs of one type and mode: `footlight check --list {}` lists each)",
+                    listing.len(),
+                    runs.len(),
+                    path.display()
+                );
             }
-            println!("{}: ok, {}", path.display(), fixture_summary(&patch, &listing));
+            if !checked.types.is_empty() {
+                println!("fixture types:");
+                checked.types.iter().for_each(|t| println!("  {t}"));
+            }
+            println!("{}: ok, {}", path.display(), fixture_summary(patch, &listing));
             Ok(())
         }
         Err(errors) => {
@@ -905,9 +974,63 @@ fn check(path: &Path) -> Result<()> {
     }
 }
 
-/// Fixtures listed with their addresses when `run` starts; a bigger show
-/// prints where to find them instead.
+/// Fixtures listed with their addresses when `run` starts, and by `check`
+/// one per line; a bigger show prints where to find them (`run`) or lists
+/// them in runs (`check`).
 const MAX_LISTED: usize = 40;
+
+/// Consecutive fixtures of one type, mode and cell count as one line each:
+/// `  1001-1096  PixelBar 16 1 … PixelBar 16 96  [PixelBar 16 (65ch), 16 cells] × 96  DMX 1/1 … 14/261-325`
+/// (ids, first and last name, the type as `check --list` shows it, how
+/// many, the first fixture's start and the last one's range).
+fn fixture_runs(listing: &[footlight::fixture::patch::ListedFixture]) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < listing.len() {
+        let first = &listing[i];
+        let mut j = i;
+        while j + 1 < listing.len() {
+            let next = &listing[j + 1];
+            if (&next.type_name, &next.mode, next.lights) != (&first.type_name, &first.mode, first.lights) {
+                break;
+            }
+            j += 1;
+        }
+        let last = &listing[j];
+        let n = j - i + 1;
+        if n == 1 {
+            out.push(first.to_string());
+            i = j + 1;
+            continue;
+        }
+        let ids = if last.id >= first.id && (last.id - first.id) as usize == n - 1 {
+            format!("{}-{}", first.id, last.id)
+        } else {
+            format!("{}…{}", first.id, last.id)
+        };
+        let kind = match &first.mode {
+            Some(m) => format!("{} ({m})", first.type_name),
+            None => first.type_name.clone(),
+        };
+        let cells = if first.lights > 1 { format!(", {} cells", first.lights) } else { String::new() };
+        let start = |f: &footlight::fixture::patch::ListedFixture| f.dmx.map(|(u, a)| format!("{u}/{a}"));
+        let end = |f: &footlight::fixture::patch::ListedFixture| {
+            f.dmx.map(|(u, a)| match f.footprint {
+                0 | 1 => format!("{u}/{a}"),
+                w => format!("{u}/{a}-{}", u32::from(a) + u32::from(w) - 1),
+            })
+        };
+        let dmx = match (start(first), end(last)) {
+            (Some(a), Some(b)) => format!("{a} … {b}"),
+            (Some(a), None) => format!("{a} …"),
+            (None, Some(b)) => format!("… {b}"),
+            (None, None) => "not patched".to_string(),
+        };
+        out.push(format!("{ids:>11}  {} … {}  [{kind}{cells}] × {n}  DMX {dmx}", first.name, last.name));
+        i = j + 1;
+    }
+    out
+}
 
 /// "10 fixtures on universe 1", "150 fixtures (336 lights: cells counted) on
 /// universes 1-3, 5", "2 fixtures, none patched": fixtures and their cells
@@ -981,7 +1104,7 @@ fn render(args: RenderArgs) -> Result<()> {
         Some("pfm") => "pfm",
         _ => bail!("--out {}: the name must end in .png, .exr or .pfm", args.out.display()),
     };
-    let (scene, patch) = load_inputs(&args.input)?;
+    let (scene, patch, _) = load_inputs(&args.input)?;
     let camera = choose_camera(&scene, &patch);
     let white = white_balance_for(&args.white_balance, patch.rig_white().as_ref())
         .map_err(|e| anyhow::anyhow!("--white-balance {e}"))?;

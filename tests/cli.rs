@@ -790,13 +790,84 @@ fn check_lists_fixtures_with_their_addresses_and_warns_about_unaddressed_ones() 
     assert!(out.trim_end().ends_with("ok, 6 fixtures, none patched"), "no universe list made up: {out}");
     assert!(err.contains("6 fixture(s) have no universe and address (id 1, 2, 3, 4, 5, 6)"), "{err}");
 
-    // An MVR pixel show: fixtures and cells counted apart, cells folded.
+    // An MVR pixel show: fixtures and cells counted apart, cells folded; past 40
+    // fixtures in runs of one type and mode (`--list`: each fixture).
     let o = footlight().args(["check", "tests/data/mvr/show150.mvr"]).output().unwrap();
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success());
     let summary = out.lines().last().unwrap();
     assert!(summary.ends_with("ok, 148 fixtures (336 lights: cells counted) on universes 1-5"), "{summary}");
-    assert!(out.lines().any(|l| l.contains(" cells]  DMX ")), "a pixel bar's cells are folded: {out}");
+    assert!(out.lines().any(|l| l.contains(" 8 cells] × 24  DMX ")), "the 24 pixel bars in one run: {out}");
+    let o = footlight().args(["check", "--list", "tests/data/mvr/show150.mvr"]).output().unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.lines().filter(|l| l.contains(" cells]  DMX ")).count() == 24 + 20, "bars and blinders, each: {out}");
+}
+
+/// A festival-scale show (tools/gen_gdtf_mvr.py --festival: 231 fixtures,
+/// 3,687 lights on 34 universes, a 204,450-triangle venue) checks on one
+/// screen (issue 36 item 3): each warning once with its line and the
+/// fixtures it concerns, the fixtures in runs, and one summary line per
+/// fixture type (modelled, partly and why, or not) before the verdict.
+#[test]
+fn check_of_a_festival_show_fits_one_screen_with_a_line_per_fixture_type() {
+    let known: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string("tests/data/mvr/festival.json").unwrap()).unwrap();
+    let o = footlight().args(["check", "tests/data/mvr/festival.mvr"]).output().unwrap();
+    let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{err}");
+    let lines = out.lines().count() + err.lines().count();
+    assert!(lines < 60, "{lines} lines:\n{err}{out}");
+    assert!(err.lines().all(|l| l.starts_with("warning: ") || l.starts_with("note: ")), "{err}");
+    // The summary: one line per GDTF the show names, after "fixture types:", then the verdict.
+    let types = known["types"].as_object().unwrap();
+    let block: Vec<&str> =
+        out.lines().skip_while(|l| *l != "fixture types:").skip(1).take_while(|l| l.starts_with("  ")).collect();
+    assert_eq!(block.len(), types.len(), "{out}");
+    for (file, t) in types {
+        let cells = t["fixtures"].as_u64().unwrap() * t["cells_per_fixture"].as_u64().unwrap();
+        let line = block.iter().find(|l| l.contains(&format!("({} fixtures", t["fixtures"]))).unwrap();
+        if t["cells_per_fixture"].as_u64().unwrap() > 1 {
+            assert!(block.iter().any(|l| l.contains(&format!(", {cells} cells): "))), "{file}: {out}");
+        }
+        assert!([": modelled", ": partly — ", ": not modelled — "].iter().any(|s| line.contains(s)), "{line}");
+    }
+    let missing = block.iter().find(|l| l.contains("Floor Wash 7")).unwrap();
+    assert!(missing.contains("(3 fixtures): not modelled — the GDTF is not in the archive"), "{missing}");
+    assert!(
+        err.contains("Floor Wash 7.gdtf\" is named but not in the archive") && err.contains("(3 fixtures)"),
+        "{err}"
+    );
+    let last = out.lines().last().unwrap();
+    assert!(last.ends_with("ok, 231 fixtures (3687 lights: cells counted) on universes 1-34, 3 not patched"), "{last}");
+    assert!(out.contains(&format!("scene of 2 object(s), {} triangles", known["triangles_total"])), "{out}");
+    // Both extension-less GDTFSpecs resolve, each with a one-line note.
+    assert_eq!(err.lines().filter(|l| l.starts_with("note: ") && l.contains("GDTFSpec")).count(), 2, "{err}");
+}
+
+/// `render` (like `run`) says what the import said once, summarised: a line
+/// per fixture type (the missing GDTF among them, no longer silent) and each
+/// missing body model file once with its count, not once per cell (issue 36 item 3).
+#[test]
+fn render_sums_up_the_import_once() {
+    let dir = temp_dir("festival-render");
+    let o = footlight()
+        .args(["render", "--patch", "tests/data/mvr/festival.mvr", "--width", "40", "--height", "25"])
+        .args(["--photons", "0", "--bodies", "--out"])
+        .arg(dir.join("f.png"))
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{log}");
+    assert_eq!(log.lines().filter(|l| l.contains("fixture type ")).count(), 7, "{log}");
+    assert!(
+        log.lines().any(|l| l.contains("WARN") && l.contains("Floor Wash 7.gdtf (3 fixtures): not modelled")),
+        "{log}"
+    );
+    // The pixel bar's two model files, 96 bodies and 96 × 16 pixels: two lines.
+    let models: Vec<&str> = log.lines().filter(|l| l.contains("is in neither models/gltf nor models/3ds")).collect();
+    assert_eq!(models.len(), 2, "{log}");
+    assert!(models.iter().any(|l| l.contains("\"px16_pixel\"") && l.contains("(1536 parts of 96 fixtures)")), "{log}");
+    assert!(log.lines().count() < 60, "{} lines:\n{log}", log.lines().count());
 }
 
 /// An MVR whose venue has no camera opens on the "frame the rig" view, from

@@ -174,3 +174,39 @@ fn light_table_fits_1280_px_with_one_row_per_fixture_cells_folded_and_lit_fixtur
     let by_patch = table(&mut browser, fixtures.len() + 8, lit.len());
     assert_eq!(by_patch["rows"][0]["fixture"], fixtures[0].0.to_string());
 }
+
+/// Issue 36 item 3: the page lists what the import said, folded under
+/// "import warnings": one line per fixture type (a GDTF the archive lacks
+/// marked not modelled) and each warning once, as `/api/status` gives them;
+/// a click unfolds it.
+#[test]
+fn the_page_lists_the_import_summary_in_a_folded_section() {
+    let Some(chromium) = chromium() else { return };
+    let checked = footlight_mvr::check_report(&root().join("tests/data/mvr/features.mvr")).unwrap();
+    let (types, warnings) = (checked.types.len(), checked.warnings.len());
+    let import = footlight::live::ImportStatus::of(&checked);
+    let daemon = ShowDaemon::start_with_import(checked.patch, 160, 100, Default::default(), import);
+    let mut browser = open_at(chromium, &format!("http://{}/", daemon.http), 1280, 800);
+    let read = "new Promise((ok, fail) => { const t0 = performance.now(); const t = () => {
+         const box = document.getElementById('import');
+         if (box && !box.hidden) {
+           const lines = [...document.querySelectorAll('#import-list div')];
+           ok({ open: box.open, summary: document.getElementById('import-summary').textContent,
+             lines: lines.map(d => ({ cls: d.className, text: d.textContent, shown: d.checkVisibility() })) });
+         } else if (performance.now() - t0 > 60000) fail(new Error('the import section never showed'));
+         else setTimeout(t, 50); }; t(); })";
+    let folded = browser.eval(read);
+    assert_eq!(folded["open"], false, "folded at first: {folded}");
+    let summary = folded["summary"].as_str().unwrap();
+    assert!(summary.starts_with(&format!("import warnings: {warnings} · {types} fixture types")), "{summary}");
+    let lines = folded["lines"].as_array().unwrap();
+    assert_eq!(lines.len(), types + warnings, "{folded}");
+    assert!(lines.iter().all(|l| l["shown"] == false), "hidden while folded: {folded}");
+    let missing = lines.iter().find(|l| l["text"].as_str().unwrap().contains("Footlight@Missing.gdtf")).unwrap();
+    assert_eq!(missing["cls"], "not", "{missing}");
+    assert!(missing["text"].as_str().unwrap().contains("(2 fixtures): not modelled — "), "{missing}");
+    browser.eval("document.getElementById('import-summary').click()");
+    let open = browser.eval(read);
+    assert_eq!(open["open"], true);
+    assert!(open["lines"].as_array().unwrap().iter().all(|l| l["shown"] == true), "{open}");
+}

@@ -351,6 +351,17 @@ pub(crate) struct ShowDaemon {
 impl ShowDaemon {
     /// Starts the daemon at `width`×`height` with `dmx` as the first levels.
     pub(crate) fn start(patch: footlight::Patch, width: u32, height: u32, dmx: footlight_dmx::Universes) -> Self {
+        Self::start_with_import(patch, width, height, dmx, footlight::live::ImportStatus::default())
+    }
+
+    /// [`ShowDaemon::start`], the status's `import` given.
+    pub(crate) fn start_with_import(
+        patch: footlight::Patch,
+        width: u32,
+        height: u32,
+        dmx: footlight_dmx::Universes,
+        import: footlight::live::ImportStatus,
+    ) -> Self {
         let (dmx_tx, dmx_rx) = watch::channel(dmx);
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
         let (addr_tx, addr_rx) = std::sync::mpsc::channel();
@@ -374,6 +385,7 @@ impl ShowDaemon {
                 let show = Arc::new(footlight::live::Show::new(patch));
                 Daemon::new(Arc::new(b.build()), show, camera, config)
                     .input(DmxSource::Channel(dmx_rx))
+                    .import_status(import)
                     .serve(listener)
                     .run(async {
                         let _ = stop_rx.await;
@@ -401,6 +413,33 @@ impl Drop for ShowDaemon {
             let _ = t.join();
         }
     }
+}
+
+/// Issue 36 item 3: `/api/status` lists what the import said: one summary
+/// per fixture type (a GDTF the archive lacks: not modelled, with its
+/// fixtures) and each warning once, as `footlight check` prints them.
+#[test]
+fn status_lists_the_import_summary() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr/features.mvr");
+    let checked = footlight_mvr::check_report(&path).unwrap();
+    let import = footlight::live::ImportStatus::of(&checked);
+    let said: Vec<String> = checked.warnings.iter().map(ToString::to_string).collect();
+    let d = ShowDaemon::start_with_import(checked.patch, 40, 25, Default::default(), import);
+    let status = d.status();
+    let types = status["import"]["types"].as_array().unwrap();
+    // features.mvr names 7 GDTF files: Spot, Wash, Bar8, Blinder, Fresnel, Hazer and a missing one.
+    assert_eq!(types.len(), 7, "{status}");
+    let missing = types.iter().find(|t| t["file"] == "Footlight@Missing.gdtf").unwrap();
+    assert_eq!((missing["status"].as_str(), missing["fixtures"].as_u64()), (Some("not"), Some(2)), "{missing}");
+    let bar = types.iter().find(|t| t["file"] == "Footlight@Bar8.gdtf").unwrap();
+    assert_eq!((bar["fixtures"].as_u64(), bar["cells"].as_u64()), (Some(1), Some(8)), "{bar}");
+    let warnings: Vec<String> =
+        status["import"]["warnings"].as_array().unwrap().iter().filter_map(|w| w.as_str().map(String::from)).collect();
+    assert_eq!(warnings, said, "the status says what `footlight check` says");
+    assert!(
+        warnings.iter().any(|w| w.contains("Footlight@Missing.gdtf") && w.contains("(2 fixtures)")),
+        "{warnings:?}"
+    );
 }
 
 /// One fixture as read from its patch file by the tests (not by Footlight).

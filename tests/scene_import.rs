@@ -795,3 +795,134 @@ fn assert_lambert_under_1cd(got: glam::Vec3, rho: glam::Vec3, light: glam::Vec3,
         "{what} at {p}: got {got}, expected {expected}"
     );
 }
+
+// --- Files a model inside an MVR references resolve inside the archive (issue 36 item 4) ---
+
+/// A zip (deflated) of `entries`: a small MVR made here.
+fn mvr_zip(entries: &[(&str, &[u8])]) -> Vec<u8> {
+    use std::io::Write;
+    let mut buf = std::io::Cursor::new(Vec::new());
+    let mut w = zip::ZipWriter::new(&mut buf);
+    for (name, data) in entries {
+        w.start_file(*name, zip::write::SimpleFileOptions::default()).unwrap();
+        w.write_all(data).unwrap();
+    }
+    w.finish().unwrap();
+    buf.into_inner()
+}
+
+/// A scene description with one SceneObject whose Geometry3D is `file`, at the origin.
+fn one_object_gsd(file: &str) -> String {
+    format!(
+        r#"<?xml version="1.0" encoding="UTF-8"?>
+<GeneralSceneDescription verMajor="1" verMinor="6"><Scene><Layers><Layer name="Venue" uuid="L1"><ChildList>
+<SceneObject name="Quad" uuid="O1"><Matrix>{{1,0,0}}{{0,1,0}}{{0,0,1}}{{0,0,0}}</Matrix>
+<Geometries><Geometry3D fileName="{file}"/></Geometries></SceneObject>
+</ChildList></Layer></Layers></Scene></GeneralSceneDescription>"#
+    )
+}
+
+/// A 1 m textured quad at y = 0 (u along x, v along z) as glTF JSON whose
+/// buffer is the file `buffer_uri` (`byte_length` declared) and whose
+/// base-colour image is the file `image_uri`; and that buffer's bytes.
+fn quad_gltf(buffer_uri: &str, byte_length: usize, image_uri: &str) -> (String, Vec<u8>) {
+    let pos: [[f32; 3]; 4] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 1.0], [0.0, 0.0, 1.0]];
+    let uv: [[f32; 2]; 4] = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    let idx: [u16; 6] = [0, 3, 2, 0, 2, 1];
+    let mut bin: Vec<u8> = pos.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
+    bin.extend(uv.iter().flatten().flat_map(|f| f.to_le_bytes()));
+    bin.extend(idx.iter().flat_map(|i| i.to_le_bytes()));
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"material":0}}]}}],
+        "materials":[{{"pbrMetallicRoughness":{{"baseColorTexture":{{"index":0}},"metallicFactor":0}}}}],
+        "textures":[{{"source":0}}],"images":[{{"uri":"{image_uri}"}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[0,0,0],"max":[1,0,1]}},
+          {{"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"}},
+          {{"bufferView":2,"componentType":5123,"count":6,"type":"SCALAR"}}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":32}},
+          {{"buffer":0,"byteOffset":80,"byteLength":12}}],
+        "buffers":[{{"uri":"{buffer_uri}","byteLength":{byte_length}}}]}}"#
+    );
+    (json, bin)
+}
+
+/// A 2 × 1 PNG: red on the left, blue on the right (sRGB 255: linear 1).
+fn red_blue_png() -> Vec<u8> {
+    let img = image::RgbImage::from_raw(2, 1, vec![255, 0, 0, 0, 0, 255]).unwrap();
+    let mut out = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut out, image::ImageFormat::Png).unwrap();
+    out.into_inner()
+}
+
+#[test]
+fn a_gltf_inside_an_mvr_reads_its_buffer_and_texture_from_the_archive() {
+    let d = dir("mvr-files");
+    let png = red_blue_png();
+    // models/quad.gltf reads models/quad.bin and models/maps/red-blue.png: paths from its own folder.
+    let load = |name: &str, buffer_uri: &str, byte_length: Option<usize>, image_uri: &str| {
+        let (json, bin) = quad_gltf(buffer_uri, byte_length.unwrap_or(92), image_uri);
+        let gsd = one_object_gsd("models/quad.gltf");
+        let zip = mvr_zip(&[
+            ("GeneralSceneDescription.xml", gsd.as_bytes()),
+            ("models/quad.gltf", json.as_bytes()),
+            ("models/quad.bin", &bin),
+            ("models/maps/red-blue.png", &png),
+            ("secret.bin", &bin),
+        ]);
+        let path = d.join(name);
+        std::fs::write(&path, zip).unwrap();
+        footlight::scene::load_mvr_scene(&path).expect("the MVR loads (a bad model is a stand-in)")
+    };
+    let good = load("good.mvr", "quad.bin", None, "maps/red-blue.png");
+    assert!(good.warnings.is_empty(), "{:?}", good.warnings);
+    assert_eq!(good.scene.triangle_count(), 2);
+    let tex = good.scene.materials.iter().find_map(|m| m.base_texture.clone()).expect("a textured material");
+    let (left, right) = (tex.sample(glam::Vec2::new(0.25, 0.5)), tex.sample(glam::Vec2::new(0.75, 0.5)));
+    assert!((left - glam::Vec3::X).length() < 1e-5 && (right - glam::Vec3::Z).length() < 1e-5, "{left} {right}");
+    // `./` and a percent-escaped name are the same file.
+    let escaped = load("escaped.mvr", "./quad%2Ebin", None, "maps/red%2Dblue.png");
+    assert!(escaped.warnings.is_empty() && escaped.scene.triangle_count() == 2, "{:?}", escaped.warnings);
+    // Confined to the archive: no `..`, no absolute path, no scheme; a missing
+    // file or a short one is an error; each is a stand-in cube with one warning.
+    let refused = [
+        ("dotdot.mvr", "../secret.bin", None, "`..`"),
+        ("absolute.mvr", "/secret.bin", None, "absolute"),
+        ("drive.mvr", "C:\\\\secret.bin", None, "absolute"),
+        ("scheme.mvr", "file:///etc/passwd", None, "only data: URIs and paths relative"),
+        ("missing.mvr", "nothing.bin", None, "\"models/nothing.bin\" is not in the archive"),
+        (
+            "short.mvr",
+            "quad.bin",
+            Some(200),
+            "byteLength is 200, but \"models/quad.bin\" in the archive has only 92 bytes",
+        ),
+    ];
+    for (name, uri, len, why) in refused {
+        let s = load(name, uri, len, "maps/red-blue.png");
+        assert_eq!(s.warnings.len(), 1, "{name}: {:?}", s.warnings);
+        assert!(s.warnings[0].contains(why) && s.warnings[0].contains("stand-in"), "{name}: {}", s.warnings[0]);
+        assert_eq!(s.scene.triangle_count(), 12, "{name}: the stand-in cube");
+    }
+    // An image that is not in the archive leaves the constant factor, with a warning; the mesh loads.
+    let no_image = load("no-image.mvr", "quad.bin", None, "maps/none.png");
+    assert_eq!(no_image.scene.triangle_count(), 2, "{:?}", no_image.warnings);
+}
+
+#[test]
+fn the_festival_venue_reads_its_texture_and_buffer_files_from_the_archive() {
+    // tests/data/mvr/festival.mvr (tools/gen_gdtf_mvr.py --festival): festival_ground.glb samples
+    // textures/grass.png and festival_stage.gltf reads festival_stage.bin, both files of the archive.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let known: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root.join("tests/data/mvr/festival.json")).unwrap()).unwrap();
+    let loaded = footlight::scene::load_mvr_scene(&root.join("tests/data/mvr/festival.mvr")).unwrap();
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    assert_eq!(loaded.scene.triangle_count() as u64, known["triangles_total"].as_u64().unwrap());
+    assert!(known["triangles_total"].as_u64().unwrap() >= 200_000);
+    assert!(loaded.scene.camera.is_none(), "a camera-less venue");
+    let grass = loaded.scene.materials.iter().find_map(|m| m.base_texture.clone()).expect("the ground's texture");
+    // textures/grass.png's texels are green (sRGB (v/2, 60 + v, v/3), v in 40..64).
+    let texel = grass.sample(glam::Vec2::new(0.3, 0.7));
+    assert!(texel.y > 2.0 * texel.x && texel.y > 2.0 * texel.z, "{texel}");
+}

@@ -340,7 +340,7 @@ def mode(name, geometry, channels, relations=()):
     )
 
 
-def fixture_type(name, short, attrs_used, wheels, physical, models, geometries, modes, description):
+def fixture_type(name, short, attrs_used, wheels, physical, models, geometries, modes, description, manufacturer="Footlight"):
     ft = el(
         "FixtureType",
         [
@@ -357,7 +357,7 @@ def fixture_type(name, short, attrs_used, wheels, physical, models, geometries, 
         Name=name,
         ShortName=short,
         LongName=f"Footlight test {name}",
-        Manufacturer="Footlight",
+        Manufacturer=manufacturer,
         Description=description,
         FixtureTypeID=uid("ft/" + name),
         Thumbnail="",
@@ -1310,6 +1310,502 @@ def bodies_mvr():
     return zip_bytes(entries)
 
 
+# --- festival.mvr (issue 38 item 7, issue 36 items 3-4): a festival-scale show -------------
+#
+# Six manufacturers' files as a festival rig hangs them (makers and numbers invented,
+# estimated): pixel bars of 16 cells with no emitters and no dimmer, 20-cell LED wash
+# heads (master dimmer, per-cell RGBW, ColorMixMode, HSB), profiles with two rotating
+# gobo wheels (mode masters: index or rotation), 8-cell blinders (DimmerCurve,
+# StrobeDuration, ColorAdd_WW/CW), beams named by an extension-less GDTFSpec (one
+# `<name>.gdtf`, one only by its FixtureType Name) and 40-cell strobe battens; three
+# fixtures of a GDTF the archive lacks; a venue (ground, deck, roof: > 200,000 triangles)
+# whose glTF models read a texture file and a buffer file from the archive; no camera.
+# Known answers in FESTIVAL_JSON (tests/data/mvr/festival.json).
+
+FESTIVAL_MVR = MVR_DIR / "festival.mvr"
+FESTIVAL_JSON = MVR_DIR / "festival.json"
+
+FESTIVAL_ATTRIBUTES = {
+    "ColorMacro1": ("Color.Color", "None", "Color Macro 1"),
+    "ColorMixMode": ("Control.Control", "None", "Color Mix Mode"),
+    "HSB_Hue": ("Color.Color", "Angle", "Hue"),
+    "HSB_Saturation": ("Color.Color", "ColorComponent", "Saturation"),
+    "HSB_Brightness": ("Color.Color", "ColorComponent", "Brightness"),
+    "Gobo2": ("Gobo.Gobo", "None", "G2"),
+    "Gobo2Pos": ("Gobo.Gobo", "Angle", "G2 <>"),
+    "Gobo2PosRotate": ("Gobo.Gobo", "AngularSpeed", "G2 Rotate"),
+    "StrobeDuration": ("Beam.Beam", "Time", "Strobe Duration"),
+    "DimmerCurve": ("Control.Control", "None", "Dimmer Curve"),
+    "ColorAdd_WW": ("Color.RGB", "ColorComponent", "WW"),
+    "ColorAdd_CW": ("Color.RGB", "ColorComponent", "CW"),
+}
+for _name, _def in FESTIVAL_ATTRIBUTES.items():
+    ATTRIBUTES.setdefault(_name, _def)
+
+# (file in the archive, GDTFSpec the MVR writes, mode, fixtures, cells per fixture, footprint)
+FESTIVAL_TYPES = [
+    ("Lumenstrip@PixelBar 16.gdtf", "Lumenstrip@PixelBar 16.gdtf", "65ch", 96, 16, 65),
+    ("Orbis@Wash 20.gdtf", "Orbis@Wash 20.gdtf", "Extended", 48, 20, 92),
+    ("Nordlicht@Profile 1200.gdtf", "Nordlicht@Profile 1200.gdtf", "Standard", 24, 1, 22),
+    ("Blitzwerk@Cluster S2.gdtf", "Blitzwerk@Cluster S2", "20ch", 24, 8, 20),
+    ("Raylight@Sharpline_330@rev2.gdtf", "Sharpline 330", "Standard", 12, 1, 11),
+    ("Pyxis@Stroboline 40.gdtf", "Pyxis@Stroboline 40.gdtf", "123ch", 24, 40, 123),
+]
+# Named by three fixtures, not in the archive: dark placeholders (one warning, one summary line).
+FESTIVAL_MISSING = ("Lumenstrip@Floor Wash 7.gdtf", "Mode 1", 3, 1, 10)
+
+
+def festival_pretty(text):
+    """One element per line, as exporters write their XML (so a warning's line number
+    points at the element it names; the other generated files are one long line)."""
+    return text.replace("><", ">\n<")
+
+
+def festival_physical(emitters=None):
+    return [emitters or el("Emitters"), el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
+
+
+def festival_cells(names_geometry, count, first_offset, stride, positions, break_="1"):
+    """`count` GeometryReferences of `names_geometry` (name prefix, referenced geometry), the
+    k-th at positions[k] with its channels from DMX offset first_offset + stride * k."""
+    prefix, geometry = names_geometry
+    return [
+        el("GeometryReference", [el("Break", DMXOffset=str(first_offset + stride * k), DMXBreak=break_)], Name=f"{prefix}{k + 1}", Geometry=geometry, Position=positions[k])
+        for k in range(count)
+    ]
+
+
+def festival_pixel_bar():
+    """Lumenstrip PixelBar 16: a 1 m bar of 16 RGBW pixels, no emitters defined and no
+    dimmer (the colour channels are the level), a colour macro on the last slot; its
+    models name files the archive lacks (bodies: the primitive, one warning per file)."""
+    used = ["ColorAdd_R", "ColorAdd_G", "ColorAdd_B", "ColorAdd_W", "ColorMacro1"]
+    models = [model("Body", 1.0, 0.05, 0.07, "Cube", file="px16_body"), model("Pixel", 0.0625, 0.04, 0.01, "Cube", file="px16_pixel")]
+    pixel = beam("Pixel", "Pixel", m4(), LampType="LED", PowerConsumption="6", LuminousFlux="250", ColorTemperature="6500", BeamAngle="15", FieldAngle="25", BeamRadius="0.02", BeamType="Wash")
+    refs = festival_cells(("Pixel", "Pixel"), 16, 1, 4, [m4(-0.46875 + 0.0625 * k, 0, -0.035) for k in range(16)])
+    tree = el("Geometry", refs, Name="Bar", Model="Body", Position=m4())
+    chans = [simple("Pixel", [1 + k], a) for k, a in enumerate(["ColorAdd_R", "ColorAdd_G", "ColorAdd_B", "ColorAdd_W"])]
+    chans.append(Chan("Bar", [65], [("ColorMacro1", 0, 0, 0, {}, [("Off", 0, None)]), ("ColorMacro1", 8, 0, 0, {}, [("Rainbow", 8, None)])]))
+    return fixture_type(
+        "PixelBar 16", "PX16", used, [], festival_physical(), models, [tree, pixel], [mode("65ch", "Bar", chans)],
+        "16-pixel RGBW bar, no emitters, no dimmer (festival test data, estimated values)", manufacturer="Lumenstrip",
+    ), {}
+
+
+def festival_wash():
+    """Orbis Wash 20: a moving head of 20 RGBW cells in a ring (emitters with xyY), a
+    master dimmer, zoom, shutter/strobe, ColorMixMode and HSB on the head."""
+    used = ["Pan", "Tilt", "Dimmer", "Shutter1", "Shutter1Strobe", "Zoom", "ColorMixMode", "HSB_Hue", "HSB_Saturation", "HSB_Brightness", "ColorAdd_R", "ColorAdd_G", "ColorAdd_B", "ColorAdd_W"]
+    models = [model("Base", 0.4, 0.3, 0.15, "Base"), model("Yoke", 0.4, 0.1, 0.4, "Yoke"), model("Head", 0.35, 0.35, 0.3, "Head"), model("Cell", 0.05, 0.05, 0.01, "Cylinder")]
+    cell = beam("Cell", "Cell", m4(), LampType="LED", PowerConsumption="40", LuminousFlux="900", ColorTemperature="6500", BeamAngle="6", FieldAngle="10", BeamRadius="0.025", BeamType="Wash")
+    ring = []
+    for k in range(20):
+        r, a = (0.06, 2 * math.pi * k / 6) if k < 6 else (0.13, 2 * math.pi * (k - 6) / 14)
+        ring.append(m4(r * math.cos(a), r * math.sin(a), -0.15))
+    head = el("Axis", festival_cells(("Cell", "Cell"), 20, 13, 4, ring), Name="Head", Model="Head", Position=m4(0, 0, -0.3))
+    tree = el("Geometry", [el("Axis", [head], Name="Yoke", Model="Yoke", Position=m4(0, 0, -0.15))], Name="Base", Model="Base", Position=m4())
+    rgbw = [("ColorAdd_R", "Red"), ("ColorAdd_G", "Green"), ("ColorAdd_B", "Blue"), ("ColorAdd_W", "White")]
+    chans = [
+        simple("Yoke", [1, 2], "Pan", -270, 270, default=32768),
+        simple("Head", [3, 4], "Tilt", -135, 135, default=32768),
+        simple("Head", [5, 6], "Dimmer", 0, 1),
+        Chan("Head", [7], [("Shutter1", 0, 0, 0, {}, [("Closed", 0, None)]), ("Shutter1", 16, 1, 1, {}, [("Open", 16, None)]), ("Shutter1Strobe", 32, 1, 20, {}, [])], default=16),
+        simple("Head", [8], "Zoom", 6, 45),
+        Chan("Head", [9], [("ColorMixMode", 0, 0, 0, {}, [("RGBW", 0, None)]), ("ColorMixMode", 128, 1, 1, {}, [("HSB", 128, None)])]),
+        simple("Head", [10], "HSB_Hue", 0, 360),
+        simple("Head", [11], "HSB_Saturation", 0, 1),
+        simple("Head", [12], "HSB_Brightness", 0, 1),
+    ]
+    chans += [simple("Cell", [1 + k], a, extra={"Emitter": e}) for k, (a, e) in enumerate(rgbw)]
+    return fixture_type(
+        "Wash 20", "W20", used, [], festival_physical(emitters_xml(spectra=False)), models, [tree, cell], [mode("Extended", "Base", chans)],
+        "20-cell RGBW wash head (festival test data, estimated values)", manufacturer="Orbis",
+    ), {}
+
+
+def festival_gobo_wheel(name, slots):
+    return el("Wheel", [el("Slot", Name="Open", Color="0.3127,0.3290,100")] + [el("Slot", Name=n, Color="0.3127,0.3290,100", MediaFileName=f) for n, f in slots], Name=name)
+
+
+def festival_rotating_gobos(geometry, wheel, offset, sets):
+    """A rotating gobo wheel's two channels: the wheel (0-63 slots indexed, 64-127 the
+    same slots rotating, 128-255 wheel spin) and its rotation channel, whose two
+    functions both start at DMX 0, each active by mode master (the wheel channel's
+    range): WheelPos index 0..360 deg while indexed, PosRotate -200..200 deg/s while rotating."""
+    master = f"{geometry}_{wheel}"
+    slots = [(n, 8 * k, k + 1) for k, n in enumerate(sets)]
+    rotating = [(f"{n} rotating", 64 + 8 * k, k + 1) for k, n in enumerate(sets)]
+    wheel_chan = Chan(
+        geometry,
+        [offset],
+        [(wheel, 0, 0, 0, {"Wheel": wheel}, slots + rotating), (f"{wheel}WheelSpin", 128, -120, 120, {"Wheel": wheel}, [])],
+    )
+    index = {"ModeMaster": master, "ModeFrom": "0/1", "ModeTo": "63/1"}
+    rotate = {"ModeMaster": master, "ModeFrom": "64/1", "ModeTo": "127/1"}
+    pos_chan = Chan(geometry, [offset + 1], [(f"{wheel}Pos", 0, 0, 360, index, []), (f"{wheel}PosRotate", 0, -200, 200, rotate, [])], default=0)
+    return [wheel_chan, pos_chan]
+
+
+def festival_profile():
+    """Nordlicht Profile 1200: a moving profile with a colour wheel, two rotating gobo
+    wheels (mode-mastered index/rotation), prism, frost, zoom, focus, iris, CMY, CTO."""
+    cw, _ = color_wheel()
+    g1 = festival_gobo_wheel("Gobo1", [("Ring", "gobo_ring"), ("Bars", "gobo_bars")])
+    g2 = festival_gobo_wheel("Gobo2", [("Dots", "fest_dots"), ("Half", "fest_half")])
+    pw, _ = prism_wheel()
+    used = [
+        "Pan", "Tilt", "Dimmer", "Shutter1", "Shutter1Strobe", "Color1", "Gobo1", "Gobo1WheelSpin", "Gobo1Pos", "Gobo1PosRotate",
+        "Gobo2", "Gobo2Pos", "Gobo2PosRotate", "Prism1", "Prism1PosRotate", "Frost1", "Zoom", "Focus1", "Iris",
+        "ColorSub_C", "ColorSub_M", "ColorSub_Y", "CTO",
+    ]
+    ATTRIBUTES.setdefault("Gobo2WheelSpin", ("Gobo.Gobo", "AngularSpeed", "G2 Wheel Spin"))
+    used.append("Gobo2WheelSpin")
+    models = [model("Base", 0.45, 0.35, 0.18, "Base"), model("Yoke", 0.4, 0.12, 0.45, "Yoke"), model("Head", 0.3, 0.3, 0.6, "Head"), model("Lens", 0.01, 0.16, 0.16, "Cylinder")]
+    filters = [
+        el("FilterColor", Name="ColorWheel", Model="Lens", Position=m4(0, 0, -0.05)),
+        el("FilterGobo", Name="GoboWheel1", Model="Lens", Position=m4(0, 0, -0.06)),
+        el("FilterGobo", Name="GoboWheel2", Model="Lens", Position=m4(0, 0, -0.07)),
+    ]
+    lens = beam("Lens", "Lens", m4(0, 0, -0.3), LampType="LED", PowerConsumption="1200", LuminousFlux="42000", ColorTemperature="6800", BeamAngle="7", FieldAngle="9", BeamRadius="0.08", BeamType="Spot", children=filters)
+    tree = el("Geometry", [el("Axis", [el("Axis", [lens], Name="Head", Model="Head", Position=m4(0, 0, -0.4))], Name="Yoke", Model="Yoke", Position=m4(0, 0, -0.18))], Name="Base", Model="Base", Position=m4())
+    chans = [
+        simple("Yoke", [1, 2], "Pan", -270, 270, default=32768),
+        simple("Head", [3, 4], "Tilt", -135, 135, default=32768),
+        simple("Lens", [5, 6], "Dimmer", 0, 1),
+        Chan("Lens", [7], [("Shutter1", 0, 0, 0, {}, [("Closed", 0, None)]), ("Shutter1", 32, 1, 1, {}, [("Open", 32, None)]), ("Shutter1Strobe", 64, 1, 25, {}, [])], default=32),
+        Chan("ColorWheel", [8], [("Color1", 0, 0, 0, {"Wheel": "Color1"}, [("Open", 0, 1), ("Red", 10, 2), ("Green", 20, 3), ("Blue", 30, 4), ("Amber", 40, 5)])]),
+    ]
+    chans += festival_rotating_gobos("GoboWheel1", "Gobo1", 9, ["Open", "Ring", "Bars"])
+    chans += festival_rotating_gobos("GoboWheel2", "Gobo2", 11, ["Open", "Dots", "Half"])
+    chans += [
+        Chan("Lens", [13], [("Prism1", 0, 0, 0, {"Wheel": "Prism1"}, [("Out", 0, 1)]), ("Prism1", 128, 0, 0, {"Wheel": "Prism1"}, [("3-Facet", 128, 2)])]),
+        simple("Lens", [14], "Prism1PosRotate", -180, 180, default=128),
+        simple("Lens", [15], "Frost1", 0, 1),
+        simple("Lens", [16], "Zoom", 5, 50),
+        simple("Lens", [17], "Focus1", 0, 1),
+        simple("Lens", [18], "Iris", 1, 0.15),
+        simple("Lens", [19], "ColorSub_C", 0, 1),
+        simple("Lens", [20], "ColorSub_M", 0, 1),
+        simple("Lens", [21], "ColorSub_Y", 0, 1),
+        simple("Lens", [22], "CTO", 6800, 3200),
+    ]
+    dots = png_gray(GOBO_SIZE, GOBO_SIZE, lambda x, y: 255 if ((x // 8) + (y // 8)) % 2 == 0 and (x % 8 - 4) ** 2 + (y % 8 - 4) ** 2 < 9 else 0)
+    half = png_gray(GOBO_SIZE, GOBO_SIZE, lambda x, y: 255 if x < GOBO_SIZE // 2 else 0)
+    media = {"wheels/gobo_ring.png": png_gray(GOBO_SIZE, GOBO_SIZE, gobo_ring), "wheels/gobo_bars.png": png_gray(GOBO_SIZE, GOBO_SIZE, gobo_bars), "wheels/fest_dots.png": dots, "wheels/fest_half.png": half}
+    return fixture_type(
+        "Profile 1200", "P1200", used, [cw, g1, g2, pw], festival_physical(), models, [tree], [mode("Standard", "Base", chans)],
+        "moving profile with two rotating gobo wheels (festival test data, estimated values)", manufacturer="Nordlicht",
+    ), media
+
+
+def festival_blinder():
+    """Blitzwerk Cluster S2: 8 lamps in a 2 x 4 grid, each a warm and a cool white
+    emitter; master dimmer, dimmer curve, strobe rate and duration."""
+    used = ["Dimmer", "DimmerCurve", "Shutter1", "Shutter1Strobe", "StrobeDuration", "ColorAdd_WW", "ColorAdd_CW"]
+    emitters = el("Emitters", [el("Emitter", Name="Warm", Color="0.4600,0.4100,100", DominantWaveLength="0"), el("Emitter", Name="Cool", Color="0.3130,0.3290,100", DominantWaveLength="0")])
+    models = [model("Frame", 0.6, 0.3, 0.12, "Cube"), model("Lamp", 0.12, 0.12, 0.02, "Cylinder")]
+    lamp = beam("Lamp", "Lamp", m4(), LampType="LED", PowerConsumption="90", LuminousFlux="6000", ColorTemperature="4000", BeamAngle="40", FieldAngle="70", BeamRadius="0.06", BeamType="Wash")
+    grid = [m4(-0.225 + 0.15 * (k % 4), -0.075 + 0.15 * (k // 4), -0.06) for k in range(8)]
+    tree = el("Geometry", festival_cells(("Lamp", "Lamp"), 8, 5, 2, grid), Name="Frame", Model="Frame", Position=m4())
+    chans = [
+        simple("Frame", [1], "Dimmer", 0, 1),
+        Chan("Frame", [2], [("DimmerCurve", 0, 0, 0, {}, [("Linear", 0, None)]), ("DimmerCurve", 64, 1, 1, {}, [("Square", 64, None)]), ("DimmerCurve", 128, 2, 2, {}, [("S-curve", 128, None)])]),
+        Chan("Frame", [3], [("Shutter1", 0, 1, 1, {}, [("Open", 0, None)]), ("Shutter1Strobe", 16, 1, 25, {}, [])]),
+        simple("Frame", [4], "StrobeDuration", 0.005, 0.2),
+        simple("Lamp", [1], "ColorAdd_WW", extra={"Emitter": "Warm"}),
+        simple("Lamp", [2], "ColorAdd_CW", extra={"Emitter": "Cool"}),
+    ]
+    return fixture_type(
+        "Cluster S2", "CS2", used, [], festival_physical(emitters), models, [tree, lamp], [mode("20ch", "Frame", chans)],
+        "8-lamp warm/cool blinder (festival test data, estimated values)", manufacturer="Blitzwerk",
+    ), {}
+
+
+def festival_beam():
+    """Raylight Sharpline 330: a beam light (colour wheel, gobo wheel, prism, frost);
+    the MVR names it only by its FixtureType Name, "Sharpline 330"."""
+    cw, _ = color_wheel()
+    gw, _ = gobo_wheel()
+    pw, _ = prism_wheel()
+    used = ["Pan", "Tilt", "Dimmer", "Shutter1", "Shutter1Strobe", "Color1", "Gobo1", "Prism1", "Frost1", "Focus1"]
+    models = [model("Base", 0.35, 0.3, 0.15, "Base"), model("Yoke", 0.3, 0.1, 0.35, "Yoke"), model("Head", 0.22, 0.22, 0.35, "Head"), model("Lens", 0.01, 0.12, 0.12, "Cylinder")]
+    filters = [el("FilterColor", Name="ColorWheel", Model="Lens", Position=m4(0, 0, -0.04)), el("FilterGobo", Name="GoboWheel", Model="Lens", Position=m4(0, 0, -0.05))]
+    lens = beam("Lens", "Lens", m4(0, 0, -0.2), LampType="Discharge", PowerConsumption="330", LuminousFlux="12000", ColorTemperature="7800", BeamAngle="2", FieldAngle="3", BeamRadius="0.06", BeamType="Spot", children=filters)
+    tree = el("Geometry", [el("Axis", [el("Axis", [lens], Name="Head", Model="Head", Position=m4(0, 0, -0.3))], Name="Yoke", Model="Yoke", Position=m4(0, 0, -0.15))], Name="Base", Model="Base", Position=m4())
+    chans = [
+        simple("Yoke", [1, 2], "Pan", -270, 270, default=32768),
+        simple("Head", [3, 4], "Tilt", -135, 135, default=32768),
+        simple("Lens", [5], "Dimmer", 0, 1),
+        Chan("Lens", [6], [("Shutter1", 0, 0, 0, {}, [("Closed", 0, None)]), ("Shutter1", 32, 1, 1, {}, [("Open", 32, None)]), ("Shutter1Strobe", 64, 1, 25, {}, [])], default=32),
+        Chan("ColorWheel", [7], [("Color1", 0, 0, 0, {"Wheel": "Color1"}, [("Open", 0, 1), ("Red", 10, 2), ("Green", 20, 3), ("Blue", 30, 4), ("Amber", 40, 5)])]),
+        Chan("GoboWheel", [8], [("Gobo1", 0, 0, 0, {"Wheel": "Gobo1"}, [("Open", 0, 1), ("Ring", 10, 2), ("Bars", 20, 3)])]),
+        Chan("Lens", [9], [("Prism1", 0, 0, 0, {"Wheel": "Prism1"}, [("Out", 0, 1)]), ("Prism1", 128, 0, 0, {"Wheel": "Prism1"}, [("3-Facet", 128, 2)])]),
+        simple("Lens", [10], "Frost1", 0, 1),
+        simple("Lens", [11], "Focus1", 0, 1),
+    ]
+    media = {"wheels/gobo_ring.png": png_gray(GOBO_SIZE, GOBO_SIZE, gobo_ring), "wheels/gobo_bars.png": png_gray(GOBO_SIZE, GOBO_SIZE, gobo_bars)}
+    return fixture_type(
+        "Sharpline 330", "SL330", used, [cw, gw, pw], festival_physical(), models, [tree], [mode("Standard", "Base", chans)],
+        "beam light (festival test data, estimated values)", manufacturer="Raylight",
+    ), media
+
+
+def festival_strobe():
+    """Pyxis Stroboline 40: a 1.2 m batten of 40 RGB cells (emitters with xyY), master
+    dimmer, strobe rate and duration."""
+    used = ["Dimmer", "Shutter1", "Shutter1Strobe", "StrobeDuration", "ColorAdd_R", "ColorAdd_G", "ColorAdd_B"]
+    models = [model("Batten", 1.2, 0.1, 0.1, "Cube"), model("Cell", 0.03, 0.06, 0.01, "Cube")]
+    cell = beam("Cell", "Cell", m4(), LampType="LED", PowerConsumption="12", LuminousFlux="500", ColorTemperature="6500", BeamAngle="90", FieldAngle="120", BeamRadius="0.015", BeamType="Wash")
+    refs = festival_cells(("Cell", "Cell"), 40, 4, 3, [m4(-0.585 + 0.03 * k, 0, -0.05) for k in range(40)])
+    tree = el("Geometry", refs, Name="Batten", Model="Batten", Position=m4())
+    rgb = [("ColorAdd_R", "Red"), ("ColorAdd_G", "Green"), ("ColorAdd_B", "Blue")]
+    chans = [
+        simple("Batten", [1], "Dimmer", 0, 1),
+        Chan("Batten", [2], [("Shutter1", 0, 1, 1, {}, [("Open", 0, None)]), ("Shutter1Strobe", 16, 1, 25, {}, [])]),
+        simple("Batten", [3], "StrobeDuration", 0.005, 0.2),
+    ]
+    chans += [simple("Cell", [1 + k], a, extra={"Emitter": e}) for k, (a, e) in enumerate(rgb)]
+    return fixture_type(
+        "Stroboline 40", "SB40", used, [], festival_physical(emitters_xml(spectra=False)), models, [tree, cell], [mode("123ch", "Batten", chans)],
+        "40-cell RGB strobe batten (festival test data, estimated values)", manufacturer="Pyxis",
+    ), {}
+
+
+FESTIVAL_BUILDERS = {
+    "Lumenstrip@PixelBar 16.gdtf": festival_pixel_bar,
+    "Orbis@Wash 20.gdtf": festival_wash,
+    "Nordlicht@Profile 1200.gdtf": festival_profile,
+    "Blitzwerk@Cluster S2.gdtf": festival_blinder,
+    "Raylight@Sharpline_330@rev2.gdtf": festival_beam,
+    "Pyxis@Stroboline 40.gdtf": festival_strobe,
+}
+
+
+def festival_gltf_doc(meshes, buffer_uri, image_uri=None):
+    """A glTF 2.0 document and its binary buffer: meshes are (name, positions, triangles,
+    uvs or None, base colour, index bytes 2 or 4); a textured mesh samples image_uri
+    (a file beside the model in the archive) with REPEAT wrapping; buffer_uri None puts
+    the buffer in the GLB's binary chunk."""
+    import array
+    import json
+
+    bin_chunk = bytearray()
+    views, accessors, gl_meshes, materials, nodes = [], [], [], [], []
+
+    def view(data, target=None):
+        while len(bin_chunk) % 4:
+            bin_chunk.append(0)
+        v = {"buffer": 0, "byteOffset": len(bin_chunk), "byteLength": len(data)}
+        if target:
+            v["target"] = target
+        bin_chunk.extend(data)
+        views.append(v)
+        return len(views) - 1
+
+    def floats(values):
+        a = array.array("f", values)
+        if sys.byteorder != "little":
+            a.byteswap()
+        return a.tobytes()
+
+    for name, positions, tris, uvs, colour, index_bytes in meshes:
+        flat = [c for p in positions for c in p]
+        pv = view(floats(flat), 34962)
+        lo = [min(p[k] for p in positions) for k in range(3)]
+        hi = [max(p[k] for p in positions) for k in range(3)]
+        accessors.append({"bufferView": pv, "componentType": 5126, "count": len(positions), "type": "VEC3", "min": lo, "max": hi})
+        attributes = {"POSITION": len(accessors) - 1}
+        code = "H" if index_bytes == 2 else "I"
+        ia = array.array(code, [i for t in tris for i in t])
+        if sys.byteorder != "little":
+            ia.byteswap()
+        iv = view(ia.tobytes(), 34963)
+        accessors.append({"bufferView": iv, "componentType": 5123 if index_bytes == 2 else 5125, "count": 3 * len(tris), "type": "SCALAR"})
+        indices = len(accessors) - 1
+        material = {"name": name, "pbrMetallicRoughness": {"baseColorFactor": list(colour) + [1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0}}
+        if uvs is not None:
+            uv = view(floats([c for t in uvs for c in t]), 34962)
+            accessors.append({"bufferView": uv, "componentType": 5126, "count": len(uvs), "type": "VEC2"})
+            attributes["TEXCOORD_0"] = len(accessors) - 1
+            material["pbrMetallicRoughness"]["baseColorTexture"] = {"index": 0}
+        materials.append(material)
+        gl_meshes.append({"name": name, "primitives": [{"attributes": attributes, "indices": indices, "material": len(materials) - 1}]})
+        nodes.append({"mesh": len(gl_meshes) - 1, "name": name})
+    while len(bin_chunk) % 4:
+        bin_chunk.append(0)
+    buffer = {"byteLength": len(bin_chunk)}
+    if buffer_uri:
+        buffer["uri"] = buffer_uri
+    doc = {
+        "asset": {"version": "2.0", "generator": "Footlight gen_gdtf_mvr.py (festival)"},
+        "scene": 0,
+        "scenes": [{"nodes": list(range(len(nodes)))}],
+        "nodes": nodes,
+        "meshes": gl_meshes,
+        "materials": materials,
+        "buffers": [buffer],
+        "bufferViews": views,
+        "accessors": accessors,
+    }
+    if image_uri:
+        doc["images"] = [{"uri": image_uri}]
+        doc["samplers"] = [{"magFilter": 9729, "minFilter": 9729, "wrapS": 10497, "wrapT": 10497}]
+        doc["textures"] = [{"source": 0, "sampler": 0}]
+    return json.dumps(doc, separators=(",", ":"), sort_keys=True).encode(), bytes(bin_chunk)
+
+
+def festival_glb(meshes, image_uri):
+    js, bin_chunk = festival_gltf_doc(meshes, None, image_uri)
+    js += b" " * (-len(js) % 4)
+    body = struct.pack("<II", len(js), 0x4E4F534A) + js + struct.pack("<II", len(bin_chunk), 0x004E4942) + bin_chunk
+    return struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body
+
+
+def festival_grid(nx, nz, x0, x1, z0, z1, height):
+    """A tessellated surface over x0..x1, z0..z1 (glTF metres, Y up): (nx + 1)(nz + 1)
+    vertices at y = height(x, z), 2 nx nz triangles facing +y, UVs one repeat per 4 m."""
+    pos, uvs, tris = [], [], []
+    for j in range(nz + 1):
+        z = z0 + (z1 - z0) * j / nz
+        for i in range(nx + 1):
+            x = x0 + (x1 - x0) * i / nx
+            pos.append((x, height(x, z), z))
+            uvs.append((x / 4.0, z / 4.0))
+    w = nx + 1
+    for j in range(nz):
+        for i in range(nx):
+            a = j * w + i
+            tris += [(a, a + w, a + w + 1), (a, a + w + 1, a + 1)]
+    return pos, tris, uvs
+
+
+def festival_venue():
+    """The venue's models, stage axes (glTF: metres, Y up, +Z toward the audience):
+    * festival_ground.glb: 160 m x 160 m of ground, 255 x 255 quads (130,050 triangles,
+      16-bit indices), flat within 40 m of the stage and gently rolling beyond, its
+      texture textures/grass.png a file in the archive (uri, not a data: URI);
+    * festival_stage.gltf + festival_stage.bin (a buffer file in the archive, 32-bit
+      indices): the deck top (24 m x 14 m at 1.8 m, 120 x 70 quads: 16,800 triangles)
+      and a barrel roof over it (26 m span, 12-15 m high, 240 x 120 quads: 57,600 triangles).
+    Returns the archive entries and the triangles per model."""
+    def ground_height(x, z):
+        r = max(abs(x), abs(z)) - 40.0
+        return 0.0 if r <= 0 else round(0.6 * math.sin(x / 9.0) * math.sin(z / 11.0) * min(r / 20.0, 1.0), 3)
+
+    gp, gt, gu = festival_grid(255, 255, -80.0, 80.0, -80.0, 80.0, ground_height)
+    glb = festival_glb([("ground", gp, gt, gu, (0.8, 0.8, 0.8), 2)], "textures/grass.png")
+    dp, dt, _ = festival_grid(120, 70, -12.0, 12.0, -10.0, 4.0, lambda x, z: 1.8)
+
+    def roof_height(x, z):
+        return round(12.0 + 3.0 * math.cos(math.pi * x / 26.0), 4)
+
+    rp, rt, _ = festival_grid(240, 120, -13.0, 13.0, -11.0, 5.0, roof_height)
+    rt = [(a, c, b) for a, b, c in rt]  # facing down, onto the stage
+    js, stage_bin = festival_gltf_doc([("deck", dp, dt, None, (0.35, 0.25, 0.18), 4), ("roof", rp, rt, None, (0.15, 0.15, 0.17), 4)], "festival_stage.bin")
+
+    def grass(x, y):
+        v = 40 + (x * 7 + y * 13) % 24
+        return (v // 2, 60 + v, v // 3)
+
+    entries = {
+        "festival_ground.glb": glb,
+        "festival_stage.gltf": js,
+        "festival_stage.bin": stage_bin,
+        "textures/grass.png": png_rgb(32, 32, grass),
+    }
+    triangles = {"festival_ground.glb": len(gt), "festival_stage.gltf": len(dt) + len(rt)}
+    return entries, triangles
+
+
+def festival_positions(spec, count):
+    """MVR matrices (mm, Z up; MVR +Y upstage) of `count` fixtures of one type: the rig's lines."""
+    out = []
+    for k in range(count):
+        if spec.startswith("Lumenstrip@PixelBar"):
+            line, i = divmod(k, 24)
+            out.append(mvr_matrix(-11500 + 1000 * i, -3000 + 2000 * line, 9500))
+        elif spec.startswith("Orbis"):
+            line, i = divmod(k, 24)
+            out.append(mvr_matrix(-11500 + 1000 * i, -2000 + 4000 * line, 10200))
+        elif spec.startswith("Nordlicht"):
+            out.append(mvr_matrix(-11500 + 1000 * k, -6000, 10500))
+        elif spec.startswith("Blitzwerk"):
+            line, i = divmod(k, 12)
+            out.append(mvr_matrix(-11000 + 2000 * i, -7500 - 500 * line, 8000, rot_x_deg=-70.0))
+        elif spec.startswith("Raylight"):
+            out.append(mvr_matrix(-11000 + 2000 * k, 3500, 1800, rot_x_deg=180.0))
+        elif spec.startswith("Pyxis"):
+            line, i = divmod(k, 12)
+            out.append(mvr_matrix(-11000 + 2000 * i, 1000 + 2000 * line, 9000))
+        else:
+            out.append(mvr_matrix(-4000 + 4000 * k, -8500, 200, rot_x_deg=-90.0))
+    return out
+
+
+def festival_mvr():
+    """festival.mvr and its known answers (see FESTIVAL_TYPES)."""
+    lights = uid("class/Lighting")
+    scenery = uid("class/Scenery")
+    groups, answers = [], {"types": {}}
+    universe, address, fid = 1, 1, 10000
+    universes = set()
+    fixtures_total, cells_total = 0, 0
+    rows = FESTIVAL_TYPES + [(FESTIVAL_MISSING[0], FESTIVAL_MISSING[0]) + FESTIVAL_MISSING[1:]]
+    for file, spec, mode_name, count, cells, footprint in rows:
+        kids = []
+        name = file.split("@")[1].split("@")[0].removesuffix(".gdtf").replace("_", " ")
+        for k, matrix in enumerate(festival_positions(file, count)):
+            if address + footprint - 1 > 512:
+                universe, address = universe + 1, 1
+            fid += 1
+            if file != FESTIVAL_MISSING[0]:
+                universes.add(universe)  # a placeholder is not patched (no GDTF: no footprint)
+            kids.append(fixture_xml(f"{name} {k + 1}", spec, mode_name, fid, k + 1, matrix, [(0, absolute(universe, address))], lights))
+            address += footprint
+        # Each type starts on a fresh universe, as a festival patch does.
+        universe, address = universe + 1, 1
+        groups.append(el("GroupObject", [el("Matrix", mvr_matrix(0, 0, 0)), el("Classing", lights), el("ChildList", kids)], name=name, uuid=uid(f"festival/group/{file}")))
+        fixtures_total += count
+        if file != FESTIVAL_MISSING[0]:
+            cells_total += count * cells
+        answers["types"][file] = {"spec": spec, "mode": mode_name, "fixtures": count, "cells_per_fixture": cells, "footprint": footprint}
+    venue, triangles = festival_venue()
+    objects = [
+        el("SceneObject", [el("Matrix", mvr_matrix(0, 0, 0)), el("Classing", scenery), el("Geometries", [el("Geometry3D", fileName="festival_ground.glb")])], name="Ground", uuid=uid("festival/ground")),
+        el("SceneObject", [el("Matrix", mvr_matrix(0, 0, 0)), el("Classing", scenery), el("Geometries", [el("Geometry3D", fileName="festival_stage.gltf")])], name="Stage and roof", uuid=uid("festival/stage")),
+    ]
+    layers = [
+        el("Layer", [el("ChildList", objects)], name="Venue", uuid=uid("festival/layer/venue")),
+        el("Layer", [el("ChildList", groups)], name="Rig", uuid=uid("festival/layer/rig")),
+    ]
+    aux = [el("Class", name="Lighting", uuid=lights), el("Class", name="Scenery", uuid=scenery)]
+    entries = {"GeneralSceneDescription.xml": festival_pretty(gsd(layers, aux)), **venue}
+    for file, builder in FESTIVAL_BUILDERS.items():
+        text, media = builder()
+        entries[file] = zip_bytes({"description.xml": festival_pretty(text), **media})
+    answers.update(
+        {
+            "fixtures": fixtures_total,
+            "emitters": cells_total,
+            "placeholders": FESTIVAL_MISSING[2],
+            "lights": cells_total + FESTIVAL_MISSING[2],
+            "universes": sorted(universes),
+            "triangles": triangles,
+            "triangles_total": sum(triangles.values()),
+        }
+    )
+    return zip_bytes(entries), answers
+
+
+def festival_outputs():
+    import json
+
+    data, answers = festival_mvr()
+    answers["mvr_bytes"] = len(data)
+    text = json.dumps(answers, indent=2, sort_keys=True) + "\n"
+    return {FESTIVAL_MVR: data, FESTIVAL_JSON: text.encode()}, answers
+
+
 # --- LED colour without emitters (issue 36 item 1) -----------------------------
 # Real LED fixtures' GDTF files (pixel bars, panels) often define no <Emitter>:
 # their ColorAdd_* channels link none, and the colour is only in the attribute
@@ -1498,3 +1994,20 @@ def main():
 
 if __name__ == "__main__":
     sys.exit(main())
+    ap.add_argument("--festival", action="store_true", help="write (or with --check compare) only tests/data/mvr/festival.mvr and festival.json")
+    if args.festival:
+        files, answers = festival_outputs()
+        for path, data in files.items():
+            if args.check:
+                if not path.is_file() or path.read_bytes() != data:
+                    print(f"out of date (run tools/gen_gdtf_mvr.py --festival): {path.relative_to(ROOT)}", file=sys.stderr)
+                    return 1
+                continue
+            path.write_bytes(data)
+        print(
+            f"festival.mvr: {answers['fixtures']} fixtures ({answers['placeholders']} of them named by a GDTF not in the archive), "
+            f"{answers['emitters']} emitters (cells) + {answers['placeholders']} placeholders = {answers['lights']} lights, "
+            f"{len(answers['universes'])} universes, "
+            f"triangles {answers['triangles']} ({answers['triangles_total']} in all), {answers['mvr_bytes']} bytes"
+        )
+        return 0

@@ -269,6 +269,33 @@ pub struct DaemonStatus {
     pub warnings: Vec<String>,
     /// Every light, in patch order.
     pub lights: Vec<LightStatus>,
+    /// What importing the patch said: one summary per fixture type, the
+    /// warnings once each (issue 36 item 3; empty for a patch without GDTF types).
+    pub import: ImportStatus,
+}
+
+/// `/api/status` `import`: the patch's fixture types summed up (modelled,
+/// partly and why, or not) and its warnings and notes, each said once
+/// ([`footlight_mvr::check_report`]); the preview lists them under "import warnings".
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct ImportStatus {
+    /// One per GDTF fixture type, in the order the patch names them.
+    pub types: Vec<footlight_mvr::TypeSummary>,
+    /// Each warning once, `file:line: message (N fixtures, M cells)`.
+    pub warnings: Vec<String>,
+    /// Names read not quite as written (a `GDTFSpec` without `.gdtf`).
+    pub notes: Vec<String>,
+}
+
+impl ImportStatus {
+    /// The summary of a checked patch.
+    pub fn of(checked: &footlight_mvr::Checked) -> Self {
+        Self {
+            types: checked.types.clone(),
+            warnings: checked.warnings.iter().map(ToString::to_string).collect(),
+            notes: checked.notes.iter().map(ToString::to_string).collect(),
+        }
+    }
 }
 
 /// What [`Daemon::frames_tap`] hands a window: the frames and the camera control.
@@ -287,6 +314,7 @@ pub struct Daemon {
     bound: Option<std::sync::mpsc::Sender<DaemonHandle>>,
     named: Vec<NamedView>,
     bodies: Option<Vec<crate::render::bodies::BodyModel>>,
+    import: ImportStatus,
 }
 
 /// What a running daemon tells its embedder (tests, the binary).
@@ -320,6 +348,7 @@ impl Daemon {
             bound: None,
             named: Vec::new(),
             bodies: None,
+            import: ImportStatus::default(),
         }
     }
 
@@ -338,6 +367,7 @@ impl Daemon {
             bound: None,
             named: Vec::new(),
             bodies: None,
+            import: ImportStatus::default(),
         }
     }
 
@@ -345,6 +375,12 @@ impl Daemon {
     /// ([`super::views::named_views`]: scene camera, patch `[camera]`, `[[view]]`).
     pub fn named_views(mut self, named: Vec<NamedView>) -> Self {
         self.named = named;
+        self
+    }
+
+    /// What importing the patch said, for `/api/status` (`import`).
+    pub fn import_status(mut self, import: ImportStatus) -> Self {
+        self.import = import;
         self
     }
 
@@ -382,7 +418,7 @@ impl Daemon {
 
     /// Runs until `shutdown` completes (`Ok`) or a task fails (`Err`).
     pub async fn run(self, shutdown: impl Future<Output = ()>) -> Result<(), DaemonError> {
-        let Daemon { scene, decoder, show, camera, config, source, listener, tap, bound, named, bodies } = self;
+        let Daemon { scene, decoder, show, camera, config, source, listener, tap, bound, named, bodies, import } = self;
         let (stop_tx, stop) = stop_signal();
         tokio::pin!(shutdown);
 
@@ -504,6 +540,7 @@ impl Daemon {
             let labels = decoder.labels();
             let patches = show.as_ref().map(|s| s.light_patches()).unwrap_or_default();
             let cache_budget = config.tracer.cache_bytes;
+            let import = import.clone();
             Arc::new(move || {
                 let frame = frames.borrow().clone();
                 let universes = inputs.borrow();
@@ -540,6 +577,7 @@ impl Daemon {
                     view: views.status(),
                     warnings,
                     lights,
+                    import: import.clone(),
                 }
             })
         };

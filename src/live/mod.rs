@@ -25,7 +25,9 @@ pub mod tracer;
 pub mod views;
 
 pub use clock::{Decode, Frame, FrameClock, LightInput, LightLabel};
-pub use daemon::{Daemon, DaemonConfig, DaemonError, DaemonHandle, DaemonStatus, DmxSource, bind_http, run_clock};
+pub use daemon::{
+    Daemon, DaemonConfig, DaemonError, DaemonHandle, DaemonStatus, DmxSource, ImportStatus, bind_http, run_clock,
+};
 pub use show::{LiveSlots, Show};
 pub use tracer::{Kept, LightReport, Stage, Tracer, TracerSettings};
 pub use views::{NamedView, Pose, ViewSettings, ViewStatus, Views};

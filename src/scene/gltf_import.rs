@@ -10,8 +10,10 @@
 //! other than TEXCOORD_0, points/lines, punctual lights: lights come from
 //! the patch) is reported once with `tracing::warn!`, never silently.
 //!
-//! [`import_bytes_into`] reads a file given as bytes (an MVR archive's
-//! model) into a shared [`SceneBuilder`] under a placement matrix.
+//! [`import_bytes_into`] reads a file given as bytes (a fixture body's
+//! model) and [`import_archive_entry`] an MVR archive's model (its URIs
+//! resolved in the archive) into a shared [`SceneBuilder`] under a
+//! placement matrix.
 //!
 //! A scene file is untrusted input (issue 12 items 2, 3 and 10), so
 //! everything is checked before it is used, in this order, and every error
@@ -39,7 +41,10 @@
 //!    path that, canonicalised, stays inside the scene's folder and is a
 //!    regular file; at most `byteLength` bytes are read, and a shorter file is
 //!    an error. `file:` and other schemes, absolute paths, `..` escapes and
-//!    devices are refused. Base-colour images are read the same way (or
+//!    devices are refused. A model inside an MVR archive
+//!    ([`import_archive_entry`]) reads a relative path as another file of
+//!    the same archive instead, never outside it (no `..`, no absolute
+//!    path). Base-colour images are read the same way (or
 //!    from a bufferView), the whole file up to [`MAX_IMAGE_BYTES`], decoded
 //!    with at most [`super::texture::MAX_TEXTURE_SIDE`] texels a side; one
 //!    that cannot be read leaves the constant factor, with a warning.
@@ -159,22 +164,34 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 
 /// [`load`] under explicit limits.
 pub fn load_with(path: &Path, limits: &ImportLimits) -> Result<Scene, SceneError> {
-    Importer { path, limits, in_archive: false }.load()
+    Importer { path, limits, within: Within::Folder }.load()
 }
 
 struct Importer<'a> {
     path: &'a Path,
     limits: &'a ImportLimits,
-    /// True for a file read from inside an archive (an MVR): `path` is a
-    /// label, so only `data:` URIs and the GLB chunk can be read.
-    in_archive: bool,
+    /// Where the file's URIs resolve.
+    within: Within<'a>,
 }
 
-/// Adds a glTF/GLB file given as bytes (an entry of an MVR archive, named
-/// `label` in messages) to `builder`, every vertex placed by `placement`
-/// after the file's node transforms. External URIs are refused (there is no
-/// folder to resolve them in); `data:` URIs and the GLB binary chunk are
-/// read. Returns the count of NaN/Inf vertex normals (replaced).
+/// Where a glTF file's buffer and image URIs (other than `data:`) resolve.
+#[derive(Clone, Copy)]
+enum Within<'a> {
+    /// A file on disk: relative paths inside its folder.
+    Folder,
+    /// Bytes with nothing around them (a fixture body's model): `path` is a
+    /// label, so only `data:` URIs and the GLB chunk can be read.
+    Nothing,
+    /// An entry of an archive (an MVR's model): relative paths from the
+    /// entry's folder, inside the archive and nowhere else.
+    Archive { archive: &'a footlight_mvr::archive::Archive, entry: &'a str },
+}
+
+/// Adds a glTF/GLB file given as bytes (named `label` in messages) to
+/// `builder`, every vertex placed by `placement` after the file's node
+/// transforms. External URIs are refused (there is nothing to resolve them
+/// in); `data:` URIs and the GLB binary chunk are read. Returns the count of
+/// NaN/Inf vertex normals (replaced).
 pub fn import_bytes_into(
     label: &Path,
     bytes: &[u8],
@@ -182,7 +199,27 @@ pub fn import_bytes_into(
     placement: Mat4,
     limits: &ImportLimits,
 ) -> Result<usize, SceneError> {
-    Importer { path: label, limits, in_archive: true }.import_into(bytes, builder, placement)
+    Importer { path: label, limits, within: Within::Nothing }.import_into(bytes, builder, placement)
+}
+
+/// [`import_bytes_into`] for the model `entry` of an MVR archive (its
+/// bytes `bytes`): a buffer or image URI relative to the entry's folder
+/// reads that file **of the archive** (a `.gltf` with its `.bin`, a GLB
+/// whose texture is a PNG beside it; issue 36 item 4), confined to it: no
+/// scheme, no absolute path, no `..` component; a buffer reads exactly its
+/// `byteLength` (a shorter entry is an error), an image at most
+/// [`MAX_IMAGE_BYTES`]; the archive's own limits (sizes, ratios) were
+/// checked when it was opened.
+pub fn import_archive_entry(
+    archive: &footlight_mvr::archive::Archive,
+    entry: &str,
+    bytes: &[u8],
+    builder: &mut SceneBuilder,
+    placement: Mat4,
+    limits: &ImportLimits,
+) -> Result<usize, SceneError> {
+    let label = archive.label(entry);
+    Importer { path: &label, limits, within: Within::Archive { archive, entry } }.import_into(bytes, builder, placement)
 }
 
 /// What a checked accessor reads as.
@@ -881,10 +918,14 @@ impl Importer<'_> {
             };
             return base64::decode(payload).map_err(|e| refuse(&format!("bad base64 ({e})")));
         }
-        if self.in_archive {
-            return Err(refuse("a model inside an MVR archive can only use data: URIs or the GLB binary chunk"));
-        }
         let decoded = urlencoding::decode(uri).map_err(|_| refuse("its %-escapes are not UTF-8"))?;
+        match self.within {
+            Within::Folder => {}
+            Within::Nothing => {
+                return Err(refuse("a model given without its folder can only use data: URIs or the GLB binary chunk"));
+            }
+            Within::Archive { archive, entry } => return self.read_archive_uri(label, &decoded, want, archive, entry),
+        }
         let rel = Path::new(decoded.as_ref());
         let scheme = decoded
             .split_once(':')
@@ -921,6 +962,56 @@ impl Importer<'_> {
         let mut data = Vec::with_capacity(want as usize);
         file.take(want).read_to_end(&mut data).map_err(|e| refuse(&format!("cannot read ({e})")))?;
         Ok(data)
+    }
+}
+
+impl Importer<'_> {
+    /// A relative URI (`decoded`: its %-escapes already decoded) of a model
+    /// that is entry `entry` of `archive`: the archive's file at the entry's
+    /// folder joined with it (`\` read as `/`, `.` dropped); a scheme, an
+    /// absolute path or a `..` component is refused, so it never leaves the
+    /// archive (see [`import_archive_entry`]).
+    fn read_archive_uri(
+        &self,
+        label: &str,
+        decoded: &str,
+        want: Option<u64>,
+        archive: &footlight_mvr::archive::Archive,
+        entry: &str,
+    ) -> Result<Vec<u8>, SceneError> {
+        let shown: String = decoded.chars().take(80).collect();
+        let refuse = |why: &str| self.invalid(format!("{label}: uri {shown:?} refused: {why}"));
+        let name = decoded.replace('\\', "/");
+        let scheme = name
+            .split_once(':')
+            .is_some_and(|(s, _)| !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c)));
+        if footlight_mvr::archive::unsafe_name(&name).is_some() || name.starts_with('/') {
+            return Err(refuse("absolute paths, `..` components and NUL bytes are not allowed inside an MVR archive"));
+        }
+        if scheme {
+            return Err(refuse("only data: URIs and paths relative to the model inside the MVR archive are allowed"));
+        }
+        let folder = entry.rfind(['/', '\\']).map_or("", |i| &entry[..i]);
+        let parts: Vec<&str> =
+            folder.split(['/', '\\']).chain(name.split('/')).filter(|c| !c.is_empty() && *c != ".").collect();
+        if parts.is_empty() {
+            return Err(refuse("it names no file"));
+        }
+        let joined = parts.join("/");
+        let Some(data) = archive.get(&joined) else {
+            return Err(refuse(&format!("{joined:?} is not in the archive {}", archive.path.display())));
+        };
+        match want {
+            Some(want) if (data.len() as u64) < want => Err(self.invalid(format!(
+                "{label}: byteLength is {want}, but {joined:?} in the archive has only {} bytes",
+                data.len()
+            ))),
+            Some(want) => Ok(data[..want as usize].to_vec()),
+            None if data.len() as u64 > MAX_IMAGE_BYTES => {
+                Err(refuse(&format!("{joined:?} is larger than {MAX_IMAGE_BYTES} bytes")))
+            }
+            None => Ok(data.to_vec()),
+        }
     }
 }
 

@@ -69,11 +69,13 @@ pub fn load_mvr_scene_with(path: &Path, limits: &ImportLimits) -> Result<MvrScen
     let mut parsed_3ds: BTreeMap<String, Result<(ds3::Scene3ds, Materials3ds), String>> = BTreeMap::new();
     let mut non_finite_normals = 0usize;
     let mut objects = 0usize;
+    // Stand-ins by problem (a missing model named by 300 seats is one line).
+    let mut stand_ins = StandIns::default();
     for object in &mvr.scene.objects {
         objects += 1;
         let what = format!("{} {:?}", kind_name(object.kind), object.name);
         if object.geometries.is_empty() {
-            warnings.push(format!("{}: {what} has no Geometry3D or Symbol; a stand-in cube", path.display()));
+            stand_ins.add(format!("{}: no Geometry3D or Symbol", path.display()), what);
             add_stand_in(&mut builder, object.world, stand_in);
             continue;
         }
@@ -82,17 +84,15 @@ pub fn load_mvr_scene_with(path: &Path, limits: &ImportLimits) -> Result<MvrScen
             let budget =
                 ImportLimits { max_triangles: limits.max_triangles.saturating_sub(builder.triangle_count() as u64) };
             let Some(bytes) = mvr.archive.get(file) else {
-                warnings.push(format!(
-                    "{}: {what} names the model {file:?}, which the archive does not contain; a stand-in cube",
-                    path.display()
-                ));
+                stand_ins.add(format!("{}: the model {file:?} is not in the archive", path.display()), what.clone());
                 add_stand_in(&mut builder, *world, stand_in);
                 continue;
             };
             let lower = file.to_ascii_lowercase();
             let result = if lower.ends_with(".glb") || lower.ends_with(".gltf") {
                 let placement = stage_matrix(*world).as_mat4();
-                super::gltf_import::import_bytes_into(&label, bytes, &mut builder, placement, &budget)
+                // Its buffers and images may be other files of the archive (issue 36 item 4).
+                super::gltf_import::import_archive_entry(&mvr.archive, file, bytes, &mut builder, placement, &budget)
                     .map(|n| non_finite_normals += n)
                     .map_err(|e| match e {
                         // Over budget stops the whole import: a stand-in would hide it.
@@ -127,18 +127,55 @@ pub fn load_mvr_scene_with(path: &Path, limits: &ImportLimits) -> Result<MvrScen
                 Ok(()) => {}
                 Err(Err(fatal)) => return Err(fatal),
                 Err(Ok(why)) => {
-                    warnings.push(format!("{why}; {what} gets a stand-in cube"));
+                    stand_ins.add(why, what.clone());
                     add_stand_in(&mut builder, *world, stand_in);
                 }
             }
         }
     }
+    warnings.extend(stand_ins.into_warnings());
     let mut scene = builder.build();
     scene.report.non_finite_normals = non_finite_normals;
     if scene.triangle_count() == 0 {
         warnings.push(format!("{}: the MVR has no scene geometry; renders will be black", path.display()));
     }
     Ok(MvrScene { scene, warnings, objects })
+}
+
+/// Objects drawn as stand-in cubes, by problem, in the order first seen:
+/// one warning per problem naming a few objects and counting them.
+#[derive(Default)]
+struct StandIns {
+    problems: Vec<(String, Vec<String>, usize)>,
+}
+
+impl StandIns {
+    /// Names shown per problem before `and N more`.
+    const SHOWN: usize = 4;
+
+    fn add(&mut self, problem: String, what: String) {
+        match self.problems.iter_mut().find(|(p, _, _)| *p == problem) {
+            Some((_, names, n)) => {
+                *n += 1;
+                if names.len() < Self::SHOWN && !names.contains(&what) {
+                    names.push(what);
+                }
+            }
+            None => self.problems.push((problem, vec![what], 1)),
+        }
+    }
+
+    fn into_warnings(self) -> Vec<String> {
+        self.problems
+            .into_iter()
+            .map(|(problem, names, n)| {
+                let more = n.saturating_sub(names.len());
+                let who = if more > 0 { format!("{} and {more} more", names.join(", ")) } else { names.join(", ") };
+                let cubes = if n == 1 { "a stand-in cube".to_string() } else { format!("{n} stand-in cubes") };
+                format!("{problem}; {cubes}: {who}")
+            })
+            .collect()
+    }
 }
 
 fn kind_name(kind: ObjectKind) -> &'static str {

@@ -141,13 +141,15 @@ impl FixtureBodySpec {
 }
 
 /// Every fixture body of the MVR at `path`, with warnings (models whose file
-/// is missing, fixtures without a GDTF). Fixtures whose GDTF is missing or
+/// is missing: one line per GDTF and file, with the parts and fixtures it
+/// concerns, not one per part). Fixtures whose GDTF is missing or
 /// unreadable get no spec (the caller draws an estimated box).
 pub fn fixture_bodies(path: &Path) -> Result<(Vec<FixtureBodySpec>, Vec<String>), PatchError> {
     let m = Mvr::open(path)?;
     let mut warnings = Vec::new();
     let mut types: BTreeMap<String, Option<Gdtf>> = BTreeMap::new();
     let mut meshes: BTreeMap<(String, String), Arc<Vec<u8>>> = BTreeMap::new();
+    let mut missing = MissingFiles::new();
     let mut out = Vec::new();
     for (n, f) in m.scene.fixtures.iter().enumerate() {
         let id = f.fixture_id_numeric.or_else(|| f.fixture_id.parse().ok()).unwrap_or(n as u32 + 1);
@@ -181,19 +183,31 @@ pub fn fixture_bodies(path: &Path) -> Result<(Vec<FixtureBodySpec>, Vec<String>)
             nodes: Vec::new(),
             parts: Vec::new(),
         };
-        let mut walk = Walk { g, joints: &joints, spec: &mut spec, meshes: &mut meshes, warnings: &mut warnings };
+        let mut walk = Walk { g, joints: &joints, spec: &mut spec, meshes: &mut meshes, missing: &mut missing };
         walk.node(&layout.root, None, DMat4::IDENTITY, None);
         out.push(spec);
     }
+    for ((label, file, primitive), (parts, fixtures)) in missing {
+        let fixtures = crate::report::plural(fixtures.len(), "fixture");
+        let parts = crate::report::plural(parts, "part");
+        warnings.push(format!(
+            "{label}: model file {file:?} is in neither models/gltf nor models/3ds; its primitive {primitive} is \
+             drawn ({parts} of {fixtures})"
+        ));
+    }
     Ok((out, warnings))
 }
+
+/// Model files a GDTF names but lacks, by (GDTF, file, primitive): the parts drawn as
+/// the primitive instead, and the fixtures (ids) they belong to.
+type MissingFiles = BTreeMap<(String, String, String), (usize, std::collections::BTreeSet<u32>)>;
 
 struct Walk<'a> {
     g: &'a Gdtf,
     joints: &'a BTreeMap<&'a str, Joint>,
     spec: &'a mut FixtureBodySpec,
     meshes: &'a mut BTreeMap<(String, String), Arc<Vec<u8>>>,
-    warnings: &'a mut Vec<String>,
+    missing: &'a mut MissingFiles,
 }
 
 impl Walk<'_> {
@@ -263,10 +277,12 @@ impl Walk<'_> {
                     let bytes = self.meshes.entry(key).or_insert_with(|| Arc::new(bytes.to_vec())).clone();
                     return (Shape::Mesh { format, entry: entry.to_string(), bytes }, false);
                 }
-                None => self.warnings.push(format!(
-                    "{}: model file {file:?} is in neither models/gltf nor models/3ds; its primitive {primitive} is drawn",
-                    self.g.label.display()
-                )),
+                None => {
+                    let key = (self.g.label.display().to_string(), file.to_string(), primitive.to_string());
+                    let e = self.missing.entry(key).or_default();
+                    e.0 += 1;
+                    e.1.insert(self.spec.id);
+                }
             }
         }
         match primitive {

@@ -114,15 +114,16 @@ pub fn gate_optics(g: &Gdtf, layouts: &[Layout], warnings: &mut Vec<PatchError>)
                         Some(Err(why)) => {
                             warnings.push(PatchError::new(
                                 &label,
-                                0,
+                                line,
                                 format!("gobo image {media:?}: {why}; slot left open"),
                             ));
                             None
+                    let line = g.lines.line("Slot", "MediaFileName", media).unwrap_or_else(|| g.type_line());
                         }
                         None => {
                             warnings.push(PatchError::new(
                                 &label,
-                                0,
+                                line,
                                 format!("gobo image {media:?} is not in wheels/; slot left open"),
                             ));
                             None

@@ -73,6 +73,8 @@ pub struct Gdtf {
 
 /// A `<Model>` of the fixture type (issue 14 item 5: fixture bodies).
 #[derive(Clone, Debug, PartialEq)]
+    /// Where named elements of `description.xml` start (for the line of a warning).
+    pub lines: xml::LineIndex,
 pub struct ModelInfo {
     /// `Name`.
     pub name: String,
@@ -330,7 +332,77 @@ impl Gdtf {
             .filter(|n| n.starts_with("models/"))
             .filter_map(|n| archive.get(n).map(|d| (n.to_string(), d.to_vec())))
             .collect();
-        Ok(Self { label, data_version, ft, media, model_files })
+        let lines = xml::LineIndex::new(text, &["Name", "Attribute", "MediaFileName"]);
+        Ok(Self { label, data_version, ft, media, model_files, lines })
+    }
+
+    /// `description.xml` of this file, as warnings name it.
+    pub fn description_label(&self) -> PathBuf {
+        self.label.join("description.xml")
+    }
+
+    /// Line of the `<FixtureType>` element (a warning about the whole type).
+    pub fn type_line(&self) -> usize {
+        self.lines.element("FixtureType").unwrap_or(0)
+    }
+
+    /// Line where attribute `attribute` is used: its first `<LogicalChannel
+    /// Attribute=…>`, else its first `<ChannelFunction Attribute=…>`, else its
+    /// `<Attribute Name=…>` definition, else the fixture type's.
+    pub fn attribute_line(&self, attribute: &str) -> usize {
+        self.lines
+            .line("LogicalChannel", "Attribute", attribute)
+            .or_else(|| self.lines.line("ChannelFunction", "Attribute", attribute))
+            .or_else(|| self.lines.line("Attribute", "Name", attribute))
+            .unwrap_or_else(|| self.type_line())
+    }
+
+    /// Line of the first `<element Name="name">` (`DMXMode`, `Wheel`, `Model`,
+    /// `Beam`…), else the fixture type's.
+    pub fn named_line(&self, element: &str, name: &str) -> usize {
+        self.lines.line(element, "Name", name).unwrap_or_else(|| self.type_line())
+    }
+
+    /// Gives a line to warnings about this file that have none (line 0), from
+    /// what they name: `Attr: …` (an attribute's channel), `mode "M"`,
+    /// `wheel "W"`, `model "X"`, `gobo image "I"`, else the first word that
+    /// is a channel's attribute; else the fixture type's line.
+    pub fn locate(&self, warnings: &mut [PatchError]) {
+        let label = self.description_label();
+        for w in warnings.iter_mut().filter(|w| w.line == 0 && (w.path == label || w.path == self.label)) {
+            w.path = label.clone();
+            w.line = self.line_named_in(&w.message);
+        }
+    }
+
+    fn line_named_in(&self, message: &str) -> usize {
+        let quoted = |after: &str| {
+            let rest = message.split(after).nth(1)?.strip_prefix('"')?;
+            rest.split('"').next()
+        };
+        if let Some((head, _)) = message.split_once(": ")
+            && !head.contains(' ')
+            && let Some(line) = self
+                .lines
+                .line("LogicalChannel", "Attribute", head)
+                .or_else(|| self.lines.line("Attribute", "Name", head))
+        {
+            return line;
+        }
+        let kinds = [("mode ", "DMXMode"), ("wheel ", "Wheel"), ("model ", "Model"), ("beam ", "Beam")];
+        for (word, element) in kinds {
+            if let Some(line) = quoted(word).and_then(|n| self.lines.line(element, "Name", n)) {
+                return line;
+            }
+        }
+        if let Some(line) = quoted("image ").and_then(|n| self.lines.line("Slot", "MediaFileName", n)) {
+            return line;
+        }
+        // Else the first word that is an attribute with a channel (`ColorAdd_R/G/B/W: …`).
+        message
+            .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+            .find_map(|word| self.lines.line("LogicalChannel", "Attribute", word))
+            .unwrap_or_else(|| self.type_line())
     }
 
     /// The fixture type's name (`Name`, else `ShortName`).
@@ -386,8 +458,8 @@ impl Gdtf {
             .models
             .iter()
             .filter_map(|m| self.model(m.name.as_deref()?))
-            .filter_map(|m| m.dimension_warning())
-            .map(|w| PatchError::new(&label, 0, w))
+            .filter_map(|m| Some((self.named_line("Model", &m.name), m.dimension_warning()?)))
+            .map(|(line, w)| PatchError::new(&label, line, w))
             .collect()
     }
 
@@ -414,9 +486,13 @@ impl Gdtf {
 
     /// Expands the DMX mode `mode` (see the module doc).
     pub fn layout(&self, mode: &str) -> Result<Layout, PatchError> {
-        let at = |m: String| PatchError::new(&self.label.join("description.xml"), 0, m);
         let Some(m) = self.mode(mode) else {
-            return Err(at(format!("no DMX mode {mode:?}; the modes are {:?}", self.mode_names())));
+            let line = self.lines.element("DMXModes").unwrap_or_else(|| self.type_line());
+            return Err(PatchError::new(
+                &self.description_label(),
+                line,
+                format!("no DMX mode {mode:?}; the modes are {:?}", self.mode_names()),
+            ));
         };
         let mode_name = m.name.as_deref().unwrap_or("").to_string();
         let root_name = m.geometry.as_deref().unwrap_or("");
@@ -424,6 +500,8 @@ impl Gdtf {
             [only] => Some(only),
             _ => None,
         });
+        let mode_line = self.named_line("DMXMode", m.name.as_deref().unwrap_or(""));
+        let at = |m: String| PatchError::new(&self.label.join("description.xml"), mode_line, m);
         let Some(root) = root else {
             return Err(at(format!(
                 "DMX mode {mode_name:?} names geometry {root_name:?}, which is not a top-level geometry"

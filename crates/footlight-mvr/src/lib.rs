@@ -34,7 +34,9 @@
 //! * [`colour`]: LED colour of `ColorAdd_*` channels without an `<Emitter>` (attribute colours, GDTF Annex B).
 //! * [`gate`]: gobo and prism wheels, blades and frost of a GDTF spot (its gate).
 //! * [`mvr`]: the MVR scene, flattened; MVR → stage axes ([`mvr::stage_matrix`]).
-//! * [`show`]: GDTF → `FixtureType`, MVR → `Patch` ([`load_mvr`], [`load_patch`], [`check_patch`]).
+//! * [`show`]: GDTF → `FixtureType`, MVR → `Patch` ([`load_mvr`], [`load_patch`], [`check_patch`], [`check_report`]).
+//! * [`report`]: warnings said once per file and problem, with their lines
+//!   and counts; one summary per fixture type ([`TypeSummary`]).
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
@@ -44,9 +46,12 @@ pub mod colour;
 pub mod gate;
 pub mod gdtf;
 pub mod mvr;
+pub mod report;
 pub mod show;
 pub mod xml;
 
+pub use report::{Modelled, TypeSummary};
 pub use show::{
-    Cell, GdtfTypes, Import, cells, check_patch, fixture_type, is_mvr, load_mvr, load_patch, time_load_mvr,
+    Cell, Checked, GdtfTypes, Import, cells, check_patch, check_report, fixture_type, is_mvr, load_mvr, load_patch,
+    time_load_mvr,
 };

@@ -25,7 +25,7 @@ use footlight_fixture::PatchError;
 use glam::{DMat3, DMat4, DQuat, DVec3};
 use serde::Deserialize;
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Deepest symbol/group nesting followed.
 const MAX_DEPTH: usize = 32;
@@ -388,8 +388,14 @@ pub struct Mvr {
     pub archive: Archive,
     /// The scene.
     pub scene: Scene,
-    /// Problems that do not stop the import (bad matrices, addresses), `file:0: message`.
+    /// Problems that do not stop the import (bad matrices, addresses), at
+    /// the line of the element concerned.
     pub warnings: Vec<PatchError>,
+    /// How names were read that are not what the file says (a `GDTFSpec`
+    /// without `.gdtf`, resolved in the archive: [`Mvr::resolve_specs`]).
+    pub notes: Vec<PatchError>,
+    /// Where the scene description's elements start, by `uuid` and `name`.
+    pub lines: xml::LineIndex,
 }
 
 impl Mvr {
@@ -412,8 +418,10 @@ impl Mvr {
         xml::well_formed(&label, text, "GeneralSceneDescription", MAX_XML_DEPTH)?;
         let gsd: GsdX = quick_xml::de::from_str(text)
             .map_err(|e| PatchError::new(&label, 0, format!("not an MVR scene description: {e}")))?;
+        let lines = xml::LineIndex::new(text, &["uuid", "name"]);
         let mut b = Flatten {
             label: label.clone(),
+            lines: &lines,
             out: Scene::default(),
             warnings: Vec::new(),
             symdefs: BTreeMap::new(),
@@ -440,12 +448,95 @@ impl Mvr {
             }
         }
         let (scene, warnings) = (b.out, b.warnings);
-        Ok(Self { archive, scene, warnings })
+        let mut mvr = Self { archive, scene, warnings, notes: Vec::new(), lines };
+        mvr.resolve_specs();
+        Ok(mvr)
+    }
+
+    /// Line of the `<Fixture>` (or any element) with this `uuid` in the scene description; 0 if none.
+    pub fn fixture_line(&self, uuid: &str) -> usize {
+        self.lines.line("Fixture", "uuid", uuid).or_else(|| self.lines.any("uuid", uuid)).unwrap_or(0)
+    }
+
+    /// Reads a `GDTFSpec` the archive does not hold as written: without its
+    /// extension (`"Cluster S2"`, as some exporters write it) as the
+    /// archive's `Cluster S2.gdtf`; else (with or without `.gdtf`) as the
+    /// archive's GDTF whose `FixtureType` `Name` is `Cluster S2` (ASCII
+    /// case ignored). [`MvrFixture::gdtf_spec`] is rewritten so every
+    /// reader after this one finds the file; one note per spec, at its
+    /// first fixture's line, with the fixtures it concerns. A spec found as
+    /// written, or not found at all, is left as it is (a missing file is
+    /// the patch's warning).
+    pub fn resolve_specs(&mut self) {
+        let label = self.archive.label("GeneralSceneDescription.xml");
+        // FixtureType names of the archive's GDTF files, read only when needed.
+        let mut names: Option<Vec<(String, String)>> = None;
+        let mut resolved: BTreeMap<String, Option<(String, String)>> = BTreeMap::new();
+        let mut first: BTreeMap<String, (usize, usize)> = BTreeMap::new();
+        for i in 0..self.scene.fixtures.len() {
+            let spec = self.scene.fixtures[i].gdtf_spec.clone();
+            if spec.is_empty() || self.archive.get(&spec).is_some() {
+                continue;
+            }
+            let found = resolved.entry(spec.clone()).or_insert_with(|| {
+                let bare = match spec.len().checked_sub(5) {
+                    Some(i) if spec.is_char_boundary(i) && spec[i..].eq_ignore_ascii_case(".gdtf") => &spec[..i],
+                    _ => {
+                        let with = format!("{spec}.gdtf");
+                        if self.archive.get(&with).is_some() {
+                            return Some((with, "its name with .gdtf".to_string()));
+                        }
+                        spec.as_str()
+                    }
+                };
+                let names = names.get_or_insert_with(|| gdtf_type_names(&self.archive));
+                names
+                    .iter()
+                    .find(|(_, name)| name.trim().eq_ignore_ascii_case(bare.trim()))
+                    .map(|(entry, name)| (entry.clone(), format!("the GDTF whose FixtureType Name is {name:?}")))
+            });
+            if let Some((entry, _)) = found {
+                let uuid = self.scene.fixtures[i].uuid.clone();
+                let line = self.fixture_line(&uuid);
+                first.entry(spec).or_insert((line, 0)).1 += 1;
+                self.scene.fixtures[i].gdtf_spec = entry.clone();
+            }
+        }
+        for (spec, (line, count)) in first {
+            let Some(Some((entry, how))) = resolved.get(&spec) else { continue };
+            let fixtures = crate::report::plural(count, "fixture");
+            let why = if Path::new(&spec).extension().is_some_and(|e| e.eq_ignore_ascii_case("gdtf")) {
+                "is not in the archive"
+            } else {
+                "has no .gdtf extension"
+            };
+            self.notes.push(PatchError::new(
+                &label,
+                line,
+                format!("GDTFSpec {spec:?} {why}; read as {entry:?}, {how} ({fixtures})"),
+            ));
+        }
     }
 }
 
-struct Flatten {
+/// `(entry, FixtureType Name)` of every `.gdtf` entry of an MVR archive whose
+/// `description.xml` can be read (an unreadable one is skipped here; the
+/// patch reports it when a fixture names it).
+fn gdtf_type_names(archive: &Archive) -> Vec<(String, String)> {
+    archive
+        .names()
+        .filter(|n| Path::new(n).extension().is_some_and(|e| e.eq_ignore_ascii_case("gdtf")))
+        .filter_map(|n| {
+            let inner = Archive::from_bytes(&archive.label(n), archive.get(n)?.to_vec(), Default::default()).ok()?;
+            let text = std::str::from_utf8(inner.get("description.xml")?).ok()?;
+            Some((n.to_string(), xml::first_attribute(text, "FixtureType", "Name")?))
+        })
+        .collect()
+}
+
+struct Flatten<'a> {
     label: PathBuf,
+    lines: &'a xml::LineIndex,
     out: Scene,
     warnings: Vec<PatchError>,
     symdefs: BTreeMap<String, GeometriesX>,
@@ -456,16 +547,24 @@ struct Flatten {
     warned: BTreeSet<String>,
 }
 
-impl Flatten {
+impl Flatten<'_> {
     fn warn(&mut self, m: String) {
         self.warnings.push(PatchError::new(&self.label, 0, m));
+    }
+
+    /// A warning at the line of the element with this `uuid` (or `name`).
+    fn warn_at(&mut self, uuid: &str, name: &str, m: String) {
+        let line = self.lines.any("uuid", uuid).or_else(|| self.lines.any("name", name)).unwrap_or(0);
+        self.warnings.push(PatchError::new(&self.label, line, m));
     }
 
     fn matrix(&mut self, text: Option<&str>, owner: &str) -> DMat4 {
         match text {
             None => DMat4::IDENTITY,
             Some(t) => parse_matrix(t).unwrap_or_else(|| {
-                self.warn(format!("{owner}: Matrix {t:?} is not {{u}}{{v}}{{w}}{{o}} with 12 numbers; identity used"));
+                let line = self.lines.any("name", owner).unwrap_or(0);
+                let m = format!("{owner}: Matrix {t:?} is not {{u}}{{v}}{{w}}{{o}} with 12 numbers; identity used");
+                self.warnings.push(PatchError::new(&self.label, line, m));
                 DMat4::IDENTITY
             }),
         }
@@ -595,16 +694,24 @@ impl Flatten {
         for a in f.addresses.as_ref().map(|a| a.addresses.as_slice()).unwrap_or(&[]) {
             let brk = a.dmx_break.as_deref().map(str::trim).unwrap_or("0");
             let Ok(dmx_break) = brk.parse::<u16>() else {
-                self.warn(format!("fixture {:?}: Address break {brk:?} is not a number; ignored", f.name));
+                self.warn_at(
+                    &f.uuid,
+                    &f.name,
+                    format!("fixture {:?}: Address break {brk:?} is not a number; ignored", f.name),
+                );
                 continue;
             };
             match parse_address(&a.text) {
                 Some((universe, address)) => addresses.push(MvrAddress { dmx_break, universe, address }),
-                None => self.warn(format!(
-                    "fixture {:?}: Address {:?} is neither an absolute address ((universe − 1)·512 + address) \
-                     nor universe.address; ignored",
-                    f.name, a.text
-                )),
+                None => self.warn_at(
+                    &f.uuid,
+                    &f.name,
+                    format!(
+                        "fixture {:?}: Address {:?} is neither an absolute address ((universe − 1)·512 + address) \
+                         nor universe.address; ignored",
+                        f.name, a.text
+                    ),
+                ),
             }
         }
         let num = |s: &Option<String>| s.as_deref().and_then(|t| t.trim().parse::<u32>().ok());

@@ -57,9 +57,10 @@ use footlight_fixture::state::{MAX_MIX, SLOTS, Universes};
 use footlight_fixture::{Beam, Fixture, FixtureModel, FixtureState, FixtureType, Light, Manual, Patch, PatchError};
 use footlight_photometry::{Chroma, CmyFilters, DimmerCurve, Emitter, Gel, Lamp, Sampled};
 use gdtf::wheel::WheelSlotOptic;
+use crate::report::{self, Modelled, Tally, TypeSummary};
 use glam::{DMat4, DQuat, Quat, Vec2, Vec3};
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// An imported MVR: the patch, what did not stop the import, and the scene
@@ -68,7 +69,9 @@ use std::sync::Arc;
 pub struct Import {
     /// The patch: one fixture per emitting MVR fixture.
     pub patch: Patch,
-    /// Problems that did not stop the import (missing GDTFs, unsupported attributes…).
+    /// Problems that did not stop the import (missing GDTFs, unsupported
+    /// attributes…), each said once per file and problem at the line of the
+    /// element concerned, with the fixtures (and cells) it concerns ([`crate::report`]).
     pub warnings: Vec<PatchError>,
     /// The flattened MVR scene.
     pub scene: Scene,
@@ -80,6 +83,11 @@ pub fn first_beam(node: &GeometryNode) -> Option<(&GeometryNode, BeamInfo)> {
         return Some((node, *b));
     }
     node.children.iter().find_map(first_beam)
+    /// How names were read that are not quite what the file says (a
+    /// `GDTFSpec` without `.gdtf`); one line each, not a problem.
+    pub notes: Vec<PatchError>,
+    /// One summary per fixture type (GDTFSpec), in the order the show first names them.
+    pub types: Vec<TypeSummary>,
 }
 
 /// A GDTF file as a Footlight fixture type (every mode), with one warning
@@ -235,11 +243,12 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
     if !unsupported.is_empty() {
         warnings.push(PatchError::new(
             &label,
-            0,
+            g.attribute_line(&unsupported[0]),
             format!(
-                "{}: attributes not modelled yet (their channels keep their slots): {}",
+                "{}: {}: {}; their channels keep their slots",
                 g.name(),
-                unsupported.join(", ")
+                crate::report::NOT_MODELLED,
+                lines.join(", ")
             ),
         ));
     }
@@ -271,6 +280,8 @@ fn map_attribute(c: &ChannelInfo, mix: &[String], moving: bool, planckian: bool)
         "Dimmer" => (Attribute::Dimmer, unit),
         a if is_shutter(a) => (Attribute::Shutter, unit),
         "Color1" if c.functions.iter().any(|f| f.wheel.is_some()) => (Attribute::ColourWheel, unit),
+        // One warning per type, each attribute with the line of its first channel.
+        let lines: Vec<String> = unsupported.iter().map(|a| format!("{a} (line {})", g.attribute_line(a))).collect();
         "CTO" | "CTB" | "CTC" if planckian && phys.iter().all(|k| (1000.0..=20000.0).contains(k)) => {
             (Attribute::Cto, phys)
         }
@@ -297,6 +308,8 @@ fn is_shutter(a: &str) -> bool {
 /// set naming a wheel slot (GDTF slots count from 1), else the whole
 /// function as `Hold`. Shared by colour, gobo and prism wheels.
 pub(crate) fn wheel_slot_functions(
+    // Every warning about the file at the line of what it names (issue 36 item 3).
+    g.locate(&mut warnings);
     f: &crate::gdtf::FunctionInfo,
     range: [f32; 2],
     raw16: &dyn Fn(u64) -> u16,
@@ -591,16 +604,32 @@ pub fn time_load_mvr(path: &Path) -> Result<f64, Vec<PatchError>> {
     Ok(t.elapsed().as_secs_f64())
 }
 
-/// A parsed type and its first beam's offset from the fixture origin (GDTF axes, metres).
-type TypeEntry = Result<(Arc<FixtureType>, Vec3), String>;
+/// A parsed type and its first beam's offset from the fixture origin (GDTF
+/// axes, metres); or why not: `None` when the archive lacks the file, else
+/// the file's error.
+type TypeEntry = Result<(Arc<FixtureType>, Vec3), Option<PatchError>>;
+
+/// What the import knows of one `GDTFSpec`: the type (or why none), its
+/// warnings, and the fixtures and lights (cells) made of it.
+struct SpecUse {
+    entry: TypeEntry,
+    warnings: Vec<PatchError>,
+    fixtures: usize,
+    lights: usize,
+}
 
 fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
     let mut warnings = m.warnings.clone();
     let mut errors = Vec::new();
-    let mut types: BTreeMap<String, TypeEntry> = BTreeMap::new();
-    let mut missing: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    // Problems of single fixtures, said once per file and problem (crate::report).
+    let (mut fixture_warnings, mut fixture_errors) = (Tally::default(), Tally::default());
+    let gsd = m.archive.label("GeneralSceneDescription.xml");
+    let line_of = |f: &crate::mvr::MvrFixture| m.fixture_line(&f.uuid);
+    // By GDTFSpec, in the order the show first names them.
+    let mut specs: Vec<String> = Vec::new();
+    let mut types: BTreeMap<String, SpecUse> = BTreeMap::new();
     let mut fixtures: Vec<Fixture> = Vec::new();
-    let mut used: Vec<(u16, u16, u16, String)> = Vec::new(); // universe, first, last, fixture name
+    let mut used: Vec<(u16, u16, u16, String, usize)> = Vec::new(); // universe, first, last, fixture name, line
     let mut frames = Universes::new();
     let mut cell_plans: BTreeMap<String, BTreeMap<String, Vec<Cell>>> = BTreeMap::new();
     let beam_frame = Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2); // GDTF local → stage local
@@ -608,28 +637,47 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
         let id = f.fixture_id_numeric.or_else(|| f.fixture_id.parse().ok()).unwrap_or(n as u32 + 1);
         let (p, q) = stage_pose(f.world);
         let (position, q) = (p.as_vec3(), quat(q));
-        let entry = types.entry(f.gdtf_spec.clone()).or_insert_with(|| {
-            let Some(bytes) = m.archive.get(&f.gdtf_spec) else {
-                return Err("missing".into());
-            };
-            let g = Gdtf::from_bytes(&m.archive.label(&f.gdtf_spec), bytes.to_vec()).map_err(|e| e.to_string())?;
-            match fixture_type(&g) {
-                Ok((ty, w)) => {
-                    warnings.extend(w);
-                    let beam =
-                        g.layout(&g.mode_names()[0]).ok().and_then(|l| first_beam(&l.root).map(|(n, _)| n.to_fixture));
-                    let off = beam.map(|t| t.w_axis.truncate().as_vec3()).unwrap_or(Vec3::ZERO);
-                    cell_plans.insert(f.gdtf_spec.clone(), mode_cells(&g, &ty, &mut warnings));
-                    Ok((Arc::new(ty), off))
+        let who = format!("{} (id {id})", f.name);
+        let line = line_of(f);
+        let spec = types.entry(f.gdtf_spec.clone()).or_insert_with(|| {
+            specs.push(f.gdtf_spec.clone());
+            let mut type_warnings = Vec::new();
+            let entry = (|| {
+                let bytes = m.archive.get(&f.gdtf_spec).ok_or(None)?;
+                let g = Gdtf::from_bytes(&m.archive.label(&f.gdtf_spec), bytes.to_vec()).map_err(Some)?;
+                match fixture_type(&g) {
+                    Ok((ty, w)) => {
+                        type_warnings.extend(w);
+                        let beam = g
+                            .layout(&g.mode_names()[0])
+                            .ok()
+                            .and_then(|l| first_beam(&l.root).map(|(n, _)| n.to_fixture));
+                        let off = beam.map(|t| t.w_axis.truncate().as_vec3()).unwrap_or(Vec3::ZERO);
+                        let mut cell_warnings = Vec::new();
+                        cell_plans.insert(f.gdtf_spec.clone(), mode_cells(&g, &ty, &mut cell_warnings));
+                        g.locate(&mut cell_warnings);
+                        type_warnings.extend(cell_warnings);
+                        Ok((Arc::new(ty), off))
+                    }
+                    Err(mut e) => {
+                        g.locate(std::slice::from_mut(&mut e));
+                        Err(Some(e))
+                    }
                 }
-                Err(e) => Err(e.to_string()),
-            }
+            })();
+            SpecUse { entry, warnings: type_warnings, fixtures: 0, lights: 0 }
         });
         let dmx = f.addresses.iter().find(|a| a.dmx_break == 0).map(|a| (a.universe, a.address));
         let breaks = later_breaks(f);
-        match entry {
-            Err(why) if why == "missing" => {
-                missing.entry(f.gdtf_spec.clone()).or_default().push(format!("{} (id {id})", f.name));
+        match &spec.entry {
+            Err(None) => {
+                fixture_warnings.add(
+                    &gsd,
+                    line,
+                    format!("GDTF file {:?} is named but not in the archive; shown as dark placeholders", f.gdtf_spec),
+                    who,
+                );
+                spec.lights += 1;
                 // A dark placeholder where the fixture hangs.
                 let beam = SpotBeam::from_beam_field(25.0, 35.0);
                 let light = Light { position, rotation: q * beam_frame, beam: Beam::Spot(beam.clone()) };
@@ -638,38 +686,32 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
                     name: f.name.clone(),
                     light,
                     dmx: None,
-                    line: 0,
+                    line,
                     model: FixtureModel::Builtin(BuiltinSpot { beam, intensity: 0.0, colour: Vec3::ZERO }),
                     look: FixtureState::default(),
                     position,
                     cell: None,
                 });
             }
-            Err(why) => {
-                if why.contains("not a light") {
-                    warnings.push(PatchError::new(
-                        path,
-                        0,
-                        format!("fixture {:?} (id {id}): {why}; its slots stay reserved", f.name),
-                    ));
+            Err(Some(e)) => {
+                if e.message.contains("not a light") {
+                    fixture_warnings.add(&e.path, e.line, format!("{}; its slots stay reserved", e.message), who);
                     if let (Some((u, a)), Ok(g)) = (dmx, footprint_of(&m, &f.gdtf_spec, &f.gdtf_mode)) {
-                        used.push((u, a, a + g.saturating_sub(1), f.name.clone()));
+                        used.push((u, a, a + g.saturating_sub(1), f.name.clone(), line));
                     }
                 } else {
-                    errors.push(PatchError::new(path, 0, format!("fixture {:?} (id {id}): {why}", f.name)));
+                    fixture_errors.add(&gsd, line, e.to_string(), format!("{:?} (id {id})", f.name));
                 }
             }
             Ok((ty, beam_offset)) => {
                 let Some(mode) = ty.mode(&f.gdtf_mode) else {
                     let names: Vec<_> = ty.modes.iter().map(|m| m.name.clone()).collect();
-                    errors.push(PatchError::new(
-                        path,
-                        0,
-                        format!(
-                            "fixture {:?} (id {id}): {} has no mode {:?}; its modes: {names:?}",
-                            f.name, f.gdtf_spec, f.gdtf_mode
-                        ),
-                    ));
+                    fixture_errors.add(
+                        &gsd,
+                        line,
+                        format!("{} has no mode {:?}; its modes: {names:?}", f.gdtf_spec, f.gdtf_mode),
+                        format!("{:?} (id {id})", f.name),
+                    );
                     continue;
                 };
                 let md = &ty.modes[mode];
@@ -702,21 +744,22 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
                 };
                 match ranges {
                     Err(why) => {
-                        errors.push(PatchError::new(path, 0, format!("fixture {:?} (id {id}): {why}", f.name)));
+                        errors.push(PatchError::new(&gsd, line, format!("fixture {:?} (id {id}): {why}", f.name)));
                         continue;
                     }
                     Ok((ranges, missing)) => {
-                        used.extend(ranges.into_iter().map(|(u, a, e)| (u, a, e, f.name.clone())));
+                        used.extend(ranges.into_iter().map(|(u, a, e)| (u, a, e, f.name.clone(), line)));
                         if !missing.is_empty() {
-                            warnings.push(PatchError::new(
-                                path,
-                                0,
+                            fixture_warnings.add(
+                                &gsd,
+                                line,
                                 format!(
-                                    "fixture {:?} (id {id}): mode {:?} uses DMX breaks {missing:?}, which its \
-                                     <Addresses> do not give; those channels read 0",
-                                    f.name, md.name
+                                    "mode {:?} of {} uses DMX breaks {missing:?}, which the fixture's <Addresses> \
+                                     do not give; those channels read 0",
+                                    md.name, f.gdtf_spec
                                 ),
-                            ));
+                                who,
+                            );
                         }
                     }
                 }
@@ -737,7 +780,7 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
                         name,
                         light: Light { position, rotation, beam: Beam::Spot(SpotBeam::from_half_angles(0.0, 0.0)) },
                         dmx,
-                        line: 0,
+                        line,
                         model: FixtureModel::Typed(typed),
                         look: FixtureState::default(),
                         position,
@@ -755,22 +798,12 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
             }
         }
     }
-    for (spec, names) in &missing {
-        warnings.push(PatchError::new(
-            path,
-            0,
-            format!(
-                "GDTF file {spec:?} is named but not in the archive: {} shown as dark placeholders",
-                names.join(", ")
-            ),
-        ));
-    }
     used.sort();
     for w in used.windows(2) {
         if w[0].0 == w[1].0 && w[1].1 <= w[0].2 {
             errors.push(PatchError::new(
-                path,
-                0,
+                &gsd,
+                w[1].4,
                 format!(
                     "{} (slots {}.{}..{}) overlaps {} (slots {}.{}..{})",
                     w[1].3, w[1].0, w[1].1, w[1].2, w[0].3, w[0].0, w[0].1, w[0].2
@@ -792,7 +825,13 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
         views: Vec::new(),
         warnings: Vec::new(),
     };
-    Ok(Import { patch, warnings, scene: m.scene })
+    Ok(Import { patch, warnings: report::dedupe(warnings), notes: m.notes.clone(), types: summaries, scene: m.scene })
+}
+
+/// `Maker Name` of a type (the name alone when the maker is empty or already in it).
+fn type_display_name(ty: &FixtureType) -> String {
+    let maker = ty.maker.trim();
+    if maker.is_empty() || ty.name.starts_with(maker) { ty.name.clone() } else { format!("{maker} {}", ty.name) }
 }
 
 fn footprint_of(m: &Mvr, spec: &str, mode: &str) -> Result<u16, PatchError> {
@@ -906,6 +945,7 @@ pub fn cells(g: &Gdtf, ty: &FixtureType, mode: &str) -> Result<Vec<Cell>, PatchE
     let l = g.layout(mode)?;
     let Some(index) = ty.mode(&l.mode) else { return Ok(Vec::new()) };
     let base = &ty.modes[index];
+        spec.fixtures += 1;
     let mut refs: Vec<(&GeometryNode, DMat4)> = Vec::new();
     emitting_references(&l.root, &mut refs);
     if refs.len() < 2 {
@@ -1001,6 +1041,7 @@ pub const MAX_CELLS: usize = 4096;
 /// mapping: a shared dimmer already multiplies (v · the emitter mix, eq. 4).
 fn override_relations(l: &Layout, channels: &mut [Channel]) -> Result<Vec<SlotOverride>, String> {
     let slots = |c: &ChannelInfo| -> Option<(u16, Option<u16>)> {
+                spec.lights += parts.len();
         let base = break_base(c.dmx_break)?;
         let at = |o: u16| base + o.saturating_sub(1).min(BREAK_STRIDE - 1);
         Some((at(*c.offsets.first()?), c.offsets.get(1).map(|o| at(*o))))
@@ -1059,9 +1100,46 @@ fn emitting_references<'a>(node: &'a GeometryNode, out: &mut Vec<(&'a GeometryNo
     node.children.iter().for_each(|c| emitting_references(c, out));
 }
 
+    errors.extend(fixture_errors.into_errors_named_first());
 fn quat(q: DQuat) -> Quat {
     Quat::from_xyzw(q.x as f32, q.y as f32, q.z as f32, q.w as f32).normalize()
 }
+    // Each type's warnings once, merged by problem, with the fixtures and cells they concern.
+    let mut counts: BTreeMap<PathBuf, (usize, usize)> = BTreeMap::new();
+    let mut summaries = Vec::new();
+    for spec in &specs {
+        let u = types.remove(spec).expect("every named spec has an entry");
+        let label = m.archive.label(spec);
+        let type_warnings = report::merge_heads(u.warnings);
+        let summary = match &u.entry {
+            Ok((ty, _)) => report::summarise(
+                type_display_name(ty),
+                spec.clone(),
+                &label,
+                &ty.name,
+                u.fixtures,
+                u.lights,
+                &type_warnings,
+            ),
+            Err(e) => TypeSummary {
+                name: spec.clone(),
+                file: spec.clone(),
+                fixtures: u.fixtures,
+                cells: u.lights,
+                status: Modelled::Not,
+                reasons: vec![match e {
+                    None => "the GDTF is not in the archive; dark placeholders".to_string(),
+                    Some(e) => e.message.split("; ").next().unwrap_or(&e.message).to_string(),
+                }],
+                not_modelled: Vec::new(),
+            },
+        };
+        summaries.push(summary);
+        counts.insert(label, (u.fixtures, u.lights));
+        warnings.extend(type_warnings);
+    }
+    report::count_fixtures(&mut warnings, &counts);
+    warnings.extend(fixture_warnings.into_errors());
 
 /// The GDTF reader for TOML patches: `type = "types/x.gdtf"` (relative to
 /// the patch) with `mode = "…"` becomes a [`FixtureType`] through
@@ -1088,13 +1166,47 @@ pub fn load_patch(path: &Path) -> Result<Patch, PatchError> {
         .map_err(|mut e| if e.is_empty() { PatchError::new(path, 0, "invalid patch") } else { e.swap_remove(0) })
 }
 
-/// Every problem of a patch or MVR file (what `footlight check` prints):
-/// the patch and the warnings, or the errors.
+/// Every problem of a patch or MVR file: the patch and the warnings (each
+/// said once), or the errors. [`check_report`] adds the notes and the
+/// per-type summary.
 pub fn check_patch(path: &Path) -> Result<(Patch, Vec<PatchError>), Vec<PatchError>> {
     if is_mvr(path) {
-        return load_mvr(path).map(|i| (i.patch, i.warnings));
+        let i = load_mvr(path)?;
+        return Ok(Checked { patch: i.patch, warnings: i.warnings, notes: i.notes, types: i.types });
     }
-    footlight_fixture::patch::check_with(path, &GdtfTypes)
+    let (patch, warnings) = footlight_fixture::patch::check_with(path, &GdtfTypes)?;
+    let warnings = report::merge_heads(warnings);
+    // The GDTF types a TOML patch names, in patch order: fixtures and lights of each.
+    let mut order: Vec<Arc<FixtureType>> = Vec::new();
+    let mut count: BTreeMap<PathBuf, (usize, usize)> = BTreeMap::new();
+    let mut last_id = None;
+    for f in &patch.fixtures {
+        let FixtureModel::Typed(t) = &f.model else { continue };
+        let ty = &t.fixture_type;
+        if !ty.path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gdtf")) {
+            continue;
+        }
+        let c = count.entry(ty.path.clone()).or_insert_with(|| {
+            order.push(ty.clone());
+            (0, 0)
+        });
+        if f.cell.is_none() || last_id != Some(f.id) {
+            c.0 += 1;
+        }
+        c.1 += 1;
+        last_id = Some(f.id);
+    }
+    let types = order
+        .iter()
+        .map(|ty| {
+            let (fixtures, lights) = count[&ty.path];
+            let file = ty.path.display().to_string();
+            report::summarise(type_display_name(ty), file, &ty.path, &ty.name, fixtures, lights, &warnings)
+        })
+        .collect();
+    let mut warnings = warnings;
+    report::count_fixtures(&mut warnings, &count);
+    Ok(Checked { patch, warnings: report::dedupe(warnings), notes: Vec::new(), types })
 }
 
 /// True for a path ending in `.mvr` (any case).
@@ -1146,3 +1258,24 @@ mod tests {
         assert!(filter_gel(&one, "slot").is_none());
     }
 }
+    check_report(path).map(|c| (c.patch, c.warnings))
+}
+
+/// A checked patch or MVR show: what `footlight check` prints, and what
+/// `run` and `render` sum up at start and `/api/status` lists.
+#[derive(Clone, Debug)]
+pub struct Checked {
+    /// The patch.
+    pub patch: Patch,
+    /// Its warnings, each said once per file and problem (with a count).
+    pub warnings: Vec<PatchError>,
+    /// Notes (names read not quite as written).
+    pub notes: Vec<PatchError>,
+    /// One summary per GDTF fixture type (none for a patch of built-in types only).
+    pub types: Vec<TypeSummary>,
+}
+
+/// [`check_patch`] with notes and the per-type summary: an `.mvr` through
+/// [`load_mvr`], a TOML patch through its GDTF types ([`GdtfTypes`]), its
+/// GDTF types summed up from their warnings.
+pub fn check_report(path: &Path) -> Result<Checked, Vec<PatchError>> {

@@ -18,6 +18,7 @@
 use footlight_fixture::PatchError;
 use quick_xml::Reader;
 use quick_xml::events::Event;
+use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The text of an XML file, or an error at the line and column of the first
@@ -156,6 +157,91 @@ fn check_attributes(
     Ok(())
 }
 
+/// Where elements start in an XML text, by a name they carry: the 1-based
+/// line of the first `<Element attribute="value">` for each indexed
+/// attribute (a GDTF's `<LogicalChannel Attribute="Gobo2">`, `<Attribute
+/// Name="Gobo2">`, `<DMXMode Name="Standard">`; an MVR's `<Fixture
+/// uuid="…">`), so a warning about a named thing can give the line a
+/// designer opens the file at. Built in one pass of the pull reader (no
+/// recursion; the text was checked by [`well_formed`] first); an element
+/// past a syntax error is simply not indexed.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LineIndex {
+    /// (element, attribute, value) → line of its first occurrence.
+    lines: BTreeMap<(String, String, String), usize>,
+    /// Line of the first element of each name.
+    elements: BTreeMap<String, usize>,
+    /// (attribute, value) → line of the first element of any name carrying it.
+    values: BTreeMap<(String, String), usize>,
+}
+
+impl LineIndex {
+    /// Indexes every element of `text` by the values of the attributes named in `attributes`.
+    pub fn new(text: &str, attributes: &[&str]) -> Self {
+        let mut out = Self::default();
+        let mut reader = Reader::from_str(text);
+        let bytes = text.as_bytes();
+        // Lines counted incrementally: each byte is looked at once.
+        let (mut counted_to, mut line) = (0usize, 1usize);
+        loop {
+            let at = reader.buffer_position() as usize;
+            let e = match reader.read_event() {
+                Ok(Event::Start(e) | Event::Empty(e)) => e,
+                Ok(Event::Eof) | Err(_) => break,
+                Ok(_) => continue,
+            };
+            // The element starts at its '<', after any whitespace the position may include.
+            let start = at + bytes[at.min(bytes.len())..].iter().position(|&b| b == b'<').unwrap_or(0);
+            line += bytes[counted_to.min(start)..start].iter().filter(|&&b| b == b'\n').count();
+            counted_to = counted_to.max(start);
+            let name = String::from_utf8_lossy(e.name().as_ref()).into_owned();
+            for a in e.attributes().flatten() {
+                let key = a.key.as_ref();
+                if attributes.iter().any(|w| w.as_bytes() == key)
+                    && let Ok(v) = a.normalized_value(quick_xml::XmlVersion::Implicit1_0)
+                {
+                    let (key, v) = (String::from_utf8_lossy(key).into_owned(), v.into_owned());
+                    out.values.entry((key.clone(), v.clone())).or_insert(line);
+                    out.lines.entry((name.clone(), key, v)).or_insert(line);
+                }
+            }
+            out.elements.entry(name).or_insert(line);
+        }
+        out
+    }
+
+    /// Line of the first `<element attribute="value">`.
+    pub fn line(&self, element: &str, attribute: &str, value: &str) -> Option<usize> {
+        self.lines.get(&(element.to_string(), attribute.to_string(), value.to_string())).copied()
+    }
+
+    /// Line of the first element of any name with `attribute="value"`.
+    pub fn any(&self, attribute: &str, value: &str) -> Option<usize> {
+        self.values.get(&(attribute.to_string(), value.to_string())).copied()
+    }
+
+    /// Line of the first element named `element`.
+    pub fn element(&self, element: &str) -> Option<usize> {
+        self.elements.get(element).copied()
+    }
+}
+
+/// The value of `attribute` on the first `<element>` of `text` (e.g. a
+/// GDTF's `FixtureType` `Name`), without parsing the rest.
+pub fn first_attribute(text: &str, element: &str, attribute: &str) -> Option<String> {
+    let mut reader = Reader::from_str(text);
+    loop {
+        match reader.read_event() {
+            Ok(Event::Start(e) | Event::Empty(e)) if e.name().as_ref() == element.as_bytes() => {
+                let a = e.attributes().flatten().find(|a| a.key.as_ref() == attribute.as_bytes())?;
+                return a.normalized_value(quick_xml::XmlVersion::Implicit1_0).ok().map(|v| v.into_owned());
+            }
+            Ok(Event::Eof) | Err(_) => return None,
+            Ok(_) => {}
+        }
+    }
+}
+
 /// 1-based line and column (in characters) of byte offset `at`.
 pub fn line_col(bytes: &[u8], at: usize) -> (usize, usize) {
     let at = at.min(bytes.len());
@@ -184,6 +270,19 @@ mod tests {
         assert_eq!(line_col(b"ab\ncd", 4), (2, 2));
         let e = utf8(p, b"<a>\n\xff</a>").unwrap_err();
         assert_eq!((e.line, e.message.starts_with("column 1")), (2, true), "{e}");
+    }
+
+    #[test]
+    fn named_elements_have_their_lines() {
+        let text = "<GDTF>\n  <Attribute Name=\"Gobo2\"/>\n  <DMXMode Name=\"Std\">\n    <LogicalChannel Attribute=\"Gobo2\">\n    </LogicalChannel>\n    <LogicalChannel Attribute=\"Gobo2\"/>\n  </DMXMode>\n</GDTF>\n";
+        let ix = LineIndex::new(text, &["Name", "Attribute"]);
+        assert_eq!(ix.line("Attribute", "Name", "Gobo2"), Some(2));
+        assert_eq!(ix.line("DMXMode", "Name", "Std"), Some(3));
+        assert_eq!(ix.line("LogicalChannel", "Attribute", "Gobo2"), Some(4), "the first one");
+        assert_eq!(ix.line("LogicalChannel", "Attribute", "Dimmer"), None);
+        assert_eq!(ix.element("GDTF"), Some(1));
+        assert_eq!(ix.any("Attribute", "Gobo2"), Some(4));
+        assert_eq!(first_attribute(text, "DMXMode", "Name").as_deref(), Some("Std"));
     }
 
     /// `<a>` + `<b>` × (n − 1), then their end tags: n levels.

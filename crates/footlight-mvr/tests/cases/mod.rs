@@ -2,6 +2,7 @@
 
 mod colour_without_emitters;
 mod fuzz;
+mod festival;
 mod gate;
 mod limits;
 mod peers;

@@ -14,7 +14,7 @@ use std::process::Command;
 
 const TYPES: [&str; 9] = ["Spot", "Wash", "Bar8", "Blinder", "Fresnel", "Hazer", "Fan4", "SpectralLed", "CmySpot"];
 
-fn peers_available() -> bool {
+pub(super) fn peers_available() -> bool {
     match Command::new("python3").args(["-c", "import pygdtf, pymvr"]).output() {
         Ok(o) if o.status.success() => true,
         _ => {
