@@ -1968,7 +1968,24 @@ def main():
     ap.add_argument("--check", action="store_true", help="compare with the files on disk instead of writing")
     ap.add_argument("--deep", metavar="DIR", type=Path, help="write only the hostile deep-nesting files (issue 35) into DIR")
     ap.add_argument("--depth", type=int, default=10_000, help="nesting depth of the --deep files (default 10000)")
+    ap.add_argument("--festival", action="store_true", help="write (or with --check compare) only tests/data/mvr/festival.mvr and festival.json")
     args = ap.parse_args()
+    if args.festival:
+        files, answers = festival_outputs()
+        for path, data in files.items():
+            if args.check:
+                if not path.is_file() or path.read_bytes() != data:
+                    print(f"out of date (run tools/gen_gdtf_mvr.py --festival): {path.relative_to(ROOT)}", file=sys.stderr)
+                    return 1
+                continue
+            path.write_bytes(data)
+        print(
+            f"festival.mvr: {answers['fixtures']} fixtures ({answers['placeholders']} of them named by a GDTF not in the archive), "
+            f"{answers['emitters']} emitters (cells) + {answers['placeholders']} placeholders = {answers['lights']} lights, "
+            f"{len(answers['universes'])} universes, "
+            f"triangles {answers['triangles']} ({answers['triangles_total']} in all), {answers['mvr_bytes']} bytes"
+        )
+        return 0
     if args.deep:
         args.deep.mkdir(parents=True, exist_ok=True)
         for name, data in deep_files(args.depth).items():
@@ -1994,20 +2011,3 @@ def main():
 
 if __name__ == "__main__":
     sys.exit(main())
-    ap.add_argument("--festival", action="store_true", help="write (or with --check compare) only tests/data/mvr/festival.mvr and festival.json")
-    if args.festival:
-        files, answers = festival_outputs()
-        for path, data in files.items():
-            if args.check:
-                if not path.is_file() or path.read_bytes() != data:
-                    print(f"out of date (run tools/gen_gdtf_mvr.py --festival): {path.relative_to(ROOT)}", file=sys.stderr)
-                    return 1
-                continue
-            path.write_bytes(data)
-        print(
-            f"festival.mvr: {answers['fixtures']} fixtures ({answers['placeholders']} of them named by a GDTF not in the archive), "
-            f"{answers['emitters']} emitters (cells) + {answers['placeholders']} placeholders = {answers['lights']} lights, "
-            f"{len(answers['universes'])} universes, "
-            f"triangles {answers['triangles']} ({answers['triangles_total']} in all), {answers['mvr_bytes']} bytes"
-        )
-        return 0
