@@ -50,3 +50,5 @@ mod gate;
 mod pixels;
 // LED rigs without GDTF emitters: white at full under --white-balance auto, one note per type.
 mod led_white;
+// The attributes real GDTFs use: check lists none as not modelled, a dimmer-less bar goes dark.
+mod gdtf_attributes;

@@ -35,6 +35,11 @@ GDTF files (tests/data/gdtf/):
   Footlight@SpectralLed.gdtf  RGBW LED whose emitters carry measured spectra (Gaussian
                           lines, a phosphor white; green also at Physical 50); mode 5ch
   Footlight@CmySpot.gdtf  discharge spot with measured C/M/Y flag filters; mode 4ch
+  Footlight@ColourBar.gdtf, Footlight@Cluster4.gdtf, Footlight@ViperSpot.gdtf
+                          the attributes real files use (issue 36): HSB, CIE, colour
+                          macros, Color2, CTC, tint, mode masters, master and cell
+                          dimmers, DimmerCurve, StrobeDuration, Gobo2, animation wheel
+                          (see "Attributes real GDTFs use" below)
   Footlight@PixelBar16.gdtf  16-cell RGBW pixel bar with no <Emitter>: colours only in the
                           attribute definitions' Color (xyY); mode 65ch
   Footlight@LedRyWw.gdtf  RGB + amber (RY) + warm white (WW) can, no <Emitter>; RY and WW
@@ -53,6 +58,7 @@ MVR files (tests/data/mvr/):
                  primitives-only par (known dimensions; tests/bodies.rs)
   cells.mvr      two Fan4 5 m up: each cell's beam along its own matrix; Fan 2 (5ch at 1.11)
                  has the Override master
+  colour.mvr     the ColourBar in all five modes, a Cluster4 and a ViperSpot 4 m up (COLOUR_RIG)
   led-bars.mvr   two PixelBar16 and a LedRyWw 4 m over a grey GLB floor (LED colour
                  without emitters, white balance auto)
   ../textures/checker.jpg  a baseline JPEG of flat 8x8 blocks (JPEG_BLOCKS), encoded here
@@ -1911,6 +1917,282 @@ def led_bars_mvr():
     return zip_bytes(entries)
 
 
+# --- Attributes real GDTFs use (issue 36 items 2 and 5) ------------------------------------
+#
+# Three types shaped like the manufacturers' files of issue 36 (makers' names left out,
+# values invented, estimated). Known answers: crates/footlight-mvr/tests/cases/attributes.rs
+# (against pygdtf and independent colour computations) and tests/cli.rs.
+#   Footlight@ColourBar.gdtf  a 4-cell RGBW LED bar with no dimmer (shaped like an Astera
+#       AX2 PixelBar): modes RGBW (16ch), HSB (16ch: 16-bit hue, saturation, brightness per
+#       cell), CIE (20ch: 16-bit x and y, brightness per cell), Mixed (23ch: ColorMixMode
+#       selecting RGBW or HSB on every cell's four channels by mode master, LEDZoneMode,
+#       ColorMacro1 on a wheel of slot colours, Color2 on a wheel of xyY gels, 16-bit CTC,
+#       Green/Magenta) and CCT (4ch: dimmer, 16-bit CTC, Green/Magenta).
+#   Footlight@Cluster4.gdtf  a 4-cell RGBW LED blinder (shaped like a ROXX Cluster B4-FC):
+#       a master dimmer (default 0) on the frame and a dimmer in every cell (GeometryReference),
+#       DimmerCurve (Linear, Square, S-Curve, Log), DimmerMode (speed names only), a Shutter1
+#       whose strobe range a StrobeMode channel selects (mode master: 0-127 strobe, 128-255
+#       open), StrobeDuration and Tint: mode Full (27ch).
+#   Footlight@ViperSpot.gdtf  a discharge moving spot (shaped like a MAC Viper): Gobo1 with
+#       index and rotating slot ranges selecting Gobo1Pos (index) or Gobo1PosRotate
+#       (rotation) on one 16-bit channel (default 32768) by mode master, Gobo2 (static
+#       gobos), AnimationWheel1 with AnimationWheel1Pos/PosRotate, Color1 and Color2 wheels,
+#       CTO as a 0..1 amount (no kelvin), Prism1 with Prism1PosRotate, Frost1: mode Standard (26ch).
+# colour.mvr hangs the bar in every mode, the cluster and the spot (COLOUR_RIG).
+
+ATTRS_36 = {
+    "HSB_Hue": ("Color.Color", "Angle", "H"),
+    "HSB_Saturation": ("Color.Color", "Percent", "S"),
+    "HSB_Brightness": ("Color.Color", "Percent", "B"),
+    "CIE_X": ("Color.CIE", "None", "X"),
+    "CIE_Y": ("Color.CIE", "None", "Y"),
+    "CIE_Brightness": ("Color.CIE", "Percent", "Bright"),
+    "ColorMixMode": ("Control.Control", "None", "Mix Mode"),
+    "LEDZoneMode": ("Control.Control", "None", "Zone Mode"),
+    "ColorMacro1": ("Color.Color", "None", "Macro"),
+    "Color2": ("Color.Color", "None", "C2"),
+    "CTC": ("Color.Color", "Temperature", "CTC"),
+    "Green/Magenta": ("Color.Color", "None", "G/M"),
+    "Tint": ("Color.Color", "None", "Tint"),
+    "DimmerCurve": ("Control.Control", "None", "Dim Curve"),
+    "DimmerMode": ("Control.Control", "None", "Dim Mode"),
+    "StrobeMode": ("Control.Control", "None", "Strobe Mode"),
+    "StrobeDuration": ("Beam.Beam", "Time", "Strobe Duration"),
+    "Gobo2": ("Gobo.Gobo", "None", "G2"),
+    "AnimationWheel1": ("Gobo.Gobo", "None", "Anim"),
+    "AnimationWheel1Pos": ("Gobo.Gobo", "Angle", "Anim <>"),
+    "AnimationWheel1PosRotate": ("Gobo.Gobo", "AngularSpeed", "Anim Rotate"),
+}
+
+
+def own_attributes(make):
+    """`make` run with ATTRS_36's definitions in ATTRIBUTES (the festival types define
+    some of the same names their own way), so these files do not depend on which
+    section of this script defines a name first."""
+
+    def run():
+        saved = dict(ATTRIBUTES)
+        ATTRIBUTES.update(ATTRS_36)
+        try:
+            return make()
+        finally:
+            ATTRIBUTES.clear()
+            ATTRIBUTES.update(saved)
+
+    return run
+
+COLOUR_BAR_CELLS = 4
+# ColorMacro1's wheel: slot colours (xyY) a macro mixes to; slot 1 is "Off" (no macro).
+MACRO_SLOTS = [("Off", "0.3127,0.3290,100"), ("Red", "0.6400,0.3300,100"), ("Amber", "0.5700,0.4200,100"), ("Lavender", "0.2500,0.2000,100")]
+# Color2's wheel: gels as xyY (Y = luminous transmittance, percent).
+GEL_SLOTS = [("Open", "0.3127,0.3290,100"), ("Blue gel", "0.2000,0.2000,30"), ("Amber gel", "0.5000,0.4200,60")]
+
+
+def colour_bar():
+    rgbw = [("ColorAdd_R", "Red"), ("ColorAdd_G", "Green"), ("ColorAdd_B", "Blue"), ("ColorAdd_W", "White")]
+    used = ["Dimmer"] + [a for a, _ in rgbw] + [
+        "HSB_Hue", "HSB_Saturation", "HSB_Brightness", "CIE_X", "CIE_Y", "CIE_Brightness", "ColorMixMode", "LEDZoneMode",
+        "ColorMacro1", "Color2", "CTC", "Green/Magenta",
+    ]
+    physical = [emitters_xml(spectra=False), el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
+    models = [model("Body", 0.5, 0.05, 0.06, "Cube"), model("Pixel", 0.1, 0.04, 0.01, "Cube")]
+    pixel = beam("Pixel", "Pixel", m4(), LampType="LED", PowerConsumption="12", LuminousFlux="500", ColorTemperature="6500", BeamAngle="25", FieldAngle="40", BeamRadius="0.02", BeamType="Wash")
+    wheels = [
+        el("Wheel", [el("Slot", Name=n, Color=c) for n, c in MACRO_SLOTS], Name="ColorMacro1"),
+        el("Wheel", [el("Slot", Name=n, Color=c) for n, c in GEL_SLOTS], Name="Color2"),
+    ]
+
+    def bar(name, first, stride):
+        refs = [
+            el("GeometryReference", [el("Break", DMXOffset=str(first + stride * k), DMXBreak="1")], Name=f"{name}Cell{k + 1}", Geometry="Pixel", Model="Pixel", Position=m4(-0.1875 + 0.125 * k, 0, -0.03))
+            for k in range(COLOUR_BAR_CELLS)
+        ]
+        return el("Geometry", refs, Name=name, Model="Body", Position=m4())
+
+    rgbw_mode = [simple("Pixel", [1 + k], a, default=0, extra={"Emitter": e}) for k, (a, e) in enumerate(rgbw)]
+    hsb_mode = [
+        simple("Pixel", [1, 2], "HSB_Hue", 0, 360),
+        simple("Pixel", [3], "HSB_Saturation", 0, 100, default=255),
+        simple("Pixel", [4], "HSB_Brightness", 0, 100, default=255),
+    ]
+    cie_mode = [
+        simple("Pixel", [1, 2], "CIE_X", 0, 1, default=20493),
+        simple("Pixel", [3, 4], "CIE_Y", 0, 1, default=21561),
+        simple("Pixel", [5], "CIE_Brightness", 0, 100, default=255),
+    ]
+    rgb_on = {"ModeMaster": "MixBar_ColorMixMode", "ModeFrom": "0/1", "ModeTo": "127/1"}
+    hsb_on = {"ModeMaster": "MixBar_ColorMixMode", "ModeFrom": "128/1", "ModeTo": "255/1"}
+    hsb_attrs = ["HSB_Hue", "HSB_Saturation", "HSB_Brightness"]
+    hsb_ranges = [(0, 360), (0, 100), (0, 100)]
+    mixed_cells = []
+    for k, (a, e) in enumerate(rgbw):
+        fns = [(a, 0, 0, 1, {"Emitter": e, **rgb_on}, [])]
+        if k < 3:
+            fns.append((hsb_attrs[k], 0, hsb_ranges[k][0], hsb_ranges[k][1], hsb_on, []))
+        mixed_cells.append(Chan("Pixel", [1 + k], fns))
+    macro_sets = [("Off", 0, None)] + [(n, 32 + 32 * k, k + 2) for k, (n, _) in enumerate(MACRO_SLOTS[1:])]
+    gel_sets = [(n, 40 * k, k + 1) for k, (n, _) in enumerate(GEL_SLOTS)]
+    mixed = [
+        Chan("MixBar", [1], [("ColorMixMode", 0, 0, 1, {}, [("RGBW", 0, None), ("HSB", 128, None)])]),
+        Chan("MixBar", [2], [("LEDZoneMode", 0, 0, 1, {}, [("All", 0, None), ("Zones", 128, None)])]),
+        Chan("MixBar", [3], [("ColorMacro1", 0, 0, 0, {"Wheel": "ColorMacro1"}, macro_sets)]),
+        Chan("MixBar", [4], [("Color2", 0, 0, 0, {"Wheel": "Color2"}, gel_sets)]),
+        simple("MixBar", [5, 6], "CTC", 2700, 8000, default=65535),
+        simple("MixBar", [7], "Green/Magenta", -1, 1, default=128),
+    ] + mixed_cells
+    cct = [
+        simple("CctBar", [1], "Dimmer"),
+        simple("CctBar", [2, 3], "CTC", 2700, 8000, default=65535),
+        simple("CctBar", [4], "Green/Magenta", -1, 1, default=128),
+    ]
+    modes = [
+        mode("RGBW", "RgbwBar", rgbw_mode),
+        mode("HSB", "HsbBar", hsb_mode),
+        mode("CIE", "CieBar", cie_mode),
+        mode("Mixed", "MixBar", mixed),
+        mode("CCT", "CctBar", cct),
+    ]
+    geometries = [bar("RgbwBar", 1, 4), bar("HsbBar", 1, 4), bar("CieBar", 1, 5), bar("MixBar", 8, 4), bar("CctBar", 5, 0), pixel]
+    text = fixture_type(
+        "ColourBar", "ColourBar", used, wheels, physical, models, geometries, modes,
+        "4-cell RGBW LED bar without a dimmer: RGBW, HSB, CIE, mixed (mode master) and CCT modes (test data, estimated values)",
+    )
+    return text, {}
+
+
+def cluster4():
+    rgbw = [("ColorAdd_R", "Red"), ("ColorAdd_G", "Green"), ("ColorAdd_B", "Blue"), ("ColorAdd_W", "White")]
+    used = ["Dimmer", "DimmerCurve", "DimmerMode", "Shutter1", "Shutter1Strobe", "StrobeMode", "StrobeDuration", "Tint"] + [a for a, _ in rgbw]
+    physical = [emitters_xml(spectra=False), el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
+    models = [model("Frame", 0.4, 0.4, 0.1, "Cube"), model("Lens", 0.15, 0.15, 0.02, "Cylinder")]
+    lens = beam("Lens", "Lens", m4(), LampType="LED", PowerConsumption="60", LuminousFlux="2500", ColorTemperature="6500", BeamAngle="30", FieldAngle="45", BeamRadius="0.07", BeamType="Wash")
+    refs = [
+        el("GeometryReference", [el("Break", DMXOffset=str(8 + 5 * k), DMXBreak="1")], Name=f"Lens{k + 1}", Geometry="Lens", Model="Lens", Position=m4(-0.1 + 0.2 * (k % 2), -0.1 + 0.2 * (k // 2), -0.05))
+        for k in range(4)
+    ]
+    frame = el("Geometry", refs, Name="Frame", Model="Frame", Position=m4())
+    strobe_on = {"ModeMaster": "Frame_StrobeMode", "ModeFrom": "0/1", "ModeTo": "127/1"}
+    strobe_off = {"ModeMaster": "Frame_StrobeMode", "ModeFrom": "128/1", "ModeTo": "255/1"}
+    full = [
+        simple("Frame", [1], "Dimmer", default=0),
+        Chan("Frame", [2], [("DimmerCurve", 0, 0, 1, {}, [("Linear", 0, None), ("Square", 64, None), ("S-Curve", 128, None), ("Log", 192, None)])]),
+        Chan("Frame", [3], [("DimmerMode", 0, 0, 1, {}, [("Fast", 0, None), ("Smooth", 128, None)])]),
+        Chan(
+            "Frame",
+            [4],
+            [
+                ("Shutter1", 0, 1, 1, strobe_on, [("Open", 0, None)]),
+                ("Shutter1Strobe", 16, 1, 20, strobe_on, []),
+                ("Shutter1", 0, 1, 1, strobe_off, [("Open", 0, None)]),
+            ],
+        ),
+        simple("Frame", [5], "StrobeDuration", 0.01, 0.2),
+        Chan("Frame", [6], [("StrobeMode", 0, 0, 1, {}, [("Strobe", 0, None), ("Open", 128, None)])]),
+        simple("Frame", [7], "Tint", -1, 1, default=128),
+        simple("Lens", [1], "Dimmer", default=255),
+    ] + [simple("Lens", [2 + k], a, default=255, extra={"Emitter": e}) for k, (a, e) in enumerate(rgbw)]
+    text = fixture_type(
+        "Cluster4", "Cluster4", used, [], physical, models, [frame, lens], [mode("Full", "Frame", full)],
+        "4-cell RGBW LED blinder: master and cell dimmers, dimmer curve, strobe mode and duration, tint (test data, estimated values)",
+    )
+    return text, {}
+
+
+def viper_spot():
+    cw, _ = color_wheel()
+    c2 = el("Wheel", [el("Slot", Name=n, Color=c) for n, c in GEL_SLOTS], Name="Color2")
+    g1, _ = gobo_wheel()
+    g2 = el("Wheel", [el("Slot", Name="Open", Color="0.3127,0.3290,100"), el("Slot", Name="Dots", Color="0.3127,0.3290,100", MediaFileName="viper_dots")], Name="Gobo2")
+    anim = el("Wheel", [el("Slot", Name="Out", Color="0.3127,0.3290,100"), el("Slot", Name="Stripes", Color="0.3127,0.3290,100", MediaFileName="viper_stripes")], Name="AnimationWheel1")
+    pw, _ = prism_wheel()
+    used = [
+        "Pan", "Tilt", "Dimmer", "Shutter1", "Shutter1Strobe", "Color1", "Color2", "Gobo1", "Gobo1WheelSpin", "Gobo1Pos", "Gobo1PosRotate",
+        "Gobo2", "AnimationWheel1", "AnimationWheel1Pos", "AnimationWheel1PosRotate", "Prism1", "Prism1PosRotate", "Frost1", "Zoom", "Focus1",
+        "CTO", "ColorSub_C", "ColorSub_M", "ColorSub_Y",
+    ]
+    physical = [el("Emitters"), el("Filters"), el("ColorSpace", Mode="sRGB"), el("DMXProfiles"), el("CRIs"), el("Connectors"), el("Properties")]
+    models = [model("Base", 0.4, 0.3, 0.15, "Base"), model("Yoke", 0.35, 0.1, 0.35, "Yoke"), model("Head", 0.25, 0.25, 0.45, "Head"), model("Lens", 0.01, 0.14, 0.14, "Cylinder")]
+    filters = [
+        el("FilterColor", Name="Colours", Model="Lens", Position=m4(0, 0, -0.05)),
+        el("FilterGobo", Name="Gobos", Model="Lens", Position=m4(0, 0, -0.06)),
+    ]
+    lens = beam("Lens", "Lens", m4(0, 0, -0.25), LampType="Discharge", PowerConsumption="1000", LuminousFlux="26000", ColorTemperature="6000", BeamAngle="12", FieldAngle="16", BeamRadius="0.07", BeamType="Spot", children=filters)
+    tree = el("Geometry", [el("Axis", [el("Axis", [lens], Name="Head", Model="Head", Position=m4(0, 0, -0.35))], Name="Yoke", Model="Yoke", Position=m4(0, 0, -0.15))], Name="Base", Model="Base", Position=m4())
+    index = {"ModeMaster": "Gobos_Gobo1", "ModeFrom": "0/1", "ModeTo": "63/1"}
+    rotate = {"ModeMaster": "Gobos_Gobo1", "ModeFrom": "64/1", "ModeTo": "127/1"}
+    slots = [("Open", 0, 1), ("Ring", 10, 2), ("Bars", 20, 3), ("Open rotating", 64, 1), ("Ring rotating", 74, 2), ("Bars rotating", 84, 3)]
+    chans = [
+        simple("Yoke", [1, 2], "Pan", -270, 270, default=32768),
+        simple("Head", [3, 4], "Tilt", -135, 135, default=32768),
+        simple("Lens", [5, 6], "Dimmer", 0, 1),
+        Chan("Lens", [7], [("Shutter1", 0, 0, 0, {}, [("Closed", 0, None)]), ("Shutter1", 32, 1, 1, {}, [("Open", 32, None)]), ("Shutter1Strobe", 64, 1, 25, {}, [])], default=32),
+        Chan("Colours", [8], [("Color1", 0, 0, 0, {"Wheel": "Color1"}, [("Open", 0, 1), ("Red", 10, 2), ("Green", 20, 3), ("Blue", 30, 4), ("Amber", 40, 5)])]),
+        Chan("Colours", [9], [("Color2", 0, 0, 0, {"Wheel": "Color2"}, [(n, 40 * k, k + 1) for k, (n, _) in enumerate(GEL_SLOTS)])]),
+        Chan("Gobos", [10], [("Gobo1", 0, 0, 0, {"Wheel": "Gobo1"}, slots), ("Gobo1WheelSpin", 128, -120, 120, {"Wheel": "Gobo1"}, [])]),
+        Chan("Gobos", [11, 12], [("Gobo1Pos", 0, -180, 180, index, []), ("Gobo1PosRotate", 0, -200, 200, rotate, [])], default=32768),
+        Chan("Gobos", [13], [("Gobo2", 0, 0, 0, {"Wheel": "Gobo2"}, [("Open", 0, 1), ("Dots", 128, 2)])]),
+        Chan("Gobos", [14], [("AnimationWheel1", 0, 0, 0, {"Wheel": "AnimationWheel1"}, [("Out", 0, 1), ("Stripes", 128, 2)])]),
+        Chan("Gobos", [15], [("AnimationWheel1Pos", 0, 0, 360), ("AnimationWheel1PosRotate", 128, -100, 100)]),
+        Chan("Lens", [16], [("Prism1", 0, 0, 0, {"Wheel": "Prism1"}, [("Out", 0, 1)]), ("Prism1", 128, 0, 0, {"Wheel": "Prism1"}, [("3-Facet", 128, 2)])]),
+        simple("Lens", [17], "Prism1PosRotate", -180, 180, default=128),
+        simple("Lens", [18], "Frost1", 0, 1),
+        simple("Lens", [19], "Zoom", 10, 40),
+        simple("Lens", [20], "Focus1", 0, 1),
+        simple("Lens", [21], "CTO", 0, 1),
+        simple("Lens", [22], "ColorSub_C", 0, 1),
+        simple("Lens", [23], "ColorSub_M", 0, 1),
+        simple("Lens", [24], "ColorSub_Y", 0, 1),
+    ]
+    dots = png_gray(GOBO_SIZE, GOBO_SIZE, lambda x, y: 255 if (x % 16 - 8) ** 2 + (y % 16 - 8) ** 2 < 25 else 0)
+    stripes = png_gray(GOBO_SIZE, GOBO_SIZE, lambda x, y: 255 if (x + y) // 6 % 2 == 0 else 0)
+    media = {
+        "wheels/gobo_ring.png": png_gray(GOBO_SIZE, GOBO_SIZE, gobo_ring),
+        "wheels/gobo_bars.png": png_gray(GOBO_SIZE, GOBO_SIZE, gobo_bars),
+        "wheels/viper_dots.png": dots,
+        "wheels/viper_stripes.png": stripes,
+    }
+    text = fixture_type(
+        "ViperSpot", "ViperSpot", used, [cw, c2, g1, g2, anim, pw], physical, models, [tree], [mode("Standard", "Base", chans)],
+        "discharge moving spot: gobo index/rotation by mode master, second gobo, animation wheel, two colour wheels (test data, estimated values)",
+    )
+    return text, media
+
+
+ATTRIBUTE_TYPES = {
+    "Footlight@ColourBar.gdtf": own_attributes(colour_bar),
+    "Footlight@Cluster4.gdtf": own_attributes(cluster4),
+    "Footlight@ViperSpot.gdtf": own_attributes(viper_spot),
+}
+
+# colour.mvr: (name, spec, mode, id, universe 1 address), 4 m up over a grey floor, 1.5 m apart.
+COLOUR_RIG = [
+    ("Bar Mixed", "Footlight@ColourBar.gdtf", "Mixed", 3601, 1),
+    ("Bar RGBW", "Footlight@ColourBar.gdtf", "RGBW", 3602, 31),
+    ("Bar CCT", "Footlight@ColourBar.gdtf", "CCT", 3603, 51),
+    ("Cluster", "Footlight@Cluster4.gdtf", "Full", 3604, 61),
+    ("Viper", "Footlight@ViperSpot.gdtf", "Standard", 3605, 101),
+    ("Bar HSB", "Footlight@ColourBar.gdtf", "HSB", 3606, 131),
+    ("Bar CIE", "Footlight@ColourBar.gdtf", "CIE", 3607, 151),
+]
+
+
+def colour_mvr():
+    lights, scenery = uid("class/Lighting"), uid("class/Scenery")
+    fixtures = [
+        fixture_xml(name, spec, m, fid, 1, mvr_matrix(-4500 + 1500 * k, 0, 4000), [(0, addr)], lights)
+        for k, (name, spec, m, fid, addr) in enumerate(COLOUR_RIG)
+    ]
+    floor = el("SceneObject", [el("Matrix", mvr_matrix(0, 0, 0)), el("Classing", scenery), el("Geometries", [el("Geometry3D", fileName="floor.glb")])], name="Floor", uuid=uid("colour/floor"))
+    layers = [el("Layer", [el("ChildList", [floor] + fixtures)], name="Colour rig", uuid=uid("layer/colour"))]
+    aux = [el("Class", name="Lighting", uuid=lights), el("Class", name="Scenery", uuid=scenery)]
+    floor_v = [(-7.0, 0.0, -4.0), (7.0, 0.0, -4.0), (7.0, 0.0, 4.0), (-7.0, 0.0, 4.0)]
+    entries = {"GeneralSceneDescription.xml": gsd(layers, aux), "floor.glb": glb_bytes(floor_v, [(0, 3, 2), (0, 2, 1)], (0.5, 0.5, 0.5), "floor")}
+    for spec, make in ATTRIBUTE_TYPES.items():
+        text, media = make()
+        entries[spec] = zip_bytes({"description.xml": text, **media})
+    return zip_bytes(entries)
+
+
 def outputs():
     files = {}
     for name in TYPES:
@@ -1924,6 +2206,10 @@ def outputs():
     for name, make in LED_TYPES.items():
         files[GDTF_DIR / name] = zip_bytes({"description.xml": make()[0]})
     files[MVR_DIR / "led-bars.mvr"] = led_bars_mvr()
+    for name, make in ATTRIBUTE_TYPES.items():
+        text, media = make()
+        files[GDTF_DIR / name] = zip_bytes({"description.xml": text, **media})
+    files[MVR_DIR / "colour.mvr"] = colour_mvr()
     files[ROOT / "tests" / "data" / "textures" / "checker.jpg"] = jpeg_gray_blocks(JPEG_BLOCKS)
     for name, data in bad_files().items():
         files[MVR_DIR / name] = data

@@ -7,10 +7,11 @@
 //! ```
 //!
 //! [`classify`] compares two states of one fixture: nothing changed → no
-//! event; dimmer, colour mix, colour frame, colour-wheel slot, CTO/CTB,
-//! shutter or strobe rate → the composite only (k_i); pan, tilt, zoom,
-//! focus, iris, gobo (slot, rotation, spin), framing-shutter blades, prism
-//! and frost → geometry, which marks the light dirty for a rebuild (and,
+//! event; dimmer, colour mix, colour frame, colour-wheel slots (wheels 1-4),
+//! CTO/CTB, tint, HSB, CIE, colour macro, shutter, strobe rate or duration
+//! → the composite only (k_i); pan, tilt, zoom, focus, iris, gobo (both
+//! wheels: slot, rotation, spin), animation wheel, framing-shutter blades,
+//! prism and frost → geometry, which marks the light dirty for a rebuild (and,
 //! since zoom changes Î, also needs a new k_i). Spinning gobos and prisms
 //! step on the frame clock at [`SPIN_UPDATE_HZ`] ([`FixtureState::at_time`]).
 //!
@@ -79,6 +80,32 @@ pub struct FixtureState {
     pub prism_spin: f32,
     /// Frost 0 (none) .. 1 (full).
     pub frost: f32,
+    /// Colour wheels 2-4 (GDTF `Color2` … `Color4`): slots, 0-based; their
+    /// filters multiply the first wheel's ([`crate::FixtureType::filters`]).
+    pub wheels: [f32; 3],
+    /// HSB control (GDTF `HSB_Hue`, `HSB_Saturation`, `HSB_Brightness`):
+    /// [hue in degrees, saturation 0..1, brightness 0..1]; `None` when the
+    /// mode has no active HSB channel. An LED type mixes its emitters to the
+    /// hue's chromaticity; the brightness multiplies v.
+    pub hsb: Option<[f32; 3]>,
+    /// CIE control (GDTF `CIE_X`, `CIE_Y`, `CIE_Brightness`): [x, y,
+    /// brightness 0..1]; `None` when the mode has no active CIE channel.
+    pub cie: Option<[f32; 3]>,
+    /// Colour-macro slot (GDTF `ColorMacro1` linked to a wheel whose slots
+    /// carry colours), 0-based; `None` when no macro is active.
+    pub colour_macro: Option<f32>,
+    /// Green/magenta tint as Duv (CIE 1960 distance from the Planckian
+    /// locus, positive toward green); 0 = none.
+    pub tint: f32,
+    /// Duration of one strobe flash in seconds (GDTF `StrobeDuration`);
+    /// 0 = not given (the duty cycle is [`STROBE_DUTY`]).
+    pub strobe_duration: f32,
+    /// Second gobo wheel: [slot (0-based), indexed angle in degrees,
+    /// rotation in degrees per second].
+    pub gobo2: [f32; 3],
+    /// Animation wheel: [slot (0-based), indexed angle in degrees, rotation
+    /// in degrees per second].
+    pub animation: [f32; 3],
 }
 
 /// Most rebuilds per second that a spinning gobo, prism or gobo wheel asks
@@ -96,7 +123,9 @@ impl FixtureState {
     /// True when something turns on the frame clock (gobo or prism
     /// rotation, gobo-wheel spin).
     pub fn spins(&self) -> bool {
-        [self.gobo_spin, self.gobo_wheel_spin, self.prism_spin].iter().any(|v| v.is_finite() && *v != 0.0)
+        [self.gobo_spin, self.gobo_wheel_spin, self.prism_spin, self.gobo2[2], self.animation[2]]
+            .iter()
+            .any(|v| v.is_finite() && *v != 0.0)
     }
 
     /// The state at frame time `t_seconds` with its spins applied: gobo and
@@ -121,6 +150,8 @@ impl FixtureState {
         let mut s = *self;
         s.gobo_angle = turn(self.gobo_angle, self.gobo_spin);
         s.prism_angle = turn(self.prism_angle, self.prism_spin);
+        s.gobo2[1] = turn(self.gobo2[1], self.gobo2[2]);
+        s.animation[1] = turn(self.animation[1], self.animation[2]);
         if gobo_slots > 0 && self.gobo_wheel_spin.is_finite() && self.gobo_wheel_spin != 0.0 {
             let n = gobo_slots as f64;
             let pos = f64::from(self.gobo) + f64::from(self.gobo_wheel_spin) * t * n / 360.0;
@@ -129,9 +160,17 @@ impl FixtureState {
         s
     }
 
+    /// The strobe's duty cycle: the flash duration times the rate when the
+    /// type gives a duration (GDTF `StrobeDuration`), clamped to [0, 1];
+    /// else [`STROBE_DUTY`].
+    pub fn strobe_duty(&self) -> f64 {
+        let (d, hz) = (f64::from(self.strobe_duration), f64::from(self.strobe));
+        if d > 0.0 && d.is_finite() && hz > 0.0 && hz.is_finite() { (d * hz).clamp(0.0, 1.0) } else { STROBE_DUTY }
+    }
+
     /// The shutter's transmission at frame time `t_seconds`: 0 closed, 1
-    /// open, and while strobing 1 for the first [`STROBE_DUTY`] of each
-    /// period `1/strobe` and 0 after it. The phase origin is t = 0 of the
+    /// open, and while strobing 1 for the first [`FixtureState::strobe_duty`]
+    /// of each period `1/strobe` and 0 after it. The phase origin is t = 0 of the
     /// frame clock, so fixtures at the same rate flash together (as a desk's
     /// "strobe sync"). Pure: stills evaluate it at t = 0 (open).
     pub fn shutter_at(&self, t_seconds: f64) -> f32 {
@@ -143,7 +182,7 @@ impl FixtureState {
             return 1.0;
         }
         let phase = (t_seconds * hz).rem_euclid(1.0);
-        if phase < STROBE_DUTY { 1.0 } else { 0.0 }
+        if phase < self.strobe_duty() { 1.0 } else { 0.0 }
     }
 }
 
@@ -174,6 +213,14 @@ impl Default for FixtureState {
             prism_angle: 0.0,
             prism_spin: 0.0,
             frost: 0.0,
+            wheels: [0.0; 3],
+            hsb: None,
+            cie: None,
+            colour_macro: None,
+            tint: 0.0,
+            strobe_duration: 0.0,
+            gobo2: [0.0; 3],
+            animation: [0.0; 3],
         }
     }
 }
@@ -211,6 +258,12 @@ pub fn classify(old: &FixtureState, new: &FixtureState) -> Change {
         || old.cto != new.cto
         || old.shutter != new.shutter
         || old.strobe != new.strobe
+        || old.wheels != new.wheels
+        || old.hsb != new.hsb
+        || old.cie != new.cie
+        || old.colour_macro != new.colour_macro
+        || old.tint != new.tint
+        || old.strobe_duration != new.strobe_duration
     {
         return Change::Composite;
     }
@@ -231,6 +284,8 @@ fn gate_changed(old: &FixtureState, new: &FixtureState) -> bool {
         || old.prism_angle != new.prism_angle
         || old.prism_spin != new.prism_spin
         || old.frost != new.frost
+        || old.gobo2 != new.gobo2
+        || old.animation != new.animation
 }
 
 /// Read access to the latest 512-slot frame of each patch universe, in
@@ -307,6 +362,12 @@ mod tests {
             FixtureState { cto: 3200.0, ..a },
             FixtureState { shutter: 0.0, ..a },
             FixtureState { strobe: 10.0, ..a },
+            FixtureState { wheels: [0.0, 1.0, 0.0], ..a },
+            FixtureState { hsb: Some([120.0, 1.0, 1.0]), ..a },
+            FixtureState { cie: Some([0.4, 0.4, 1.0]), ..a },
+            FixtureState { colour_macro: Some(2.0), ..a },
+            FixtureState { tint: 0.01, ..a },
+            FixtureState { strobe_duration: 0.05, ..a },
         ] {
             assert_eq!(classify(&a, &change), Change::Composite, "{change:?}");
         }
@@ -328,6 +389,9 @@ mod tests {
             FixtureState { prism_angle: 1.0, ..a },
             FixtureState { prism_spin: 1.0, ..a },
             FixtureState { frost: 0.5, ..a },
+            FixtureState { gobo2: [1.0, 0.0, 0.0], ..a },
+            FixtureState { gobo2: [0.0, 0.0, 5.0], ..a },
+            FixtureState { animation: [1.0, 30.0, 0.0], ..a },
         ] {
             assert_eq!(classify(&a, &change), Change::Geometry, "{change:?}");
         }
@@ -351,6 +415,13 @@ mod tests {
         let mean: f64 = (0..n).map(|i| f64::from(s.shutter_at((i as f64 + 0.5) * 1e-5 * 7.3))).sum::<f64>() / n as f64;
         assert!((mean - STROBE_DUTY).abs() < 2e-3, "{mean}");
         assert_eq!(FixtureState { strobe: f32::NAN, ..open }.shutter_at(0.07), 1.0);
+        // A flash duration (GDTF StrobeDuration) sets the duty: 20 ms at 10 Hz is open 20 % of the time.
+        let short = FixtureState { strobe: 10.0, strobe_duration: 0.02, ..open };
+        assert!((short.strobe_duty() - 0.2).abs() < 1e-6);
+        assert_eq!((short.shutter_at(0.019), short.shutter_at(0.021)), (1.0, 0.0));
+        // Longer than the period: open all the time; nonsense: the default duty.
+        assert_eq!(FixtureState { strobe_duration: 1.0, ..s }.strobe_duty(), 1.0);
+        assert_eq!(FixtureState { strobe_duration: f32::NAN, ..s }.strobe_duty(), STROBE_DUTY);
         assert_eq!(FixtureState { shutter: f32::NAN, ..open }.shutter_at(0.0), 0.0);
     }
 
@@ -383,6 +454,11 @@ mod tests {
         assert!((w.at_time(5.0, 6).gobo - 0.0).abs() < 1e-4);
         assert_eq!(w.at_time(5.0, 0).gobo, 1.0, "no wheel: nothing to spin through");
         assert_eq!(s.at_time(f64::NAN, 6), s);
+        // The second gobo and the animation wheel turn like the first gobo.
+        let layers = FixtureState { gobo2: [1.0, 10.0, 45.0], animation: [1.0, 0.0, -30.0], ..FixtureState::default() };
+        assert!(layers.spins());
+        let t = layers.at_time(2.0, 6);
+        assert!((t.gobo2[1] - 100.0).abs() < 1e-4 && (t.animation[1] - 300.0).abs() < 1e-4, "{t:?}");
     }
 
     #[test]

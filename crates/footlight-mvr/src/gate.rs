@@ -15,10 +15,18 @@
 //! * `Blade1A` … `Blade4B` (insertion, physical 0..1 of the gate diameter),
 //!   `Blade1Rot` … (degrees), `ShaperRot` (degrees), `Frost1` (0..1).
 //!
-//! Only the first gobo and prism wheel are modelled (`Gobo2`, `Prism2`… stay
-//! `other` channels with the type's warning).
+//! * `Gobo2` (with a `Wheel` link), `Gobo2Pos`, `Gobo2PosRotate`: a second
+//!   gobo wheel, its image multiplying the first's ([`GoboLayer`]);
+//!   `AnimationWheel1` (with a `Wheel` link), `AnimationWheel1Pos`,
+//!   `AnimationWheel1PosRotate`: the animation wheel as one more such layer
+//!   centred on the axis (estimated: a real one sits off-axis and slides
+//!   through the gate as it turns).
+//!
+//! A second prism wheel (`Prism2`…) stays an `other` channel with the type's warning.
+//!
+//! [`GoboLayer`]: footlight_fixture::beam::GoboLayer
 
-use crate::gdtf::{ChannelInfo, Gdtf, Layout};
+use crate::gdtf::{FunctionInfo, Gdtf, Layout};
 use footlight_fixture::PatchError;
 use footlight_fixture::beam::{Facet, GoboImage};
 use footlight_fixture::fixture_type::{Action, Attribute, Function, GateOptics, GateTarget};
@@ -31,6 +39,8 @@ pub const MAX_GOBO_SIDE: u32 = 4096;
 pub fn gate_attribute(attribute: &str, wheel: bool) -> Option<Attribute> {
     match attribute {
         "Gobo1" if wheel => Some(Attribute::Gobo),
+        "Gobo2" if wheel => Some(Attribute::Gobo2),
+        "AnimationWheel1" if wheel => Some(Attribute::Animation),
         "Prism1" if wheel => Some(Attribute::Prism),
         a if gate_target(a).is_some() => Some(Attribute::Gate),
         _ => None,
@@ -47,6 +57,10 @@ pub fn gate_target(attribute: &str) -> Option<GateTarget> {
         "Prism1PosRotate" => GateTarget::PrismSpin,
         "ShaperRot" => GateTarget::ShaperRot,
         "Frost1" => GateTarget::Frost,
+        "Gobo2Pos" => GateTarget::Gobo2Angle,
+        "Gobo2PosRotate" => GateTarget::Gobo2Spin,
+        "AnimationWheel1Pos" => GateTarget::AnimationAngle,
+        "AnimationWheel1PosRotate" => GateTarget::AnimationSpin,
         a => {
             let rest = a.strip_prefix("Blade")?;
             let n = rest.chars().next()?.to_digit(10)?;
@@ -64,27 +78,22 @@ pub fn gate_target(attribute: &str) -> Option<GateTarget> {
     })
 }
 
-/// The DMX ranges of a gate channel: wheel slots from the channel sets
-/// (gobo and prism), and every function whose attribute is a gate value
-/// over its physical range. `raw16` converts a raw value at the channel's
-/// resolution to Footlight's 8/16-bit reading.
-pub fn gate_functions(c: &ChannelInfo, attribute: Attribute, raw16: &dyn Fn(u64) -> u16) -> Vec<Function> {
-    let mut out = Vec::new();
-    for f in &c.functions {
-        let (from, to) = (raw16(f.dmx_from), raw16(f.dmx_to));
-        let range = [f.physical_from as f32, f.physical_to as f32];
-        if let Some(t) = gate_target(&f.attribute) {
-            out.push(Function { from, to, action: Action::Gate(t), range });
-            continue;
-        }
-        if matches!(attribute, Attribute::Gobo | Attribute::Prism) {
-            out.extend(crate::show::wheel_slot_functions(f, range, raw16));
-        } else {
-            out.push(Function { from, to, action: Action::Hold, range });
-        }
+/// The DMX ranges of one channel function of a gate channel: wheel slots
+/// from the channel sets (gobo, second gobo, animation and prism wheels),
+/// or a gate value over its physical range. `raw16` converts a raw value at
+/// the channel's resolution to Footlight's 8/16-bit reading. The caller
+/// adds the function's mode master.
+pub fn gate_functions_of(f: &FunctionInfo, attribute: Attribute, raw16: &dyn Fn(u64) -> u16) -> Vec<Function> {
+    let (from, to) = (raw16(f.dmx_from), raw16(f.dmx_to));
+    let range = [f.physical_from as f32, f.physical_to as f32];
+    if let Some(t) = gate_target(&f.attribute) {
+        return vec![Function { from, to, action: Action::Gate(t), range, mode: None }];
     }
-    out.sort_by_key(|f| f.from);
-    out
+    if matches!(attribute, Attribute::Gobo | Attribute::Gobo2 | Attribute::Animation | Attribute::Prism) {
+        crate::show::wheel_slot_functions(f, range, raw16)
+    } else {
+        vec![Function { from, to, action: Action::Hold, range, mode: None }]
+    }
 }
 
 /// The wheel the first channel with `attribute` links.
@@ -109,6 +118,7 @@ pub fn gate_optics(g: &Gdtf, layouts: &[Layout], warnings: &mut Vec<PatchError>)
                 .iter()
                 .map(|slot| {
                     let media = slot.media_name.as_deref()?;
+                    let line = g.lines.line("Slot", "MediaFileName", media).unwrap_or_else(|| g.type_line());
                     match g.wheel_image(media).map(|b| decode(media, b)) {
                         Some(Ok(img)) => Some(Arc::new(img)),
                         Some(Err(why)) => {
@@ -118,7 +128,6 @@ pub fn gate_optics(g: &Gdtf, layouts: &[Layout], warnings: &mut Vec<PatchError>)
                                 format!("gobo image {media:?}: {why}; slot left open"),
                             ));
                             None
-                    let line = g.lines.line("Slot", "MediaFileName", media).unwrap_or_else(|| g.type_line());
                         }
                         None => {
                             warnings.push(PatchError::new(
@@ -138,7 +147,43 @@ pub fn gate_optics(g: &Gdtf, layouts: &[Layout], warnings: &mut Vec<PatchError>)
             w.slots.iter().map(|s| s.facets.iter().map(|f| Facet::from_gdtf(rotation(&f.rotation))).collect()).collect()
         })
         .unwrap_or_default();
-    GateOptics { gobo_wheel, prism_wheel }
+    let gobo_wheel2 = layer_images(g, layouts, "Gobo2", warnings);
+    let animation_wheel = layer_images(g, layouts, "AnimationWheel1", warnings);
+    GateOptics { gobo_wheel, prism_wheel, gobo_wheel2, animation_wheel }
+}
+
+/// The slot images of the wheel the `attribute` channel links (a second
+/// gobo wheel, an animation wheel), as the first gobo wheel's: a missing or
+/// unreadable image is a warning and an open slot.
+fn layer_images(
+    g: &Gdtf,
+    layouts: &[Layout],
+    attribute: &str,
+    warnings: &mut Vec<PatchError>,
+) -> Vec<Option<Arc<GoboImage>>> {
+    let Some(w) = linked_wheel(g, layouts, attribute) else { return Vec::new() };
+    let mut out = Vec::new();
+    for slot in &w.slots {
+        let Some(media) = slot.media_name.as_deref() else {
+            out.push(None);
+            continue;
+        };
+        let why = match g.wheel_image(media).map(|b| decode(media, b)) {
+            Some(Ok(img)) => {
+                out.push(Some(Arc::new(img)));
+                continue;
+            }
+            Some(Err(why)) => format!(": {why}; slot left open"),
+            None => " is not in wheels/; slot left open".to_string(),
+        };
+        warnings.push(PatchError::new(
+            &g.label.join("description.xml"),
+            0,
+            format!("{attribute} image {media:?}{why}"),
+        ));
+        out.push(None);
+    }
+    out
 }
 
 /// A wheel image as a gobo: PNG (or any format the `image` crate's enabled

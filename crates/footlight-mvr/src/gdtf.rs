@@ -18,9 +18,13 @@
 //!   the plain tree, once per `GeometryReference` whose referenced subtree
 //!   holds it, shifted by the reference's `Break` (`DMXOffset − 1` for the
 //!   channel's break, or the last break for `DMXBreak="Overwrite"`);
-//! * channel functions get their DMX range (`DMXFrom` up to the next
-//!   function's `DMXFrom − 1`), physical range, wheel, emitter, filter, mode
-//!   master, DMX profile and channel sets.
+//! * channel functions get their DMX range, physical range, wheel, emitter,
+//!   filter, mode master, DMX profile and channel sets. A function's range
+//!   runs from its `DMXFrom` to the next `DMXFrom − 1` **among the functions
+//!   of its logical channel under the same mode master** (`ModeMaster`,
+//!   `ModeFrom`, `ModeTo`: functions of different modes overlap, each mode
+//!   tiling the channel), as pygdtf computes it; the mode master's range is
+//!   read at the master channel's resolution.
 //!
 //! Two things the `gdtf` crate does not give are filled in here: its
 //! `Matrix` has no accessor (it is read back through its own serialiser,
@@ -30,7 +34,7 @@
 use crate::archive::Archive;
 use crate::xml;
 use footlight_fixture::PatchError;
-use gdtf::dmx_mode::{DmxBreak, DmxChannel, DmxMode};
+use gdtf::dmx_mode::{DmxBreak, DmxChannel, DmxMode, ModeMaster};
 use gdtf::geometry::AnyGeometry;
 use gdtf::geometry::{BeamGeometry, Geometry};
 use gdtf::values::{DmxValue, Matrix};
@@ -69,12 +73,12 @@ pub struct Gdtf {
     media: BTreeMap<String, Vec<u8>>,
     /// The archive's 3D model files under `models/` (glb, 3ds), by entry name.
     model_files: BTreeMap<String, Vec<u8>>,
+    /// Where named elements of `description.xml` start (for the line of a warning).
+    pub lines: xml::LineIndex,
 }
 
 /// A `<Model>` of the fixture type (issue 14 item 5: fixture bodies).
 #[derive(Clone, Debug, PartialEq)]
-    /// Where named elements of `description.xml` start (for the line of a warning).
-    pub lines: xml::LineIndex,
 pub struct ModelInfo {
     /// `Name`.
     pub name: String,
@@ -262,7 +266,9 @@ pub struct FunctionInfo {
     pub filter: Option<String>,
     /// Linked DMX profile.
     pub dmx_profile: Option<String>,
-    /// Mode master: channel (node text) and its raw DMX range.
+    /// Mode master: the master's node text (a DMX channel, `Geometry_Attribute`,
+    /// or a channel function below it) and the raw range of the master
+    /// channel that selects this function, at the master's resolution.
     pub mode_master: Option<(String, u64, u64)>,
     /// Channel sets, DMX ranges resolved.
     pub sets: Vec<SetInfo>,
@@ -494,14 +500,14 @@ impl Gdtf {
                 format!("no DMX mode {mode:?}; the modes are {:?}", self.mode_names()),
             ));
         };
+        let mode_line = self.named_line("DMXMode", m.name.as_deref().unwrap_or(""));
+        let at = |m: String| PatchError::new(&self.label.join("description.xml"), mode_line, m);
         let mode_name = m.name.as_deref().unwrap_or("").to_string();
         let root_name = m.geometry.as_deref().unwrap_or("");
         let root = self.ft.root_geometry(root_name).or(match self.ft.geometries.as_slice() {
             [only] => Some(only),
             _ => None,
         });
-        let mode_line = self.named_line("DMXMode", m.name.as_deref().unwrap_or(""));
-        let at = |m: String| PatchError::new(&self.label.join("description.xml"), mode_line, m);
         let Some(root) = root else {
             return Err(at(format!(
                 "DMX mode {mode_name:?} names geometry {root_name:?}, which is not a top-level geometry"
@@ -781,15 +787,17 @@ fn channel(
     let max = max_raw(bytes);
     let mut functions = Vec::new();
     for lc in &c.logical_channels {
-        let n = lc.channel_functions.len();
-        for (k, f) in lc.channel_functions.iter().enumerate() {
+        for f in &lc.channel_functions {
             let from = dmx(f.dmx_from, bytes);
+            // The function ends where the next one under the same mode master begins.
             let to = lc
                 .channel_functions
-                .get(k + 1)
-                .map(|next| dmx(next.dmx_from, bytes).saturating_sub(1).max(from))
-                .unwrap_or(max);
-            let _ = n;
+                .iter()
+                .filter(|g| g.mode_master == f.mode_master)
+                .map(|g| dmx(g.dmx_from, bytes))
+                .filter(|&g| g > from)
+                .min()
+                .map_or(max, |next| next - 1);
             let mut sets = Vec::new();
             for (j, s) in f.channel_sets.iter().enumerate() {
                 let sf = dmx(s.dmx_from, bytes);
@@ -813,10 +821,16 @@ fn channel(
                 emitter: f.emitter.as_ref().map(|w| w.to_string()),
                 filter: f.filter.as_ref().map(|w| w.to_string()),
                 dmx_profile: f.dmx_profile.as_ref().map(|w| w.to_string()),
-                mode_master: f
-                    .mode_master
-                    .as_ref()
-                    .map(|mm| (mm.node.to_string(), dmx(mm.from, bytes), dmx(mm.to, bytes))),
+                mode_master: f.mode_master.as_ref().map(|mm| {
+                    let master = match mm.mode_master(mode) {
+                        Some(ModeMaster::DmxChannel(ch) | ModeMaster::ChannelFunction(ch, _, _)) => {
+                            ch.offset.as_ref().map_or(1, Vec::len)
+                        }
+                        None => 1,
+                    };
+                    let master = master.clamp(1, 4) as u8;
+                    (mm.node.to_string(), dmx(mm.from, master), dmx(mm.to, master))
+                }),
                 sets,
             });
         }
@@ -833,7 +847,6 @@ fn channel(
         .or_else(|| c.logical_channels.first().and_then(|l| l.channel_functions.first()))
         .map(|f| dmx(f.default, bytes))
         .unwrap_or(0);
-    let _ = mode;
     ChannelInfo {
         geometry: instance.to_string(),
         template: template.to_string(),

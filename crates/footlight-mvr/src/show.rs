@@ -29,9 +29,19 @@
 //!   (`colour_wheel`); `CTO`/`CTB`/`CTC` on a Planckian lamp → target CCT
 //!   with the ideal correction filter's transmittance.
 //!
-//! * `Gobo1`/`Gobo1Pos…`, `Prism1…`, `Blade…`, `ShaperRot`, `Frost1` → the
-//!   spot's gate (gobo image, rotation, blades, prism facets, frost), see
-//!   [`crate::gate`]: a changed gate is a geometry change (rebuild).
+//! * `Gobo1`/`Gobo1Pos…`, `Gobo2…`, `AnimationWheel1…`, `Prism1…`,
+//!   `Blade…`, `ShaperRot`, `Frost1` → the spot's gate (gobo images,
+//!   rotation, blades, prism facets, frost), see [`crate::gate`]: a changed
+//!   gate is a geometry change (rebuild).
+//!
+//! * The attributes real files use (issue 36, [`map_name`]): `HSB_*`,
+//!   `CIE_*`, `ColorMacro1` (slot colours), `Tint`/`Green/Magenta`,
+//!   CTO/CTB/CTC on LED types (a colour target or a correction of the mix,
+//!   in the emitter levels), `Color2`-`Color4` wheels, `DimmerCurve`/
+//!   `DimmerMode`, `StrobeDuration`; master and cell dimmers multiply; a
+//!   channel function applies only while its mode master selects it
+//!   ([`mode_gate`]; `ColorMixMode`, `LEDZoneMode` and every master become
+//!   [`Attribute::Mode`]). The table: docs/mvr-gdtf.md, "Attributes real GDTFs use".
 //!
 //! Every other attribute still occupies its
 //! slots as an `other` channel, with **one warning per fixture type**
@@ -45,19 +55,19 @@
 //! MVR `<Addresses>` of break 2, 3… go to `TypedFixture::breaks`
 //! ([`footlight_fixture::Fixture::slot_address`] resolves them).
 
-use crate::gdtf::{BeamInfo, ChannelInfo, Gdtf, GeometryKind, GeometryNode, LampType, Layout};
+use crate::gdtf::{BeamInfo, ChannelInfo, FunctionInfo, Gdtf, GeometryKind, GeometryNode, LampType, Layout};
 use crate::mvr::{Mvr, Scene, stage_pose};
+use crate::report::{self, Modelled, Tally, TypeSummary};
 use footlight_fixture::beam::SpotBeam;
 use footlight_fixture::fixture_type::{
-    Action, Attribute, Channel, CorrectionTable, Function, Mode, Movement, Optics, SlotOverride, SpotOptics, WheelSlot,
-    wheel_factor,
+    Action, Attribute, Channel, CorrectionTable, Function, Mode, ModeGate, Movement, Optics, SlotOverride, SpotOptics,
+    WheelSlot, colour::FULL_TINT_DUV, wheel_factor,
 };
 use footlight_fixture::patch::{BREAK_STRIDE, BuiltinSpot, FixtureCell, TypeLoader, TypedFixture};
 use footlight_fixture::state::{MAX_MIX, SLOTS, Universes};
 use footlight_fixture::{Beam, Fixture, FixtureModel, FixtureState, FixtureType, Light, Manual, Patch, PatchError};
 use footlight_photometry::{Chroma, CmyFilters, DimmerCurve, Emitter, Gel, Lamp, Sampled};
 use gdtf::wheel::WheelSlotOptic;
-use crate::report::{self, Modelled, Tally, TypeSummary};
 use glam::{DMat4, DQuat, Quat, Vec2, Vec3};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -73,6 +83,11 @@ pub struct Import {
     /// attributes…), each said once per file and problem at the line of the
     /// element concerned, with the fixtures (and cells) it concerns ([`crate::report`]).
     pub warnings: Vec<PatchError>,
+    /// How names were read that are not quite what the file says (a
+    /// `GDTFSpec` without `.gdtf`); one line each, not a problem.
+    pub notes: Vec<PatchError>,
+    /// One summary per fixture type (GDTFSpec), in the order the show first names them.
+    pub types: Vec<TypeSummary>,
     /// The flattened MVR scene.
     pub scene: Scene,
 }
@@ -83,11 +98,6 @@ pub fn first_beam(node: &GeometryNode) -> Option<(&GeometryNode, BeamInfo)> {
         return Some((node, *b));
     }
     node.children.iter().find_map(first_beam)
-    /// How names were read that are not quite what the file says (a
-    /// `GDTFSpec` without `.gdtf`); one line each, not a problem.
-    pub notes: Vec<PatchError>,
-    /// One summary per fixture type (GDTFSpec), in the order the show first names them.
-    pub types: Vec<TypeSummary>,
 }
 
 /// A GDTF file as a Footlight fixture type (every mode), with one warning
@@ -181,14 +191,39 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
             }
         }
     };
-    let planckian = !matches!(lamp, Lamp::Led { .. });
-    let lamp_cct = lamp.temperature(1.0);
+    // An LED type's own white for CTO/CTB/CTC corrections: the beam's colour temperature.
+    let lamp_cct = lamp.temperature(1.0).or(Some(cct));
+    // Colour wheels 2-4 and the colour-macro wheel (docs/mvr-gdtf.md, "Attributes").
+    let extra_wheels: Vec<Vec<WheelSlot>> = ["Color2", "Color3", "Color4"]
+        .iter()
+        .map(|a| linked_wheel(g, &layouts, a, &mut warnings).map(|w| wheel_slots(g, w)).unwrap_or_default())
+        .collect();
+    let colour_macros = linked_wheel(g, &layouts, "ColorMacro1", &mut warnings)
+        .map(|w| macro_colours(g, w))
+        .filter(|m| m.iter().any(Option::is_some))
+        .unwrap_or_default();
+    let wheel_names: Vec<&str> = if colour_macros.is_empty() { Vec::new() } else { vec!["ColorMacro1"] };
+    let ctx = MapContext {
+        mix: &mix_names,
+        moving: movement.is_some(),
+        unmixed: !matches!(lamp, Lamp::Led { .. } | Lamp::Cmy { .. }),
+        cct: lamp_cct.unwrap_or(cct),
+        wheels: &wheel_names,
+    };
     let mut unsupported: Vec<String> = Vec::new();
     let mut modes = Vec::new();
     for l in &layouts {
         let mut channels = Vec::new();
         let mut footprint = 0u16;
         let mut later_breaks = false;
+        let masters = masters(l);
+        // Channels other functions name as their mode master.
+        let selecting: std::collections::BTreeSet<&str> = l
+            .channels
+            .iter()
+            .flat_map(|c| c.functions.iter())
+            .filter_map(|f| f.mode_master.as_ref().and_then(|m| m.0.split('.').next()))
+            .collect();
         for c in &l.channels {
             if c.offsets.is_empty() {
                 continue;
@@ -201,8 +236,11 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
             if c.dmx_break == 1 {
                 footprint = footprint.max(*c.offsets.iter().max().unwrap_or(&0));
             }
-            let (attribute, range) = map_attribute(c, &mix_names, movement.is_some(), planckian);
-            let functions = channel_functions(c, attribute);
+            let (mut attribute, range) = map_attribute(c, &ctx);
+            if attribute == Attribute::Other && selecting.contains(format!("{}_{}", c.template, c.attribute).as_str()) {
+                attribute = Attribute::Mode; // its value selects other channels' functions
+            }
+            let functions = channel_functions(c, attribute, &ctx, &masters);
             if attribute == Attribute::Other && !unsupported.contains(&c.attribute) {
                 unsupported.push(c.attribute.clone());
             }
@@ -241,6 +279,8 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
         modes.push(Mode { name: l.mode.clone(), channels, footprint: footprint.min(SLOTS as u16), line: 0, overrides });
     }
     if !unsupported.is_empty() {
+        // One warning per type, each attribute with the line of its first channel.
+        let lines: Vec<String> = unsupported.iter().map(|a| format!("{a} (line {})", g.attribute_line(a))).collect();
         warnings.push(PatchError::new(
             &label,
             g.attribute_line(&unsupported[0]),
@@ -261,39 +301,127 @@ pub fn fixture_type(g: &Gdtf) -> Result<(FixtureType, Vec<PatchError>), PatchErr
         optics,
         movement,
         colour_wheel: colour_wheel(g, &layouts, &mut warnings),
-        cto: cto_table(&layouts, &lamp_cct, planckian),
+        cto: cto_table(&layouts, &lamp_cct),
         gate: crate::gate::gate_optics(g, &layouts, &mut warnings),
         modes,
+        extra_wheels,
+        colour_macros,
     };
     warnings.extend(g.model_warnings());
+    // Every warning about the file at the line of what it names (issue 36 item 3).
+    g.locate(&mut warnings);
     Ok((ty, warnings))
 }
 
-/// Footlight attribute and real-unit range of a GDTF channel.
-fn map_attribute(c: &ChannelInfo, mix: &[String], moving: bool, planckian: bool) -> (Attribute, [f32; 2]) {
+/// What [`map_name`] needs to know of the type.
+pub(crate) struct MapContext<'a> {
+    /// The colour-mix attributes, in [`FixtureState::mix`] order.
+    pub mix: &'a [String],
+    /// The type has a yoke (pan and tilt channels move it).
+    pub moving: bool,
+    /// No colour-mix channel could be mixed (no emitter colours): additive
+    /// colour channels scale intensity instead ([`Attribute::Level`]).
+    pub unmixed: bool,
+    /// The lamp's (beam's) colour temperature, K.
+    pub cct: f32,
+    /// Colour wheels 1-4 and the colour-macro wheel the type links (by attribute: `Color1` … `ColorMacro1`).
+    pub wheels: &'a [&'a str],
+}
+
+/// Footlight attribute and real-unit range of a GDTF channel (its first
+/// logical channel's attribute and first function's physical range).
+fn map_attribute(c: &ChannelInfo, ctx: &MapContext) -> (Attribute, [f32; 2]) {
     let phys = c.functions.first().map(|f| [f.physical_from as f32, f.physical_to as f32]).unwrap_or([0.0, 1.0]);
+    map_name(&c.attribute, phys, c.functions.iter().any(|f| f.wheel.is_some()), ctx)
+}
+
+/// Footlight attribute and real-unit range of a GDTF attribute `a` with
+/// physical range `phys` (`wheel`: the channel links a wheel). The table of
+/// what each attribute becomes is in docs/mvr-gdtf.md.
+pub(crate) fn map_name(a: &str, phys: [f32; 2], wheel: bool, ctx: &MapContext) -> (Attribute, [f32; 2]) {
     let unit = [0.0, 1.0];
-    if let Some(gate) = crate::gate::gate_attribute(&c.attribute, c.functions.iter().any(|f| f.wheel.is_some())) {
+    if let Some(gate) = crate::gate::gate_attribute(a, wheel) {
         return (gate, unit);
     }
-    match c.attribute.as_str() {
-        "Dimmer" => (Attribute::Dimmer, unit),
+    let percent = |r: [f32; 2]| if r[0].abs().max(r[1].abs()) > 1.0 { r.map(|x| x / 100.0) } else { r };
+    match a {
+        "Dimmer" => (Attribute::Dimmer, percent(phys).map(|x| x.clamp(0.0, 1.0))),
         a if is_shutter(a) => (Attribute::Shutter, unit),
-        "Color1" if c.functions.iter().any(|f| f.wheel.is_some()) => (Attribute::ColourWheel, unit),
-        // One warning per type, each attribute with the line of its first channel.
-        let lines: Vec<String> = unsupported.iter().map(|a| format!("{a} (line {})", g.attribute_line(a))).collect();
-        "CTO" | "CTB" | "CTC" if planckian && phys.iter().all(|k| (1000.0..=20000.0).contains(k)) => {
-            (Attribute::Cto, phys)
+        "Color1" if wheel => (Attribute::ColourWheel, unit),
+        "Color2" | "Color3" | "Color4" if wheel => (Attribute::ColourWheelN(a.as_bytes()[5] - b'2'), unit),
+        "ColorMacro1" if wheel && ctx.wheels.contains(&"ColorMacro1") => (Attribute::ColourMacro, unit),
+        "CTO" | "CTB" | "CTC" => (Attribute::Cto, cto_kelvin(a, phys, ctx.cct)),
+        a if is_tint(a) => (Attribute::Tint, tint_duv(phys)),
+        "HSB_Hue" => {
+            (Attribute::Hue, if phys[0].abs().max(phys[1].abs()) <= 1.0 { phys.map(|x| x * 360.0) } else { phys })
         }
-        "Pan" if moving => (Attribute::Pan, phys),
-        "Tilt" if moving => (Attribute::Tilt, phys),
+        "HSB_Saturation" => (Attribute::Saturation, percent(phys)),
+        "HSB_Brightness" => (Attribute::HsbBrightness, percent(phys)),
+        "CIE_X" => (Attribute::CieX, percent(phys)),
+        "CIE_Y" => (Attribute::CieY, percent(phys)),
+        "CIE_Brightness" => (Attribute::CieBrightness, percent(phys)),
+        "DimmerCurve" | "DimmerMode" => (Attribute::DimmerCurve, unit),
+        "StrobeDuration" => (Attribute::StrobeDuration, phys),
+        "ColorMixMode" | "LEDZoneMode" => (Attribute::Mode, unit),
+        "Pan" if ctx.moving => (Attribute::Pan, phys),
+        "Tilt" if ctx.moving => (Attribute::Tilt, phys),
         "Zoom" => (Attribute::Zoom, phys),
         "Focus1" => (Attribute::Focus, phys.map(|x| x.clamp(0.0, 1.0))),
         "Iris" => (Attribute::Iris, phys.map(|x| x.clamp(0.0, 1.0))),
-        a => match mix.iter().position(|m| m == a) {
+        a => match ctx.mix.iter().position(|m| m == a) {
             Some(i) => (Attribute::Mix(i as u8), unit),
+            None if ctx.unmixed && (a.starts_with("ColorAdd_") || a.starts_with("ColorRGB_")) => {
+                (Attribute::Level, unit)
+            }
             None => (Attribute::Other, unit),
         },
+    }
+}
+
+/// A green/magenta tint attribute: GDTF `Tint`, or a maker's own name for it
+/// (`Green/Magenta`, `MagentaGreen`, `Green-Magenta`…), ASCII case and
+/// punctuation ignored.
+fn is_tint(a: &str) -> bool {
+    let k: String = a.chars().filter(char::is_ascii_alphanumeric).collect::<String>().to_ascii_lowercase();
+    matches!(k.as_str(), "tint" | "greenmagenta" | "magentagreen" | "plusminusgreen" | "gm" | "mg")
+}
+
+/// A tint channel's physical range as Duv (positive: green): a range with
+/// negative and positive ends reads p / max|p| of a full tint
+/// ([`FULL_TINT_DUV`]); a range of one sign (`0..1`, `0..100`) runs from
+/// full magenta at its start through neutral at its middle to full green
+/// at its end. Estimated (GDTF gives Tint no unit).
+fn tint_duv(phys: [f32; 2]) -> [f32; 2] {
+    let m = phys[0].abs().max(phys[1].abs());
+    if !(m > 0.0 && m.is_finite()) {
+        return [0.0, 0.0];
+    }
+    if phys[0].min(phys[1]) < 0.0 && phys[0].max(phys[1]) > 0.0 {
+        phys.map(|p| FULL_TINT_DUV * p / m)
+    } else {
+        [-FULL_TINT_DUV, FULL_TINT_DUV]
+    }
+}
+
+/// A full CTO in mired (LEE 204, 5600 K → 3200 K) and a full CTB (LEE 201, 3200 K → 5600 K).
+const FULL_CTO_MIRED: f32 = 159.0;
+const FULL_CTB_MIRED: f32 = -137.0;
+
+/// The target colour temperatures (K) at the ends of a CTO/CTB/CTC
+/// channel: its physical range when both ends are kelvin (1000-20,000),
+/// else a fraction of a full correction from the type's own CCT `cct`
+/// (CTO: to +159 mired, CTB: to −137 mired; CTC: from the full CTB at the
+/// start to the full CTO at the end), interpolated linearly in kelvin
+/// between those ends (estimated).
+fn cto_kelvin(a: &str, phys: [f32; 2], cct: f32) -> [f32; 2] {
+    if phys.iter().all(|k| (1000.0..=20000.0).contains(k)) {
+        return phys;
+    }
+    let k = |mired: f32| (1e6 / (1e6 / cct + mired)).clamp(1000.0, 20000.0);
+    match a {
+        "CTO" => [cct, k(FULL_CTO_MIRED)],
+        "CTB" => [cct, k(FULL_CTB_MIRED)],
+        _ => [k(FULL_CTB_MIRED), k(FULL_CTO_MIRED)],
     }
 }
 
@@ -302,14 +430,10 @@ fn is_shutter(a: &str) -> bool {
     a == "Shutter1" || a.starts_with("Shutter1Strobe") || a == "StrobeFrequency"
 }
 
-/// A raw DMX value at `bytes` of resolution as Footlight reads the channel
-/// (8-bit, or 16-bit from coarse and fine: a 24-bit value loses its last byte).
 /// A wheel channel function as Footlight functions: one `Slot` per channel
 /// set naming a wheel slot (GDTF slots count from 1), else the whole
 /// function as `Hold`. Shared by colour, gobo and prism wheels.
 pub(crate) fn wheel_slot_functions(
-    // Every warning about the file at the line of what it names (issue 36 item 3).
-    g.locate(&mut warnings);
     f: &crate::gdtf::FunctionInfo,
     range: [f32; 2],
     raw16: &dyn Fn(u64) -> u16,
@@ -323,85 +447,217 @@ pub(crate) fn wheel_slot_functions(
                 to: raw16(s.dmx_to),
                 action: Action::Slot((i - 1) as u16),
                 range,
+                mode: None,
             })
             .collect()
     } else {
         Vec::new()
     };
     if slots.is_empty() {
-        return vec![Function { from: raw16(f.dmx_from), to: raw16(f.dmx_to), action: Action::Hold, range }];
+        return vec![Function {
+            from: raw16(f.dmx_from),
+            to: raw16(f.dmx_to),
+            action: Action::Hold,
+            range,
+            mode: None,
+        }];
     }
     slots
 }
 
+/// A raw DMX value at `bytes` of resolution as Footlight reads the channel
+/// (8-bit, or 16-bit from coarse and fine: a 24-bit value loses its last byte).
 fn raw16(v: u64, bytes: u8) -> u16 {
     let v = if bytes > 2 { v >> (8 * u32::from(bytes - 2).min(6)) } else { v };
     v.min(u64::from(u16::MAX)) as u16
 }
 
-/// The DMX ranges of a shutter or colour-wheel channel: shutter functions
-/// (open and closed by their channel-set names, else by the physical value
-/// ≥ 0.5; strobe functions with their physical range in Hz), wheel slots
-/// from the channel sets' `WheelSlotIndex` (1-based in the file, 0-based
-/// here). Other attributes: none.
-fn channel_functions(c: &ChannelInfo, attribute: Attribute) -> Vec<Function> {
+/// The dimmer curve a `DimmerCurve`/`DimmerMode` channel set or function
+/// names: `linear`; `square` (also `quadratic`, `exponential`, `TV`) →
+/// square law; `S-curve` (also `theatre`/`theater`) → the theatre S-curve.
+/// Other names (logarithmic, inverse square, speed modes) select nothing:
+/// the dimmers keep their own curves.
+fn named_curve(name: &str) -> Option<DimmerCurve> {
+    let k: String = name.chars().filter(char::is_ascii_alphanumeric).collect::<String>().to_ascii_lowercase();
+    if k.contains("inverse") || k.contains("log") {
+        None
+    } else if k.contains("scurve") || k.contains("theat") {
+        Some(DimmerCurve::Theatre)
+    } else if k.contains("square") || k.contains("quadr") || k.contains("expo") || k == "tv" {
+        Some(DimmerCurve::SquareLaw)
+    } else if k.contains("lin") {
+        Some(DimmerCurve::Linear)
+    } else {
+        None
+    }
+}
+
+/// Mode masters of a layout: the channel named `Geometry_Attribute` (GDTF's
+/// DMX channel name), its instances (geometry instance, slot offsets, bytes).
+pub(crate) type Masters = BTreeMap<String, Vec<(String, (u16, Option<u16>), u8)>>;
+
+/// Every channel instance of `l` by its DMX channel name, for mode masters.
+pub(crate) fn masters(l: &Layout) -> Masters {
+    let mut out: Masters = BTreeMap::new();
+    for c in &l.channels {
+        let Some(base) = break_base(c.dmx_break) else { continue };
+        let at = |o: u16| base + o.saturating_sub(1).min(BREAK_STRIDE - 1);
+        let Some(&first) = c.offsets.first() else { continue };
+        out.entry(format!("{}_{}", c.template, c.attribute)).or_default().push((
+            c.geometry.clone(),
+            (at(first), c.offsets.get(1).map(|o| at(*o))),
+            c.bytes(),
+        ));
+    }
+    out
+}
+
+/// The mode master of function `f` of channel `c` as a [`ModeGate`]: the
+/// master's instance in the same geometry reference as `c` (a cell's own
+/// master), else its first instance. `None` without a mode master or when
+/// the master names no channel of the mode (then the function always applies).
+pub(crate) fn mode_gate(f: &FunctionInfo, c: &ChannelInfo, masters: &Masters) -> Option<ModeGate> {
+    let (node, from, to) = f.mode_master.as_ref()?;
+    let instances = masters.get(node.split('.').next()?)?;
+    let cell = |g: &str| g.split('.').next().unwrap_or(g).to_string();
+    let own = cell(&c.geometry);
+    let (_, master, bytes) = instances.iter().find(|(g, _, _)| cell(g) == own).or(instances.first())?;
+    Some(ModeGate { master: *master, from: raw16(*from, *bytes), to: raw16(*to, *bytes) })
+}
+
+/// The DMX ranges of a channel (`attribute` its Footlight attribute) as
+/// [`Function`]s, each with its mode master ([`mode_gate`]):
+/// * shutter functions: open and closed by their channel-set names, else
+///   by the physical value ≥ 0.5; strobe functions with their physical range in Hz;
+/// * colour wheels 1-4, the colour-macro wheel: slots from the channel
+///   sets' `WheelSlotIndex` (1-based in the file, 0-based here);
+/// * gobo, prism and gate channels: [`crate::gate::gate_functions`];
+/// * `DimmerCurve`/`DimmerMode`: each channel set (else function) naming a
+///   curve ([`named_curve`]);
+/// * any other channel whose functions a mode master selects, or whose
+///   functions control different attributes: each function sets its own
+///   attribute over its physical range ([`Action::Set`]).
+///
+/// Empty for a plain channel: the whole range is the attribute's.
+fn channel_functions(c: &ChannelInfo, attribute: Attribute, ctx: &MapContext, masters: &Masters) -> Vec<Function> {
     let bytes = c.bytes().max(1);
+    let raw = |v: u64| raw16(v, bytes);
+    let gated = c.functions.iter().any(|f| f.mode_master.is_some());
+    let mapped = |f: &FunctionInfo| {
+        map_name(&f.attribute, [f.physical_from as f32, f.physical_to as f32], f.wheel.is_some(), ctx)
+    };
+    let mixed_attributes = c.functions.iter().any(|f| mapped(f).0 != attribute);
     let mut out = Vec::new();
     for f in &c.functions {
-        let (from, to) = (raw16(f.dmx_from, bytes), raw16(f.dmx_to, bytes));
+        let (from, to) = (raw(f.dmx_from), raw(f.dmx_to));
         let range = [f.physical_from as f32, f.physical_to as f32];
-        match attribute {
-            Attribute::Shutter => {
-                let named = |w: &str| f.sets.iter().any(|s| s.name.to_ascii_lowercase().contains(w));
-                let action = if f.attribute == "Shutter1" {
-                    if named("open") {
-                        Action::Open
-                    } else if named("close") {
-                        Action::Closed
-                    } else if (range[0] + range[1]) / 2.0 >= 0.5 {
-                        Action::Open
-                    } else {
-                        Action::Closed
-                    }
-                } else if is_shutter(&f.attribute) {
-                    Action::Strobe
-                } else {
-                    Action::Hold
-                };
-                out.push(Function { from, to, action, range });
+        let mut here: Vec<Function> = match attribute {
+            Attribute::Shutter => vec![Function { from, to, action: shutter_action(f, range), range, mode: None }],
+            Attribute::ColourWheel | Attribute::ColourWheelN(_) | Attribute::ColourMacro => {
+                wheel_slot_functions(f, range, &raw)
             }
-            Attribute::ColourWheel => out.extend(wheel_slot_functions(f, range, &|v| raw16(v, bytes))),
-            Attribute::Gobo | Attribute::Prism | Attribute::Gate => {
-                return crate::gate::gate_functions(c, attribute, &|v| raw16(v, bytes));
+            Attribute::Gobo | Attribute::Gobo2 | Attribute::Animation | Attribute::Prism | Attribute::Gate => {
+                crate::gate::gate_functions_of(f, attribute, &raw)
+            }
+            Attribute::DimmerCurve => {
+                // A set naming no curve (logarithmic, a speed) holds: the dimmers keep their own.
+                let sets: Vec<Function> = f
+                    .sets
+                    .iter()
+                    .map(|s| Function {
+                        from: raw(s.dmx_from),
+                        to: raw(s.dmx_to),
+                        action: named_curve(&s.name).map_or(Action::Hold, Action::Curve),
+                        range,
+                        mode: None,
+                    })
+                    .collect();
+                if sets.is_empty() {
+                    let action = named_curve(&f.name).map_or(Action::Hold, Action::Curve);
+                    vec![Function { from, to, action, range, mode: None }]
+                } else {
+                    sets
+                }
+            }
+            _ if gated || mixed_attributes => {
+                let (a, r) = mapped(f);
+                let action = match a {
+                    Attribute::Shutter => shutter_action(f, range),
+                    Attribute::Other | Attribute::Mode | Attribute::Scroller => Action::Hold,
+                    Attribute::ColourWheel
+                    | Attribute::ColourWheelN(_)
+                    | Attribute::ColourMacro
+                    | Attribute::Gobo
+                    | Attribute::Gobo2
+                    | Attribute::Animation
+                    | Attribute::Prism
+                    | Attribute::Gate
+                    | Attribute::DimmerCurve => Action::Hold,
+                    a => Action::Set(a),
+                };
+                vec![Function { from, to, action, range: r, mode: None }]
             }
             _ => return Vec::new(),
-        }
+        };
+        let mode = mode_gate(f, c, masters);
+        here.iter_mut().for_each(|h| h.mode = mode);
+        out.extend(here);
     }
     out.sort_by_key(|f| f.from);
     out
 }
 
-/// The colour wheel the first `Color1` channel links: a c_F per slot, from
-/// the slot's linked filter's measured spectrum when it has one, else from
-/// its CIE xyY ([`wheel_factor`]).
-fn colour_wheel(g: &Gdtf, layouts: &[Layout], warnings: &mut Vec<PatchError>) -> Vec<WheelSlot> {
-    let Some(name) = layouts
+/// A shutter channel function's action: `Shutter1` open or closed by its
+/// channel-set names ("Open"/"Closed"), else by its physical value ≥ 0.5;
+/// strobe attributes strobe at their physical range in Hz.
+fn shutter_action(f: &FunctionInfo, range: [f32; 2]) -> Action {
+    let named = |w: &str| f.sets.iter().any(|s| s.name.to_ascii_lowercase().contains(w));
+    if f.attribute == "Shutter1" {
+        if named("open") {
+            Action::Open
+        } else if named("close") {
+            Action::Closed
+        } else if (range[0] + range[1]) / 2.0 >= 0.5 {
+            Action::Open
+        } else {
+            Action::Closed
+        }
+    } else if is_shutter(&f.attribute) {
+        Action::Strobe
+    } else {
+        Action::Hold
+    }
+}
+
+/// The slots of the wheel the first channel with `attribute` links, by
+/// `slot` (`None`: no such channel or wheel; a warning when the link names
+/// a wheel the file lacks).
+fn linked_wheel<'a>(
+    g: &'a Gdtf,
+    layouts: &[Layout],
+    attribute: &str,
+    warnings: &mut Vec<PatchError>,
+) -> Option<&'a gdtf::wheel::Wheel> {
+    let name = layouts
         .iter()
         .flat_map(|l| l.channels.iter())
-        .filter(|c| c.attribute == "Color1")
         .flat_map(|c| c.functions.iter())
-        .find_map(|f| f.wheel.clone())
-    else {
-        return Vec::new();
-    };
-    let Some(wheel) = g.ft.wheels.iter().find(|w| w.name.as_deref() == Some(name.as_str())) else {
+        .filter(|f| f.attribute == attribute)
+        .find_map(|f| f.wheel.clone())?;
+    let wheel = g.ft.wheels.iter().find(|w| w.name.as_deref() == Some(name.as_str()));
+    if wheel.is_none() {
         warnings.push(PatchError::new(
             &g.label.join("description.xml"),
             0,
-            format!("Color1 links wheel {name:?}, which the file does not define; the colour wheel stays open"),
+            format!("{attribute} links wheel {name:?}, which the file does not define; it stays open"),
         ));
-        return Vec::new();
-    };
+    }
+    wheel
+}
+
+/// A colour wheel's slots as c_F: each slot's linked filter's measured
+/// spectrum when it has one, else its CIE xyY ([`wheel_factor`]).
+fn wheel_slots(g: &Gdtf, wheel: &gdtf::wheel::Wheel) -> Vec<WheelSlot> {
     wheel
         .slots
         .iter()
@@ -411,10 +667,36 @@ fn colour_wheel(g: &Gdtf, layouts: &[Layout], warnings: &mut Vec<PatchError>) ->
             }
             match &slot.optic {
                 WheelSlotOptic::Color(c) => WheelSlot::Factor(wheel_factor(c.x as f32, c.y as f32, c.z as f32)),
-                WheelSlotOptic::Filter(_) => WheelSlot::Factor(Vec3::ONE),
+                WheelSlotOptic::Filter(_) => match slot.filter(&g.ft) {
+                    Some(f) => WheelSlot::Factor(wheel_factor(f.color.x as f32, f.color.y as f32, f.color.z as f32)),
+                    None => WheelSlot::Factor(Vec3::ONE),
+                },
             }
         })
         .collect()
+}
+
+/// The colour-macro wheel's slot colours (CIE xy of the slot's `Color`, or
+/// of its linked filter's); `None` for a slot without a usable colour.
+fn macro_colours(g: &Gdtf, wheel: &gdtf::wheel::Wheel) -> Vec<Option<Vec2>> {
+    wheel
+        .slots
+        .iter()
+        .map(|slot| {
+            let c = match &slot.optic {
+                WheelSlotOptic::Color(c) => Some(*c),
+                WheelSlotOptic::Filter(_) => slot.filter(&g.ft).map(|f| f.color),
+            }?;
+            let xy = Vec2::new(c.x as f32, c.y as f32);
+            (xy.x > 0.0 && xy.y > 0.0 && xy.x + xy.y < 1.0).then_some(xy)
+        })
+        .collect()
+}
+
+/// The colour wheel the first `Color1` channel links: a c_F per slot
+/// ([`wheel_slots`]).
+fn colour_wheel(g: &Gdtf, layouts: &[Layout], warnings: &mut Vec<PatchError>) -> Vec<WheelSlot> {
+    linked_wheel(g, layouts, "Color1", warnings).map(|w| wheel_slots(g, w)).unwrap_or_default()
 }
 
 /// Emitters for the `ColorAdd_*` channels in `uncoloured` (no `<Emitter>`
@@ -563,17 +845,16 @@ fn filter_gel(f: &gdtf::physical_descriptions::Filter, name: &str) -> Option<Gel
     Some(Gel::from_samples(label.clone(), label, 380.0, 5.0, samples))
 }
 
-/// The CTO/CTB table for a Planckian lamp with a colour-correction channel.
-fn cto_table(layouts: &[Layout], cct: &Option<f32>, planckian: bool) -> Option<CorrectionTable> {
+/// The CTO/CTB/CTC table from the lamp's CCT (an LED type's: its beam's
+/// colour temperature) over the first correction channel's targets ([`cto_kelvin`]).
+fn cto_table(layouts: &[Layout], cct: &Option<f32>) -> Option<CorrectionTable> {
     let from = (*cct)?;
     let f = layouts
         .iter()
         .flat_map(|l| l.channels.iter())
-        .find(|c| matches!(c.attribute.as_str(), "CTO" | "CTB" | "CTC"))?
-        .functions
-        .first()?;
-    let range = [f.physical_from as f32, f.physical_to as f32];
-    (planckian && range.iter().all(|k| (1000.0..=20000.0).contains(k))).then(|| CorrectionTable::new(from, range))
+        .flat_map(|c| c.functions.iter())
+        .find(|f| matches!(f.attribute.as_str(), "CTO" | "CTB" | "CTC"))?;
+    Some(CorrectionTable::new(from, cto_kelvin(&f.attribute, [f.physical_from as f32, f.physical_to as f32], from)))
 }
 
 /// The dimmer curve of a GDTF DMX profile: a single cubic segment
@@ -667,6 +948,7 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
             })();
             SpecUse { entry, warnings: type_warnings, fixtures: 0, lights: 0 }
         });
+        spec.fixtures += 1;
         let dmx = f.addresses.iter().find(|a| a.dmx_break == 0).map(|a| (a.universe, a.address));
         let breaks = later_breaks(f);
         match &spec.entry {
@@ -763,6 +1045,7 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
                         }
                     }
                 }
+                spec.lights += parts.len();
                 for (name, fixture_type, mode, beam_offset, turn, cell) in parts {
                     let typed = TypedFixture {
                         fixture_type,
@@ -811,9 +1094,46 @@ fn build(path: &Path, m: Mvr) -> Result<Import, Vec<PatchError>> {
             ));
         }
     }
+    errors.extend(fixture_errors.into_errors_named_first());
     if !errors.is_empty() {
         return Err(errors);
     }
+    // Each type's warnings once, merged by problem, with the fixtures and cells they concern.
+    let mut counts: BTreeMap<PathBuf, (usize, usize)> = BTreeMap::new();
+    let mut summaries = Vec::new();
+    for spec in &specs {
+        let u = types.remove(spec).expect("every named spec has an entry");
+        let label = m.archive.label(spec);
+        let type_warnings = report::merge_heads(u.warnings);
+        let summary = match &u.entry {
+            Ok((ty, _)) => report::summarise(
+                type_display_name(ty),
+                spec.clone(),
+                &label,
+                &ty.name,
+                u.fixtures,
+                u.lights,
+                &type_warnings,
+            ),
+            Err(e) => TypeSummary {
+                name: spec.clone(),
+                file: spec.clone(),
+                fixtures: u.fixtures,
+                cells: u.lights,
+                status: Modelled::Not,
+                reasons: vec![match e {
+                    None => "the GDTF is not in the archive; dark placeholders".to_string(),
+                    Some(e) => e.message.split("; ").next().unwrap_or(&e.message).to_string(),
+                }],
+                not_modelled: Vec::new(),
+            },
+        };
+        summaries.push(summary);
+        counts.insert(label, (u.fixtures, u.lights));
+        warnings.extend(type_warnings);
+    }
+    report::count_fixtures(&mut warnings, &counts);
+    warnings.extend(fixture_warnings.into_errors());
     let patch = Patch {
         path: path.to_path_buf(),
         camera: None,
@@ -945,7 +1265,6 @@ pub fn cells(g: &Gdtf, ty: &FixtureType, mode: &str) -> Result<Vec<Cell>, PatchE
     let l = g.layout(mode)?;
     let Some(index) = ty.mode(&l.mode) else { return Ok(Vec::new()) };
     let base = &ty.modes[index];
-        spec.fixtures += 1;
     let mut refs: Vec<(&GeometryNode, DMat4)> = Vec::new();
     emitting_references(&l.root, &mut refs);
     if refs.len() < 2 {
@@ -1041,7 +1360,6 @@ pub const MAX_CELLS: usize = 4096;
 /// mapping: a shared dimmer already multiplies (v · the emitter mix, eq. 4).
 fn override_relations(l: &Layout, channels: &mut [Channel]) -> Result<Vec<SlotOverride>, String> {
     let slots = |c: &ChannelInfo| -> Option<(u16, Option<u16>)> {
-                spec.lights += parts.len();
         let base = break_base(c.dmx_break)?;
         let at = |o: u16| base + o.saturating_sub(1).min(BREAK_STRIDE - 1);
         Some((at(*c.offsets.first()?), c.offsets.get(1).map(|o| at(*o))))
@@ -1100,46 +1418,9 @@ fn emitting_references<'a>(node: &'a GeometryNode, out: &mut Vec<(&'a GeometryNo
     node.children.iter().for_each(|c| emitting_references(c, out));
 }
 
-    errors.extend(fixture_errors.into_errors_named_first());
 fn quat(q: DQuat) -> Quat {
     Quat::from_xyzw(q.x as f32, q.y as f32, q.z as f32, q.w as f32).normalize()
 }
-    // Each type's warnings once, merged by problem, with the fixtures and cells they concern.
-    let mut counts: BTreeMap<PathBuf, (usize, usize)> = BTreeMap::new();
-    let mut summaries = Vec::new();
-    for spec in &specs {
-        let u = types.remove(spec).expect("every named spec has an entry");
-        let label = m.archive.label(spec);
-        let type_warnings = report::merge_heads(u.warnings);
-        let summary = match &u.entry {
-            Ok((ty, _)) => report::summarise(
-                type_display_name(ty),
-                spec.clone(),
-                &label,
-                &ty.name,
-                u.fixtures,
-                u.lights,
-                &type_warnings,
-            ),
-            Err(e) => TypeSummary {
-                name: spec.clone(),
-                file: spec.clone(),
-                fixtures: u.fixtures,
-                cells: u.lights,
-                status: Modelled::Not,
-                reasons: vec![match e {
-                    None => "the GDTF is not in the archive; dark placeholders".to_string(),
-                    Some(e) => e.message.split("; ").next().unwrap_or(&e.message).to_string(),
-                }],
-                not_modelled: Vec::new(),
-            },
-        };
-        summaries.push(summary);
-        counts.insert(label, (u.fixtures, u.lights));
-        warnings.extend(type_warnings);
-    }
-    report::count_fixtures(&mut warnings, &counts);
-    warnings.extend(fixture_warnings.into_errors());
 
 /// The GDTF reader for TOML patches: `type = "types/x.gdtf"` (relative to
 /// the patch) with `mode = "…"` becomes a [`FixtureType`] through
@@ -1170,6 +1451,27 @@ pub fn load_patch(path: &Path) -> Result<Patch, PatchError> {
 /// said once), or the errors. [`check_report`] adds the notes and the
 /// per-type summary.
 pub fn check_patch(path: &Path) -> Result<(Patch, Vec<PatchError>), Vec<PatchError>> {
+    check_report(path).map(|c| (c.patch, c.warnings))
+}
+
+/// A checked patch or MVR show: what `footlight check` prints, and what
+/// `run` and `render` sum up at start and `/api/status` lists.
+#[derive(Clone, Debug)]
+pub struct Checked {
+    /// The patch.
+    pub patch: Patch,
+    /// Its warnings, each said once per file and problem (with a count).
+    pub warnings: Vec<PatchError>,
+    /// Notes (names read not quite as written).
+    pub notes: Vec<PatchError>,
+    /// One summary per GDTF fixture type (none for a patch of built-in types only).
+    pub types: Vec<TypeSummary>,
+}
+
+/// [`check_patch`] with notes and the per-type summary: an `.mvr` through
+/// [`load_mvr`], a TOML patch through its GDTF types ([`GdtfTypes`]), its
+/// GDTF types summed up from their warnings.
+pub fn check_report(path: &Path) -> Result<Checked, Vec<PatchError>> {
     if is_mvr(path) {
         let i = load_mvr(path)?;
         return Ok(Checked { patch: i.patch, warnings: i.warnings, notes: i.notes, types: i.types });
@@ -1258,24 +1560,3 @@ mod tests {
         assert!(filter_gel(&one, "slot").is_none());
     }
 }
-    check_report(path).map(|c| (c.patch, c.warnings))
-}
-
-/// A checked patch or MVR show: what `footlight check` prints, and what
-/// `run` and `render` sum up at start and `/api/status` lists.
-#[derive(Clone, Debug)]
-pub struct Checked {
-    /// The patch.
-    pub patch: Patch,
-    /// Its warnings, each said once per file and problem (with a count).
-    pub warnings: Vec<PatchError>,
-    /// Notes (names read not quite as written).
-    pub notes: Vec<PatchError>,
-    /// One summary per GDTF fixture type (none for a patch of built-in types only).
-    pub types: Vec<TypeSummary>,
-}
-
-/// [`check_patch`] with notes and the per-type summary: an `.mvr` through
-/// [`load_mvr`], a TOML patch through its GDTF types ([`GdtfTypes`]), its
-/// GDTF types summed up from their warnings.
-pub fn check_report(path: &Path) -> Result<Checked, Vec<PatchError>> {

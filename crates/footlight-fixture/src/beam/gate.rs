@@ -17,6 +17,11 @@
 //!   255 = light passes) spans the square `[−1, 1]²` (row 0 at gate +y),
 //!   sampled bilinearly, clamped to its border; `gobo_angle` (degrees)
 //!   turns it counter-clockwise about the axis.
+//! * **More image layers** ([`GoboLayer`]: a second gobo wheel, an
+//!   animation wheel): each is sampled like the gobo at its own angle and
+//!   the transmissions multiply (two discs in series). An animation wheel
+//!   is approximated as such a layer centred on the axis (a real one sits
+//!   off-axis near a focal plane and slides across the gate as it turns).
 //! * **Blades** ([`Blade`]): blade 1 enters from gate +y, 2 from +x, 3 from
 //!   −y, 4 from −x. Insertion `a` and `b` (fractions of the gate diameter,
 //!   0 = at the rim, 1 = across to the opposite rim) place the blade's two
@@ -190,12 +195,25 @@ pub struct Gate {
     pub prism_angle: f32,
     /// Frost 0 (none) .. 1 (full).
     pub frost: f32,
+    /// Further image layers in series with the gobo (a second gobo wheel,
+    /// an animation wheel): their transmissions multiply.
+    pub layers: Vec<GoboLayer>,
+}
+
+/// One more image in the gate (see the module doc): sampled like the gobo.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GoboLayer {
+    /// The image (255 = light passes).
+    pub image: Arc<GoboImage>,
+    /// Rotation, degrees counter-clockwise.
+    pub angle: f32,
 }
 
 impl Gate {
     /// True when the gate changes nothing (open gobo, blades out, no prism, no frost).
     pub fn is_open(&self) -> bool {
         self.gobo.is_none()
+            && self.layers.is_empty()
             && self.blades.iter().all(|b| !(b.a > 0.0) && !(b.b > 0.0))
             && self.facets.is_empty()
             && !(self.frost > 0.0)
@@ -228,6 +246,8 @@ pub struct ShapedBeam {
     cos_cut: f32,
     /// Gobo as seen through the frost.
     frosted: OnceLock<Option<Arc<GoboImage>>>,
+    /// The further layers as seen through the frost.
+    frosted_layers: OnceLock<Vec<Arc<GoboImage>>>,
     /// Flux scale for prism and frost, and the flux ∫f dω.
     flux: OnceLock<(f32, f32)>,
 }
@@ -288,7 +308,18 @@ impl ShapedBeam {
             + facets.iter().map(|f| f.1.length()).fold(0.0, f32::max);
         let theta_cut = if facets.is_empty() { soft.outer } else { (reach * tan_outer).atan() };
         let cos_cut = if theta_cut >= std::f32::consts::PI { -1.0 } else { theta_cut.cos() };
-        Self { spot, gate, soft, tan_outer, cuts, facets, cos_cut, frosted: OnceLock::new(), flux: OnceLock::new() }
+        Self {
+            spot,
+            gate,
+            soft,
+            tan_outer,
+            cuts,
+            facets,
+            cos_cut,
+            frosted: OnceLock::new(),
+            frosted_layers: OnceLock::new(),
+            flux: OnceLock::new(),
+        }
     }
 
     /// cos of the widest angle with light.
@@ -314,14 +345,34 @@ impl ShapedBeam {
             return 0.0;
         }
         let gobo = if soft { self.frosted_gobo() } else { self.gate.gobo.as_ref() };
-        match gobo {
-            Some(g) => {
-                let turn = Vec2::from_angle(-self.gate.gobo_angle.to_radians());
-                let turn = if turn.is_finite() { turn } else { Vec2::X };
-                v * g.sample(turn.rotate(q))
-            }
+        let sample = |g: &GoboImage, angle: f32| {
+            let turn = Vec2::from_angle(-angle.to_radians());
+            let turn = if turn.is_finite() { turn } else { Vec2::X };
+            g.sample(turn.rotate(q))
+        };
+        let mut t = match gobo {
+            Some(g) => v * sample(g, self.gate.gobo_angle),
             None => v,
+        };
+        if !self.gate.layers.is_empty() {
+            let frosted = if soft { Some(self.frosted_layers()) } else { None };
+            for (k, layer) in self.gate.layers.iter().enumerate() {
+                let img = frosted.and_then(|f| f.get(k)).unwrap_or(&layer.image);
+                t *= sample(img, layer.angle);
+            }
         }
+        t
+    }
+
+    fn frosted_layers(&self) -> &[Arc<GoboImage>] {
+        self.frosted_layers.get_or_init(|| {
+            let frost = if self.gate.frost.is_finite() { self.gate.frost.clamp(0.0, 1.0) } else { 0.0 };
+            self.gate
+                .layers
+                .iter()
+                .map(|l| if frost > 0.0 { Arc::new(l.image.blurred(FROST_BLUR * frost)) } else { l.image.clone() })
+                .collect()
+        })
     }
 
     fn frosted_gobo(&self) -> Option<&Arc<GoboImage>> {
@@ -365,6 +416,11 @@ impl ShapedBeam {
         k.extend(g.blades.iter().flat_map(|b| [b.a.to_bits(), b.b.to_bits(), b.rot.to_bits()]));
         k.extend([g.shaper_rot.to_bits(), g.prism_angle.to_bits(), g.frost.to_bits()]);
         k.extend(g.facets.iter().flat_map(|f| [f.rotation.to_bits(), f.offset.x.to_bits(), f.offset.y.to_bits()]));
+        for l in &g.layers {
+            let sum: f32 = l.image.texels.iter().sum();
+            k.extend([u32::MAX, l.angle.to_bits(), l.image.width as u32, l.image.height as u32, sum.to_bits()]);
+            k.extend(l.image.name.bytes().map(u32::from));
+        }
         k
     }
 
@@ -628,6 +684,34 @@ mod tests {
     }
 
     #[test]
+    fn a_second_image_layer_multiplies_the_gobo() {
+        // Two discs in series: the pattern is the spot times both transmissions,
+        // each at its own angle (the bars as a gobo alone at 30° give the second factor).
+        let spot = SpotBeam::from_beam_field(20.0, 30.0);
+        let ring_only = shaped(&spot, Gate { gobo: Some(ring()), ..Gate::default() });
+        let bars_only = shaped(&spot, Gate { gobo: Some(bars()), gobo_angle: 30.0, ..Gate::default() });
+        let layered = ShapedBeam::new(
+            spot.clone(),
+            Gate { gobo: Some(ring()), layers: vec![GoboLayer { image: bars(), angle: 30.0 }], ..Gate::default() },
+        );
+        assert!(!Gate { layers: vec![GoboLayer { image: bars(), angle: 0.0 }], ..Gate::default() }.is_open());
+        let mut lit = 0;
+        for k in 0..400 {
+            let d = dir(0.0065 * (k % 40) as f64, 0.37 * k as f64);
+            let v = spot.pattern(d);
+            if v <= 0.0 {
+                continue;
+            }
+            let want = ring_only.pattern(d) * bars_only.pattern(d) / v;
+            assert!((layered.pattern(d) - want).abs() < 1e-5, "{d}: {} vs {want}", layered.pattern(d));
+            lit += usize::from(want > 0.0);
+        }
+        assert!(lit > 20, "{lit}");
+        // It absorbs: less flux than the ring alone.
+        assert!(layered.solid_angle() < ring_only.solid_angle());
+    }
+
+    #[test]
     fn garbage_is_finite_and_the_open_gate_is_the_spot() {
         let spot = SpotBeam::from_beam_field(20.0, 30.0);
         assert!(Gate::default().is_open());
@@ -646,6 +730,7 @@ mod tests {
                 facets: vec![Facet { rotation: f32::NAN, offset: Vec2::NAN }],
                 prism_angle: f32::INFINITY,
                 frost: f32::NAN,
+                layers: vec![GoboLayer { image: bars(), angle: f32::NAN }],
             },
         );
         for d in [Vec3::NEG_Z, Vec3::Z, Vec3::X, Vec3::ZERO, Vec3::NAN, dir(0.1, 0.2)] {

@@ -27,7 +27,7 @@ pub mod measured;
 pub mod sampler;
 pub mod spot;
 
-pub use gate::{Blade, Facet, Gate, GoboImage, ShapedBeam};
+pub use gate::{Blade, Facet, Gate, GoboImage, GoboLayer, ShapedBeam};
 pub use hermite::{HermiteBeam, HermitePattern};
 pub use measured::{MeasuredBeam, PhotometricTable};
 pub use sampler::{BeamSample, BeamSampler};

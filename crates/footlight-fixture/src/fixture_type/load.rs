@@ -164,6 +164,8 @@ pub fn parse_type(path: &Path, text: &str, gels: Option<&GelLibrary>) -> Result<
         colour_wheel: Vec::new(),
         cto: None,
         gate: Default::default(),
+        extra_wheels: Vec::new(),
+        colour_macros: Vec::new(),
     };
     if file.mode.is_empty() {
         return Err(PatchError::new(path, 1, "needs at least one [[mode]] with its channels"));
@@ -559,7 +561,22 @@ fn range(at: &At, ty: &FixtureType, attribute: Attribute, f: &ChannelFile, name:
         | Attribute::Gobo
         | Attribute::Prism
         | Attribute::Gate
-        | Attribute::Cto => {
+        | Attribute::Cto
+        | Attribute::ColourWheelN(_)
+        | Attribute::ColourMacro
+        | Attribute::Tint
+        | Attribute::Hue
+        | Attribute::Saturation
+        | Attribute::HsbBrightness
+        | Attribute::CieX
+        | Attribute::CieY
+        | Attribute::CieBrightness
+        | Attribute::DimmerCurve
+        | Attribute::StrobeDuration
+        | Attribute::Level
+        | Attribute::Gobo2
+        | Attribute::Animation
+        | Attribute::Mode => {
             if let Some(r) = &f.range {
                 return Err(at(r.span(), format!("{name} takes no range")));
             }

@@ -28,15 +28,17 @@
 //! offset = 1
 //! ```
 
+pub mod colour;
 mod load;
 
 pub use load::load_type;
 
 use crate::beam::{
-    Beam, Blade, Facet, Gate, GoboImage, HermiteBeam, HermitePattern, MeasuredBeam, PhotometricTable, ShapedBeam,
-    SpotBeam,
+    Beam, Blade, Facet, Gate, GoboImage, GoboLayer, HermiteBeam, HermitePattern, MeasuredBeam, PhotometricTable,
+    ShapedBeam, SpotBeam,
 };
 use crate::state::{FixtureState, MAX_MIX};
+use colour::{EmitterSet, bradford, filter_between, hsb_xy, planck_xy, shift_between, uv_of, white_xy, xy_of_uv};
 use footlight_photometry::{DimmerCurve, Gel, Lamp, Scroller, srgb};
 use glam::{Vec2, Vec3};
 use std::path::PathBuf;
@@ -67,6 +69,12 @@ pub struct FixtureType {
     pub cto: Option<CorrectionTable>,
     /// Gobo and prism wheels (empty for types without them).
     pub gate: GateOptics,
+    /// Colour wheels 2-4 (GDTF `Color2` … `Color4`), slots in wheel order;
+    /// their filters multiply the first wheel's (empty: no such wheel).
+    pub extra_wheels: Vec<Vec<WheelSlot>>,
+    /// Colour-macro slots (GDTF `ColorMacro1` linked to a wheel): each
+    /// slot's CIE xy where the file gives a colour.
+    pub colour_macros: Vec<Option<Vec2>>,
 }
 
 /// The wheels a spot's gate can hold (GDTF gobo and prism wheels).
@@ -76,6 +84,10 @@ pub struct GateOptics {
     pub gobo_wheel: Vec<Option<Arc<GoboImage>>>,
     /// Prism-wheel slots in wheel order: the slot's facets, empty for no prism.
     pub prism_wheel: Vec<Vec<Facet>>,
+    /// Second gobo wheel (GDTF `Gobo2`), as `gobo_wheel`.
+    pub gobo_wheel2: Vec<Option<Arc<GoboImage>>>,
+    /// Animation wheel (GDTF `AnimationWheel1`), as `gobo_wheel`.
+    pub animation_wheel: Vec<Option<Arc<GoboImage>>>,
 }
 
 /// The wheel slot at a position (rounded; clamped to the wheel).
@@ -155,12 +167,19 @@ impl CorrectionTable {
         let m = |k: f32| 1e6 / k.clamp(500.0, 100_000.0);
         let (a, b) = (m(range[0]).min(m(range[1])), m(range[0]).max(m(range[1])));
         let n = 32;
-        let points = (0..=n)
+        let mut points: Vec<(f32, f32)> = (0..=n)
             .map(|i| {
                 let mired = a + (b - a) * i as f32 / n as f32;
                 (mired, correction_transmittance(from_k, 1e6 / mired))
             })
             .collect();
+        // The lamp's own CCT is a node: the transmittance has a kink there (1, the
+        // filter turns from CTB to CTO), which interpolation across it would round off.
+        let own = m(from_k);
+        if own > a && own < b {
+            let at = points.partition_point(|p| p.0 < own);
+            points.insert(at, (own, 1.0));
+        }
         Self { from_k, points }
     }
 
@@ -301,6 +320,40 @@ pub enum Attribute {
     /// Gobo or prism rotation, blades, shaper rotation or frost, by the
     /// channel's DMX ranges ([`Action::Gate`]).
     Gate,
+    /// Colour wheel 2, 3 or 4 (index 0-2 into [`FixtureState::wheels`]), by the channel's DMX ranges.
+    ColourWheelN(u8),
+    /// Colour macro: a slot of [`FixtureType::colour_macros`], by the channel's DMX ranges.
+    ColourMacro,
+    /// Green/magenta tint: Duv over the channel's range (positive: green).
+    Tint,
+    /// HSB hue, degrees.
+    Hue,
+    /// HSB saturation, 0..1.
+    Saturation,
+    /// HSB brightness, 0..1 (multiplies v).
+    HsbBrightness,
+    /// CIE 1931 x.
+    CieX,
+    /// CIE 1931 y.
+    CieY,
+    /// CIE brightness, 0..1 (multiplies v).
+    CieBrightness,
+    /// The dimmer curve, by the channel's DMX ranges ([`Action::Curve`]).
+    DimmerCurve,
+    /// Duration of one strobe flash, seconds.
+    StrobeDuration,
+    /// An additive colour channel the type has no emitter colour for: its
+    /// level scales intensity (v × the largest such level), so a fixture
+    /// whose colour cannot be mixed still goes dark with its colour channels.
+    Level,
+    /// Second gobo wheel slot, by the channel's DMX ranges.
+    Gobo2,
+    /// Animation wheel slot, by the channel's DMX ranges.
+    Animation,
+    /// A control channel whose only effect is to select which channel
+    /// functions of other channels apply (a GDTF mode master such as
+    /// `ColorMixMode` or `LEDZoneMode`, [`ModeGate`]): decoded, no state of its own.
+    Mode,
     /// Something Footlight does not model (strobe, gobo, control…): decoded and ignored.
     Other,
 }
@@ -343,6 +396,41 @@ pub struct Function {
     pub action: Action,
     /// Real values at `from` and `to` (strobe: Hz).
     pub range: [f32; 2],
+    /// The mode master that must select this function (GDTF `ModeMaster`,
+    /// `ModeFrom`, `ModeTo`); `None`: always available.
+    pub mode: Option<ModeGate>,
+}
+
+/// A GDTF mode master: a channel function applies only while the master
+/// channel's raw value is in `[from, to]` (DIN SPEC 15800 `ModeMaster`,
+/// `ModeFrom`, `ModeTo`). Raw values at the master's resolution as
+/// Footlight reads it (8-bit, or 16-bit from coarse and fine).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ModeGate {
+    /// The master's coarse and fine slot offsets.
+    pub master: (u16, Option<u16>),
+    /// Lowest master value selecting the function.
+    pub from: u16,
+    /// Highest master value selecting the function.
+    pub to: u16,
+}
+
+impl ModeGate {
+    /// True while the master's value is in `[from, to]`.
+    pub fn selects(&self, slot: &dyn Fn(u16) -> u8) -> bool {
+        let raw = match self.master.1 {
+            Some(f) => u16::from(slot(self.master.0)) << 8 | u16::from(slot(f)),
+            None => u16::from(slot(self.master.0)),
+        };
+        (self.from..=self.to).contains(&raw)
+    }
+}
+
+impl Function {
+    /// True when its mode master (if any) selects it.
+    pub fn active(&self, slot: &dyn Fn(u16) -> u8) -> bool {
+        self.mode.is_none_or(|m| m.selects(slot))
+    }
 }
 
 /// What a [`Function`] range does.
@@ -358,6 +446,12 @@ pub enum Action {
     Slot(u16),
     /// A gate value over the range (degrees, degrees per second, insertion or frost).
     Gate(GateTarget),
+    /// A continuous attribute over the range's real values (a function of a
+    /// channel whose functions control different attributes, or that a mode
+    /// master selects): as the channel would set it without functions.
+    Set(Attribute),
+    /// The dimmer curve every dimmer channel of the mode uses while this range is set.
+    Curve(DimmerCurve),
     /// Nothing Footlight models (the state keeps its value).
     Hold,
 }
@@ -385,6 +479,14 @@ pub enum GateTarget {
     ShaperRot,
     /// Frost 0..1.
     Frost,
+    /// Second gobo wheel: indexed rotation, degrees.
+    Gobo2Angle,
+    /// Second gobo wheel: continuous rotation, degrees per second.
+    Gobo2Spin,
+    /// Animation wheel: indexed rotation, degrees.
+    AnimationAngle,
+    /// Animation wheel: continuous rotation, degrees per second.
+    AnimationSpin,
 }
 
 impl GateTarget {
@@ -402,6 +504,10 @@ impl GateTarget {
             GateTarget::BladeRot(n) => s.blades[blade(n)][2] = value,
             GateTarget::ShaperRot => s.shaper_rot = value,
             GateTarget::Frost => s.frost = value.clamp(0.0, 1.0),
+            GateTarget::Gobo2Angle => s.gobo2[1] = value,
+            GateTarget::Gobo2Spin => s.gobo2[2] = value,
+            GateTarget::AnimationAngle => s.animation[1] = value,
+            GateTarget::AnimationSpin => s.animation[2] = value,
         }
     }
 }
@@ -538,67 +644,162 @@ impl FixtureType {
     /// Decodes mode `mode`'s channels, reading slot values with `slot`
     /// (offset from the start address, 0-based; slots past the universe
     /// read as 0). Attributes without a channel keep [`FixtureType::rest_state`].
+    ///
+    /// A channel with functions applies the function whose range holds its
+    /// value among those its mode master selects ([`ModeGate`]; none: the
+    /// channel does nothing). Several dimmers multiply (a master dimmer on
+    /// the fixture and a cell's own, a GDTF sub-fixture), each through the
+    /// curve a `DimmerCurve` channel selects, else its own. Colour targets
+    /// (HSB, CIE, a colour macro, a CCT with tint) set an LED type's
+    /// emitter levels ([`colour`]); their brightness multiplies v.
     pub fn decode(&self, mode: &Mode, manual: &Manual, slot: &dyn Fn(u16) -> u8) -> FixtureState {
         let read = |o: u16| mode.overridden(slot, o);
         let slot: &dyn Fn(u16) -> u8 = if mode.overrides.is_empty() { slot } else { &read };
         let mut s = self.rest_state(manual);
+        // The dimmer curve a DimmerCurve/DimmerMode channel selects shapes every dimmer: read it first.
+        let curve = mode
+            .channels
+            .iter()
+            .filter(|c| c.attribute == Attribute::DimmerCurve)
+            .filter_map(|c| function_at(c, slot))
+            .find_map(|(f, _)| match f.action {
+                Action::Curve(k) => Some(k),
+                _ => None,
+            });
+        let mut acc = Decoded::default();
         for c in &mode.channels {
-            let (raw, full) = c.raw(slot);
+            let curve = curve.unwrap_or(c.curve);
             if !c.functions.is_empty() {
-                if let Some(f) = c.functions.iter().rev().find(|f| f.from <= raw) {
-                    let span = f32::from(f.to.saturating_sub(f.from)).max(1.0);
-                    let x = (f32::from(raw.min(f.to) - f.from) / span).clamp(0.0, 1.0);
+                if let Some((f, x)) = function_at(c, slot) {
+                    let real = f.range[0] * (1.0 - x) + f.range[1] * x;
                     match f.action {
                         Action::Open => (s.shutter, s.strobe) = (1.0, 0.0),
                         Action::Closed => (s.shutter, s.strobe) = (0.0, 0.0),
-                        Action::Strobe => {
-                            let hz = f.range[0] * (1.0 - x) + f.range[1] * x;
-                            (s.shutter, s.strobe) = (1.0, if hz > 0.0 { hz } else { 0.0 });
-                        }
-                        Action::Slot(i) => match c.attribute {
-                            Attribute::Gobo => (s.gobo, s.gobo_wheel_spin) = (f32::from(i), 0.0),
-                            Attribute::Prism => s.prism = f32::from(i),
-                            _ => s.wheel = f32::from(i),
-                        },
-                        Action::Gate(t) => {
-                            let v = f.range[0] * (1.0 - x) + f.range[1] * x;
-                            if v.is_finite() {
-                                t.apply(&mut s, v);
+                        Action::Strobe => (s.shutter, s.strobe) = (1.0, if real > 0.0 { real } else { 0.0 }),
+                        Action::Slot(i) => {
+                            let i = f32::from(i);
+                            match c.attribute {
+                                Attribute::Gobo => (s.gobo, s.gobo_wheel_spin) = (i, 0.0),
+                                Attribute::Prism => s.prism = i,
+                                Attribute::ColourWheelN(n) => s.wheels[usize::from(n).min(2)] = i,
+                                Attribute::ColourMacro => s.colour_macro = Some(i),
+                                Attribute::Gobo2 => s.gobo2[0] = i,
+                                Attribute::Animation => s.animation[0] = i,
+                                _ => s.wheel = i,
                             }
                         }
-                        Action::Hold => {}
+                        Action::Gate(t) => {
+                            if real.is_finite() {
+                                t.apply(&mut s, real);
+                            }
+                        }
+                        Action::Set(a) => set_value(&mut s, &mut acc, a, real, real, curve),
+                        Action::Curve(_) | Action::Hold => {}
                     }
                 }
                 continue;
             }
+            let (raw, full) = c.raw(slot);
             let x = f32::from(raw) / f32::from(full);
             let real = c.range[0] * (1.0 - x) + c.range[1] * x; // exact at both ends
-            match c.attribute {
-                Attribute::Dimmer => {
-                    s.v = if full == 255 { c.curve.from_dmx8(raw as u8) } else { c.curve.from_dmx16(raw) }
+            if c.attribute == Attribute::Scroller {
+                if let Some(sc) = &c.scroller {
+                    s.frame = if full == 255 { sc.position_from_dmx8(raw as u8) } else { sc.position_from_dmx16(raw) };
                 }
-                Attribute::Pan => s.pan = real,
-                Attribute::Tilt => s.tilt = real,
-                Attribute::Zoom => s.zoom = real,
-                Attribute::Focus => s.focus = real.clamp(0.0, 1.0),
-                Attribute::Iris => s.iris = real.clamp(0.0, 1.0),
-                Attribute::Scroller => {
-                    if let Some(sc) = &c.scroller {
-                        s.frame =
-                            if full == 255 { sc.position_from_dmx8(raw as u8) } else { sc.position_from_dmx16(raw) };
-                    }
-                }
-                Attribute::Mix(i) => s.mix[usize::from(i)] = real.clamp(0.0, 1.0),
-                Attribute::Cto => s.cto = real,
-                Attribute::Shutter
-                | Attribute::ColourWheel
-                | Attribute::Gobo
-                | Attribute::Prism
-                | Attribute::Gate
-                | Attribute::Other => {}
+                continue;
+            }
+            let level = if full == 255 {
+                footlight_photometry::dimmer::level_from_dmx8(raw as u8)
+            } else {
+                footlight_photometry::dimmer::level_from_dmx16(raw)
+            };
+            set_value(&mut s, &mut acc, c.attribute, real, level, curve);
+        }
+        self.finish(&mut s, &acc);
+        s
+    }
+
+    /// The colour target of a state (a colour macro's slot colour, else the
+    /// CIE xy, else the HSB hue and saturation) and its brightness.
+    fn colour_target(&self, s: &FixtureState) -> (Option<Vec2>, f32) {
+        let macro_xy = s.colour_macro.and_then(|m| slot_at(&self.colour_macros, m).copied().flatten());
+        match (macro_xy, s.cie, s.hsb) {
+            (Some(xy), _, _) => (Some(xy), 1.0),
+            (None, Some([x, y, b]), _) => (Some(Vec2::new(x, y)), b),
+            (None, None, Some([h, sat, b])) => (Some(hsb_xy(h, sat)), b),
+            _ => (None, 1.0),
+        }
+    }
+
+    /// After the channels: unmixed colour levels and target brightness
+    /// scale v; an LED type's emitters go to the colour target, the CCT
+    /// and tint, or the corrected mix.
+    fn finish(&self, s: &mut FixtureState, acc: &Decoded) {
+        if let Some(l) = acc.level {
+            s.v *= l;
+        }
+        let (target, bright) = self.colour_target(s);
+        s.v *= if bright > 0.0 { bright.min(1.0) } else { 0.0 };
+        let Lamp::Led { emitters } = &self.lamp else { return };
+        let Some(set) = EmitterSet::of(emitters) else { return };
+        let correcting = (s.cto > 0.0 && s.cto.is_finite()) || (s.tint != 0.0 && s.tint.is_finite());
+        let mut levels = match (target, correcting) {
+            (None, false) => return,
+            (Some(xy), false) => set.levels_for_xy(xy),
+            // A colour-temperature mode (no colour channel): mix the target white.
+            (None, true) if !acc.mixed => set.levels_for_xy(self.target_white(s, &set)),
+            // A correction of the mixed or targeted colour.
+            (t, true) => {
+                let base = match t {
+                    Some(xy) => set.levels_for_xy(xy).map(|l| set.xyz(&l)),
+                    None => Some(set.xyz(&s.mix)),
+                };
+                let (from, to) = self.correction_whites(s, &set);
+                let tau = match (&self.cto, s.cto > 0.0) {
+                    (Some(table), true) => table.at(s.cto),
+                    _ => 1.0,
+                };
+                base.map(|xyz| set.levels_for_xyz(bradford(xyz, from, to) * f64::from(tau)))
+            }
+        };
+        if let Some(l) = levels.as_mut() {
+            for (m, x) in s.mix.iter_mut().zip(l.iter()).take(emitters.len()) {
+                *m = *x;
             }
         }
-        s
+    }
+
+    /// The white a CCT/tint setting asks of an LED type: the Planckian
+    /// locus at the CTO/CTB/CTC target (else the type's own CCT) moved by the tint.
+    fn target_white(&self, s: &FixtureState, set: &EmitterSet) -> Vec2 {
+        let native_k = self.native_cct(set);
+        let k = if s.cto > 0.0 && s.cto.is_finite() { s.cto } else { native_k };
+        white_xy(k, if s.tint.is_finite() { s.tint } else { 0.0 })
+    }
+
+    /// The whites a correction of an LED type's mix adapts between: the
+    /// emitters' full white, and that white moved in (u, v) as the
+    /// Planckian locus moves from the type's own CCT to the target (CTO/CTB/CTC)
+    /// and then by the tint. A correction to the type's own CCT without a
+    /// tint changes nothing.
+    fn correction_whites(&self, s: &FixtureState, set: &EmitterSet) -> (Vec2, Vec2) {
+        let native = srgb::xy(set.white().as_vec3()).unwrap_or(Vec2::new(0.3127, 0.3290));
+        let native_k = self.native_cct(set);
+        let shift = uv_of(self.target_white(s, set)) - uv_of(planck_xy(native_k));
+        (native, xy_of_uv(uv_of(native) + shift))
+    }
+
+    /// The CCT of an LED type's full white: the correction table's (the
+    /// beam's colour temperature) when there is one, else McCamy's estimate
+    /// of the emitters' full mix.
+    fn native_cct(&self, set: &EmitterSet) -> f32 {
+        match &self.cto {
+            Some(t) => t.from_k,
+            None => {
+                let xy = srgb::xy(set.white().as_vec3()).unwrap_or(Vec2::new(0.3127, 0.3290));
+                srgb::cct_mccamy(xy).clamp(1000.0, 25_000.0)
+            }
+        }
     }
 
     /// The beam (unit-intensity pattern) for a state: a spot shaped by its
@@ -631,6 +832,13 @@ impl FixtureType {
             facets: slot_at(&self.gate.prism_wheel, state.prism).cloned().unwrap_or_default(),
             prism_angle: finite(state.prism_angle),
             frost: finite(state.frost),
+            layers: [(&self.gate.gobo_wheel2, state.gobo2), (&self.gate.animation_wheel, state.animation)]
+                .into_iter()
+                .filter_map(|(wheel, [slot, angle, _])| {
+                    let image = slot_at(wheel, slot).cloned().flatten()?;
+                    Some(GoboLayer { image, angle: finite(angle) })
+                })
+                .collect(),
         }
     }
 
@@ -683,12 +891,132 @@ impl FixtureType {
 
     /// The luminous transmittance of the colour-correction filter for a
     /// state (1 without one): CTO/CTB change the Planckian lamp's CCT in
-    /// [`FixtureType::lamp_for`] and cost this much light.
+    /// [`FixtureType::lamp_for`] and cost this much light. An LED type's
+    /// correction is in its emitter levels already ([`FixtureType::decode`]): 1.
     pub fn correction(&self, state: &FixtureState) -> f32 {
-        match (&self.cto, state.cto > 0.0) {
-            (Some(t), true) => t.at(state.cto),
+        match (&self.cto, state.cto > 0.0, &self.lamp) {
+            (_, _, Lamp::Led { .. }) => 1.0,
+            (Some(t), true, _) => t.at(state.cto),
             _ => 1.0,
         }
+    }
+
+    /// The slot of colour wheel `n` (0: `Color1`, 1-3: `Color2`…`Color4`) in the beam.
+    pub fn wheel_slot_n(&self, state: &FixtureState, n: usize) -> Option<&WheelSlot> {
+        match n {
+            0 => self.wheel_slot(state),
+            n => slot_at(self.extra_wheels.get(n - 1)?, state.wheels.get(n - 1).copied().unwrap_or(0.0)),
+        }
+    }
+
+    /// The filters in the beam for a state, as eq. 4's c_F: the first
+    /// colour-wheel slot (wheels 1-4 in order) with a measured spectrum,
+    /// applied spectrally by the caller, and a per-channel factor for
+    /// everything else: the other wheels' slots (xyY factors; a second
+    /// measured filter by its [`footlight_photometry::filter_factor`] on
+    /// `lamp`) and, on a lamp that cannot mix (tungsten, discharge, CMY), a
+    /// colour target (HSB, CIE, macro) as the filter from the lamp's white
+    /// to it ([`colour::filter_between`], estimated) and a tint as a shift
+    /// at equal luminance ([`colour::shift_between`]).
+    pub fn filters<'a>(&'a self, state: &FixtureState, lamp: &Lamp) -> (Option<&'a Arc<Gel>>, Vec3) {
+        let mut gel: Option<&Arc<Gel>> = None;
+        let mut factor = Vec3::ONE;
+        for n in 0..=self.extra_wheels.len() {
+            match self.wheel_slot_n(state, n) {
+                Some(WheelSlot::Factor(c)) => factor *= *c,
+                Some(WheelSlot::Filter(g)) if gel.is_none() => gel = Some(g),
+                Some(WheelSlot::Filter(g)) => {
+                    factor *= footlight_photometry::filter_factor(lamp, 1.0, Some(g.as_ref()));
+                }
+                None => {}
+            }
+        }
+        if !matches!(lamp, Lamp::Led { .. }) {
+            let (target, _) = self.colour_target(state);
+            let tinted = state.tint != 0.0 && state.tint.is_finite();
+            if target.is_some() || tinted {
+                let white = srgb::xy(srgb::linear_srgb_to_xyz(lamp.colour(1.0))).unwrap_or(Vec2::new(0.3127, 0.3290));
+                if let Some(xy) = target {
+                    factor *= filter_between(white, xy);
+                }
+                if tinted {
+                    let k = lamp.temperature(1.0).unwrap_or(6500.0);
+                    factor *= shift_between(planck_xy(k), white_xy(k, state.tint));
+                }
+            }
+        }
+        (gel, if factor.is_finite() { factor.max(Vec3::ZERO) } else { Vec3::ONE })
+    }
+}
+
+/// Accumulated while decoding, applied after the channels ([`FixtureType::decode`]).
+#[derive(Default)]
+struct Decoded {
+    /// The largest level of the additive colour channels the type cannot mix ([`Attribute::Level`]).
+    level: Option<f32>,
+    /// True when a colour-mix channel (emitter or flag) was decoded.
+    mixed: bool,
+}
+
+/// The function of channel `c` that applies at its current value, and
+/// where the value sits in its range (0..1): among the functions its mode
+/// master selects, the last whose range holds the value, else the last
+/// starting at or below it (channel sets that leave gaps).
+fn function_at<'a>(c: &'a Channel, slot: &dyn Fn(u16) -> u8) -> Option<(&'a Function, f32)> {
+    let (raw, _) = c.raw(slot);
+    let active = |f: &&Function| f.active(slot);
+    let f = c
+        .functions
+        .iter()
+        .rev()
+        .filter(active)
+        .find(|f| f.from <= raw && raw <= f.to)
+        .or_else(|| c.functions.iter().rev().filter(active).find(|f| f.from <= raw))?;
+    let span = f32::from(f.to.saturating_sub(f.from)).max(1.0);
+    let x = (f32::from(raw.min(f.to).saturating_sub(f.from)) / span).clamp(0.0, 1.0);
+    Some((f, x))
+}
+
+/// Writes a continuous attribute's value into the state: `real` in the
+/// attribute's unit, `level` the dimmer's control level 0..1 (through `curve`).
+fn set_value(s: &mut FixtureState, acc: &mut Decoded, attribute: Attribute, real: f32, level: f32, curve: DimmerCurve) {
+    const HSB: [f32; 3] = [0.0, 1.0, 1.0];
+    const CIE: [f32; 3] = [0.3127, 0.3290, 1.0];
+    let unit = |x: f32| if x > 0.0 { x.min(1.0) } else { 0.0 };
+    match attribute {
+        Attribute::Dimmer => s.v *= curve.v(level),
+        Attribute::Pan => s.pan = real,
+        Attribute::Tilt => s.tilt = real,
+        Attribute::Zoom => s.zoom = real,
+        Attribute::Focus => s.focus = real.clamp(0.0, 1.0),
+        Attribute::Iris => s.iris = real.clamp(0.0, 1.0),
+        Attribute::Mix(i) => {
+            s.mix[usize::from(i).min(MAX_MIX - 1)] = real.clamp(0.0, 1.0);
+            acc.mixed = true;
+        }
+        Attribute::Cto => s.cto = real,
+        Attribute::Tint => s.tint = if real.is_finite() { real } else { 0.0 },
+        Attribute::Hue => s.hsb.get_or_insert(HSB)[0] = real,
+        Attribute::Saturation => s.hsb.get_or_insert(HSB)[1] = unit(real),
+        Attribute::HsbBrightness => s.hsb.get_or_insert(HSB)[2] = unit(real),
+        Attribute::CieX => s.cie.get_or_insert(CIE)[0] = unit(real),
+        Attribute::CieY => s.cie.get_or_insert(CIE)[1] = unit(real),
+        Attribute::CieBrightness => s.cie.get_or_insert(CIE)[2] = unit(real),
+        Attribute::StrobeDuration => s.strobe_duration = if real > 0.0 && real.is_finite() { real } else { 0.0 },
+        Attribute::Level => acc.level = Some(acc.level.unwrap_or(0.0).max(unit(real))),
+        Attribute::Scroller
+        | Attribute::Shutter
+        | Attribute::ColourWheel
+        | Attribute::ColourWheelN(_)
+        | Attribute::ColourMacro
+        | Attribute::Gobo
+        | Attribute::Gobo2
+        | Attribute::Animation
+        | Attribute::Prism
+        | Attribute::Gate
+        | Attribute::DimmerCurve
+        | Attribute::Mode
+        | Attribute::Other => {}
     }
 }
 
@@ -714,6 +1042,10 @@ mod correction_tests {
     fn correction_table_matches_the_direct_integral() {
         let t = CorrectionTable::new(5600.0, [5600.0, 2700.0]);
         assert!((t.at(5600.0) - 1.0).abs() < 1e-6);
+        // A range across the lamp's own CCT: exactly 1 there (the kink is a node).
+        let across = CorrectionTable::new(6500.0, [2700.0, 8000.0]);
+        assert!((across.at(6500.0) - 1.0).abs() < 1e-6, "{}", across.at(6500.0));
+        assert!((across.at(7000.0) - correction_transmittance(6500.0, 7000.0)).abs() < 2e-3);
         for k in [2700.0, 3000.0, 3200.0, 4100.0, 5000.0] {
             let (a, b) = (t.at(k), correction_transmittance(5600.0, k));
             assert!((a - b).abs() < 2e-3, "{k}: table {a} direct {b}");

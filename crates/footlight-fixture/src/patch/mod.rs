@@ -39,7 +39,7 @@ pub use white::RigWhite;
 
 use crate::beam::{Beam, SpotBeam};
 use crate::error::PatchError;
-use crate::fixture_type::{Attribute, FixtureType, Manual, WheelSlot};
+use crate::fixture_type::{Attribute, FixtureType, Manual};
 use crate::light::{Light, head_rotation};
 use crate::state::{DmxSlots, FixtureState, SLOTS, Universes};
 use footlight_photometry::{GelId, GelLibrary, GelMix, Scroller};
@@ -274,16 +274,13 @@ impl Fixture {
                 let ty = &t.fixture_type;
                 let lamp = ty.lamp_for(state);
                 let intensity = ty.intensity(state) * ty.correction(state) * shutter(state);
-                // Vierjahn 2010, eq. (4): c_F (gel, wheel, CTO) ⊙ c_I · v · Î.
-                match ty.wheel_slot(state) {
-                    Some(WheelSlot::Filter(gel)) => {
-                        footlight_photometry::k(&lamp, state.v, &GelMix::single(Some(gel)), intensity)
-                    }
-                    Some(WheelSlot::Factor(c)) => {
-                        footlight_photometry::k(&lamp, state.v, &t.gel_mix(state.frame), intensity) * *c
-                    }
+                // Vierjahn 2010, eq. (4): c_F (gel, wheels, CTO, colour target) ⊙ c_I · v · Î.
+                let (spectral, factor) = ty.filters(state, &lamp);
+                let k = match spectral {
+                    Some(gel) => footlight_photometry::k(&lamp, state.v, &GelMix::single(Some(gel)), intensity),
                     None => footlight_photometry::k(&lamp, state.v, &t.gel_mix(state.frame), intensity),
-                }
+                };
+                k * factor
             }
         }
     }

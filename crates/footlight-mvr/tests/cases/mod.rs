@@ -1,8 +1,9 @@
 //! Test modules and shared helpers.
 
+mod attributes;
 mod colour_without_emitters;
-mod fuzz;
 mod festival;
+mod fuzz;
 mod gate;
 mod limits;
 mod peers;
