@@ -766,7 +766,7 @@ fn run_daemon(
         let bodies = match args.bodies {
             BodiesChoice::On => true,
             BodiesChoice::Off => false,
-            BodiesChoice::Auto => footlight_mvr::is_mvr(args.input.patch()),
+            BodiesChoice::Auto => footlight_mvr::show_of(args.input.patch()).is_some(),
         };
         let bodies = bodies.then(|| {
             let names: Vec<String> = show.patch().fixtures.iter().map(|f| f.name.clone()).collect();
@@ -927,18 +927,18 @@ fn check(path: &Path, list_all: bool) -> Result<()> {
             for w in &checked.warnings {
                 eprintln!("warning: {w}");
             }
-            if footlight_mvr::is_mvr(path) {
+            if let Some(show) = footlight_mvr::show_of(path) {
                 // The MVR's geometry is the show's scene (unless `--scene`): its problems too.
-                let loaded = footlight::scene::load_mvr_scene(path)?;
+                let loaded = footlight::scene::load_mvr_scene(&show)?;
                 if loaded.objects == 0 {
-                    println!("{}: no scene objects; shows use the bundled stage", path.display());
+                    println!("{}: no scene objects; shows use the bundled stage", show.display());
                 } else {
                     for w in &loaded.warnings {
                         eprintln!("warning: {w}");
                     }
                     println!(
                         "{}: scene of {} object(s), {} triangles",
-                        path.display(),
+                        show.display(),
                         loaded.objects,
                         loaded.scene.triangle_count()
                     );

@@ -887,3 +887,67 @@ fn an_mvr_without_a_camera_is_framed_from_a_designers_height() {
     let xyz: Vec<f32> = at.split(')').next().unwrap().split(", ").map(|v| v.parse().unwrap()).collect();
     assert!(xyz.iter().all(|v| v.is_finite()) && xyz[1] > 2.0 && xyz[1] < 10.0, "eye {xyz:?}: above the deck");
 }
+
+/// Issue 36 item 6: haze on an MVR show. A TOML patch that names the show
+/// (`show = "…"`) keeps its rig and venue and adds `[haze]`, `[[view]]` and
+/// a `[look]` whose fixture ids set every cell; through the binary the
+/// hazed still has light in the air where the plain show has none, and a
+/// `[[fixture]]` of its own is refused with its line.
+#[test]
+fn a_toml_patch_adds_haze_views_and_a_look_to_an_mvr_show() {
+    let dir = temp_dir("show-overlay");
+    let show = root().join("tests/data/mvr/show150.mvr");
+    let base = footlight_mvr::load_patch(&show).unwrap();
+    // A blinder (two cells, a dimmer each) and a Fresnel, by fixture id.
+    let overlay = format!(
+        "show = {show:?}\n\
+         [haze]\nscattering = 0.08\ng = 0.7\ndensity = 100\nmultiple = false\n\
+         [[view]]\nname = \"balcony\"\nposition = [0.0, 6.0, 16.0]\ntarget = [0.0, 1.0, 0.0]\n\
+         [look]\n\"1109\" = {{ dimmer = 255 }}\n\"1129\" = {{ dimmer = 255 }}\n"
+    );
+    let path = dir.join("hazy.toml");
+    std::fs::write(&path, &overlay).unwrap();
+    let patch = footlight_mvr::load_patch(&path).unwrap();
+    assert_eq!(patch.fixtures.len(), base.fixtures.len(), "the show's rig, every cell");
+    assert!(patch.haze.is_some() && base.haze.is_none());
+    assert_eq!(patch.views.iter().map(|v| v.name.as_str()).collect::<Vec<_>>(), ["balcony"]);
+    let lit: Vec<(u32, Option<u32>)> =
+        patch.fixtures.iter().filter(|f| f.look.v > 0.0).map(|f| (f.id, f.cell.as_ref().map(|c| c.number))).collect();
+    let blinder_cells = base.fixtures.iter().filter(|f| f.id == 1109).count();
+    assert_eq!(blinder_cells, 2);
+    assert_eq!(lit.iter().filter(|l| l.0 == 1109).count(), blinder_cells, "every cell of 1109: {lit:?}");
+    assert_eq!(lit.iter().filter(|l| l.0 == 1129).count(), 1, "{lit:?}");
+    assert_eq!(lit.len(), blinder_cells + 1, "nothing else lit: {lit:?}");
+    let check = footlight().arg("check").arg(&path).output().unwrap();
+    assert!(check.status.success(), "{}", String::from_utf8_lossy(&check.stderr));
+
+    // The same look without haze, as a second overlay; both rendered.
+    let clear = dir.join("clear.toml");
+    std::fs::write(&clear, overlay.replace("scattering = 0.08", "scattering = 0.0")).unwrap();
+    let render = |patch: &std::path::Path, name: &str| {
+        let out = dir.join(name);
+        let o = footlight()
+            .args(["render", "--width", "80", "--height", "50", "--photons", "0", "--out"])
+            .arg(&out)
+            .arg("--patch")
+            .arg(patch)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        read_pfm(&out).2
+    };
+    let (hazy, plain) = (render(&path, "hazy.pfm"), render(&clear, "clear.pfm"));
+    let air = hazy.iter().zip(&plain).filter(|(h, p)| p.iter().sum::<f32>() == 0.0 && h.iter().sum::<f32>() > 0.0);
+    assert!(air.count() > 20, "the beams show in the haze where the clear picture is black");
+
+    // A fixture of its own is refused with its line.
+    let bad = dir.join("bad.toml");
+    std::fs::write(
+        &bad,
+        format!("show = {show:?}\n\n[[fixture]]\nid = 1\ntype = \"spot\"\nposition = [0.0, 5.0, 0.0]\n"),
+    )
+    .unwrap();
+    let o = footlight().arg("check").arg(&bad).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("bad.toml:3") && err.contains("re-patch them in the MVR"), "{err}");
+}

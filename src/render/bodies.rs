@@ -271,8 +271,8 @@ pub fn body_models(patch: &Path, names: &[String], ids: &[u32]) -> (Vec<BodyMode
     let mut warnings = Vec::new();
     let mut covered = vec![false; names.len()];
     let mut models = Vec::new();
-    if footlight_mvr::is_mvr(patch) {
-        match footlight_mvr::body::fixture_bodies(patch) {
+    if let Some(show) = footlight_mvr::show_of(patch) {
+        match footlight_mvr::body::fixture_bodies(&show) {
             Err(e) => warnings.push(format!("fixture bodies: {e}; estimated boxes drawn")),
             Ok((specs, w)) => {
                 warnings.extend(w);

@@ -393,12 +393,16 @@ pub(crate) fn add_box(builder: &mut SceneBuilder, p: impl Fn(f32, f32, f32) -> V
 }
 
 /// Where the scene of a show comes from: `--scene` when given, else the
-/// MVR's geometry when the patch is an `.mvr`, else the bundled stage.
+/// geometry of the patch's MVR show (the `.mvr` itself, or the one a TOML
+/// patch names with `show = …`: [`footlight_mvr::show_of`]), else the
+/// bundled stage.
 pub fn scene_source(scene_flag: Option<&Path>, patch: &Path, default_scene: &Path) -> SceneSource {
     match scene_flag {
         Some(s) => SceneSource::Gltf(s.to_path_buf()),
-        None if footlight_mvr::is_mvr(patch) => SceneSource::Mvr(patch.to_path_buf()),
-        None => SceneSource::Gltf(default_scene.to_path_buf()),
+        None => match footlight_mvr::show_of(patch) {
+            Some(show) => SceneSource::Mvr(show),
+            None => SceneSource::Gltf(default_scene.to_path_buf()),
+        },
     }
 }
 

@@ -53,5 +53,5 @@ pub mod xml;
 pub use report::{Modelled, TypeSummary};
 pub use show::{
     Cell, Checked, GdtfTypes, Import, cells, check_patch, check_report, fixture_type, is_mvr, load_mvr, load_patch,
-    time_load_mvr,
+    show_of, time_load_mvr,
 };

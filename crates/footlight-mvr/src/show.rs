@@ -1436,6 +1436,10 @@ impl TypeLoader for GdtfTypes {
         let g = Gdtf::open(path)?;
         fixture_type(&g)
     }
+
+    fn load_show(&self, path: &Path) -> Option<Result<(Patch, Vec<PatchError>), Vec<PatchError>>> {
+        Some(load_mvr(path).map(|i| (i.patch, i.warnings)))
+    }
 }
 
 /// Loads a patch: an `.mvr` through [`load_mvr`] (warnings logged to
@@ -1514,6 +1518,24 @@ pub fn check_report(path: &Path) -> Result<Checked, Vec<PatchError>> {
 /// True for a path ending in `.mvr` (any case).
 pub fn is_mvr(path: &Path) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case("mvr"))
+}
+
+/// The MVR show a patch draws its rig (and, without `--scene`, its venue
+/// and fixture bodies) from: the file itself when it is an `.mvr`, the file
+/// a TOML patch names with `show = "…"` (relative to the patch), else
+/// `None`. A TOML file that cannot be read or parsed gives `None` here; its
+/// loading reports why.
+pub fn show_of(path: &Path) -> Option<std::path::PathBuf> {
+    if is_mvr(path) {
+        return Some(path.to_path_buf());
+    }
+    #[derive(serde::Deserialize)]
+    struct ShowKey {
+        show: Option<String>,
+    }
+    let text = std::fs::read_to_string(path).ok()?;
+    let key: ShowKey = toml::from_str(&text).ok()?;
+    Some(path.parent().unwrap_or(Path::new("")).join(key.show?))
 }
 
 #[cfg(test)]

@@ -41,6 +41,9 @@ pub(super) fn build_with(
     loader: Option<&dyn TypeLoader>,
 ) -> Result<(Patch, Vec<PatchError>), Vec<PatchError>> {
     let file: PatchFile = toml::from_str(text).map_err(|e| vec![toml_error(path, text, &e)])?;
+    if let Some(show) = &file.show {
+        return build_over_show(path, text, &file, show, loader);
+    }
     let mut b = Builder::new(path, text, &file);
     b.loader = loader;
     let camera = b.camera(&file);
@@ -88,6 +91,131 @@ pub(super) fn build_with(
         warnings,
     };
     Ok((patch, b.warnings))
+}
+
+/// A patch that names an MVR show (`show = "festival.mvr"`): the show's
+/// fixtures, addresses and channel defaults, with this file's `[haze]`,
+/// `[[view]]`, `[camera]`, `[[input]]` and `[look]` added (issue 36: haze
+/// on an MVR show). Its own `[[fixture]]` entries are refused: the show
+/// owns the rig, so there is one place to re-patch it.
+fn build_over_show(
+    path: &Path,
+    text: &str,
+    file: &PatchFile,
+    show: &Spanned<String>,
+    loader: Option<&dyn TypeLoader>,
+) -> Result<(Patch, Vec<PatchError>), Vec<PatchError>> {
+    let mut b = Builder::new(path, text, file);
+    let show_path = path.parent().unwrap_or(Path::new("")).join(show.get_ref());
+    if let Some(f) = file.fixture.first() {
+        b.err(
+            f.span(),
+            format!(
+                "[[fixture]] in a patch that names the show {:?}: the show's fixtures are the rig; \
+                 re-patch them in the MVR (this file adds haze, views, camera, inputs and a look)",
+                show.get_ref()
+            ),
+        );
+    }
+    let loaded = match loader.and_then(|l| l.load_show(&show_path)) {
+        Some(r) => r,
+        None => {
+            b.err(show.span(), format!("show = {:?}: this build reads no MVR shows", show.get_ref()));
+            return Err(b.errors);
+        }
+    };
+    let (base, base_warnings) = match loaded {
+        Ok(x) => x,
+        Err(mut e) => {
+            let line = line_of(text, show.span().start);
+            e.insert(0, PatchError::new(path, line, format!("show = {:?} cannot be loaded:", show.get_ref())));
+            return Err(e);
+        }
+    };
+    let camera = b.camera(file);
+    let mut frames = base.look_universes.clone();
+    let mut fixtures = base.fixtures.clone();
+    // `[look]` over the show's channel defaults: an id sets every cell of
+    // that fixture; "U/ADDR" keys set slots.
+    if let Some(look) = &file.look {
+        let mut raw: Vec<(u16, u16, u8)> = Vec::new();
+        for (key, value) in look.get_ref() {
+            let span = value.span();
+            if key.contains('/') {
+                b.look_slots(key, value, &mut raw);
+                continue;
+            }
+            let cells: Vec<usize> = key
+                .trim()
+                .parse::<u32>()
+                .map(|id| (0..fixtures.len()).filter(|&i| fixtures[i].id == id).collect())
+                .unwrap_or_default();
+            if cells.is_empty() {
+                b.err(span, format!("[look] {key:?}: the show has no fixture with that id; keys are fixture ids or \"universe/address\""));
+                continue;
+            }
+            let Some(table) = value.get_ref().as_table() else {
+                b.err(span, format!("[look] {key}: give attribute = DMX value pairs, e.g. {key} = {{ dimmer = 255 }}"));
+                continue;
+            };
+            for i in cells {
+                let f = &fixtures[i];
+                let reach = match &f.model {
+                    FixtureModel::Typed(t) => t.fixture_type.modes[t.mode]
+                        .channels
+                        .iter()
+                        .map(|c| c.fine.unwrap_or(c.offset).max(c.offset) + 1)
+                        .max()
+                        .unwrap_or(0),
+                    FixtureModel::Builtin(_) => 1,
+                };
+                let local: Vec<u8> = (0..reach)
+                    .map(|o| {
+                        f.slot_address(o).and_then(|(u, a)| frames.get(u).map(|s| s[usize::from(a) - 1])).unwrap_or(0)
+                    })
+                    .collect();
+                let mut one = Built { fixture: f.clone(), address_span: None, level: None, local };
+                for (attr, v) in table {
+                    b.look_value(&mut one, attr, v, span.clone());
+                }
+                for (o, v) in one.local.iter().enumerate() {
+                    if let Some((u, a)) = f.slot_address(o as u16) {
+                        frames.set_slot(u, a, *v);
+                    }
+                }
+            }
+        }
+        for (u, a, v) in raw {
+            frames.set_slot(u, a, v);
+        }
+        for f in &mut fixtures {
+            f.look = f.decode_with(&|o| {
+                f.slot_address(o).and_then(|(u, a)| frames.get(u).map(|s| s[usize::from(a) - 1])).unwrap_or(0)
+            });
+            f.light = f.light_of(&f.look);
+        }
+    }
+    let inputs = b.inputs(&file.input);
+    let haze = super::haze::build_haze(path, text, file, &fixtures, &mut b.errors);
+    if let Some(h) = &haze {
+        h.write_look(&mut frames);
+    }
+    let views = super::views::build_views(path, text, file, &mut b.errors);
+    if !b.errors.is_empty() {
+        return Err(b.errors);
+    }
+    let patch = Patch {
+        path: path.to_path_buf(),
+        camera: camera.or(base.camera),
+        fixtures,
+        inputs: if file.input.is_empty() { base.inputs } else { inputs },
+        look_universes: frames,
+        gels: base.gels,
+        haze: haze.or(base.haze),
+        views: if views.is_empty() { base.views } else { views },
+        warnings: base.warnings,
+    };
+    Ok((patch, base_warnings))
 }
 
 /// A fixture being built, with what the cross-checks need.

@@ -16,6 +16,10 @@ pub struct PatchFile {
     pub gels: Option<Spanned<String>>,
     /// Optional camera overriding the scene's.
     pub camera: Option<Spanned<CameraFile>>,
+    /// An MVR show (relative to the patch) whose fixtures this patch uses;
+    /// the file then adds `[haze]`, `[[view]]`, `[camera]`, `[[input]]` and
+    /// `[look]` to it and has no `[[fixture]]` of its own.
+    pub show: Option<Spanned<String>>,
     /// Fixture instances.
     #[serde(default)]
     pub fixture: Vec<Spanned<FixtureFile>>,

@@ -465,6 +465,13 @@ pub trait TypeLoader {
     /// with every mode, and warnings that do not stop it (e.g. attributes
     /// not modelled), or the error naming the file.
     fn load(&self, path: &Path) -> Result<(FixtureType, Vec<PatchError>), PatchError>;
+
+    /// Reads the show file at `path` that a patch names with `show = …`
+    /// (an MVR): its patch and warnings, or every problem. `None`: this
+    /// loader reads no shows (the patch gets an error naming the key).
+    fn load_show(&self, _path: &Path) -> Option<Result<(Patch, Vec<PatchError>), Vec<PatchError>>> {
+        None
+    }
 }
 
 /// [`check`] with a reader for foreign type files (GDTF): the patch and the
