@@ -1437,7 +1437,7 @@ impl TypeLoader for GdtfTypes {
         fixture_type(&g)
     }
 
-    fn load_show(&self, path: &Path) -> Option<Result<(Patch, Vec<PatchError>), Vec<PatchError>>> {
+    fn load_show(&self, path: &Path) -> Option<footlight_fixture::patch::Checked> {
         Some(load_mvr(path).map(|i| (i.patch, i.warnings)))
     }
 }

@@ -469,10 +469,13 @@ pub trait TypeLoader {
     /// Reads the show file at `path` that a patch names with `show = …`
     /// (an MVR): its patch and warnings, or every problem. `None`: this
     /// loader reads no shows (the patch gets an error naming the key).
-    fn load_show(&self, _path: &Path) -> Option<Result<(Patch, Vec<PatchError>), Vec<PatchError>>> {
+    fn load_show(&self, _path: &Path) -> Option<Checked> {
         None
     }
 }
+
+/// A patch with the warnings that did not stop it, or every problem found.
+pub type Checked = Result<(Patch, Vec<PatchError>), Vec<PatchError>>;
 
 /// [`check`] with a reader for foreign type files (GDTF): the patch and the
 /// reader's warnings, or every problem.
