@@ -386,10 +386,15 @@ pub const FRAME_ASPECT: f32 = 1.0;
 /// a flood's edge rays would reach the walls.
 const FOOTPRINT_HALF_ANGLE_DEG: f32 = 30.0;
 
+/// How far from a dark rig's fixtures (at least; the rig's own diagonal
+/// when larger) its focus points still count for framing (metres).
+const DARK_RIG_REACH_M: f32 = 10.0;
+
 /// The rig as the camera sees it: where the lights hang, where their beams
 /// are focused (axis hits) and their footprints' edges (the edge rays'
 /// hits). Made from the lit lights, or from every light when none is lit
-/// (an MVR show starts black).
+/// (an MVR show starts black): then their positions and the focus points
+/// near them only.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Rig {
     /// The lights' positions.
@@ -407,8 +412,29 @@ impl Rig {
     pub fn of(scene: &Scene, lights: &[(&Light, Vec3)]) -> Self {
         let luminance = |k: Vec3| k.dot(Vec3::new(0.2126, 0.7152, 0.0722));
         let lit: Vec<&Light> = lights.iter().filter(|(_, k)| luminance(*k) > 0.0).map(|(l, _)| *l).collect();
-        let chosen: Vec<&Light> = if lit.is_empty() { lights.iter().map(|(l, _)| *l).collect() } else { lit };
+        let dark = lit.is_empty();
+        let chosen: Vec<&Light> = if dark { lights.iter().map(|(l, _)| *l).collect() } else { lit };
         let mut rig = Self::default();
+        if dark {
+            // A dark rig (an MVR show before its look): where it hangs and
+            // where it is focused near itself. Beams at rest that reach far
+            // across an open-air venue (a blinder tilted at the field) would
+            // pull the camera 100 m back, so their hits are left out.
+            let at: Vec<Vec3> = chosen.iter().map(|l| l.position).filter(|p| p.is_finite()).collect();
+            let Some((lo, hi)) = at
+                .iter()
+                .fold(None, |b: Option<(Vec3, Vec3)>, p| Some(b.map_or((*p, *p), |(lo, hi)| (lo.min(*p), hi.max(*p)))))
+            else {
+                return rig;
+            };
+            let reach = (hi - lo).length().max(DARK_RIG_REACH_M);
+            let near = |p: &Vec3| p.clamp(lo, hi).distance(*p) <= reach;
+            for light in chosen.into_iter().filter(|l| l.position.is_finite()) {
+                rig.fixtures.push(light.position);
+                rig.focus.extend(crate::scene::camera::focus_point(scene, light.position, light.axis()).filter(near));
+            }
+            return rig;
+        }
         for light in chosen.into_iter().filter(|l| l.position.is_finite()) {
             rig.fixtures.push(light.position);
             let axis = light.axis();
@@ -1377,7 +1403,29 @@ mod tests {
         assert_eq!(rig.footprints.len(), 12, "four edge hits per light");
         // All dark: every light.
         let dark: Vec<(&Light, Vec3)> = lights.iter().map(|l| (l, Vec3::ZERO)).collect();
-        assert_eq!(Rig::of(&scene, &dark).fixtures.len(), 4);
+        let dark_rig = Rig::of(&scene, &dark);
+        assert_eq!(dark_rig.fixtures.len(), 4);
+        assert!(dark_rig.footprints.is_empty(), "a dark rig frames where it hangs and is focused");
+        assert_eq!(dark_rig.focus.len(), 4, "every focus within 10 m of the rig");
+        // A dark light aimed 40 m off (a blinder at the field) leaves its focus out.
+        let far = spot(Vec3::new(0.0, 6.0, 3.0), Vec3::new(0.0, 0.0, 60.0));
+        let far_deck = {
+            let mut b = crate::scene::SceneBuilder::new();
+            let m = b.add_material(crate::scene::Material::lambert("field", Vec3::splat(0.5)));
+            b.add_quad(
+                Vec3::new(-80.0, 0.0, 80.0),
+                Vec3::new(80.0, 0.0, 80.0),
+                Vec3::new(80.0, 0.0, -80.0),
+                Vec3::new(-80.0, 0.0, -80.0),
+                m,
+            );
+            b.build()
+        };
+        let mut with_far = dark.clone();
+        with_far.push((&far, Vec3::ZERO));
+        let focus = Rig::of(&far_deck, &with_far).focus;
+        assert_eq!(focus.len(), 4, "{focus:?}");
+        assert!(focus.iter().all(|p| p.z < 20.0), "{focus:?}");
 
         let bounds = Bounds::of_scene(&scene).unwrap();
         let pivot = crate::scene::camera::stage_centre(&scene, &bounds, &rig.focus);
