@@ -386,15 +386,15 @@ pub const FRAME_ASPECT: f32 = 1.0;
 /// a flood's edge rays would reach the walls.
 const FOOTPRINT_HALF_ANGLE_DEG: f32 = 30.0;
 
-/// How far from a dark rig's fixtures (at least; the rig's own diagonal
-/// when larger) its focus points still count for framing (metres).
+/// How far outside the box of a dark rig's fixtures its focus and footprint
+/// hits still count for framing (metres).
 const DARK_RIG_REACH_M: f32 = 10.0;
 
 /// The rig as the camera sees it: where the lights hang, where their beams
 /// are focused (axis hits) and their footprints' edges (the edge rays'
 /// hits). Made from the lit lights, or from every light when none is lit
-/// (an MVR show starts black): then their positions and the focus points
-/// near them only.
+/// (an MVR show starts black): then their positions and the focus and
+/// footprint hits near them only.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Rig {
     /// The lights' positions.
@@ -415,37 +415,34 @@ impl Rig {
         let dark = lit.is_empty();
         let chosen: Vec<&Light> = if dark { lights.iter().map(|(l, _)| *l).collect() } else { lit };
         let mut rig = Self::default();
-        if dark {
-            // A dark rig (an MVR show before its look): where it hangs and
-            // where it is focused near itself. Beams at rest that reach far
-            // across an open-air venue (a blinder tilted at the field) would
-            // pull the camera 100 m back, so their hits are left out.
-            let at: Vec<Vec3> = chosen.iter().map(|l| l.position).filter(|p| p.is_finite()).collect();
-            let Some((lo, hi)) = at
-                .iter()
-                .fold(None, |b: Option<(Vec3, Vec3)>, p| Some(b.map_or((*p, *p), |(lo, hi)| (lo.min(*p), hi.max(*p)))))
-            else {
-                return rig;
-            };
-            let reach = (hi - lo).length().max(DARK_RIG_REACH_M);
-            let near = |p: &Vec3| p.clamp(lo, hi).distance(*p) <= reach;
-            for light in chosen.into_iter().filter(|l| l.position.is_finite()) {
-                rig.fixtures.push(light.position);
-                rig.focus.extend(crate::scene::camera::focus_point(scene, light.position, light.axis()).filter(near));
-            }
-            return rig;
-        }
         for light in chosen.into_iter().filter(|l| l.position.is_finite()) {
-            rig.fixtures.push(light.position);
-            let axis = light.axis();
-            rig.focus.extend(crate::scene::camera::focus_point(scene, light.position, axis));
-            let half = light.beam.cos_cutoff().clamp(-1.0, 1.0).acos().min(FOOTPRINT_HALF_ANGLE_DEG.to_radians());
-            for side in [Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Y] {
-                let edge = light.rotation * glam::Quat::from_axis_angle(side.cross(Vec3::NEG_Z), half) * Vec3::NEG_Z;
-                rig.footprints.extend(crate::scene::camera::focus_point(scene, light.position, edge));
-            }
+            rig.add(scene, light);
+        }
+        // A dark rig (an MVR show before its look): where it hangs and what
+        // it lights near itself. Beams at rest that reach far across an
+        // open-air venue (a blinder tilted at the field) would pull the
+        // camera 100 m back, so their hits are left out.
+        let bounds = rig
+            .fixtures
+            .iter()
+            .fold(None, |b: Option<(Vec3, Vec3)>, p| Some(b.map_or((*p, *p), |(lo, hi)| (lo.min(*p), hi.max(*p)))));
+        if let (true, Some((lo, hi))) = (dark, bounds) {
+            let near = |p: &Vec3| p.clamp(lo, hi).distance(*p) <= DARK_RIG_REACH_M;
+            rig.focus.retain(near);
+            rig.footprints.retain(near);
         }
         rig
+    }
+
+    /// Adds `light`: its position, its axis's hit and its footprint's edge hits.
+    fn add(&mut self, scene: &Scene, light: &Light) {
+        self.fixtures.push(light.position);
+        self.focus.extend(crate::scene::camera::focus_point(scene, light.position, light.axis()));
+        let half = light.beam.cos_cutoff().clamp(-1.0, 1.0).acos().min(FOOTPRINT_HALF_ANGLE_DEG.to_radians());
+        for side in [Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Y] {
+            let edge = light.rotation * glam::Quat::from_axis_angle(side.cross(Vec3::NEG_Z), half) * Vec3::NEG_Z;
+            self.footprints.extend(crate::scene::camera::focus_point(scene, light.position, edge));
+        }
     }
 
     /// True when there are no lights.
@@ -1405,7 +1402,7 @@ mod tests {
         let dark: Vec<(&Light, Vec3)> = lights.iter().map(|l| (l, Vec3::ZERO)).collect();
         let dark_rig = Rig::of(&scene, &dark);
         assert_eq!(dark_rig.fixtures.len(), 4);
-        assert!(dark_rig.footprints.is_empty(), "a dark rig frames where it hangs and is focused");
+        assert_eq!(dark_rig.footprints.len(), 14, "the edge hits (two miss the deck), all near the rig");
         assert_eq!(dark_rig.focus.len(), 4, "every focus within 10 m of the rig");
         // A dark light aimed 40 m off (a blinder at the field) leaves its focus out.
         let far = spot(Vec3::new(0.0, 6.0, 3.0), Vec3::new(0.0, 0.0, 60.0));
