@@ -69,6 +69,13 @@ mod flags {
         number(v, 0.0, 255.0, " (0-255 display steps)").map(|x| x as f32)
     }
 
+    /// `--build-threads`: 1-256, whole.
+    pub fn build_threads(v: &str) -> Result<usize, String> {
+        number(v, 1.0, 256.0, " threads").and_then(|x| {
+            if x.fract() == 0.0 { Ok(x as usize) } else { Err("must be a whole number of threads".into()) }
+        })
+    }
+
     /// `--width`/`--height`: 1-16384 pixels.
     pub fn pixels(v: &str) -> Result<u32, String> {
         number(v, 1.0, 16384.0, " pixels")
@@ -265,6 +272,10 @@ struct RunArgs {
     /// Photons stored per light (0 = direct light only).
     #[arg(long, default_value_t = PhotonSettings::default().stored, value_parser = flags::photons)]
     photons: usize,
+    /// Threads of the light-build pool, 1-256 (default: the machine's cores less one,
+    /// at least 1, so the frame clock keeps a core).
+    #[arg(long, default_value_t = footlight::live::tracer::default_build_threads(), value_parser = flags::build_threads)]
+    build_threads: usize,
     /// Illuminance (lx) on a white Lambert surface shown as display white.
     #[arg(long, default_value_t = footlight::render::display::DEFAULT_WHITE_LUX, value_parser = flags::white_lux)]
     white_lux: f32,
@@ -790,7 +801,11 @@ fn run_daemon(
             display,
             white_balance: Some(args.white_balance.clone()),
             compositor: args.compositor,
-            tracer: TracerSettings { build: BuildSettings { photons, ..defaults.tracer.build }, ..defaults.tracer },
+            tracer: TracerSettings {
+                build: BuildSettings { photons, ..defaults.tracer.build },
+                threads: args.build_threads,
+                ..defaults.tracer
+            },
             ..defaults
         };
         let source = match &args.replay {

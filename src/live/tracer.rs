@@ -124,7 +124,10 @@ pub enum Stage {
 /// Tracer settings; [`Default`] holds every default in one place.
 #[derive(Clone, Copy, Debug)]
 pub struct TracerSettings {
-    /// Threads of the build pool (each stage is data-parallel).
+    /// Threads of the build pool (each stage is data-parallel): by default
+    /// one fewer than the machine's cores, at least 1
+    /// ([`default_build_threads`]), so the frame clock keeps a core (issue 38
+    /// item 4); `footlight run --build-threads N`.
     pub threads: usize,
     /// What each light build does (AA threshold, photons, refinement passes).
     pub build: BuildSettings,
@@ -153,7 +156,7 @@ pub struct TracerSettings {
 impl Default for TracerSettings {
     fn default() -> Self {
         Self {
-            threads: std::thread::available_parallelism().map(|n| n.get()).unwrap_or(2),
+            threads: default_build_threads(),
             build: BuildSettings::default(),
             settle: Duration::from_millis(150),
             max_refining: 4,
@@ -163,6 +166,12 @@ impl Default for TracerSettings {
             batch_cells: true,
         }
     }
+}
+
+/// The build pool's default size: the machine's cores less one for the
+/// frame clock, at least 1 (on 2 cores: 1 build thread).
+pub fn default_build_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get().saturating_sub(1).max(1))
 }
 
 /// What the frame clock sees of a light.
