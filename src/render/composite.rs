@@ -14,11 +14,22 @@
 //! [`Compositor::update_layers`] keeps one such sum per density knot, so a
 //! hazer change (new knot weights) recombines the sums instead of
 //! recomposing every light.
+//!
+//! **Emitter groups** (issue 38, [`super::group`]): lights given to
+//! [`Compositor::set_groups`] (a fixture's cells) are composited through
+//! their group's storage, per tile low-rank or exact, so a pixel chase
+//! costs what the cells' buffers differ by, not cells × tiles. A group whose
+//! storage was built from other buffers than its members' current ones (a
+//! member rebuilt) is composited per light, exactly, until
+//! [`Compositor::rebuild_stale_groups`] (or a new `set_groups`) catches up.
+//! Lights in no group take the per-light path unchanged.
 
 use super::buffer::{LightBuffer, TILE};
 use super::display::Display;
+use super::group::{GroupBuffer, GroupSettings};
 use glam::Vec3;
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// Composites `buffers` with weights `k` (same length) into a dense
 /// row-major linear image of `width`×`height` (cd/m²).
@@ -33,14 +44,39 @@ pub fn composite_into(buffers: &[&LightBuffer], k: &[Vec3], width: u32, height: 
     assert_eq!(buffers.len(), k.len(), "one k per buffer");
     let w = width as usize;
     assert_eq!(out.len(), w * height as usize, "output size");
-    let active = active_lights(buffers, k);
-    let tiles_x = w.div_ceil(TILE);
-    out.par_chunks_mut(w * TILE).enumerate().for_each(|(ty, band)| {
-        band.fill(Vec3::ZERO);
-        for tx in 0..tiles_x {
-            accumulate_tile(&active, tx, ty, w, band);
+    let parts = Parts { lights: active_lights(buffers, k), groups: Vec::new() };
+    parts.composite_into(width, height, out);
+}
+
+/// What contributes to a frame: lights composited on their own and groups
+/// composited through their storage (with their cells' k).
+struct Parts<'a> {
+    lights: Vec<(&'a LightBuffer, Vec3)>,
+    groups: Vec<(&'a GroupBuffer, Vec<Vec3>)>,
+}
+
+impl Parts<'_> {
+    /// Adds every part's tile (tx, ty) into `band` (lights first, in order,
+    /// then groups), which must be zero there beforehand.
+    fn accumulate_tile(&self, tx: usize, ty: usize, w: usize, band: &mut [Vec3]) {
+        accumulate_tile(&self.lights, tx, ty, w, band);
+        for (g, k) in &self.groups {
+            g.accumulate_tile(k, tx, ty, w, band);
         }
-    });
+    }
+
+    /// The whole frame into `out` (row-major, `width`×`height`).
+    fn composite_into(&self, width: u32, height: u32, out: &mut [Vec3]) {
+        let w = width as usize;
+        assert_eq!(out.len(), w * height as usize, "output size");
+        let tiles_x = w.div_ceil(TILE);
+        out.par_chunks_mut(w * TILE).enumerate().for_each(|(ty, band)| {
+            band.fill(Vec3::ZERO);
+            for tx in 0..tiles_x {
+                self.accumulate_tile(tx, ty, w, band);
+            }
+        });
+    }
 }
 
 /// Lights that can contribute: k_i ≠ 0 (dimmer at zero or a black gel
@@ -90,6 +126,44 @@ pub struct CompositeInput<'a> {
     pub k: Vec3,
 }
 
+/// One emitter group as the compositor sees it: which lights are its
+/// cells and their storage.
+#[derive(Clone, Debug)]
+pub struct CompositeGroup {
+    /// Per cell of `storage` (in its order), the index of that light in
+    /// the lights given to [`Compositor::update`].
+    pub members: Vec<usize>,
+    /// Per cell, the [`CompositeInput::generation`] its buffer had when
+    /// `storage` was built: another generation now means the storage is stale.
+    pub generations: Vec<u64>,
+    /// The cells' buffers, stored by what differs.
+    pub storage: Arc<GroupBuffer>,
+}
+
+impl CompositeGroup {
+    /// Builds the storage of the group of `members` (indices into
+    /// `lights`) from their current buffers.
+    ///
+    /// # Panics
+    /// If `members` is empty or names a light past `lights`.
+    pub fn build(lights: &[CompositeInput], members: Vec<usize>, settings: GroupSettings) -> Self {
+        let buffers: Vec<&LightBuffer> = members.iter().map(|&m| lights[m].buffer).collect();
+        let generations = members.iter().map(|&m| lights[m].generation).collect();
+        Self { storage: Arc::new(GroupBuffer::build(&buffers, settings)), members, generations }
+    }
+
+    /// Whether the storage holds the members' current buffers (every
+    /// member in range, each at the generation it was built from).
+    pub fn is_current(&self, lights: &[CompositeInput]) -> bool {
+        self.members.len() == self.storage.cells()
+            && self
+                .members
+                .iter()
+                .zip(&self.generations)
+                .all(|(&m, &g)| lights.get(m).is_some_and(|l| l.generation == g))
+    }
+}
+
 /// Incremental compositor: keeps the last linear frame and its sRGB
 /// encoding, and recomposes only tiles covered by changed lights.
 pub struct Compositor {
@@ -102,6 +176,13 @@ pub struct Compositor {
     seen: Vec<(Vec3, u64, Vec<u32>)>,
     /// The layer sums of [`Compositor::update_layers`] (haze knots), when in use.
     layers: Option<LayerSums>,
+    /// Emitter groups composited through their storage ([`Compositor::set_groups`]).
+    groups: Vec<CompositeGroup>,
+    /// Per group, whether its storage was current at the last update (a
+    /// change moves its cells between the group and the per-light path).
+    group_current: Vec<bool>,
+    /// The groups changed since the last update: recompose everything.
+    regrouped: bool,
 }
 
 /// What [`Compositor::update_layers`] keeps between frames.
@@ -113,6 +194,30 @@ struct LayerSums {
     /// Per layer, Σ_i k_i ⊙ buffer_i of its lights; `None` while its weight
     /// is 0 (then it is not kept up to date, and rebuilt when it is needed).
     sums: Vec<Option<Vec<Vec3>>>,
+}
+
+/// The parts of a frame: the `current` ones of `groups` through their
+/// storage, every other light on its own (those with k = 0 or no tile skipped).
+fn frame_parts<'a>(groups: &'a [CompositeGroup], current: &[bool], lights: &[CompositeInput<'a>]) -> Parts<'a> {
+    let mut grouped = vec![false; lights.len()];
+    let mut active = Vec::new();
+    for (g, &current) in groups.iter().zip(current) {
+        if !current {
+            continue;
+        }
+        g.members.iter().for_each(|&m| grouped[m] = true);
+        let k: Vec<Vec3> = g.members.iter().map(|&m| lights[m].k).collect();
+        if k.iter().any(|k| *k != Vec3::ZERO) {
+            active.push((&*g.storage, k));
+        }
+    }
+    let lights = lights
+        .iter()
+        .zip(&grouped)
+        .filter(|(l, g)| !**g && l.k != Vec3::ZERO && l.buffer.occupied_tiles() > 0)
+        .map(|(l, _)| (l.buffer, l.k))
+        .collect();
+    Parts { lights, groups: active }
 }
 
 /// The tiles a light's buffer covers (its occupied tiles), as tile indices.
@@ -166,7 +271,74 @@ impl Compositor {
             srgb: vec![0; n * 3],
             seen: Vec::new(),
             layers: None,
+            groups: Vec::new(),
+            group_current: Vec::new(),
+            regrouped: false,
         }
+    }
+
+    /// Sets the emitter groups (replacing any): each group's cells are
+    /// composited through its storage while it is current. The next
+    /// [`Compositor::update`] recomposes the whole frame. Lights in no
+    /// group keep the per-light path. Not used by
+    /// [`Compositor::update_layers`] (haze), which stays per light.
+    ///
+    /// # Panics
+    /// If a light is a member of two groups (it would count twice).
+    pub fn set_groups(&mut self, groups: Vec<CompositeGroup>) {
+        let mut seen = std::collections::HashSet::new();
+        for g in &groups {
+            for &m in &g.members {
+                assert!(seen.insert(m), "light {m} is in two groups");
+            }
+        }
+        self.groups = groups;
+        self.group_current.clear();
+        self.regrouped = true;
+    }
+
+    /// The emitter groups.
+    pub fn groups(&self) -> &[CompositeGroup] {
+        &self.groups
+    }
+
+    /// Rebuilds the storage of every group one of whose members was
+    /// rebuilt (another generation) from the members' current buffers;
+    /// returns how many were rebuilt. Until then such a group composites
+    /// per light (exact); the next [`Compositor::update`] recomposes the
+    /// rebuilt groups' tiles.
+    pub fn rebuild_stale_groups(&mut self, lights: &[CompositeInput], settings: GroupSettings) -> usize {
+        let mut rebuilt = 0;
+        for g in &mut self.groups {
+            if !g.is_current(lights) && g.members.iter().all(|&m| m < lights.len()) && !g.members.is_empty() {
+                *g = CompositeGroup::build(lights, std::mem::take(&mut g.members), settings);
+                rebuilt += 1;
+            }
+        }
+        rebuilt
+    }
+
+    /// Bytes of the groups' storage.
+    pub fn group_bytes(&self) -> usize {
+        self.groups.iter().map(|g| g.storage.bytes()).sum()
+    }
+
+    /// Marks in `dirty` every tile of the groups whose storage became
+    /// current or stale since the last update, and records the state.
+    fn mark_group_changes(&mut self, lights: &[CompositeInput], dirty: &mut [bool]) {
+        let current: Vec<bool> = self.groups.iter().map(|g| g.is_current(lights)).collect();
+        if self.group_current.len() == current.len() {
+            for (g, (now, before)) in self.groups.iter().zip(current.iter().zip(&self.group_current)) {
+                if now != before {
+                    for &t in g.members.iter().filter_map(|&m| self.seen.get(m)).flat_map(|s| s.2.iter()) {
+                        dirty[t as usize] = true;
+                    }
+                }
+            }
+        } else {
+            dirty.fill(true);
+        }
+        self.group_current = current;
     }
 
     /// The display settings the sRGB pixels are encoded with.
@@ -210,26 +382,26 @@ impl Compositor {
         let n_tiles = tiles_x * tiles_y;
         let mut dirty = vec![false; n_tiles];
         // Coming from layers, every entry is new.
-        let full = self.layers.take().is_some() || self.seen.len() != lights.len();
+        let full = self.layers.take().is_some() || self.seen.len() != lights.len() || self.regrouped;
         if full {
             dirty.fill(true);
             self.seen = lights.iter().map(|_| (Vec3::NAN, u64::MAX, Vec::new())).collect();
+            self.regrouped = false;
         }
         let changed = mark_changes(lights, &mut self.seen, tiles_x, &mut dirty);
+        self.mark_group_changes(lights, &mut dirty);
         let tiles = dirty.iter().filter(|&&d| d).count();
         if tiles == 0 {
             return UpdateStats { tiles, changed_lights: changed };
         }
-        let buffers: Vec<&LightBuffer> = lights.iter().map(|l| l.buffer).collect();
-        let k: Vec<Vec3> = lights.iter().map(|l| l.k).collect();
+        let parts = frame_parts(&self.groups, &self.group_current, lights);
         if tiles * 2 > n_tiles {
             // Most of the frame changed (a grand-master fade): one full pass
             // is cheaper than tile-by-tile recomposing and encoding.
-            composite_into(&buffers, &k, self.width, self.height, &mut self.linear);
+            parts.composite_into(self.width, self.height, &mut self.linear);
             self.display.to_srgb8_into(&self.linear, &mut self.srgb);
             return UpdateStats { tiles, changed_lights: changed };
         }
-        let active = active_lights(&buffers, &k);
         let display = self.display;
         self.linear.par_chunks_mut(w * TILE).zip(self.srgb.par_chunks_mut(w * TILE * 3)).enumerate().for_each(
             |(ty, (band, band_srgb))| {
@@ -240,7 +412,7 @@ impl Compositor {
                     for r in 0..rows {
                         band[r * w + x0..r * w + x0 + cols].fill(Vec3::ZERO);
                     }
-                    accumulate_tile(&active, tx, ty, w, band);
+                    parts.accumulate_tile(tx, ty, w, band);
                     for r in 0..rows {
                         let px = r * w + x0;
                         display.encode_span(&band[px..px + cols], &mut band_srgb[px * 3..(px + cols) * 3]);

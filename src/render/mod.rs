@@ -10,6 +10,7 @@
 //! * [`photon`]: per-light photon maps for the indirect term (eq. 3),
 //!   progressive refinement, and the path-traced reference.
 //! * [`buffer`]: sparse tiled per-light buffers.
+//! * [`group`]: an emitter group's cell buffers, per tile low-rank or exact.
 //! * [`footprint`]: direct light in proportion to a beam's footprint (tile culling).
 //! * [`build`]: [`LightBuild`], the only builder of a light's buffer, one
 //!   method per stage (direct, Whitted + AA, photons, refinement).
@@ -27,6 +28,7 @@ pub mod composite;
 pub mod display;
 pub mod footprint;
 pub mod gbuffer;
+pub mod group;
 pub mod media;
 pub mod photon;
 pub mod reference;
