@@ -426,6 +426,37 @@ struct BenchArgs {
     /// browser stream's body bytes per frame, printed as Markdown.
     #[arg(long)]
     bodies_only: bool,
+    /// Only the festival section (issue 38: every target on
+    /// tests/data/mvr/festival.mvr: renders, the live build, moved heads,
+    /// broad cue, pixel chase, RSS, SIGTERM), written as report.md,
+    /// report.json and festival-ready.svg into --out.
+    #[arg(long)]
+    festival_only: bool,
+    /// With --festival-only: picture size WxH (default 800x500; --quick 200x125).
+    #[arg(long, requires = "festival_only", value_parser = festival_size)]
+    festival_size: Option<(u32, u32)>,
+    /// With --festival-only: the deadline of each phase in seconds (default 240; --quick 30).
+    #[arg(long, requires = "festival_only", value_parser = festival_seconds)]
+    festival_seconds: Option<f64>,
+}
+
+/// `--festival-size WxH`, 16x16 to 3840x2160.
+fn festival_size(v: &str) -> Result<(u32, u32), String> {
+    let (w, h) = v.split_once(['x', 'X']).ok_or("expected WxH, e.g. 800x500")?;
+    let parse = |s: &str, max: u32| s.trim().parse::<u32>().ok().filter(|n| (16..=max).contains(n));
+    match (parse(w, 3840), parse(h, 2160)) {
+        (Some(w), Some(h)) => Ok((w, h)),
+        _ => Err("expected WxH with W in 16..3840 and H in 16..2160".into()),
+    }
+}
+
+/// `--festival-seconds`: 1 to 3600.
+fn festival_seconds(v: &str) -> Result<f64, String> {
+    v.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|s| (1.0..=3600.0).contains(s))
+        .ok_or_else(|| "expected 1 to 3600 seconds".into())
 }
 
 fn main() -> std::process::ExitCode {
@@ -467,6 +498,20 @@ fn main() -> std::process::ExitCode {
 }
 
 fn bench_command(mut args: BenchArgs) -> Result<()> {
+    if args.festival_only {
+        let mut cfg = bench::festival::FestivalConfig::new(args.quick);
+        if let Some(p) = &args.input.patch {
+            cfg.show = resolve(p);
+        }
+        (cfg.width, cfg.height) = args.festival_size.unwrap_or((cfg.width, cfg.height));
+        cfg.seconds = args.festival_seconds.unwrap_or(cfg.seconds);
+        let out = args.out.unwrap_or_else(bench::default_out_dir);
+        let report = bench::festival::run(&cfg).map_err(|e| anyhow::anyhow!("festival: {e}"))?;
+        report.write(&out)?;
+        print!("{}", report.lines());
+        println!("report written to {}", out.display());
+        return Ok(());
+    }
     // The paper's figures are measured on the paper's rig.
     args.input.patch.get_or_insert_with(|| PathBuf::from(footlight::PAPER_PATCH));
     let (scene, patch, _) = load_inputs(&args.input)?;

@@ -10,6 +10,7 @@ pub mod accuracy;
 pub mod bodies;
 pub mod chase;
 pub mod clients;
+pub mod festival;
 pub mod gate;
 pub mod harness;
 pub mod haze;
@@ -147,6 +148,8 @@ pub struct Report {
     pub stream: (Vec<stream::StreamRow>, (u32, u32)),
     /// Issue 16: moving the camera, settling, returning to a cached view.
     pub walk: Option<walk::WalkReport>,
+    /// Issue 38: the festival-scale show's targets (full runs only).
+    pub festival: Option<festival::FestivalReport>,
 }
 
 /// One point of a run-time-versus-error curve.
@@ -207,6 +210,9 @@ impl Report {
         }
         if let Some(c) = &self.chase {
             s += &c.lines();
+        }
+        if let Some(f) = &self.festival {
+            s += &f.lines();
         }
         s += &self.mvr.lines();
         s
@@ -379,6 +385,9 @@ impl Report {
         }
         if let Some(c) = &self.chase {
             s += &c.markdown();
+        }
+        if let Some(f) = &self.festival {
+            s += &f.markdown();
         }
         s += &format!("\n## MVR and GDTF (issue 14)\n\n```text\n{}```\n", self.mvr.lines());
         s += "\n## Raw timings (ms)\n\n| stage | ms |\n|---|---:|\n";
@@ -881,6 +890,11 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         walk::run(&scene_arc, patch, camera, (800, 500), 5.0, crate::render::photon::PhotonSettings::default().stored)
     };
     let walk = walk.map_err(|e| tracing::error!("walking the stage: {e}")).ok();
+    let festival = (!cfg.quick).then(|| {
+        progress.set_message("festival-scale show (issue 38)");
+        festival::run(&festival::FestivalConfig::new(false)).map_err(|e| tracing::error!("festival: {e}")).ok()
+    });
+    let festival = festival.flatten();
     progress.finish_and_clear();
 
     let report = Report {
@@ -910,8 +924,12 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         mvr,
         stream,
         walk,
+        festival,
     };
     plots::write(&report, out)?;
+    if let Some(f) = &report.festival {
+        std::fs::write(out.join("festival-ready.svg"), f.ready_svg())?;
+    }
     std::fs::write(out.join("report.md"), report.markdown())?;
     std::fs::write(out.join("report.json"), serde_json::to_string_pretty(&report).map_err(std::io::Error::other)?)?;
     Ok(report)

@@ -114,6 +114,102 @@ pub fn curve_svg(c: &super::sweeps::Curve) -> String {
     s
 }
 
+/// One line of a [`series_svg`] chart.
+pub struct Series {
+    /// Its name in the legend.
+    pub name: String,
+    /// Its SVG colour.
+    pub colour: String,
+    /// (x, y) points in x order.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// Lines against a linear x and y (y from 0 to `y_max`, drawn dashed in
+/// grey as the goal), with a legend: the festival section's emitters
+/// ready over time.
+pub fn series_svg(title: &str, x_label: &str, y_label: &str, y_max: f64, series: &[Series]) -> String {
+    let (l, r, t, b) = MARGIN;
+    let (pw, ph) = (WIDTH - l - r, HEIGHT - t - b);
+    let finite = |v: &f64| v.is_finite();
+    let xmax = series.iter().flat_map(|s| s.points.iter().map(|p| p.0)).filter(finite).fold(0.0, f64::max).max(1e-3);
+    let ymax =
+        series.iter().flat_map(|s| s.points.iter().map(|p| p.1)).filter(finite).fold(y_max, f64::max).max(1.0) * 1.05;
+    let x = |v: f64| l + pw * (v / xmax).clamp(0.0, 1.0);
+    let y = |v: f64| t + ph * (1.0 - (v / ymax).clamp(0.0, 1.0));
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{HEIGHT}" viewBox="0 0 {WIDTH} {HEIGHT}" font-family="sans-serif">"#
+    );
+    let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ =
+        writeln!(s, r#"<text x="{}" y="28" font-size="18" text-anchor="middle">{}</text>"#, WIDTH / 2.0, escape(title));
+    let _ = writeln!(s, r#"<rect x="{l}" y="{t}" width="{pw}" height="{ph}" fill="none" stroke="black"/>"#);
+    for i in 0..=5 {
+        let (xv, yv) = (xmax * i as f64 / 5.0, ymax * i as f64 / 5.0);
+        let (xx, yy) = (x(xv), y(yv));
+        let _ = writeln!(
+            s,
+            r##"<line x1="{xx:.1}" y1="{t}" x2="{xx:.1}" y2="{}" stroke="#ddd"/><text x="{xx:.1}" y="{}" font-size="12" text-anchor="middle">{xv:.0}</text>"##,
+            t + ph,
+            t + ph + 18.0
+        );
+        let _ = writeln!(
+            s,
+            r##"<line x1="{l}" y1="{yy:.1}" x2="{}" y2="{yy:.1}" stroke="#ddd"/><text x="{}" y="{:.1}" font-size="12" text-anchor="end">{yv:.0}</text>"##,
+            l + pw,
+            l - 6.0,
+            yy + 4.0
+        );
+    }
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="{}" font-size="14" text-anchor="middle">{}</text>"#,
+        l + pw / 2.0,
+        HEIGHT - 15.0,
+        escape(x_label)
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="20" y="{0}" font-size="14" text-anchor="middle" transform="rotate(-90 20 {0})">{1}</text>"#,
+        t + ph / 2.0,
+        escape(y_label)
+    );
+    let _ = writeln!(
+        s,
+        r#"<line x1="{l}" y1="{0:.1}" x2="{1}" y2="{0:.1}" stroke="grey" stroke-dasharray="6 4"/>"#,
+        y(y_max),
+        l + pw
+    );
+    for (i, se) in series.iter().enumerate() {
+        let line: Vec<String> = se
+            .points
+            .iter()
+            .filter(|p| p.0.is_finite() && p.1.is_finite())
+            .map(|p| format!("{:.1},{:.1}", x(p.0), y(p.1)))
+            .collect();
+        let _ = writeln!(
+            s,
+            r#"<polyline points="{}" fill="none" stroke="{}" stroke-width="2"/>"#,
+            line.join(" "),
+            escape(&se.colour)
+        );
+        let ly = t + 18.0 + 16.0 * i as f64;
+        let _ = writeln!(
+            s,
+            r#"<line x1="{0}" y1="{ly:.1}" x2="{1}" y2="{ly:.1}" stroke="{2}" stroke-width="3"/><text x="{3}" y="{4:.1}" font-size="12">{5}</text>"#,
+            l + 10.0,
+            l + 34.0,
+            escape(&se.colour),
+            l + 40.0,
+            ly + 4.0,
+            escape(&se.name)
+        );
+    }
+    s += "</svg>\n";
+    s
+}
+
 /// Writes `curve-<n>.svg` for every curve of the report into `out`.
 pub fn write(report: &Report, out: &Path) -> std::io::Result<()> {
     for (i, c) in report.curves.iter().enumerate() {
@@ -145,5 +241,31 @@ mod tests {
             .map(|l| l.split("cy=\"").nth(1).unwrap().split('"').next().unwrap().parse().unwrap())
             .collect();
         assert!(ys[0] < ys[1] && ys[1] < ys[2], "{ys:?}");
+    }
+
+    #[test]
+    fn series_svg_has_a_line_per_series_and_scales_y_from_zero() {
+        let a = Series { name: "a & b".into(), colour: "red".into(), points: vec![(0.0, 0.0), (10.0, 50.0)] };
+        let b = Series { name: "c".into(), colour: "blue".into(), points: vec![(0.0, 100.0), (10.0, 100.0)] };
+        let svg = series_svg("t", "x", "y", 100.0, &[a, b]);
+        assert_eq!(svg.matches("<polyline").count(), 2);
+        assert!(svg.contains("a &amp; b"));
+        let coords = |n: usize| -> Vec<(f64, f64)> {
+            let l = svg.lines().filter(|l| l.starts_with("<polyline")).nth(n).unwrap();
+            l.split('"')
+                .nth(1)
+                .unwrap()
+                .split(' ')
+                .map(|p| {
+                    let (x, y) = p.split_once(',').unwrap();
+                    (x.parse().unwrap(), y.parse().unwrap())
+                })
+                .collect()
+        };
+        let (a, b) = (coords(0), coords(1));
+        // y = 0 at the plot's bottom edge, larger y higher on the page; x from the left edge.
+        assert_eq!(a[0], (MARGIN.0, HEIGHT - MARGIN.3));
+        assert!(b[0].1 < a[1].1 && a[1].1 < a[0].1);
+        assert_eq!(a[1].0, WIDTH - MARGIN.1);
     }
 }
