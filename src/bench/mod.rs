@@ -370,6 +370,9 @@ impl Report {
                 r.dense_mib,
                 r.build_s
             );
+            if let Some(p) = &r.pixel_chase {
+                s += &format!("\n{}", p.markdown());
+            }
         }
         if let Some(h) = &self.haze {
             s += &format!("\n## Haze (issue 15)\n\n```text\n{}```\n", h.lines());

@@ -5,7 +5,7 @@
 //! 16 universes, k_i for 600 fixtures, composite) and the memory the
 //! per-light buffers take.
 
-use super::time_ms;
+use super::{time_ms, time_ms_with};
 use crate::fixture::Universes;
 use crate::live::{Decode, Show};
 use crate::render::composite::{CompositeInput, Compositor, composite_into};
@@ -41,6 +41,9 @@ pub struct ScaleReport {
     pub dense_mib: f64,
     /// Building all 600 direct-light buffers (1 sample per pixel), s.
     pub build_s: f64,
+    /// Issue 38: the festival rig's pixel chase at 800×500, per cell and
+    /// grouped ([`pixel_chase`]); `None` if festival.mvr did not load.
+    pub pixel_chase: Option<PixelChaseReport>,
 }
 
 /// The generated patch text (fixture types from `patch/fixtures`).
@@ -142,6 +145,11 @@ pub fn run(scene: &Arc<Scene>, camera: Camera, width: u32, height: u32) -> Resul
     });
     let buffers_mib = buffers.iter().map(LightBuffer::bytes).sum::<usize>() as f64 / (1 << 20) as f64;
     let dense_mib = buffers.len() as f64 * (width * height) as f64 * 12.0 / (1 << 20) as f64;
+    drop(comp);
+    drop(buffers);
+    let festival = std::path::Path::new(root).join("tests/data/mvr/festival.mvr");
+    let pixel_chase =
+        pixel_chase(&festival, 800, 500, 30).map_err(|e| tracing::error!("festival pixel chase: {e}")).ok();
     Ok(ScaleReport {
         fixtures: patch.fixtures.len(),
         universes: max_u as usize,
@@ -154,6 +162,240 @@ pub fn run(scene: &Arc<Scene>, camera: Camera, width: u32, height: u32) -> Resul
         buffers_mib,
         dense_mib,
         build_s,
+        pixel_chase,
+    })
+}
+
+/// Issue 38 item 5, the CPU half: a pixel chase on the festival rig
+/// (`tests/data/mvr/festival.mvr`, 3,687 lights), every cell's colour
+/// different every frame, composited per cell and through emitter groups
+/// (one per multi-cell fixture, [`crate::render::group`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct PixelChaseReport {
+    /// Picture size.
+    pub width: u32,
+    /// Picture size.
+    pub height: u32,
+    /// Lights (emitters) in the rig.
+    pub lights: usize,
+    /// Lights that light any pixel of the view.
+    pub lit_lights: usize,
+    /// Emitter groups (fixtures with two cells or more).
+    pub groups: usize,
+    /// Building every light's direct buffer (footprint-culled, one sample
+    /// per pixel, cells of a fixture together), s.
+    pub build_s: f64,
+    /// Building every group's storage from those buffers, s.
+    pub group_build_s: f64,
+    /// Frames timed.
+    pub frames: usize,
+    /// Per-cell composite + sRGB of a chase frame (every k changed), ms (median).
+    pub per_cell_ms: f64,
+    /// The same through the groups, ms (median).
+    pub grouped_ms: f64,
+    /// 1000 / `per_cell_ms`.
+    pub per_cell_hz: f64,
+    /// 1000 / `grouped_ms` (target ≥ 30).
+    pub grouped_hz: f64,
+    /// Every light's buffer, MiB.
+    pub per_cell_mib: f64,
+    /// Groups' storage plus the ungrouped lights' buffers, MiB.
+    pub grouped_mib: f64,
+    /// Worst rel. MSE of a chase frame, grouped against per cell.
+    pub picture_rel_mse: f64,
+    /// Worst rel. MSE of one cell alone (k = 1), grouped against its buffer.
+    pub cell_rel_mse: f64,
+    /// The groups' tiles: any cell reaches, rank 1/2/3, exact.
+    pub tiles: [usize; 5],
+}
+
+impl PixelChaseReport {
+    /// One Markdown paragraph.
+    pub fn markdown(&self) -> String {
+        format!(
+            "Pixel chase on festival.mvr ({} lights, {} lit in view, {} groups) at {}×{}, CPU composite + sRGB of a \
+             frame where every cell's colour changes: per cell {:.1} ms ({:.1} Hz, {:.0} MiB), grouped {:.1} ms \
+             ({:.1} Hz, {:.0} MiB); rel. MSE grouped vs per cell: worst frame {:.1e}, worst cell {:.1e}. Group \
+             tiles: {} reached, rank 1/2/3 {}/{}/{}, exact {}. Direct buffers built at the start in {:.1} s, \
+             groups in {:.2} s.\n",
+            self.lights,
+            self.lit_lights,
+            self.groups,
+            self.width,
+            self.height,
+            self.per_cell_ms,
+            self.per_cell_hz,
+            self.per_cell_mib,
+            self.grouped_ms,
+            self.grouped_hz,
+            self.grouped_mib,
+            self.picture_rel_mse,
+            self.cell_rel_mse,
+            self.tiles[0],
+            self.tiles[1],
+            self.tiles[2],
+            self.tiles[3],
+            self.tiles[4],
+            self.build_s,
+            self.group_build_s,
+        )
+    }
+}
+
+/// A chase colour: cell `i`'s RGB k at `frame`, a hue wheel walked per
+/// cell and per frame (every cell different, every frame different).
+fn chase_k(i: usize, frame: usize) -> Vec3 {
+    let h = (i as f32 * 0.137 + frame as f32 * 0.061).fract() * 6.0;
+    let ramp = |o: f32| (1.0 - ((h - o).rem_euclid(6.0) - 3.0).abs().min(3.0) / 1.5).clamp(0.0, 1.0);
+    Vec3::new(ramp(0.0), ramp(2.0), ramp(4.0)) * 1000.0 + Vec3::splat(20.0)
+}
+
+/// Runs the pixel chase on `show` (festival.mvr) at `width`×`height` over
+/// `frames` frames: direct-only buffers built at the start (the view from
+/// the audience over the rig's centre), then both compositors timed.
+pub fn pixel_chase(show: &std::path::Path, width: u32, height: u32, frames: usize) -> Result<PixelChaseReport, String> {
+    use crate::render::composite::CompositeGroup;
+    use crate::render::group::GroupSettings;
+    let import = footlight_mvr::load_mvr(show).map_err(|e| e.first().map(|e| e.to_string()).unwrap_or_default())?;
+    let scene = crate::scene::load_mvr_scene(show).map_err(|e| e.to_string())?.scene;
+    let fixtures = &import.patch.fixtures;
+    // The view: from the audience, over the rig's centre, at the floor.
+    let (lo, hi) = fixtures.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), f| {
+        (lo.min(f.light.position), hi.max(f.light.position))
+    });
+    if fixtures.is_empty() || !lo.is_finite() || !hi.is_finite() {
+        return Err("no fixtures".into());
+    }
+    let span = (hi.x - lo.x).max(hi.z - lo.z).max(1.0);
+    let target = Vec3::new((lo.x + hi.x) * 0.5, 0.0, (lo.z + hi.z) * 0.5);
+    let camera = Camera::look_at(target + Vec3::new(0.0, 0.45 * span, 0.9 * span), target, 55f32.to_radians());
+    let t = Instant::now();
+    let view = View::build(
+        &scene,
+        camera,
+        width,
+        height,
+        Sampling::One,
+        RecursionLimits { max_depth: 0, ..Default::default() },
+    );
+    // Cells of one fixture (runs of one id) built together.
+    let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
+    for (i, f) in fixtures.iter().enumerate() {
+        match runs.last_mut() {
+            Some(r) if fixtures[r.start].id == f.id => r.end = i + 1,
+            _ => runs.push(i..i + 1),
+        }
+    }
+    let mut buffers: Vec<LightBuffer> = Vec::with_capacity(fixtures.len());
+    for r in &runs {
+        let lights: Vec<crate::Light> = fixtures[r.clone()].iter().map(|f| f.light.clone()).collect();
+        let (built, _) =
+            crate::render::cells::direct_together(&scene, &view, &lights, &|| false).ok_or("direct stage cancelled")?;
+        buffers.extend(built);
+    }
+    let build_s = t.elapsed().as_secs_f64();
+    let n = buffers.len();
+    let lights_at = |frame: usize| -> Vec<CompositeInput> {
+        buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| CompositeInput { buffer: b, generation: 0, k: chase_k(i, frame) })
+            .collect()
+    };
+    let t = Instant::now();
+    let first = lights_at(0);
+    let groups: Vec<CompositeGroup> = runs
+        .iter()
+        .filter(|r| r.len() > 1)
+        .map(|r| CompositeGroup::build(&first, r.clone().collect(), GroupSettings::default()))
+        .collect();
+    let group_build_s = t.elapsed().as_secs_f64();
+    let mut tiles = [0usize; 5];
+    let mut cell_rel_mse = 0.0f64;
+    for g in &groups {
+        let s = g.storage.stats();
+        tiles[0] += s.tiles;
+        tiles[1] += s.rank_tiles[0];
+        tiles[2] += s.rank_tiles[1];
+        tiles[3] += s.rank_tiles[2];
+        tiles[4] += s.exact_tiles;
+        for (c, &m) in g.members.iter().enumerate() {
+            let (got, want) = (g.storage.cell(c), &buffers[m]);
+            let (mut err, mut energy) = (0.0f64, 0.0f64);
+            for (tx, ty) in want.occupied() {
+                let (a, b) = (got.tile(tx, ty).unwrap_or(&[]), want.tile(tx, ty).unwrap_or(&[]));
+                energy += b.iter().map(|v| f64::from(v.length_squared())).sum::<f64>();
+                err += b
+                    .iter()
+                    .enumerate()
+                    .map(|(p, v)| f64::from((a.get(p).copied().unwrap_or(Vec3::ZERO) - *v).length_squared()))
+                    .sum::<f64>();
+            }
+            if energy > 0.0 {
+                cell_rel_mse = cell_rel_mse.max(err / energy);
+            }
+        }
+    }
+    let ungrouped_bytes: usize = {
+        let mut grouped = vec![false; n];
+        groups.iter().flat_map(|g| &g.members).for_each(|&m| grouped[m] = true);
+        buffers.iter().zip(&grouped).filter(|(_, g)| !**g).map(|(b, _)| b.bytes()).sum()
+    };
+    let display = Display::default();
+    let mut per_cell = Compositor::new(width, height, display);
+    let mut grouped = Compositor::new(width, height, display);
+    grouped.set_groups(groups);
+    let grouped_mib = (grouped.group_bytes() + ungrouped_bytes) as f64 / (1 << 20) as f64;
+    per_cell.update(&lights_at(0));
+    grouped.update(&lights_at(0));
+    let mut frame = 0;
+    let (per_cell_ms, _) = time_ms_with(
+        frames,
+        || {
+            frame += 1;
+            lights_at(frame)
+        },
+        |l| per_cell.update(&l),
+    );
+    let mut frame = 0;
+    let (grouped_ms, _) = time_ms_with(
+        frames,
+        || {
+            frame += 1;
+            lights_at(frame)
+        },
+        |l| grouped.update(&l),
+    );
+    // The error of the chase frames, grouped against per cell (untimed).
+    let mut picture_rel_mse = 0.0f64;
+    for frame in [frames + 1, frames + 7, frames + 23] {
+        per_cell.update(&lights_at(frame));
+        grouped.update(&lights_at(frame));
+        let err: f64 =
+            grouped.linear().iter().zip(per_cell.linear()).map(|(a, b)| f64::from((*a - *b).length_squared())).sum();
+        let energy: f64 = per_cell.linear().iter().map(|b| f64::from(b.length_squared())).sum();
+        if energy > 0.0 {
+            picture_rel_mse = picture_rel_mse.max(err / energy);
+        }
+    }
+    Ok(PixelChaseReport {
+        width,
+        height,
+        lights: n,
+        lit_lights: buffers.iter().filter(|b| b.occupied_tiles() > 0).count(),
+        groups: grouped.groups().len(),
+        build_s,
+        group_build_s,
+        frames,
+        per_cell_ms,
+        grouped_ms,
+        per_cell_hz: 1000.0 / per_cell_ms,
+        grouped_hz: 1000.0 / grouped_ms,
+        per_cell_mib: buffers.iter().map(LightBuffer::bytes).sum::<usize>() as f64 / (1 << 20) as f64,
+        grouped_mib,
+        picture_rel_mse,
+        cell_rel_mse,
+        tiles,
     })
 }
 
