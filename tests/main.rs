@@ -52,5 +52,7 @@ mod pixels;
 mod led_white;
 // The attributes real GDTFs use: check lists none as not modelled, a dimmer-less bar goes dark.
 mod gdtf_attributes;
+// The tracer supervised (a panicking build, a dead worker) and within its memory budget.
+mod tracer;
 // Emitter groups: a pixel bar's cells grouped (low-rank tiles) vs per emitter, within issue 38's bound.
 mod groups;

@@ -450,6 +450,8 @@ impl Daemon {
         let tracer = Arc::new(Tracer::with_haze(scene.clone(), Arc::new(view), decoder.len(), config.tracer, haze));
         // A fixture's cells (one light each, under its id) are built together.
         tracer.set_groups(&decoder.labels().iter().map(|l| l.fixture).collect::<Vec<_>>());
+        // A failed build's log line names the light as the status does.
+        tracer.set_names(decoder.labels().into_iter().map(|l| l.name).collect());
         let named = if named.is_empty() { super::views::named_views(&camera, &scene, None) } else { named };
         let bodies = bodies.map(|m| super::bodies::LiveBodies::new(m, scene.clone()));
         let views = Arc::new(Views::new(scene, tracer.clone(), camera, named, config.limits, config.views));
@@ -558,7 +560,18 @@ impl Daemon {
                     .collect();
                 let dmx = dmx_status.snapshot();
                 let counters = [dmx.counters.artnet, dmx.counters.sacn, dmx.counters.usbpro];
-                let warnings = warnings(&dmx, &map);
+                let mut warnings = warnings(&dmx, &map);
+                // The tracer is supervised (issue 33): a dead worker or a failed build is said here.
+                if let Some(e) = tracer.worker_error() {
+                    warnings.push(format!(
+                        "the light builder stopped ({e}): no light is rebuilt, the picture shows the last \
+                         buffers (a bug; please report it)"
+                    ));
+                }
+                warnings.extend(tracer.failed().into_iter().map(|(i, e)| {
+                    let name = labels.get(i).map_or_else(|| format!("light {i}"), |l| l.name.clone());
+                    format!("{name}: {e}; its last picture stays (a bug; please report it)")
+                }));
                 let input = InputSummary {
                     kind: input_kind,
                     packets: counters.iter().map(|c| c.received).sum(),

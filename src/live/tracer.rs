@@ -219,6 +219,9 @@ pub struct LightReport {
     pub first_stage_ms: Option<f64>,
     /// Time from the last request to the light's final stage, ms (last finished build).
     pub last_build_ms: Option<f64>,
+    /// Why the light's last build failed (it panicked: a bug), while no
+    /// later build of it has published; its last picture stays on screen.
+    pub failed: Option<String>,
 }
 
 struct Request {
@@ -265,11 +268,15 @@ struct SlotState {
     direct_total: u64,
     first_stage: Option<Duration>,
     last_build: Option<Duration>,
+    /// The last build panicked (its message); cleared by the next publish.
+    failed: Option<String>,
 }
 
 struct Slot {
     /// Id of the newest request: the [`Cancel`] token of its builds.
     latest: Arc<AtomicU64>,
+    /// Test hook ([`Tracer::inject_build_panic`]): the light's next build panics.
+    panic_next: AtomicBool,
     state: Mutex<SlotState>,
     published: Mutex<Published>,
 }
@@ -306,6 +313,13 @@ struct Shared {
     haze_stages: AtomicU64,
     /// Cells of one fixture built together ([`cells`]).
     cells: cells::Cells,
+    /// Lights' names for log lines ([`Tracer::set_names`]; else `light i`).
+    names: Mutex<Vec<String>>,
+    /// Why the worker thread ended while the tracer was not stopped (a
+    /// panic outside any build: a bug); `None` while it runs.
+    died: Mutex<Option<String>>,
+    /// Test hook ([`Tracer::inject_worker_panic`]): the worker loop panics.
+    panic_worker: AtomicBool,
 }
 
 /// Background builder of per-light buffers.
@@ -388,6 +402,7 @@ impl Tracer {
         let slots = (0..lights)
             .map(|_| Slot {
                 latest: Arc::new(AtomicU64::new(0)),
+                panic_next: AtomicBool::new(false),
                 state: Mutex::new(SlotState { weight: 1.0, ..SlotState::default() }),
                 published: Mutex::new(Published {
                     buffer: empty.clone(),
@@ -430,12 +445,15 @@ impl Tracer {
             builds: AtomicU64::new(0),
             haze_stages: AtomicU64::new(0),
             cells: cells::Cells::new(lights),
+            names: Mutex::new(Vec::new()),
+            died: Mutex::new(None),
+            panic_worker: AtomicBool::new(false),
         });
         let worker = {
             let shared = shared.clone();
             std::thread::Builder::new()
                 .name("footlight-tracer".into())
-                .spawn(move || worker(&shared))
+                .spawn(move || supervised_worker(&shared))
                 .expect("spawn tracer worker")
         };
         Self { shared, worker: Some(worker) }
@@ -495,6 +513,45 @@ impl Tracer {
     /// or a light not listed: built alone.
     pub fn set_groups(&self, fixture: &[Option<u32>]) {
         self.shared.cells.set_groups(fixture);
+    }
+
+    /// Names the lights for log lines (`names[i]` is light i's, e.g. the
+    /// status's `name`); a light not listed is `light i`.
+    pub fn set_names(&self, names: Vec<String>) {
+        *self.shared.names.lock().expect("names lock") = names;
+    }
+
+    /// Why the worker thread died (a panic outside any single build: a
+    /// bug), `None` while it runs. No light is rebuilt after it; the frame
+    /// clock keeps compositing the last published buffers.
+    pub fn worker_error(&self) -> Option<String> {
+        self.shared.died.lock().expect("died lock").clone()
+    }
+
+    /// Lights whose last build failed, with the error, in light order.
+    pub fn failed(&self) -> Vec<(usize, String)> {
+        self.shared
+            .slots
+            .iter()
+            .enumerate()
+            .filter_map(|(i, s)| s.state.lock().expect("slot lock").failed.clone().map(|e| (i, e)))
+            .collect()
+    }
+
+    /// Test hook: the next build stage of light `index` panics inside the
+    /// build pool, as a bug in a stage would.
+    #[doc(hidden)]
+    pub fn inject_build_panic(&self, index: usize) {
+        if let Some(slot) = self.shared.slots.get(index) {
+            slot.panic_next.store(true, Ordering::SeqCst);
+        }
+    }
+
+    /// Test hook: the worker loop itself panics (outside any build).
+    #[doc(hidden)]
+    pub fn inject_worker_panic(&self) {
+        self.shared.panic_worker.store(true, Ordering::SeqCst);
+        self.shared.notify();
     }
 
     /// Passes that built several cells of one fixture together (a direct
@@ -731,6 +788,7 @@ impl Tracer {
             direct_updates: st.direct_total,
             first_stage_ms: st.first_stage.map(|d| d.as_secs_f64() * 1e3),
             last_build_ms: st.last_build.map(|d| d.as_secs_f64() * 1e3),
+            failed: st.failed.clone(),
         })
     }
 
@@ -797,6 +855,19 @@ impl Shared {
         self.stop.load(Ordering::SeqCst)
     }
 
+    /// Light `index`'s name for log lines.
+    fn name(&self, index: usize) -> String {
+        self.names.lock().ok().and_then(|n| n.get(index).cloned()).unwrap_or_else(|| format!("light {index}"))
+    }
+
+    /// Test hook: panics, inside the build pool, when light `index`'s next
+    /// build was asked to ([`Tracer::inject_build_panic`]).
+    fn injected_panic(&self, index: usize) {
+        if self.slots[index].panic_next.swap(false, Ordering::SeqCst) {
+            self.pool.install(|| panic!("injected build panic (test hook)"));
+        }
+    }
+
     fn view(&self) -> Arc<View> {
         self.view.lock().expect("view lock").clone()
     }
@@ -832,6 +903,7 @@ impl Shared {
             let mut st = slot.state.lock().expect("slot lock");
             st.shown = Some(light.clone());
             st.knots = hazy.clone().map(|k| (id, buffer.clone(), k));
+            st.failed = None;
         }
         let mut p = slot.published.lock().expect("published lock");
         if let Some(hazy) = hazy {
@@ -920,21 +992,38 @@ fn prune(times: &mut VecDeque<Instant>, now: Instant) {
     }
 }
 
+/// The worker thread's body: [`worker`] under `catch_unwind`. A panic
+/// that escapes it (outside any build: a bug) is kept for
+/// [`Tracer::worker_error`] and logged, so the daemon's status says so
+/// instead of the lights staying queued in silence.
+fn supervised_worker(s: &Shared) {
+    if let Err(panic) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| worker(s))) {
+        let message = panic_message(panic.as_ref());
+        tracing::error!(
+            "the light builder stopped: {message}; no light is rebuilt from now on (a bug; please report it)"
+        );
+        *s.died.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(message);
+    }
+}
+
+/// The text of a panic's payload.
+fn panic_message(panic: &(dyn std::any::Any + Send)) -> String {
+    panic
+        .downcast_ref::<&str>()
+        .map(|s| (*s).to_string())
+        .or_else(|| panic.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "a panic without a message".into())
+}
+
 fn worker(s: &Shared) {
     while !s.stopped() {
+        if s.panic_worker.swap(false, Ordering::SeqCst) {
+            panic!("injected worker panic (test hook)");
+        }
         let now = Instant::now();
         let job = if s.paused.load(Ordering::SeqCst) { None } else { schedule(&s.views(now), now) };
         match job {
-            Some(Job::Direct(i)) => {
-                if !cells::direct_batch(s, i) {
-                    direct_stage(s, i);
-                }
-            }
-            Some(Job::Later(i)) => {
-                if !cells::whitted_batch(s, i) {
-                    later_stage(s, i);
-                }
-            }
+            Some(job) => run_job(s, job),
             None => {
                 let wait = s.idle_wait(now);
                 let (lock, cv) = &s.wake;
@@ -942,6 +1031,54 @@ fn worker(s: &Shared) {
                 let _ = cv.wait_timeout(guard, wait);
             }
         }
+    }
+}
+
+/// One job under `catch_unwind`: a build that panics (a bug) marks its
+/// light failed, keeps its last published buffer, and the worker goes on
+/// with the other lights. The lights of the same fixture that the job took
+/// for a pass together and left with nothing to do are marked failed too.
+fn run_job(s: &Shared, job: Job) {
+    let i = match job {
+        Job::Direct(i) | Job::Later(i) => i,
+    };
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match job {
+        Job::Direct(i) => {
+            if !cells::direct_batch(s, i) {
+                direct_stage(s, i);
+            }
+        }
+        Job::Later(i) => {
+            if !cells::whitted_batch(s, i) {
+                later_stage(s, i);
+            }
+        }
+    }));
+    let Err(panic) = result else { return };
+    let message = panic_message(panic.as_ref());
+    for j in s.cells.group(i) {
+        let slot = &s.slots[j];
+        // A panic under a slot's lock poisons it: the state is still whole
+        // (each field is set in one step), so it is taken back.
+        let mut st = slot.state.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let stranded = st.pending.is_none() && st.build.is_none() && st.refine.is_none();
+        if j != i && !(stranded && slot.published.lock().is_ok_and(|p| p.stage != Stage::Ready)) {
+            continue;
+        }
+        // The build state of the failed stage is dropped: a new request builds it again.
+        st.build = None;
+        st.refine = None;
+        st.beam = None;
+        if st.failed.is_none() {
+            tracing::error!(
+                "{}: its build panicked: {message}; keeping its last picture (a bug; please report it)",
+                s.name(j)
+            );
+        }
+        st.failed = Some(format!("its build panicked: {message}"));
+        drop(st);
+        slot.state.clear_poison();
+        slot.published.clear_poison();
     }
 }
 
@@ -955,6 +1092,7 @@ fn report_bug(index: usize, e: &BuildError) {
 fn direct_stage(s: &Shared, index: usize) {
     let Some((req, waiting_since, moving)) = take_request(s, index) else { return };
     let quality = if moving { DirectQuality::Moving } else { DirectQuality::Full };
+    s.injected_panic(index);
     let mut build = new_build(s, index, &req);
     let view = s.view();
     s.builds.fetch_add(1, Ordering::SeqCst);
@@ -1048,6 +1186,7 @@ fn later_stage(s: &Shared, index: usize) {
         let mut st = slot.state.lock().expect("slot lock");
         (st.build.take(), if st.build.is_none() { st.refine.take() } else { None })
     };
+    s.injected_panic(index);
     let view = s.view();
     if let Some((id, mut build, at)) = build {
         if !build.has_whitted() {

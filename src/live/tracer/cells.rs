@@ -82,7 +82,8 @@ impl Cells {
         *self.groups.lock().expect("groups lock") = Arc::new(groups);
     }
 
-    fn group(&self, index: usize) -> Range<usize> {
+    /// The lights of light `index`'s fixture (itself alone by default).
+    pub(super) fn group(&self, index: usize) -> Range<usize> {
         self.groups.lock().expect("groups lock").get(index).cloned().unwrap_or(index..index + 1)
     }
 
@@ -152,6 +153,9 @@ pub(super) fn direct_batch(s: &Shared, index: usize) -> bool {
             Some((j, req, since, build))
         })
         .collect();
+    for (j, ..) in &taken {
+        s.injected_panic(*j);
+    }
     let view = s.view();
     s.builds.fetch_add(taken.len() as u64, Ordering::SeqCst);
     s.cells.count(taken.len());
@@ -203,6 +207,9 @@ pub(super) fn whitted_batch(s: &Shared, index: usize) -> bool {
             (slot.latest.load(Ordering::SeqCst) == id).then_some((j, id, build, at))
         })
         .collect();
+    for (j, ..) in &taken {
+        s.injected_panic(*j);
+    }
     let view = s.view();
     let bounds = s.cells.bounds(&view);
     s.cells.count(taken.len());
