@@ -203,3 +203,38 @@ fn a_rebuilt_cell_composites_exactly_until_its_group_is_rebuilt() {
     assert!(e <= 1e-3, "rebuilt: {e}");
     assert!(comp.group_bytes() > 0);
 }
+
+/// The live clock's way: groups named by their members only, storage built
+/// in the background. Until a storage arrives the cells composite per
+/// light (exactly); once it has, within the bound; a dark group is not
+/// built at all.
+#[test]
+fn groups_built_in_the_background_arrive_and_stay_within_the_bound() {
+    let (buffers, w, h) = bar_buffers(false);
+    let n = buffers.len();
+    let mut rng = Rng(11);
+    let mut k: Vec<Vec3> = (0..n).map(|_| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 200.0).collect();
+    // Cells 12-15 form a dark group.
+    k[12..].iter_mut().for_each(|k| *k = Vec3::ZERO);
+    let refs: Vec<&LightBuffer> = buffers.iter().collect();
+    let want = composite(&refs, &k, w, h);
+    let mut comp = Compositor::new(w, h, Display::default())
+        .with_group_members(vec![(0..12).collect(), (12..16).collect(), vec![]], GroupSettings::default());
+    assert_eq!(comp.groups().len(), 2, "a group of no cell is left out");
+    let lights = inputs(&buffers, &k, 0);
+    comp.update(&lights);
+    assert_eq!(comp.linear(), &want[..], "per light until the storage arrives");
+    let start = std::time::Instant::now();
+    while !comp.groups()[0].is_current(&lights) {
+        assert!(start.elapsed().as_secs() < 60, "the group's storage arrives");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+        comp.update(&lights);
+    }
+    let e = rel_mse(comp.linear(), &want);
+    assert!(e > 0.0 && e <= 1e-3, "grouped: {e}");
+    assert!(!comp.groups()[1].is_current(&lights), "the dark group is not built");
+    // The sRGB picture: how far a grouped pixel is from the per-light one.
+    let per_light = Display::default().to_srgb8(&want);
+    let worst = comp.srgb8().iter().zip(&per_light).map(|(a, b)| a.abs_diff(*b)).max().unwrap_or(0);
+    eprintln!("background groups: rel. MSE {e:.2e}, worst sRGB code difference {worst}");
+}

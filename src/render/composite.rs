@@ -183,6 +183,26 @@ pub struct Compositor {
     group_current: Vec<bool>,
     /// The groups changed since the last update: recompose everything.
     regrouped: bool,
+    /// Stale groups rebuilt in the background, when asked for
+    /// ([`Compositor::with_group_members`]).
+    background: Option<Background>,
+}
+
+/// Rebuilds of stale groups on the rayon pool, off the frame clock: a
+/// channel of finished storages (group index, the epoch of the groups it
+/// was asked for, the group), and which groups have a rebuild in flight.
+/// At most [`Background::MAX_IN_FLIGHT`] at once, so a rig whose buffers
+/// all change (a camera move) does not flood the pool or copy every buffer.
+struct Background {
+    settings: GroupSettings,
+    tx: std::sync::mpsc::Sender<(usize, u64, CompositeGroup)>,
+    rx: std::sync::mpsc::Receiver<(usize, u64, CompositeGroup)>,
+    in_flight: Vec<bool>,
+    epoch: u64,
+}
+
+impl Background {
+    const MAX_IN_FLIGHT: usize = 2;
 }
 
 /// What [`Compositor::update_layers`] keeps between frames.
@@ -274,6 +294,70 @@ impl Compositor {
             groups: Vec::new(),
             group_current: Vec::new(),
             regrouped: false,
+            background: None,
+        }
+    }
+
+    /// This compositor with emitter groups of the given members (indices
+    /// into the lights of [`Compositor::update`], in cell order; groups of
+    /// fewer than two are left out) whose storage is built in the
+    /// background: each update takes the storages finished since the last
+    /// one and starts rebuilding stale groups that are lit (any k ≠ 0), at
+    /// most two at a time, from copies of their members' buffers. Until a
+    /// group's storage is current its cells composite per light, exactly.
+    /// The live clock's call: one group per fixture with cells.
+    pub fn with_group_members(mut self, members: Vec<Vec<usize>>, settings: GroupSettings) -> Self {
+        let (w, h) = (self.width, self.height);
+        let empty = Arc::new(GroupBuffer::empty(w, h));
+        let groups: Vec<CompositeGroup> = members
+            .into_iter()
+            .filter(|m| m.len() > 1)
+            .map(|members| CompositeGroup {
+                generations: vec![u64::MAX; members.len()],
+                members,
+                storage: empty.clone(),
+            })
+            .collect();
+        let (tx, rx) = std::sync::mpsc::channel();
+        let epoch = self.background.as_ref().map_or(0, |b| b.epoch + 1);
+        self.background = Some(Background { settings, tx, rx, in_flight: vec![false; groups.len()], epoch });
+        self.set_groups(groups);
+        self
+    }
+
+    /// Takes the group storages finished in the background and starts
+    /// rebuilds of lit stale groups (see [`Compositor::with_group_members`]).
+    fn poll_background(&mut self, lights: &[CompositeInput]) {
+        let Some(bg) = self.background.as_mut() else { return };
+        while let Ok((gi, epoch, group)) = bg.rx.try_recv() {
+            if epoch != bg.epoch || gi >= self.groups.len() {
+                continue;
+            }
+            bg.in_flight[gi] = false;
+            if group.members == self.groups[gi].members {
+                self.groups[gi] = group;
+            }
+        }
+        let mut running = bg.in_flight.iter().filter(|&&f| f).count();
+        for (gi, g) in self.groups.iter().enumerate() {
+            if running >= Background::MAX_IN_FLIGHT {
+                break;
+            }
+            let lit = g.members.iter().any(|&m| lights.get(m).is_some_and(|l| l.k != Vec3::ZERO));
+            if bg.in_flight[gi] || !lit || g.is_current(lights) || g.members.iter().any(|&m| m >= lights.len()) {
+                continue;
+            }
+            let buffers: Vec<LightBuffer> = g.members.iter().map(|&m| lights[m].buffer.clone()).collect();
+            let generations: Vec<u64> = g.members.iter().map(|&m| lights[m].generation).collect();
+            let (members, settings, tx, epoch) = (g.members.clone(), bg.settings, bg.tx.clone(), bg.epoch);
+            bg.in_flight[gi] = true;
+            running += 1;
+            rayon::spawn(move || {
+                let refs: Vec<&LightBuffer> = buffers.iter().collect();
+                let storage = Arc::new(GroupBuffer::build(&refs, settings));
+                // The compositor may be gone: nothing to deliver to then.
+                let _ = tx.send((gi, epoch, CompositeGroup { members, generations, storage }));
+            });
         }
     }
 
@@ -291,6 +375,11 @@ impl Compositor {
             for &m in &g.members {
                 assert!(seen.insert(m), "light {m} is in two groups");
             }
+        }
+        if let Some(bg) = self.background.as_mut() {
+            // Rebuilds in flight were for the old groups: dropped on arrival.
+            bg.epoch += 1;
+            bg.in_flight = vec![false; groups.len()];
         }
         self.groups = groups;
         self.group_current.clear();
@@ -381,6 +470,7 @@ impl Compositor {
         let tiles_y = (self.height as usize).div_ceil(TILE);
         let n_tiles = tiles_x * tiles_y;
         let mut dirty = vec![false; n_tiles];
+        self.poll_background(lights);
         // Coming from layers, every entry is new.
         let full = self.layers.take().is_some() || self.seen.len() != lights.len() || self.regrouped;
         if full {

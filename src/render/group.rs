@@ -181,6 +181,26 @@ impl GroupBuffer {
         g
     }
 
+    /// A storage of no cells (a group whose storage is not built yet: it
+    /// is never current, so its cells composite per light).
+    pub fn empty(width: u32, height: u32) -> Self {
+        let tiles_x = (width as usize).div_ceil(TILE);
+        let n_tiles = tiles_x * (height as usize).div_ceil(TILE);
+        Self {
+            width,
+            height,
+            tiles_x,
+            cells: 0,
+            slot: vec![EMPTY; n_tiles],
+            forms: Vec::new(),
+            basis: Vec::new(),
+            coeffs: Vec::new(),
+            exact: Vec::new(),
+            exact_data: Vec::new(),
+            cell_tiles: 0,
+        }
+    }
+
     /// Image width.
     pub fn width(&self) -> u32 {
         self.width
