@@ -788,7 +788,8 @@ fn run_daemon(
     tap: Option<std::sync::mpsc::Sender<footlight::live::daemon::FramesTap>>,
     close: tokio::sync::oneshot::Receiver<()>,
 ) -> Result<()> {
-    runtime()?.block_on(async move {
+    let rt = runtime()?;
+    let result = rt.block_on(async move {
         let signals = Signals::install()?;
         let stop = async move {
             tokio::select! {
@@ -903,7 +904,12 @@ fn run_daemon(
         daemon.run(stop).await?;
         announce.abort();
         Ok::<(), anyhow::Error>(())
-    })
+    });
+    // The daemon has had its grace: a blocking job still running (a view
+    // being built, a composite) ends with the process instead of holding
+    // the exit (dropping the runtime would wait for it).
+    rt.shutdown_background();
+    result
 }
 
 /// The DMX state a still shows: a recording at a moment (through the show's

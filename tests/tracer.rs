@@ -88,3 +88,24 @@ fn a_dead_worker_is_reported_not_silent() {
     wait_until(|| tracer.worker_error().is_some(), || "the worker's death was not reported".into());
     assert!(tracer.worker_error().unwrap().contains("injected worker panic"), "{:?}", tracer.worker_error());
 }
+
+/// Stop cuts a build inside its photon stage (issue 38 item 6): the worker
+/// ends with the photon stage of a two-million-photon light unfinished (no
+/// photon trace counted, the Whitted buffer still on screen), instead of
+/// finishing the stage first.
+#[test]
+fn stop_cancels_a_build_inside_its_photon_stage() {
+    let mut settings = settings();
+    settings.build.photons =
+        Some(footlight::render::photon::PhotonSettings { stored: 2_000_000, ..Default::default() });
+    let tracer = tracer(1, settings);
+    tracer.request(0, spot(0.0), 1.0);
+    // Whitted published: the photon stage is next (and nothing else is due).
+    wait_until(|| tracer.published(0).stage == Stage::Whitted, || format!("{:?}", tracer.published(0).stage));
+    std::thread::sleep(Duration::from_millis(20));
+    tracer.stop();
+    wait_until(|| tracer.worker_finished(), || "the worker did not stop".into());
+    assert_eq!(tracer.photon_traces(), 0, "the photon stage was cut, not finished");
+    assert_eq!(tracer.published(0).stage, Stage::Whitted);
+    assert!(tracer.shutdown(Duration::from_secs(1)), "the worker is joined");
+}

@@ -45,6 +45,12 @@ use std::time::Duration;
 use tokio::sync::watch;
 use tokio::task::JoinSet;
 
+/// How long open work gets on shutdown, all of it together: the tasks (the
+/// HTTP server's connections among them) and the light build in progress
+/// share this one deadline, so `footlight run` exits within a second of
+/// SIGTERM (issue 33: one value, in one place).
+pub const SHUTDOWN_GRACE: Duration = Duration::from_millis(500);
+
 /// Every default of the daemon, in one place (CLI flags override them).
 #[derive(Clone, Debug)]
 pub struct DaemonConfig {
@@ -62,7 +68,9 @@ pub struct DaemonConfig {
     pub tracer: TracerSettings,
     /// CPU or GPU compositing.
     pub compositor: crate::gpu::CompositorChoice,
-    /// How long tasks and a light build in progress get on shutdown.
+    /// How long open work gets on shutdown, all together (one deadline for
+    /// the tasks, the HTTP server's connections and the light build in
+    /// progress; [`SHUTDOWN_GRACE`]).
     pub shutdown_grace: Duration,
     /// Camera moves: settle time, view cache budget, preview scale.
     pub views: ViewSettings,
@@ -88,7 +96,7 @@ impl Default for DaemonConfig {
             limits: RecursionLimits::default(),
             tracer: TracerSettings::default(),
             compositor: crate::gpu::CompositorChoice::Auto,
-            shutdown_grace: Duration::from_millis(500),
+            shutdown_grace: SHUTDOWN_GRACE,
             views: ViewSettings::default(),
             http_token: None,
             white_balance: None,
@@ -607,7 +615,9 @@ impl Daemon {
             // Timeouts, connection limit and Host check; loopback-only Host
             // unless the address is public on purpose (docs/live.md).
             let local = listener.local_addr().ok();
-            let serve_config = local.map_or_else(ServeConfig::default, ServeConfig::for_address);
+            let mut serve_config = local.map_or_else(ServeConfig::default, ServeConfig::for_address);
+            // One shutdown deadline for the whole daemon (the server's own default is longer).
+            serve_config.shutdown_grace = config.shutdown_grace;
             // Camera writes from other machines need a token (serve/control.rs).
             if local.is_some_and(|a| !a.ip().is_loopback()) {
                 let token = config.http_token.clone().unwrap_or_else(crate::serve::control::new_token);
@@ -693,7 +703,10 @@ impl Daemon {
         }
         tracing::info!("shutting down");
         let _ = stop_tx.send(true);
+        // Every build's cancel token fires now, with the tasks' stop signal.
+        tracer.stop();
         let grace = config.shutdown_grace;
+        let deadline = std::time::Instant::now() + grace;
         let drained = tokio::time::timeout(grace, async {
             while let Some(joined) = tasks.join_next().await {
                 if let Ok((task, Err(message))) = joined {
@@ -706,8 +719,11 @@ impl Daemon {
             tracing::warn!("some tasks did not stop within {} ms; closing them", grace.as_millis());
             tasks.abort_all();
         }
+        // The light build gets what is left of the same deadline (it was
+        // told to stop with the tasks: every stage checks its token).
         if let Ok(t) = Arc::try_unwrap(tracer) {
-            let _ = tokio::task::spawn_blocking(move || t.shutdown(grace)).await;
+            let left = deadline.saturating_duration_since(std::time::Instant::now());
+            let _ = tokio::task::spawn_blocking(move || t.shutdown(left)).await;
         }
         match failure {
             Some(e) => Err(e),

@@ -817,6 +817,20 @@ impl Tracer {
         )
     }
 
+    /// Tells the worker to stop: every build's [`Cancel`] token fires (each
+    /// stage checks it per tile row or per chunk of photons) and no new job
+    /// starts. [`Tracer::shutdown`] then waits for it.
+    pub fn stop(&self) {
+        self.shared.stop.store(true, Ordering::SeqCst);
+        self.shared.notify();
+    }
+
+    /// True once the worker thread has ended (after [`Tracer::stop`], or
+    /// dead: [`Tracer::worker_error`]).
+    pub fn worker_finished(&self) -> bool {
+        self.worker.as_ref().is_none_or(|w| w.is_finished())
+    }
+
     /// Stops the worker: every build's [`Cancel`] token fires, and the
     /// worker is joined for at most `grace`. A stage that cannot stop in
     /// time is left to end with the process; returns false then.
