@@ -332,6 +332,21 @@ impl GroupBuffer {
     }
 }
 
+/// The groups of a rig from one key per light (a light's fixture id):
+/// each run of two or more consecutive lights with the same `Some` key is
+/// a group (a fixture's cells), as indices into the lights.
+pub fn runs_of<T: PartialEq>(keys: &[Option<T>]) -> Vec<Vec<usize>> {
+    let mut runs: Vec<Vec<usize>> = Vec::new();
+    for (i, key) in keys.iter().enumerate() {
+        match runs.last_mut() {
+            Some(run) if key.is_some() && keys[run[0]] == *key => run.push(i),
+            _ => runs.push(vec![i]),
+        }
+    }
+    runs.retain(|r| r.len() > 1 && keys[r[0]].is_some());
+    runs
+}
+
 /// band[r·w + x0 + x] += k ⊙ tile[r·TILE + x] over `rows` × `cols`, as
 /// a plain f32 multiply-add the compiler vectorises (as in the compositor).
 fn add_scaled(tile: &[Vec3], k: Vec3, w: usize, rows: usize, x0: usize, cols: usize, band: &mut [Vec3]) {
@@ -462,6 +477,12 @@ mod tests {
             }
         }
         out
+    }
+
+    #[test]
+    fn runs_are_consecutive_cells_of_one_fixture() {
+        let keys = [Some(1), Some(1), None, None, Some(2), Some(3), Some(3), Some(3), Some(1)];
+        assert_eq!(runs_of(&keys), vec![vec![0, 1], vec![5, 6, 7]]);
     }
 
     /// Proportional cells are one basis tile; the composite is Σ k_c B_c.
