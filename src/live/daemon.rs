@@ -486,7 +486,10 @@ impl Daemon {
             .await
             .map_err(|e| task_error("GPU setup", e))?
             .map_err(|e| DaemonError::Gpu(e.to_string()))?;
-        let mut clock = FrameClock::new(decoder.clone(), tracer.clone(), Compositor::new(w, h, display))
+        // A fixture's cells composite through their group's storage (issue 38).
+        let cells = crate::render::group::runs_of(&decoder.labels().iter().map(|l| l.fixture).collect::<Vec<_>>());
+        let compositor = Compositor::new(w, h, display).with_group_members(cells, Default::default());
+        let mut clock = FrameClock::new(decoder.clone(), tracer.clone(), compositor)
             .with_gpu(gpu)
             .with_views(views.clone(), display)
             .with_bodies(bodies);
