@@ -69,6 +69,11 @@ mod flags {
         number(v, 0.0, 255.0, " (0-255 display steps)").map(|x| x as f32)
     }
 
+    /// `--memory`: bytes (K/M/G/T) or a percentage of the machine's memory.
+    pub fn memory(v: &str) -> Result<u64, String> {
+        footlight::memory::parse_budget(v, footlight::memory::total())
+    }
+
     /// `--build-threads`: 1-256, whole.
     pub fn build_threads(v: &str) -> Result<usize, String> {
         number(v, 1.0, 256.0, " threads").and_then(|x| {
@@ -272,6 +277,11 @@ struct RunArgs {
     /// Photons stored per light (0 = direct light only).
     #[arg(long, default_value_t = PhotonSettings::default().stored, value_parser = flags::photons)]
     photons: usize,
+    /// Memory budget for the lights' buffers, photon maps and caches: bytes with K/M/G/T
+    /// (binary) or a percentage of the machine's memory (default 50%); past it, dark lights'
+    /// buffers go first.
+    #[arg(long, default_value = "50%", value_parser = flags::memory)]
+    memory: u64,
     /// Threads of the light-build pool, 1-256 (default: the machine's cores less one,
     /// at least 1, so the frame clock keeps a core).
     #[arg(long, default_value_t = footlight::live::tracer::default_build_threads(), value_parser = flags::build_threads)]
@@ -850,6 +860,7 @@ fn run_daemon(
             tracer: TracerSettings {
                 build: BuildSettings { photons, ..defaults.tracer.build },
                 threads: args.build_threads,
+                memory: args.memory,
                 ..defaults.tracer
             },
             ..defaults

@@ -51,6 +51,65 @@ pub fn picture_too_big(width: u32, height: u32, available: Option<u64>) -> Optio
     ))
 }
 
+/// The machine's memory, in bytes: Linux's `MemTotal` (`/proc/meminfo`);
+/// `None` where it cannot be read.
+pub fn total() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find_map(|l| l.strip_prefix("MemTotal:"))?;
+    let kib: u64 = line.trim().strip_suffix("kB")?.trim().parse().ok()?;
+    kib.checked_mul(1024)
+}
+
+/// The default share of the machine's memory the live daemon's buffers,
+/// photon maps and caches may hold (`footlight run --memory`).
+pub const DEFAULT_BUDGET_PERCENT: f64 = 50.0;
+
+/// The budget where the machine's memory cannot be read: 4 GiB.
+pub const FALLBACK_BUDGET: u64 = 4 << 30;
+
+/// The default memory budget: [`DEFAULT_BUDGET_PERCENT`] of `MemTotal`,
+/// else [`FALLBACK_BUDGET`].
+pub fn default_budget() -> u64 {
+    total().map_or(FALLBACK_BUDGET, |t| (t as f64 * DEFAULT_BUDGET_PERCENT / 100.0) as u64)
+}
+
+/// Parses a memory budget: bytes with an optional `K`, `M`, `G` or `T`
+/// suffix (binary: `1G` = 2^30 bytes; a trailing `B`/`iB` is allowed), or a
+/// percentage of `total` (`50%`; of 8 GiB when `total` is unknown). At
+/// least 1 MiB.
+pub fn parse_budget(v: &str, total: Option<u64>) -> Result<u64, String> {
+    let v = v.trim();
+    let bytes = if let Some(p) = v.strip_suffix('%') {
+        let p: f64 = p.trim().parse().map_err(|_| format!("{v}: expected a percentage such as 50%"))?;
+        if !(p > 0.0 && p <= 100.0) {
+            return Err(format!("{v}: a percentage of the machine's memory must be above 0 and at most 100"));
+        }
+        // Unknown memory: a percentage of twice the fallback (50% is the fallback).
+        let total = total.unwrap_or(2 * FALLBACK_BUDGET);
+        (total as f64 * p / 100.0) as u64
+    } else {
+        let upper = v.to_ascii_uppercase();
+        let number = upper.trim_end_matches("IB").trim_end_matches('B');
+        let (digits, scale) = match number.chars().last() {
+            Some('K') => (&number[..number.len() - 1], 1u64 << 10),
+            Some('M') => (&number[..number.len() - 1], 1 << 20),
+            Some('G') => (&number[..number.len() - 1], 1 << 30),
+            Some('T') => (&number[..number.len() - 1], 1 << 40),
+            _ => (number, 1),
+        };
+        let x: f64 =
+            digits.trim().parse().map_err(|_| format!("{v}: expected bytes (4G, 512M) or a percentage (50%)"))?;
+        if !(x.is_finite() && x >= 0.0) {
+            return Err(format!("{v}: expected a positive size"));
+        }
+        (x * scale as f64) as u64
+    };
+    if bytes < 1 << 20 {
+        return Err(format!("{v}: at least 1M"));
+    }
+    Ok(bytes)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

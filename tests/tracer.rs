@@ -109,3 +109,77 @@ fn stop_cancels_a_build_inside_its_photon_stage() {
     assert_eq!(tracer.published(0).stage, Stage::Whitted);
     assert!(tracer.shutdown(Duration::from_secs(1)), "the worker is joined");
 }
+
+/// Issue 38 items 1 and 3: dark lights queue behind lit ones, and past the
+/// memory budget the dark lights' buffers go first (least recently lit
+/// first), the lit ones stay, used bytes end within the budget, and an
+/// evicted light that lights is rebuilt at once.
+#[test]
+fn dark_lights_wait_for_lit_ones_and_are_evicted_first_past_the_memory_budget() {
+    // Settled at once: a lit light's later stages are due right after its
+    // direct stage (with the default 150 ms, dark lights use that idle time).
+    let tracer = tracer(6, TracerSettings { settle: Duration::ZERO, ..settings() });
+    // Lights 0, 2, 4 dark; 1, 3, 5 lit. The dark ones are requested first (they wait longest).
+    let x = |i: usize| -2.5 + i as f32;
+    // All queued at once (paused meanwhile, so the worker sees the whole queue).
+    tracer.set_paused(true);
+    for i in [0, 2, 4, 1, 3, 5] {
+        tracer.request(i, spot(x(i)), if i % 2 == 1 { 1.0 } else { 0.0 });
+    }
+    tracer.set_paused(false);
+    let ready = |i: usize| tracer.published(i).stage == Stage::Ready;
+    wait_until(|| (0..6).all(ready), || format!("{:?}", (0..6).map(|i| tracer.published(i).stage).collect::<Vec<_>>()));
+    // (a) Every publish of a lit light (direct and Whitted) came before the first of any dark light.
+    let lit_last = [1, 3, 5].iter().map(|&i| tracer.publish_order(i).1.unwrap()).max().unwrap();
+    let dark_first = [0, 2, 4].iter().map(|&i| tracer.publish_order(i).0.unwrap()).min().unwrap();
+    assert!(lit_last < dark_first, "lit lights' last publish {lit_last}, dark lights' first {dark_first}");
+
+    // Light 4 was lit a moment ago, 0 and 2 never: 4 is evicted last.
+    tracer.set_priority(4, 1.0);
+    tracer.set_priority(4, 0.0);
+    let all = tracer.memory();
+    assert!(!all.over_budget && all.evicted_lights == 0, "{all:?}");
+    let per_light = all.buffers_bytes / 6;
+    assert!(per_light > 0 && all.caches_bytes > 0, "{all:?}");
+    // (b) A budget that holds the lit lights and about one more buffer.
+    let budget = all.lit_bytes + per_light + per_light / 2;
+    tracer.set_memory_budget(budget);
+    let after = tracer.memory();
+    assert!(after.used_bytes <= budget, "{after:?}");
+    assert!(!after.over_budget);
+    assert!(tracer.evicted(0) && tracer.evicted(2), "never-lit dark lights go first");
+    for i in [1, 3, 5] {
+        assert!(!tracer.evicted(i) && ready(i), "lit light {i} kept");
+    }
+    assert_eq!(tracer.published(0).stage, Stage::Queued);
+    assert!(!tracer.any_queued(), "an evicted dark light does not hold the moving preview");
+    // The evicted light 0 lights: rebuilt (or restored) at once, and the budget holds again.
+    tracer.set_priority(0, 1.0);
+    assert!(!tracer.evicted(0));
+    wait_until(|| ready(0), || format!("{:?}", tracer.published(0).stage));
+    let relit = tracer.memory();
+    assert!(relit.used_bytes <= budget || relit.over_budget, "{relit:?}");
+    assert!(!tracer.evicted(0) && (1..6).step_by(2).all(|i| !tracer.evicted(i)));
+    // Lit lights alone over the budget: said, nothing lit evicted, the tracer goes on.
+    tracer.set_memory_budget(1 << 20);
+    tracer.set_memory_budget(relit.lit_bytes / 2);
+    let over = tracer.memory();
+    assert!(over.over_budget, "{over:?}");
+    assert!([0, 1, 3, 5].iter().all(|&i| !tracer.evicted(i) && ready(i)));
+    tracer.request(1, spot(0.3), 1.0);
+    wait_until(|| ready(1), || format!("{:?}", tracer.published(1).stage));
+}
+
+#[test]
+fn memory_budgets_parse_bytes_suffixes_and_percentages() {
+    use footlight::memory::parse_budget;
+    let gib = 1u64 << 30;
+    assert_eq!(parse_budget("4G", None), Ok(4 * gib));
+    assert_eq!(parse_budget("512M", None), Ok(512 << 20));
+    assert_eq!(parse_budget("1.5GiB", None), Ok(3 * gib / 2));
+    assert_eq!(parse_budget("2097152", None), Ok(2 << 20));
+    assert_eq!(parse_budget("25%", Some(16 * gib)), Ok(4 * gib));
+    assert_eq!(parse_budget("50%", None), Ok(footlight::memory::FALLBACK_BUDGET));
+    assert!(parse_budget("0%", Some(gib)).is_err() && parse_budget("101%", Some(gib)).is_err());
+    assert!(parse_budget("lots", None).is_err() && parse_budget("100K", None).is_err());
+}

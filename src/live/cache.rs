@@ -79,6 +79,24 @@ impl GeometryCache {
         Some((e.buffer.clone(), e.knots.clone()))
     }
 
+    /// Evicts least recently used entries until at most `bytes` are held;
+    /// returns the bytes freed (the memory budget's last resort).
+    pub fn shrink_to(&mut self, bytes: usize) -> usize {
+        let before = self.bytes;
+        while self.bytes > bytes {
+            let oldest = self
+                .entries
+                .iter()
+                .flat_map(|(&i, list)| list.iter().enumerate().map(move |(pos, e)| (e.last_used, i, pos)))
+                .min();
+            let Some((_, i, pos)) = oldest else { break };
+            if let Some(list) = self.entries.get_mut(&i) {
+                self.bytes -= list.swap_remove(pos).bytes();
+            }
+        }
+        before - self.bytes
+    }
+
     /// Stores a finished buffer (clear air), evicting least recently used
     /// entries past the budget.
     pub fn insert(&mut self, index: usize, light: &Light, buffer: Arc<LightBuffer>) {

@@ -271,6 +271,9 @@ pub struct DaemonStatus {
     pub input: InputSummary,
     /// Geometry cache.
     pub cache: CacheSummary,
+    /// The memory budget and what the tracer holds against it (light
+    /// buffers, photon maps, caches; `--memory`).
+    pub memory: super::tracer::MemoryUsage,
     /// The camera: current view, its build stage, the view cache.
     pub view: ViewStatus,
     /// Problems a user should see (stale universes, unpatched DMX).
@@ -590,6 +593,15 @@ impl Daemon {
                     dmx,
                 };
                 let (entries, bytes) = tracer.cache_usage();
+                let memory = tracer.memory();
+                if memory.over_budget {
+                    warnings.push(format!(
+                        "the lit lights alone need {:.0} MB, over the memory budget of {:.0} MB (--memory): \
+                         running over it; no dark light is built",
+                        memory.used_bytes as f64 / 1e6,
+                        memory.budget_bytes as f64 / 1e6
+                    ));
+                }
                 DaemonStatus {
                     version: env!("CARGO_PKG_VERSION"),
                     frame: frame.number,
@@ -598,6 +610,7 @@ impl Daemon {
                     clock: clock_status.lock().expect("clock status lock").clone(),
                     input,
                     cache: CacheSummary { entries, bytes, budget_bytes: cache_budget },
+                    memory,
                     view: views.status(),
                     warnings,
                     lights,

@@ -151,6 +151,39 @@ pub struct TracerSettings {
     /// ([`crate::render::cells`]); false: every light alone (the bench's
     /// comparison).
     pub batch_cells: bool,
+    /// Memory budget in bytes for the lights' buffers, photon maps and the
+    /// geometry caches ([`MemoryUsage`]): past it, dark lights' buffers and
+    /// maps go first (least recently lit first), then cache entries; by
+    /// default half the machine's memory ([`crate::memory::default_budget`];
+    /// `footlight run --memory`).
+    pub memory: u64,
+}
+
+/// What the tracer holds against its memory budget
+/// ([`TracerSettings::memory`]), in `/api/status` as `memory`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct MemoryUsage {
+    /// The budget.
+    pub budget_bytes: u64,
+    /// Everything below, summed.
+    pub used_bytes: u64,
+    /// The published buffers (and haze knot buffers) of the lights.
+    pub buffers_bytes: u64,
+    /// The lights' photon maps and irradiance caches (an estimate: photons
+    /// and cache points with their kd-tree, twice their size).
+    pub photon_maps_bytes: u64,
+    /// The geometry caches (the current view's and those kept for others).
+    pub caches_bytes: u64,
+    /// Of those, held by the lit lights alone (never evicted).
+    pub lit_bytes: u64,
+    /// Dark lights evicted to stay within the budget (rebuilt when lit).
+    pub evicted_lights: usize,
+    /// Evictions so far.
+    pub evictions: u64,
+    /// Set when the lit lights alone need more than the budget: nothing
+    /// more can go, the daemon keeps going over it (never an OOM kill by
+    /// choice) and the status warns.
+    pub over_budget: bool,
 }
 
 impl Default for TracerSettings {
@@ -164,6 +197,7 @@ impl Default for TracerSettings {
             coarse_indirect: 3,
             refine_from_coarse: true,
             batch_cells: true,
+            memory: crate::memory::default_budget(),
         }
     }
 }
@@ -270,6 +304,15 @@ struct SlotState {
     last_build: Option<Duration>,
     /// The last build panicked (its message); cleared by the next publish.
     failed: Option<String>,
+    /// When the light was last lit (priority above 0): the eviction order.
+    last_lit: Option<Instant>,
+    /// Its buffers and maps were dropped for the memory budget while dark;
+    /// it is rebuilt as soon as it lights.
+    evicted: bool,
+    /// Publish order ([`Tracer::publish_order`]): the first and the last
+    /// publish of the light, numbered across all lights.
+    first_publish: Option<u64>,
+    last_publish: Option<u64>,
 }
 
 struct Slot {
@@ -320,6 +363,14 @@ struct Shared {
     died: Mutex<Option<String>>,
     /// Test hook ([`Tracer::inject_worker_panic`]): the worker loop panics.
     panic_worker: AtomicBool,
+    /// The memory budget (changed by [`Tracer::set_memory_budget`]).
+    memory_budget: AtomicU64,
+    /// The last [`MemoryUsage`] worked out (after each job).
+    memory: Mutex<MemoryUsage>,
+    /// Evictions so far.
+    evictions: AtomicU64,
+    /// Publishes so far, all lights (the publish order).
+    publishes: AtomicU64,
 }
 
 /// Background builder of per-light buffers.
@@ -448,6 +499,10 @@ impl Tracer {
             names: Mutex::new(Vec::new()),
             died: Mutex::new(None),
             panic_worker: AtomicBool::new(false),
+            memory_budget: AtomicU64::new(settings.memory),
+            memory: Mutex::new(MemoryUsage { budget_bytes: settings.memory, ..MemoryUsage::default() }),
+            evictions: AtomicU64::new(0),
+            publishes: AtomicU64::new(0),
         });
         let worker = {
             let shared = shared.clone();
@@ -538,6 +593,34 @@ impl Tracer {
             .collect()
     }
 
+    /// What the tracer holds against its memory budget, worked out now
+    /// (evicting past the budget first, as the worker does after each job).
+    pub fn memory(&self) -> MemoryUsage {
+        self.shared.enforce_budget()
+    }
+
+    /// Changes the memory budget (bytes); the next job (or
+    /// [`Tracer::memory`]) evicts down to it.
+    pub fn set_memory_budget(&self, bytes: u64) {
+        self.shared.memory_budget.store(bytes, Ordering::SeqCst);
+        self.shared.notify();
+    }
+
+    /// Light `index`'s first and last publish, numbered across all lights
+    /// in the order they happened (`None`: never published): which builds
+    /// finished before which started, without a clock.
+    pub fn publish_order(&self, index: usize) -> (Option<u64>, Option<u64>) {
+        self.shared.slots.get(index).map_or((None, None), |s| {
+            let st = s.state.lock().expect("slot lock");
+            (st.first_publish, st.last_publish)
+        })
+    }
+
+    /// True when light `index`'s buffers were evicted for the memory budget.
+    pub fn evicted(&self, index: usize) -> bool {
+        self.shared.slots.get(index).is_some_and(|s| s.state.lock().expect("slot lock").evicted)
+    }
+
     /// Test hook: the next build stage of light `index` panics inside the
     /// build pool, as a bug in a stage would.
     #[doc(hidden)]
@@ -575,7 +658,11 @@ impl Tracer {
     /// True when some light has nothing on screen for the current view yet
     /// (the frame clock keeps the moving preview up until then).
     pub fn any_queued(&self) -> bool {
-        self.shared.slots.iter().any(|s| s.published.lock().expect("published lock").stage == Stage::Queued)
+        self.shared.slots.iter().any(|s| {
+            // A dark light evicted for the memory budget adds nothing to the picture.
+            !s.state.lock().expect("slot lock").evicted
+                && s.published.lock().expect("published lock").stage == Stage::Queued
+        })
     }
 
     /// What each light shows now: the geometry of its published buffer, the
@@ -652,6 +739,12 @@ impl Tracer {
             st.knots = None;
             // The footprint share is a property of the old view.
             st.weight = 1.0;
+            if st.evicted {
+                // Dark and evicted for the memory budget: built when it lights.
+                st.pending = None;
+                st.waiting_since = None;
+                continue;
+            }
             let current = st.pending.take().map(|r| r.light).or_else(|| st.current.clone());
             let Some(light) = current else {
                 st.shown = None;
@@ -735,6 +828,10 @@ impl Tracer {
         st.refine = None;
         st.beam = None;
         st.priority = priority;
+        if priority > 0.0 {
+            st.last_lit = Some(now);
+        }
+        st.evicted = false;
         st.current = Some(light.clone());
         st.previous_move = st.last_move.replace(now);
         let cached = s.cache.lock().expect("cache lock").get_in(index, &light, s.haze.as_ref());
@@ -760,10 +857,23 @@ impl Tracer {
         s.notify();
     }
 
-    /// Updates a light's priority (its brightness changes every frame).
+    /// Updates a light's priority (its brightness changes every frame). A
+    /// light evicted for the memory budget that lights is rebuilt at once
+    /// (it joins the lit lights' queue with the oldest wait).
     pub fn set_priority(&self, index: usize, priority: f32) {
-        if let Some(slot) = self.shared.slots.get(index) {
-            slot.state.lock().expect("slot lock").priority = priority;
+        let Some(slot) = self.shared.slots.get(index) else { return };
+        let mut st = slot.state.lock().expect("slot lock");
+        st.priority = priority;
+        if priority > 0.0 {
+            st.last_lit = Some(Instant::now());
+            if st.evicted {
+                st.evicted = false;
+                if let Some(light) = st.current.clone() {
+                    drop(st);
+                    // Its geometry as it was: a cached state is published at once.
+                    self.request(index, light, priority);
+                }
+            }
         }
     }
 
@@ -869,6 +979,124 @@ impl Shared {
         self.stop.load(Ordering::SeqCst)
     }
 
+    /// Works out what is held against the memory budget and, past it,
+    /// evicts: dark lights' buffers and photon maps first (least recently
+    /// lit first), then geometry cache entries (views left behind first).
+    /// The lit lights are never evicted: if they alone are over, the usage
+    /// says so and the tracer keeps going.
+    fn enforce_budget(&self) -> MemoryUsage {
+        let budget = self.memory_budget.load(Ordering::SeqCst);
+        // Per light: bytes held, lit, last lit.
+        let held: Vec<(u64, u64, bool, Option<Instant>)> = self
+            .slots
+            .iter()
+            .map(|slot| {
+                let st = slot.state.lock().expect("slot lock");
+                let maps = st.maps.as_ref().map_or(0, |(_, m)| maps_bytes(m));
+                let (lit, last_lit) = (st.priority > 0.0, st.last_lit);
+                drop(st);
+                let p = slot.published.lock().expect("published lock");
+                let buffers = p.buffer.bytes() + p.hazy.iter().map(|b| b.bytes()).sum::<usize>();
+                (buffers as u64, maps, lit, last_lit)
+            })
+            .collect();
+        let caches = |s: &Self| {
+            let c = s.cache.lock().expect("cache lock").bytes();
+            (c + s.kept_caches.lock().expect("kept caches lock").iter().map(|(_, k)| k.bytes()).sum::<usize>()) as u64
+        };
+        let mut buffers: u64 = held.iter().map(|h| h.0).sum();
+        let mut maps: u64 = held.iter().map(|h| h.1).sum();
+        let mut cache = caches(self);
+        let lit_bytes: u64 = held.iter().filter(|h| h.2).map(|h| h.0 + h.1).sum();
+        if buffers + maps + cache > budget {
+            // 1. Dark lights, least recently lit first (never lit: first of all).
+            let mut dark: Vec<(Option<Instant>, usize)> =
+                held.iter().enumerate().filter(|(_, h)| !h.2 && h.0 + h.1 > 0).map(|(i, h)| (h.3, i)).collect();
+            dark.sort();
+            for (_, i) in dark {
+                if buffers + maps + cache <= budget {
+                    break;
+                }
+                if self.evict(i) {
+                    buffers -= held[i].0;
+                    maps -= held[i].1;
+                }
+            }
+            // 2. The geometry caches: views left behind first, then this view's.
+            if buffers + maps + cache > budget {
+                let mut room = budget.saturating_sub(buffers + maps) as usize;
+                let mut kept = self.kept_caches.lock().expect("kept caches lock");
+                for (_, c) in kept.iter_mut() {
+                    let keep = room.min(c.bytes());
+                    c.shrink_to(keep);
+                    room -= keep;
+                }
+                kept.retain(|(_, c)| !c.is_empty());
+                drop(kept);
+                let mut own = self.cache.lock().expect("cache lock");
+                let keep = room.min(own.bytes());
+                own.shrink_to(keep);
+                drop(own);
+                cache = caches(self);
+            }
+        }
+        let used = buffers + maps + cache;
+        let over = used > budget;
+        let usage = MemoryUsage {
+            budget_bytes: budget,
+            used_bytes: used,
+            buffers_bytes: buffers,
+            photon_maps_bytes: maps,
+            caches_bytes: cache,
+            lit_bytes,
+            evicted_lights: self.slots.iter().filter(|s| s.state.lock().expect("slot lock").evicted).count(),
+            evictions: self.evictions.load(Ordering::SeqCst),
+            over_budget: over,
+        };
+        let mut last = self.memory.lock().expect("memory lock");
+        if over && !last.over_budget {
+            tracing::warn!(
+                "the lit lights need {:.0} MB, over the memory budget of {:.0} MB (--memory): keeping going over it",
+                used as f64 / 1e6,
+                budget as f64 / 1e6
+            );
+        }
+        *last = usage.clone();
+        usage
+    }
+
+    /// Drops dark light `index`'s buffers, photon maps and build state for
+    /// the memory budget; it is rebuilt when it lights. False when it lit
+    /// in the meantime.
+    fn evict(&self, index: usize) -> bool {
+        let slot = &self.slots[index];
+        let mut st = slot.state.lock().expect("slot lock");
+        if st.priority > 0.0 {
+            return false;
+        }
+        // Supersedes its build in progress (its token fires).
+        slot.latest.store(self.next_id.fetch_add(1, Ordering::Relaxed), Ordering::SeqCst);
+        st.pending = None;
+        st.waiting_since = None;
+        st.build = None;
+        st.refine = None;
+        st.beam = None;
+        st.knots = None;
+        st.maps = None;
+        st.shown = None;
+        st.evicted = true;
+        drop(st);
+        let view = self.view();
+        let empty = Arc::new(LightBuffer::empty(view.width(), view.height()));
+        let mut p = slot.published.lock().expect("published lock");
+        p.buffer = empty.clone();
+        p.hazy = [empty.clone(), empty];
+        p.generation += 1;
+        p.stage = Stage::Queued;
+        self.evictions.fetch_add(1, Ordering::SeqCst);
+        true
+    }
+
     /// Light `index`'s name for log lines.
     fn name(&self, index: usize) -> String {
         self.names.lock().ok().and_then(|n| n.get(index).cloned()).unwrap_or_else(|| format!("light {index}"))
@@ -918,6 +1146,9 @@ impl Shared {
             st.shown = Some(light.clone());
             st.knots = hazy.clone().map(|k| (id, buffer.clone(), k));
             st.failed = None;
+            let n = self.publishes.fetch_add(1, Ordering::SeqCst);
+            st.first_publish.get_or_insert(n);
+            st.last_publish = Some(n);
         }
         let mut p = slot.published.lock().expect("published lock");
         if let Some(hazy) = hazy {
@@ -1000,6 +1231,14 @@ impl Shared {
     }
 }
 
+/// Bytes of a light's photon maps: the photons and irradiance cache
+/// points, twice over for their kd-trees (an estimate).
+fn maps_bytes(m: &PhotonMaps) -> u64 {
+    let photons = (m.global.len() + m.caustic.len()) * std::mem::size_of::<crate::render::photon::Photon>();
+    let points = m.irradiance.len() * 40;
+    2 * (photons + points) as u64
+}
+
 fn prune(times: &mut VecDeque<Instant>, now: Instant) {
     while times.front().is_some_and(|t| now.duration_since(*t) > Duration::from_secs(1)) {
         times.pop_front();
@@ -1035,9 +1274,19 @@ fn worker(s: &Shared) {
             panic!("injected worker panic (test hook)");
         }
         let now = Instant::now();
-        let job = if s.paused.load(Ordering::SeqCst) { None } else { schedule(&s.views(now), now) };
+        let job = if s.paused.load(Ordering::SeqCst) {
+            None
+        } else if s.memory.lock().expect("memory lock").over_budget {
+            // Over budget with the lit lights alone: no dark light is built.
+            schedule_among(&s.views(now), now, true)
+        } else {
+            schedule(&s.views(now), now)
+        };
         match job {
-            Some(job) => run_job(s, job),
+            Some(job) => {
+                run_job(s, job);
+                s.enforce_budget();
+            }
             None => {
                 let wait = s.idle_wait(now);
                 let (lock, cv) = &s.wake;
