@@ -114,10 +114,12 @@ pub fn python_module(module: &str) -> bool {
     match Command::new("python3").args(["-c", &format!("import {module}")]).output() {
         Ok(o) if o.status.success() => true,
         Ok(_) => {
+            require_peers(&format!("python3 cannot import `{module}`"));
             eprintln!("skipped: python3 module `{module}` is missing (.ci/run installs it with pip)");
             false
         }
         Err(_) => {
+            require_peers("python3 is not installed");
             eprintln!("skipped: python3 is not installed");
             false
         }
@@ -129,6 +131,14 @@ pub fn require(program: &str, package: &str) -> bool {
     if have(program) {
         return true;
     }
+    require_peers(&format!("`{program}` is not installed (Debian package `{package}`)"));
     eprintln!("skipped: `{program}` is not installed (Debian package `{package}`)");
     false
+}
+
+/// With `FOOTLIGHT_REQUIRE_PEERS` set (`.ci/run` sets it), a missing peer
+/// fails the test instead of skipping it: CI never passes a peer test that
+/// did not run.
+pub fn require_peers(missing: &str) {
+    assert!(std::env::var_os("FOOTLIGHT_REQUIRE_PEERS").is_none(), "FOOTLIGHT_REQUIRE_PEERS is set but {missing}");
 }

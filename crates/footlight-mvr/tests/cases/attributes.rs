@@ -193,6 +193,10 @@ fn peer() -> Option<Value> {
     match Command::new("python3").args(["-c", "import pygdtf"]).output() {
         Ok(o) if o.status.success() => {}
         _ => {
+            assert!(
+                std::env::var_os("FOOTLIGHT_REQUIRE_PEERS").is_none(),
+                "FOOTLIGHT_REQUIRE_PEERS is set but python3 cannot import pygdtf"
+            );
             eprintln!("skipped: python3 with pygdtf is missing (.ci/run installs it with pip)");
             return None;
         }

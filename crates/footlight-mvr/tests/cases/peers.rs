@@ -18,6 +18,10 @@ pub(super) fn peers_available() -> bool {
     match Command::new("python3").args(["-c", "import pygdtf, pymvr"]).output() {
         Ok(o) if o.status.success() => true,
         _ => {
+            assert!(
+                std::env::var_os("FOOTLIGHT_REQUIRE_PEERS").is_none(),
+                "FOOTLIGHT_REQUIRE_PEERS is set but python3 cannot import pygdtf and pymvr"
+            );
             eprintln!("skipped: python3 with pygdtf and pymvr is missing (.ci/run installs them with pip)");
             false
         }
