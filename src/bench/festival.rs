@@ -221,6 +221,9 @@ pub struct FestivalReport {
     pub errors: Vec<String>,
     /// The targets.
     pub rows: Vec<TargetRow>,
+    /// The CPU compositor alone on the same show and size, per cell vs
+    /// through emitter groups ([`super::scale::pixel_chase`]).
+    pub composite_chase: Option<super::scale::PixelChaseReport>,
 }
 
 /// `footlight run` stopped with SIGTERM during its build.
@@ -745,6 +748,7 @@ pub fn run(cfg: &FestivalConfig) -> Result<FestivalReport, String> {
         sigterm: None,
         errors: Vec::new(),
         rows: Vec::new(),
+        composite_chase: None,
     };
 
     // 1. The G-buffer alone (View::build: the 9-sample G-buffer and the Whitted paths), as `render` builds it.
@@ -786,6 +790,13 @@ pub fn run(cfg: &FestivalConfig) -> Result<FestivalReport, String> {
         }
     }
     let _ = std::fs::remove_dir_all(&dir);
+
+    // 5. The pixel chase on the compositor alone: per cell vs grouped.
+    tracing::info!("festival: pixel chase on the compositor, per cell vs grouped");
+    match super::scale::pixel_chase(&cfg.show, w, h, 30) {
+        Ok(r) => report.composite_chase = Some(r),
+        Err(e) => report.errors.push(format!("composite pixel chase: {e}")),
+    }
     report.load_average.1 = load_average();
     report.rows = rows(&report);
     Ok(report)
@@ -1251,6 +1262,9 @@ impl FestivalReport {
                 p.composite_ms,
                 p.rss_mb
             );
+        }
+        if let Some(chase) = &self.composite_chase {
+            s += &chase.markdown();
         }
         s
     }

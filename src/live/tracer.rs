@@ -85,6 +85,17 @@
 //! that has not moved since. While the camera moves the tracer is paused
 //! ([`Tracer::set_paused`]): the frame clock shows the cheap moving preview
 //! and no work is spent on a view about to be replaced.
+//!
+//! # Memory (issue 38)
+//! After every job the tracer counts what it holds ([`MemoryUsage`]: the
+//! published buffers, the state builds keep between stages, photon maps,
+//! the geometry caches) against its budget (`run --memory`). Past it, dark
+//! lights' buffers and maps go first (least recently lit first), then the
+//! geometry caches. When the lit lights alone are over it, no dark light is
+//! built and the stages that add memory (photons and refinement) wait
+//! ([`within_budget`]); direct and Whitted stages, which replace a light's
+//! tile-sparse buffer, still run. The Whitted term a build keeps for its
+//! photon stage is tile-sparse ([`LightBuild::bytes`]).
 
 mod cells;
 
@@ -167,7 +178,10 @@ pub struct MemoryUsage {
     pub budget_bytes: u64,
     /// Everything below, summed.
     pub used_bytes: u64,
-    /// The published buffers (and haze knot buffers) of the lights.
+    /// The published buffers (and haze knot buffers) of the lights, and
+    /// the state their builds in progress keep between stages (the Whitted
+    /// term, the start and state of refinement: [`LightBuild::bytes`],
+    /// [`Refinement::bytes`]).
     pub buffers_bytes: u64,
     /// The lights' photon maps and irradiance caches (an estimate: photons
     /// and cache points with their kd-tree, twice their size).
@@ -433,6 +447,22 @@ fn schedule_among(slots: &[SlotView], now: Instant, lit: bool) -> Option<Job> {
         .filter_map(|(i, s)| s.later.map(|stage| (i, stage, s.priority)))
         .min_by(|a, b| a.1.cmp(&b.1).then(b.2.total_cmp(&a.2)).then(a.0.cmp(&b.0)))
         .map(|(i, _, _)| Job::Later(i))
+}
+
+/// The views a tracer over its memory budget schedules from: the photon
+/// and refinement stages (`later` 1 and 2), which add a dense indirect
+/// buffer, photon maps and per-vertex state per light (about 12 MB each at
+/// 800×500 on the festival show), are withheld; direct and Whitted stages,
+/// which replace a light's tile-sparse buffer, still run, so moved lights
+/// follow and every lit light gets its whole direct term. They start again
+/// once the usage is back within the budget.
+pub fn within_budget(mut views: Vec<SlotView>) -> Vec<SlotView> {
+    for v in &mut views {
+        if v.later.is_some_and(|stage| stage >= 1) {
+            v.later = None;
+        }
+    }
+    views
 }
 
 impl Tracer {
@@ -994,9 +1024,11 @@ impl Shared {
                 let st = slot.state.lock().expect("slot lock");
                 let maps = st.maps.as_ref().map_or(0, |(_, m)| maps_bytes(m));
                 let (lit, last_lit) = (st.priority > 0.0, st.last_lit);
+                let building = st.build.as_ref().map_or(0, |(_, b, _)| b.bytes())
+                    + st.refine.as_ref().map_or(0, |(_, r, _)| r.bytes());
                 drop(st);
                 let p = slot.published.lock().expect("published lock");
-                let buffers = p.buffer.bytes() + p.hazy.iter().map(|b| b.bytes()).sum::<usize>();
+                let buffers = building + p.buffer.bytes() + p.hazy.iter().map(|b| b.bytes()).sum::<usize>();
                 (buffers as u64, maps, lit, last_lit)
             })
             .collect();
@@ -1277,8 +1309,9 @@ fn worker(s: &Shared) {
         let job = if s.paused.load(Ordering::SeqCst) {
             None
         } else if s.memory.lock().expect("memory lock").over_budget {
-            // Over budget with the lit lights alone: no dark light is built.
-            schedule_among(&s.views(now), now, true)
+            // Over budget with the lit lights alone: no dark light is built,
+            // and no stage that adds memory starts (module doc, "Memory").
+            schedule_among(&within_budget(s.views(now)), now, true)
         } else {
             schedule(&s.views(now), now)
         };
@@ -1699,5 +1732,26 @@ mod tests {
         // Any waiting request goes before every later stage.
         let waiting = SlotView { waiting_since: Some(now), settled: false, later: None, ..still(0, 0.1) };
         assert_eq!(schedule(&[still(0, 100.0), waiting], now), Some(Job::Direct(1)));
+    }
+
+    #[test]
+    fn over_budget_withholds_the_stages_that_add_memory_and_keeps_the_direct_ones() {
+        let now = Instant::now();
+        let lit = |later: Option<u8>, waiting: bool| SlotView {
+            waiting_since: waiting.then_some(now - Duration::from_millis(500)),
+            weight: 1.0,
+            priority: 1.0,
+            settled: !waiting,
+            later,
+        };
+        // A light waiting for photons, one for refinement, one for Whitted.
+        let views = vec![lit(Some(1), false), lit(Some(2), false), lit(Some(0), false)];
+        assert_eq!(schedule_among(&views, now, true), Some(Job::Later(2)), "Whitted goes first anyway");
+        let photons_only = vec![lit(Some(1), false), lit(Some(2), false)];
+        assert_eq!(schedule_among(&photons_only, now, true), Some(Job::Later(0)));
+        assert_eq!(schedule_among(&within_budget(photons_only), now, true), None, "over budget: no photon stage");
+        let views = within_budget(vec![lit(Some(1), false), lit(None, true), lit(Some(0), false)]);
+        assert_eq!(schedule_among(&views, now, true), Some(Job::Direct(1)), "a moved light is still served");
+        assert_eq!(views[2].later, Some(0), "Whitted stages still run");
     }
 }

@@ -129,6 +129,15 @@ impl Progressive {
         self.passes
     }
 
+    /// Bytes of per-vertex state held (radius, count, flux and the start),
+    /// for the tracer's memory budget.
+    pub fn bytes(&self) -> usize {
+        self.radius2.len() * 4
+            + self.count.len() * 4
+            + self.tau.len() * std::mem::size_of::<Vec3>()
+            + self.start.as_ref().map_or(0, |(s, _)| s.len() * std::mem::size_of::<Vec3>())
+    }
+
     /// Where the last pass's time went (zero before the first).
     pub fn last_times(&self) -> PassTimes {
         self.last
