@@ -126,17 +126,7 @@ impl GeometryCache {
         }
         list.push(Entry { last_used: self.clock, ..entry });
         self.bytes += size;
-        while self.bytes > self.budget {
-            let oldest = self
-                .entries
-                .iter()
-                .flat_map(|(&i, list)| list.iter().enumerate().map(move |(pos, e)| (e.last_used, i, pos)))
-                .min();
-            let Some((_, i, pos)) = oldest else { break };
-            if let Some(list) = self.entries.get_mut(&i) {
-                self.bytes -= list.swap_remove(pos).bytes();
-            }
-        }
+        self.shrink_to(self.budget);
     }
 
     /// Drops every entry (their buffers belong to a view that was replaced).
