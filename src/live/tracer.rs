@@ -31,6 +31,13 @@
 //!    ([`DirectQuality::Moving`]: one pixel per 2×2 block) when its
 //!    previous request was less than `settle` earlier; the settled Whitted
 //!    stage replaces it.
+//! 5. **A long queue is rushed.** While more than
+//!    [`TracerSettings::rush_backlog`] lights of a class (lit, or dark)
+//!    wait for their direct stage (a look that lights a festival rig at
+//!    once: 3,684 lights), their direct stages are built at moving quality
+//!    too (a quarter of the pixels shaded), and each light's Whitted stage
+//!    replaces it as in rule 4: every lit light is on screen about four
+//!    times sooner.
 //!
 //! A newer request for a light cancels its build in progress (the
 //! [`Cancel`] token compares request ids) at the next stage boundary; a
@@ -46,8 +53,11 @@
 //! their direct stage, then their Whitted stage, in one pass over the union
 //! of their footprints ([`crate::render::cells`]; scheduling, request ids,
 //! cancellation and publishing per cell as above: `src/live/tracer/cells.rs`).
-//! Photons and refinement stay per cell. [`Tracer::batched_builds`] counts
-//! the passes; [`TracerSettings::batch_cells`] turns it off.
+//! [`Tracer::batched_builds`] counts the passes; [`TracerSettings::batch_cells`]
+//! turns it off. Cells with the same beam and aim share one photon stage
+//! and its refinement (issue 38): one traces photons, the others follow it
+//! with their own Whitted term plus its indirect term
+//! ([`TracerSettings::share_indirect`], [`Tracer::shared_indirect_cells`]).
 //!
 //! # Haze (issue 15)
 //! With a medium ([`Tracer::with_haze`]) each light keeps its beam
@@ -162,6 +172,18 @@ pub struct TracerSettings {
     /// ([`crate::render::cells`]); false: every light alone (the bench's
     /// comparison).
     pub batch_cells: bool,
+    /// While more than this many lights of one class (lit, or dark) wait
+    /// for their direct stage (a look that lights a festival rig at once),
+    /// their direct stages are built at moving quality
+    /// ([`DirectQuality::Moving`], a quarter of the pixels) and each one's
+    /// Whitted stage replaces it: every lit light is on screen sooner.
+    pub rush_backlog: usize,
+    /// Cells of one fixture with the same beam and aim that wait for their
+    /// photon stage together share one: the first one traces photons and
+    /// refines, the others follow it with their own Whitted term plus its
+    /// indirect term ([`crate::render::build::follower_sum`]); false:
+    /// every cell traces its own photons.
+    pub share_indirect: bool,
     /// Memory budget in bytes for the lights' buffers, photon maps and the
     /// geometry caches ([`MemoryUsage`]): past it, dark lights' buffers and
     /// maps go first (least recently lit first), then cache entries; by
@@ -211,6 +233,8 @@ impl Default for TracerSettings {
             coarse_indirect: 3,
             refine_from_coarse: true,
             batch_cells: true,
+            rush_backlog: 64,
+            share_indirect: true,
             memory: crate::memory::default_budget(),
         }
     }
@@ -327,6 +351,11 @@ struct SlotState {
     /// publish of the light, numbered across all lights.
     first_publish: Option<u64>,
     last_publish: Option<u64>,
+    /// Following another cell of its fixture through the photon and
+    /// refinement stages ([`cells::Follow`]).
+    follow: Option<cells::Follow>,
+    /// Leading cells of its fixture through those stages ([`cells::Lead`]).
+    lead: Option<cells::Lead>,
 }
 
 struct Slot {
@@ -678,6 +707,12 @@ impl Tracer {
         self.shared.cells.lights()
     }
 
+    /// Cells that followed another cell's photon stage (shared indirect
+    /// term, [`TracerSettings::share_indirect`]) instead of their own.
+    pub fn shared_indirect_cells(&self) -> u64 {
+        self.shared.cells.followers()
+    }
+
     /// Pauses (true) or resumes the worker. A stage in progress finishes;
     /// requests keep coalescing while paused and are served on resume.
     pub fn set_paused(&self, paused: bool) {
@@ -1025,7 +1060,9 @@ impl Shared {
                 let maps = st.maps.as_ref().map_or(0, |(_, m)| maps_bytes(m));
                 let (lit, last_lit) = (st.priority > 0.0, st.last_lit);
                 let building = st.build.as_ref().map_or(0, |(_, b, _)| b.bytes())
-                    + st.refine.as_ref().map_or(0, |(_, r, _)| r.bytes());
+                    + st.refine.as_ref().map_or(0, |(_, r, _)| r.bytes())
+                    + st.follow.as_ref().map_or(0, cells::Follow::bytes)
+                    + st.lead.as_ref().map_or(0, cells::Lead::bytes);
                 drop(st);
                 let p = slot.published.lock().expect("published lock");
                 let buffers = building + p.buffer.bytes() + p.hazy.iter().map(|b| b.bytes()).sum::<usize>();
@@ -1112,6 +1149,8 @@ impl Shared {
         st.waiting_since = None;
         st.build = None;
         st.refine = None;
+        st.follow = None;
+        st.lead = None;
         st.beam = None;
         st.knots = None;
         st.maps = None;
@@ -1226,6 +1265,7 @@ impl Shared {
     }
 
     fn views(&self, now: Instant) -> Vec<SlotView> {
+        cells::release_orphans(self);
         self.slots
             .iter()
             .map(|slot| {
@@ -1306,18 +1346,20 @@ fn worker(s: &Shared) {
             panic!("injected worker panic (test hook)");
         }
         let now = Instant::now();
+        let views = s.views(now);
         let job = if s.paused.load(Ordering::SeqCst) {
             None
         } else if s.memory.lock().expect("memory lock").over_budget {
             // Over budget with the lit lights alone: no dark light is built,
             // and no stage that adds memory starts (module doc, "Memory").
-            schedule_among(&within_budget(s.views(now)), now, true)
+            schedule_among(&within_budget(views.clone()), now, true)
         } else {
-            schedule(&s.views(now), now)
+            schedule(&views, now)
         };
         match job {
             Some(job) => {
-                run_job(s, job);
+                let rush = matches!(job, Job::Direct(i) if rushed(&views, i, s.settings.rush_backlog));
+                run_job(s, job, rush);
                 s.enforce_budget();
             }
             None => {
@@ -1330,18 +1372,28 @@ fn worker(s: &Shared) {
     }
 }
 
+/// True when more than `backlog` lights of light `i`'s class (lit or
+/// dark) wait for their direct stage: it is built at moving quality
+/// ([`TracerSettings::rush_backlog`]).
+pub fn rushed(views: &[SlotView], i: usize, backlog: usize) -> bool {
+    let Some(me) = views.get(i) else { return false };
+    let lit = me.priority > 0.0;
+    views.iter().filter(|v| (v.priority > 0.0) == lit && v.waiting_since.is_some()).count() > backlog
+}
+
 /// One job under `catch_unwind`: a build that panics (a bug) marks its
 /// light failed, keeps its last published buffer, and the worker goes on
 /// with the other lights. The lights of the same fixture that the job took
 /// for a pass together and left with nothing to do are marked failed too.
-fn run_job(s: &Shared, job: Job) {
+/// `rush`: a direct stage at moving quality ([`rushed`]).
+fn run_job(s: &Shared, job: Job, rush: bool) {
     let i = match job {
         Job::Direct(i) | Job::Later(i) => i,
     };
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match job {
         Job::Direct(i) => {
-            if !cells::direct_batch(s, i) {
-                direct_stage(s, i);
+            if !cells::direct_batch(s, i, rush) {
+                direct_stage(s, i, rush);
             }
         }
         Job::Later(i) => {
@@ -1357,13 +1409,16 @@ fn run_job(s: &Shared, job: Job) {
         // A panic under a slot's lock poisons it: the state is still whole
         // (each field is set in one step), so it is taken back.
         let mut st = slot.state.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        let stranded = st.pending.is_none() && st.build.is_none() && st.refine.is_none();
+        // A follower is not stranded: it is released when its leader is
+        // ([`cells::release_orphans`]: the failed leader leads no more).
+        let stranded = st.pending.is_none() && st.build.is_none() && st.refine.is_none() && st.follow.is_none();
         if j != i && !(stranded && slot.published.lock().is_ok_and(|p| p.stage != Stage::Ready)) {
             continue;
         }
         // The build state of the failed stage is dropped: a new request builds it again.
         st.build = None;
         st.refine = None;
+        st.lead = None;
         st.beam = None;
         if st.failed.is_none() {
             tracing::error!(
@@ -1384,10 +1439,11 @@ fn report_bug(index: usize, e: &BuildError) {
     }
 }
 
-/// Stage 1 for the light that waited longest.
-fn direct_stage(s: &Shared, index: usize) {
+/// Stage 1 for the light that waited longest; at moving quality when it
+/// moves or when `rush` ([`rushed`]).
+fn direct_stage(s: &Shared, index: usize, rush: bool) {
     let Some((req, waiting_since, moving)) = take_request(s, index) else { return };
-    let quality = if moving { DirectQuality::Moving } else { DirectQuality::Full };
+    let quality = if moving || rush { DirectQuality::Moving } else { DirectQuality::Full };
     s.injected_panic(index);
     let mut build = new_build(s, index, &req);
     let view = s.view();
@@ -1492,6 +1548,7 @@ fn later_stage(s: &Shared, index: usize) {
             }
             return;
         }
+        cells::gather_followers(s, index, id, &build);
         let result = s.pool.install(|| build.photons(&s.scene, &view));
         if build.traced_photons() {
             s.photon_traces.fetch_add(1, Ordering::SeqCst);
@@ -1510,6 +1567,7 @@ fn later_stage(s: &Shared, index: usize) {
                 if !s.publish(index, id, buffer, stage, &light) {
                     return;
                 }
+                cells::lead(s, index, id, stage);
                 if let Some(b) = cached {
                     return finished(s, index, id, build.light(), b, at);
                 }
@@ -1530,6 +1588,7 @@ fn later_stage(s: &Shared, index: usize) {
             Ok(Some(buffer)) => {
                 let b = Arc::new(buffer.clone());
                 if s.publish(index, id, buffer, Stage::Ready, &light) {
+                    cells::lead(s, index, id, Stage::Ready);
                     finished(s, index, id, &light, b, at);
                 }
             }
@@ -1548,6 +1607,7 @@ fn later_stage(s: &Shared, index: usize) {
             if !s.publish(index, id, buffer, stage, &light) {
                 return;
             }
+            cells::lead(s, index, id, stage);
             match cached {
                 Some(b) => {
                     tracing::debug!("light {index}: converged after {} progressive passes", refine.done());
@@ -1619,6 +1679,8 @@ fn mark_ready(s: &Shared, index: usize, id: u64, _light: &Light, at: Instant) {
     if slot.latest.load(Ordering::SeqCst) == id {
         slot.published.lock().expect("published lock").stage = Stage::Ready;
         slot.state.lock().expect("slot lock").last_build = Some(at.elapsed());
+        // Its followers end where it ended (their last buffer follows its).
+        cells::lead_ready(s, index, id);
     }
 }
 
@@ -1643,6 +1705,26 @@ fn finished(s: &Shared, index: usize, id: u64, light: &Light, buffer: Arc<LightB
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A backlog of more than `rush_backlog` waiting lights of a class
+    /// (lit, or dark) rushes that class's direct stages; the other class,
+    /// a light with nothing waiting and an index past the table do not
+    /// count or rush.
+    #[test]
+    fn a_long_queue_of_lit_lights_rushes_their_direct_stages() {
+        let now = Instant::now();
+        let waiting =
+            |priority: f32| SlotView { waiting_since: Some(now), weight: 1.0, priority, ..SlotView::default() };
+        let idle = SlotView { weight: 1.0, priority: 1.0, ..SlotView::default() };
+        let mut views: Vec<SlotView> = (0..3).map(|_| waiting(1.0)).collect();
+        views.extend((0..5).map(|_| waiting(0.0)));
+        views.push(idle);
+        assert!(!rushed(&views, 0, 3), "3 lit lights waiting: not more than 3");
+        assert!(rushed(&views, 0, 2), "3 lit lights waiting: more than 2");
+        assert!(rushed(&views, 3, 4) && !rushed(&views, 3, 5), "the dark ones count among themselves");
+        assert!(rushed(&views, 8, 2), "a lit light's class is the lit one");
+        assert!(!rushed(&views, 99, 0), "past the table");
+    }
 
     /// N lights re-requested every frame, one direct stage per frame: every
     /// light is served within 2N stages (the weight is at most 2), and

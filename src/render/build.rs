@@ -298,6 +298,12 @@ impl LightBuild {
         Ok(buffer)
     }
 
+    /// The Whitted direct term D, once built (a follower's own term when
+    /// its fixture's cells share the indirect term: [`follower_sum`]).
+    pub fn whitted_term(&self) -> Option<&LightBuffer> {
+        self.direct.as_ref()
+    }
+
     /// Hands in a Whitted stage built elsewhere for this same light and view
     /// (the lights built together by [`super::cells::whitted_together`]):
     /// [`LightBuild::photons`] then goes on from it as if
@@ -568,6 +574,34 @@ impl Refinement {
 
 /// D + A: the tile-sparse direct term added to a dense indirect term
 /// (`indirect` is the view's width × height, row-major).
+/// A follower's buffer when the cells of one fixture share the indirect
+/// term (issue 38: emitter groups that share photon tracing): its own
+/// Whitted term D_f plus the leader's indirect term, i.e. the leader's
+/// buffer (D_l + A_l, eq. 3) less the leader's Whitted term D_l. The
+/// cells sit centimetres apart with the same beam and aim, so their
+/// photon-mapped indirect light (eq. 3's A) is the same to within the
+/// error `tests/groups.rs` measures; each keeps its own direct term and
+/// its own k_i (eq. 5). A difference below 0 (f32 rounding where A_l is 0)
+/// is 0; a NaN stays NaN for [`LightBuffer::check`].
+pub fn follower_sum(own_whitted: &LightBuffer, leader: &LightBuffer, leader_whitted: &LightBuffer) -> LightBuffer {
+    let mut indirect = leader.to_dense();
+    let w = leader.width as usize;
+    for (tx, ty) in leader_whitted.occupied() {
+        let Some(tile) = leader_whitted.tile(tx, ty) else { continue };
+        for (j, row) in tile.chunks_exact(TILE).enumerate() {
+            let y = ty * TILE + j;
+            for (i, d) in row.iter().enumerate() {
+                let x = tx * TILE + i;
+                if x < w && y * w + x < indirect.len() {
+                    let a = indirect[y * w + x] - *d;
+                    indirect[y * w + x] = Vec3::select(a.cmplt(Vec3::ZERO), Vec3::ZERO, a);
+                }
+            }
+        }
+    }
+    LightBuffer::from_dense(leader.width, leader.height, &plus_dense(own_whitted, &indirect))
+}
+
 fn plus_dense(direct: &LightBuffer, indirect: &[Vec3]) -> Vec<Vec3> {
     let mut sum = indirect.to_vec();
     let w = direct.width as usize;

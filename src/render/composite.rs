@@ -188,9 +188,12 @@ pub struct Compositor {
     background: Option<Background>,
 }
 
-/// Rebuilds of stale groups on the rayon pool, off the frame clock: a
-/// channel of finished storages (group index, the epoch of the groups it
-/// was asked for, the group), and which groups have a rebuild in flight.
+/// Rebuilds of stale groups off the frame clock, on a pool of their own
+/// (one thread at the lowest OS priority, like the tracer's builds: on
+/// the global pool they took the frame clock's cores while a festival rig
+/// built, p99 frame interval 155 ms): a channel of finished storages
+/// (group index, the epoch of the groups it was asked for, the group), and
+/// which groups have a rebuild in flight.
 /// At most [`Background::MAX_IN_FLIGHT`] at once, so a rig whose buffers
 /// all change (a camera move) does not flood the pool or copy every buffer.
 struct Background {
@@ -199,10 +202,27 @@ struct Background {
     rx: std::sync::mpsc::Receiver<(usize, u64, CompositeGroup)>,
     in_flight: Vec<bool>,
     epoch: u64,
+    pool: Arc<rayon::ThreadPool>,
 }
 
 impl Background {
     const MAX_IN_FLIGHT: usize = 2;
+
+    /// The group-build pool: one thread at the lowest OS priority (failure
+    /// to lower it, on a platform without per-thread priorities, only costs
+    /// that protection).
+    fn pool() -> Arc<rayon::ThreadPool> {
+        Arc::new(
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(1)
+                .thread_name(|_| "footlight-groups".into())
+                .start_handler(|_| {
+                    let _ = thread_priority::set_current_thread_priority(thread_priority::ThreadPriority::Min);
+                })
+                .build()
+                .expect("group build pool"),
+        )
+    }
 }
 
 /// What [`Compositor::update_layers`] keeps between frames.
@@ -320,7 +340,8 @@ impl Compositor {
             .collect();
         let (tx, rx) = std::sync::mpsc::channel();
         let epoch = self.background.as_ref().map_or(0, |b| b.epoch + 1);
-        self.background = Some(Background { settings, tx, rx, in_flight: vec![false; groups.len()], epoch });
+        let pool = self.background.as_ref().map_or_else(Background::pool, |b| b.pool.clone());
+        self.background = Some(Background { settings, tx, rx, in_flight: vec![false; groups.len()], epoch, pool });
         self.set_groups(groups);
         self
     }
@@ -352,7 +373,7 @@ impl Compositor {
             let (members, settings, tx, epoch) = (g.members.clone(), bg.settings, bg.tx.clone(), bg.epoch);
             bg.in_flight[gi] = true;
             running += 1;
-            rayon::spawn(move || {
+            bg.pool.spawn(move || {
                 let refs: Vec<&LightBuffer> = buffers.iter().collect();
                 let storage = Arc::new(GroupBuffer::build(&refs, settings));
                 // The compositor may be gone: nothing to deliver to then.

@@ -22,14 +22,28 @@
 //! beam, publish under its request id, build kept for its later stages), so
 //! a cell that moved again during the pass is refused at publish (never
 //! shown stale) and its newer request is served next; the pass stops early
-//! only when every cell in it was superseded. Photons and refinement stay
-//! per cell (each cell traces its own photon maps). Cells of different
-//! fixtures are never mixed.
+//! only when every cell in it was superseded. Cells of different fixtures
+//! are never mixed.
+//!
+//! **Photons and refinement are shared** (issue 38: emitter groups that
+//! share photon tracing; [`super::TracerSettings::share_indirect`]): when
+//! a cell's photon stage is due, the other settled cells of its fixture
+//! whose Whitted stage is done and whose beam and aim are the same
+//! ([`alike`]) become its *followers* ([`gather_followers`]): they drop
+//! their builds (no photon maps, no refinement state of their own) and
+//! keep only their Whitted term. Every time the leader publishes (its
+//! photon estimate, each refinement pass, its final picture) each follower
+//! publishes its own Whitted term plus the leader's indirect term
+//! ([`follower_sum`], [`lead`]) under its own request id and at the
+//! leader's stage. A follower that moves leaves (its newer request is
+//! served as usual); when the leader moves or fails, its followers are
+//! released to trace photons of their own ([`release_orphans`]).
 
-use super::{Request, Shared, after_direct, after_whitted, new_build, report_bug, take_request};
+use super::{Request, Shared, Stage, after_direct, after_whitted, finished, new_build, report_bug, take_request};
 use crate::Light;
 use crate::render::View;
-use crate::render::build::{BuildError, Cancel, LightBuild};
+use crate::render::buffer::LightBuffer;
+use crate::render::build::{BuildError, Cancel, LightBuild, follower_sum};
 use crate::render::cells::{PathBounds, direct_together_at, whitted_together};
 use crate::render::footprint::DirectQuality;
 use crate::render::view::AaParams;
@@ -52,6 +66,8 @@ pub(super) struct Cells {
     passes: AtomicU64,
     /// Light stages built in those passes.
     lights: AtomicU64,
+    /// Cells that followed another's photon stage (shared indirect term).
+    followers: AtomicU64,
 }
 
 impl Cells {
@@ -62,6 +78,7 @@ impl Cells {
             bounds: Mutex::new(None),
             passes: AtomicU64::new(0),
             lights: AtomicU64::new(0),
+            followers: AtomicU64::new(0),
         }
     }
 
@@ -107,6 +124,15 @@ impl Cells {
         }
     }
 
+    fn count_followers(&self, n: usize) {
+        self.followers.fetch_add(n as u64, Ordering::SeqCst);
+    }
+
+    /// Cells that followed another's photon stage so far.
+    pub(super) fn followers(&self) -> u64 {
+        self.followers.load(Ordering::SeqCst)
+    }
+
     pub(super) fn passes(&self) -> u64 {
         self.passes.load(Ordering::SeqCst)
     }
@@ -130,14 +156,17 @@ fn all_fired(cancels: &[Cancel]) -> bool {
 
 /// The direct stage of light `index` together with every other cell of
 /// its fixture that has a request waiting at the same quality (full, or
-/// moving for cells in motion). False (nothing
+/// moving for cells in motion; every cell at moving quality with `rush`,
+/// [`super::rushed`]). False (nothing
 /// done) when fewer than two cells are due: the caller builds `index` alone.
-pub(super) fn direct_batch(s: &Shared, index: usize) -> bool {
+pub(super) fn direct_batch(s: &Shared, index: usize, rush: bool) -> bool {
     let Some(group) = batch_group(s, index) else { return false };
     // Due: a request waits; in motion or not (the quality of its stage).
     let due = |j: usize| {
         let st = s.slots[j].state.lock().expect("slot lock");
-        st.pending.as_ref().map(|r| st.previous_move.is_some_and(|p| r.at.duration_since(p) < s.settings.settle))
+        st.pending
+            .as_ref()
+            .map(|r| rush || st.previous_move.is_some_and(|p| r.at.duration_since(p) < s.settings.settle))
     };
     let Some(moving) = due(index) else { return false };
     let members: Vec<usize> = group.filter(|&j| due(j) == Some(moving)).collect();
@@ -233,6 +262,200 @@ pub(super) fn whitted_batch(s: &Shared, index: usize) -> bool {
         after_whitted(s, j, id, build, buffer, at);
     }
     true
+}
+
+/// Cosine of the largest angle between two cells' beam axes for them to
+/// share an indirect term (1°).
+const ALIKE_COS: f32 = 0.999_847_7;
+
+/// Two cells share an indirect term when their beams are the same
+/// (pattern, zoom, gobo: [`crate::fixture::Beam`]) and aimed within 1°;
+/// they sit in one fixture, centimetres apart.
+pub(super) fn alike(a: &Light, b: &Light) -> bool {
+    a.beam == b.beam && a.axis().dot(b.axis()) >= ALIKE_COS
+}
+
+/// A cell following another of its fixture through the photon and
+/// refinement stages (module doc).
+pub(super) struct Follow {
+    /// The leader's light index.
+    leader: usize,
+    /// The leader's request id it follows.
+    leader_id: u64,
+    /// This cell's request id, geometry, and when the request arrived.
+    id: u64,
+    light: Light,
+    at: Instant,
+    /// This cell's own Whitted term.
+    whitted: LightBuffer,
+}
+
+impl Follow {
+    /// Bytes held (its Whitted term).
+    pub(super) fn bytes(&self) -> usize {
+        self.whitted.bytes()
+    }
+}
+
+/// A cell leading others of its fixture (module doc).
+#[derive(Clone)]
+pub(super) struct Lead {
+    /// The request id it leads under.
+    id: u64,
+    /// Its own Whitted term (its buffer less this is the shared indirect term).
+    whitted: Arc<LightBuffer>,
+    /// Its followers' light indices.
+    followers: Vec<usize>,
+}
+
+impl Lead {
+    /// Bytes held (its Whitted term).
+    pub(super) fn bytes(&self) -> usize {
+        self.whitted.bytes()
+    }
+}
+
+/// Before light `index`'s photon stage (request `id`, its Whitted term in
+/// `build`): the settled cells of its fixture that wait for theirs, with
+/// the same beam and aim ([`alike`]), become its followers.
+pub(super) fn gather_followers(s: &Shared, index: usize, id: u64, build: &LightBuild) {
+    if !s.settings.share_indirect || !build.has_photons() {
+        return;
+    }
+    let (Some(group), Some(whitted)) = (batch_group(s, index), build.whitted_term()) else { return };
+    let now = Instant::now();
+    let mut followers = Vec::new();
+    for j in group.filter(|&j| j != index) {
+        let slot = &s.slots[j];
+        let mut st = slot.state.lock().expect("slot lock");
+        let due = st.pending.is_none()
+            && st.follow.is_none()
+            && st.lead.is_none()
+            && st.refine.is_none()
+            && st.last_move.is_none_or(|t| now.duration_since(t) >= s.settings.settle)
+            && st.build.as_ref().is_some_and(|(bid, b, _)| {
+                slot.latest.load(Ordering::SeqCst) == *bid
+                    && b.whitted_term().is_some()
+                    && alike(b.light(), build.light())
+            });
+        if !due {
+            continue;
+        }
+        let Some((fid, b, at)) = st.build.take() else { continue };
+        let Some(own) = b.whitted_term().cloned() else { continue };
+        st.follow = Some(Follow { leader: index, leader_id: id, id: fid, light: b.light().clone(), at, whitted: own });
+        followers.push(j);
+    }
+    if !followers.is_empty() {
+        s.cells.count_followers(followers.len());
+        s.slots[index].state.lock().expect("slot lock").lead =
+            Some(Lead { id, whitted: Arc::new(whitted.clone()), followers });
+    }
+}
+
+/// After light `index` published request `id`'s buffer at `stage` (its
+/// photon estimate, a refinement pass or its final picture): each of its
+/// followers publishes its own Whitted term plus the leader's indirect
+/// term at the same stage; at [`Stage::Ready`] they are finished too.
+pub(super) fn lead(s: &Shared, index: usize, id: u64, stage: Stage) {
+    let lead = {
+        let mut st = s.slots[index].state.lock().expect("slot lock");
+        match &st.lead {
+            Some(l) if l.id == id && stage == Stage::Ready => st.lead.take(),
+            Some(l) if l.id == id => Some(l.clone()),
+            _ => None,
+        }
+    };
+    let Some(lead) = lead else { return };
+    let leader = s.slots[index].published.lock().expect("published lock").buffer.clone();
+    for &j in &lead.followers {
+        let slot = &s.slots[j];
+        let next = {
+            let st = slot.state.lock().expect("slot lock");
+            st.follow
+                .as_ref()
+                .filter(|f| f.leader == index && f.leader_id == id && slot.latest.load(Ordering::SeqCst) == f.id)
+                .map(|f| (f.id, f.light.clone(), f.at, follower_sum(&f.whitted, &leader, &lead.whitted)))
+        };
+        let Some((fid, light, at, buffer)) = next else { continue };
+        if let Err(e) = buffer.check() {
+            report_bug(j, &BuildError::from(e));
+            continue;
+        }
+        let cached = (stage == Stage::Ready).then(|| Arc::new(buffer.clone()));
+        if s.publish(j, fid, buffer, stage, &light)
+            && let Some(b) = cached
+        {
+            slot.state.lock().expect("slot lock").follow = None;
+            finished(s, j, fid, &light, b, at);
+        }
+    }
+}
+
+/// Light `index` (request `id`) ended its later stages without a new
+/// buffer: its followers end with it, at their last buffer.
+pub(super) fn lead_ready(s: &Shared, index: usize, id: u64) {
+    let lead = {
+        let mut st = s.slots[index].state.lock().expect("slot lock");
+        if st.lead.as_ref().is_some_and(|l| l.id == id) { st.lead.take() } else { None }
+    };
+    for j in lead.map(|l| l.followers).unwrap_or_default() {
+        let slot = &s.slots[j];
+        let mut st = slot.state.lock().expect("slot lock");
+        let Some(fid) = st.follow.as_ref().filter(|f| f.leader == index && f.leader_id == id).map(|f| f.id) else {
+            continue;
+        };
+        st.follow = None;
+        drop(st);
+        if slot.latest.load(Ordering::SeqCst) == fid {
+            slot.published.lock().expect("published lock").stage = Stage::Ready;
+        }
+    }
+}
+
+/// Followers whose own request was superseded drop their place (the newer
+/// request builds them); followers whose leader moved, failed or was
+/// evicted go back to a photon stage of their own, from their Whitted
+/// term. A lead superseded by its light's newer request is dropped.
+pub(super) fn release_orphans(s: &Shared) {
+    for (j, slot) in s.slots.iter().enumerate() {
+        let (follow, lead) = {
+            let st = slot.state.lock().expect("slot lock");
+            (st.follow.as_ref().map(|f| (f.leader, f.leader_id, f.id)), st.lead.as_ref().map(|l| l.id))
+        };
+        let latest = slot.latest.load(Ordering::SeqCst);
+        if lead.is_some_and(|l| l != latest) {
+            let mut st = slot.state.lock().expect("slot lock");
+            if st.lead.as_ref().is_some_and(|l| l.id != latest) {
+                st.lead = None;
+            }
+        }
+        let Some((leader, leader_id, fid)) = follow else { continue };
+        let led = fid == latest
+            && s.slots.get(leader).is_some_and(|l| {
+                l.latest.load(Ordering::SeqCst) == leader_id
+                    && l.state
+                        .lock()
+                        .expect("slot lock")
+                        .lead
+                        .as_ref()
+                        .is_some_and(|x| x.id == leader_id && x.followers.contains(&j))
+            });
+        if led {
+            continue;
+        }
+        let mut st = slot.state.lock().expect("slot lock");
+        let Some(f) = st.follow.take_if(|f| f.id == fid) else { continue };
+        if f.id == slot.latest.load(Ordering::SeqCst) {
+            let req = Request { id: f.id, light: f.light, at: f.at };
+            drop(st);
+            let build = new_build(s, j, &req).with_whitted(&f.whitted, 0);
+            let mut st = slot.state.lock().expect("slot lock");
+            if slot.latest.load(Ordering::SeqCst) == f.id && st.build.is_none() {
+                st.build = Some((f.id, build, f.at));
+            }
+        }
+    }
 }
 
 #[cfg(test)]
