@@ -988,7 +988,12 @@ fn still_bodies(
 }
 
 fn jobs_for(show: &Show, universes: &footlight::fixture::Universes) -> Vec<LightJob> {
-    show.decode(universes).into_iter().map(|i| LightJob { light: i.light, k_full: i.k_full, k: i.k }).collect()
+    let ids = show.patch().fixtures.iter().map(|f| Some(f.id));
+    show.decode(universes)
+        .into_iter()
+        .zip(ids.chain(std::iter::repeat(None)))
+        .map(|(i, fixture)| LightJob { light: i.light, k_full: i.k_full, k: i.k, fixture })
+        .collect()
 }
 
 /// `footlight check`: notes and warnings (each said once, with its file,

@@ -44,8 +44,11 @@ fn default_render_matches_golden() {
     let scene = stage();
     let patch = paper_patch();
     let settings = RenderSettings::default();
-    let jobs: Vec<LightJob> =
-        patch.fixtures.iter().map(|f| LightJob { light: f.light.clone(), k_full: f.k_full(), k: f.k() }).collect();
+    let jobs: Vec<LightJob> = patch
+        .fixtures
+        .iter()
+        .map(|f| LightJob { light: f.light.clone(), k_full: f.k_full(), k: f.k(), fixture: Some(f.id) })
+        .collect();
     let still = render_still(&scene, scene.camera.unwrap(), &jobs, &settings).expect("finite buffers");
     check_finite(&still.linear).expect("finite composite");
     let actual = settings.display.to_srgb8(&still.linear);

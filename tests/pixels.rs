@@ -622,6 +622,45 @@ fn a_bars_cells_share_one_photon_stage_within_the_bound() {
     assert!(e <= 1e-3, "whole bar: rel. MSE {e}");
 }
 
+/// The same sharing in a still (`footlight render`, issue 38): jobs that
+/// name their fixture (the 8 cells of bar 301) are built with one Whitted
+/// pass and one photon stage for the cells alike; against the same jobs
+/// without fixture ids (each cell alone: its own photons and `--refine`
+/// passes), every cell's buffer and the whole bar are within rel. MSE
+/// 1e-3, and the picture is finite.
+#[test]
+fn a_still_shares_a_bars_photon_stage_within_the_bound() {
+    use footlight::render::RenderSettings;
+    use footlight::render::photon::PhotonSettings;
+    use footlight::render::still::{LightJob, render_still};
+    let (scene, cam, lights) = bar_stage();
+    let settings = RenderSettings {
+        width: 96,
+        height: 64,
+        photons: Some(PhotonSettings { stored: 60_000, seed: 38, ..PhotonSettings::default() }),
+        refine_passes: 4,
+        ..RenderSettings::default()
+    };
+    let jobs = |fixture: Option<u32>| -> Vec<LightJob> {
+        lights.iter().map(|l| LightJob { light: l.clone(), k_full: Vec3::ONE, k: Vec3::ONE, fixture }).collect()
+    };
+    let shared = render_still(&scene, cam, &jobs(Some(301)), &settings).unwrap();
+    let own = render_still(&scene, cam, &jobs(None), &settings).unwrap();
+    let rel = |a: &[Vec3], b: &[Vec3]| {
+        let err: f64 = a.iter().zip(b).map(|(a, b)| f64::from((*a - *b).length_squared())).sum();
+        err / b.iter().map(|b| f64::from(b.length_squared())).sum::<f64>()
+    };
+    for (i, (a, b)) in shared.buffers.iter().zip(&own.buffers).enumerate() {
+        let e = rel(&a.to_dense(), &b.to_dense());
+        eprintln!("cell {i}: rel. MSE {e:.2e}");
+        assert!(e <= 1e-3, "cell {i}: rel. MSE {e}");
+    }
+    assert!(shared.linear.iter().all(|p| p.is_finite()));
+    let e = rel(&shared.linear, &own.linear);
+    eprintln!("whole bar: rel. MSE {e:.2e}");
+    assert!(e <= 1e-3, "whole bar: rel. MSE {e}");
+}
+
 /// A cell moved while its bar's Whitted pass runs (the request comes as
 /// soon as the bar's direct pass is on screen, when the tracer starts the
 /// Whitted pass of the 8 cells): its old position is never published after

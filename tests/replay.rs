@@ -208,7 +208,7 @@ fn frames_at_marked_cues_match_golden_images() {
         let jobs: Vec<LightJob> = show
             .decode(&universes)
             .into_iter()
-            .map(|i| LightJob { light: i.light, k_full: i.k_full, k: i.k })
+            .map(|i| LightJob { light: i.light, k_full: i.k_full, k: i.k, fixture: None })
             .collect();
         let still = render_still(&scene, scene.camera.unwrap(), &jobs, &settings).unwrap();
         let actual = image::RgbImage::from_raw(W, H, settings.display.to_srgb8(&still.linear)).unwrap();

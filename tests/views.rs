@@ -287,8 +287,13 @@ async fn orbit_through_a_recorded_camera_path_with_dmx_ends_on_the_render_and_re
     let k = Vec3::splat(1000.0 * f32::from(255 - 10 * 11u8) / 255.0);
     let settings =
         RenderSettings { width: W, height: H, display, photons: Some(photons()), ..RenderSettings::default() };
-    let still = render_still(&scene, last, &[LightJob { light: spot(x), k_full: Vec3::splat(1000.0), k }], &settings)
-        .expect("finite");
+    let still = render_still(
+        &scene,
+        last,
+        &[LightJob { light: spot(x), k_full: Vec3::splat(1000.0), k, fixture: None }],
+        &settings,
+    )
+    .expect("finite");
     check_finite(&still.linear).expect("finite still");
     let expect = display.to_srgb8(&still.linear);
     let rgb = frames.borrow_and_update().rgb.clone();

@@ -1398,7 +1398,7 @@ fn run_job(s: &Shared, job: Job, rush: bool) {
         }
         Job::Later(i) => {
             if !cells::whitted_batch(s, i) {
-                later_stage(s, i);
+                later_stage(s, cells::photon_leader(s, i));
             }
         }
     }));

@@ -574,16 +574,25 @@ impl Refinement {
 
 /// D + A: the tile-sparse direct term added to a dense indirect term
 /// (`indirect` is the view's width × height, row-major).
-/// A follower's buffer when the cells of one fixture share the indirect
-/// term (issue 38: emitter groups that share photon tracing): its own
-/// Whitted term D_f plus the leader's indirect term, i.e. the leader's
-/// buffer (D_l + A_l, eq. 3) less the leader's Whitted term D_l. The
-/// cells sit centimetres apart with the same beam and aim, so their
+/// Cosine of the largest angle between two cells' beam axes for them to
+/// share an indirect term (1°).
+const ALIKE_COS: f32 = 0.999_847_7;
+
+/// Two cells of one fixture may share an indirect term
+/// ([`shared_indirect`]) when their beams are the same (pattern, zoom,
+/// gobo) and aimed within 1°.
+pub fn indirect_alike(a: &Light, b: &Light) -> bool {
+    a.beam == b.beam && a.axis().dot(b.axis()) >= ALIKE_COS
+}
+
+/// The indirect term a leader shares with the other cells of its fixture
+/// (issue 38: emitter groups that share photon tracing): the leader's
+/// buffer (D_l + A_l, eq. 3) less its Whitted term D_l, dense. The cells
+/// sit centimetres apart with the same beam and aim, so their
 /// photon-mapped indirect light (eq. 3's A) is the same to within the
-/// error `tests/groups.rs` measures; each keeps its own direct term and
-/// its own k_i (eq. 5). A difference below 0 (f32 rounding where A_l is 0)
-/// is 0; a NaN stays NaN for [`LightBuffer::check`].
-pub fn follower_sum(own_whitted: &LightBuffer, leader: &LightBuffer, leader_whitted: &LightBuffer) -> LightBuffer {
+/// error `tests/pixels.rs` measures. A difference below 0 (f32 rounding
+/// where A_l is 0) is 0; a NaN stays NaN for [`LightBuffer::check`].
+pub fn shared_indirect(leader: &LightBuffer, leader_whitted: &LightBuffer) -> Vec<Vec3> {
     let mut indirect = leader.to_dense();
     let w = leader.width as usize;
     for (tx, ty) in leader_whitted.occupied() {
@@ -599,7 +608,13 @@ pub fn follower_sum(own_whitted: &LightBuffer, leader: &LightBuffer, leader_whit
             }
         }
     }
-    LightBuffer::from_dense(leader.width, leader.height, &plus_dense(own_whitted, &indirect))
+    indirect
+}
+
+/// A follower's buffer: its own Whitted term D_f plus the leader's
+/// [`shared_indirect`] term; each cell keeps its own k_i (eq. 5).
+pub fn follower_sum(own_whitted: &LightBuffer, indirect: &[Vec3]) -> LightBuffer {
+    LightBuffer::from_dense(own_whitted.width, own_whitted.height, &plus_dense(own_whitted, indirect))
 }
 
 fn plus_dense(direct: &LightBuffer, indirect: &[Vec3]) -> Vec<Vec3> {

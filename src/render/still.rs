@@ -5,10 +5,13 @@
 
 use super::RenderSettings;
 use super::buffer::LightBuffer;
-use super::build::{BuildError, BuildSettings, Cancel, Haze, LightBuild};
+use super::build::{
+    BuildError, BuildSettings, Cancel, Cancelled, Haze, LightBuild, follower_sum, indirect_alike, shared_indirect,
+};
+use super::cells::{PathBounds, whitted_together};
 use super::composite::composite;
 use super::media::{HazeQuality, HazeView, Medium};
-use super::view::View;
+use super::view::{AaParams, View};
 use crate::fixture::Light;
 use crate::scene::{Camera, Scene};
 use glam::Vec3;
@@ -24,6 +27,11 @@ pub struct LightJob {
     pub k_full: Vec3,
     /// k_i now (eq. 4).
     pub k: Vec3,
+    /// The fixture the light belongs to: consecutive jobs with the same
+    /// `Some` id are one fixture's cells, built together (one Whitted pass,
+    /// one photon stage shared by the cells alike:
+    /// [`super::build::shared_indirect`]); `None`: built alone.
+    pub fixture: Option<u32>,
 }
 
 /// A light's build failed: a NaN/Inf in its buffer (a bug, reported with
@@ -79,6 +87,45 @@ pub struct StillHaze {
     pub quality: HazeQuality,
 }
 
+/// Runs of consecutive jobs with the same `Some` fixture id (one fixture's
+/// cells); a job without an id is a run of its own.
+fn fixture_runs(jobs: &[LightJob]) -> Vec<std::ops::Range<usize>> {
+    let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
+    for (i, job) in jobs.iter().enumerate() {
+        match runs.last_mut() {
+            Some(r) if job.fixture.is_some() && jobs[r.start].fixture == job.fixture => r.end = i + 1,
+            _ => runs.push(i..i + 1),
+        }
+    }
+    runs
+}
+
+/// A build past its Whitted stage to its final surface buffer: the
+/// photon-mapped indirect term and `--refine N` progressive passes, each
+/// blended with the photon map; the Whitted buffer without photon
+/// settings. Adds the time spent to `photon_time`.
+fn indirect_stage(
+    scene: &Scene,
+    view: &View,
+    mut build: LightBuild,
+    photon_time: &mut Duration,
+) -> Result<LightBuffer, BuildError> {
+    if !build.has_photons() {
+        return build.whitted_term().cloned().ok_or_else(|| Cancelled.into());
+    }
+    let tp = Instant::now();
+    let mut buffer = build.photons(scene, view)?;
+    if build.will_refine()
+        && let Some(mut refine) = build.into_refinement(scene, view)
+    {
+        while !refine.finished() {
+            buffer = refine.pass(scene, view)?;
+        }
+    }
+    *photon_time += tp.elapsed();
+    Ok(buffer)
+}
+
 /// Renders `jobs` over `scene` from `camera`.
 pub fn render_still(
     scene: &Scene,
@@ -117,48 +164,74 @@ pub fn render_still_hazy(
         photons: settings.photons,
         refine_passes: settings.refine_passes,
     };
-    for (i, job) in jobs.iter().enumerate() {
-        // Only what the look lights is built: a dark light adds exactly 0 to
-        // eq. 5. Lit lights keep their index, so their photon seeds are the
-        // daemon's.
-        if job.k == Vec3::ZERO {
-            buffers.push(LightBuffer::empty(settings.width.max(1), settings.height.max(1)));
+    // Only what the look lights is built: a dark light adds exactly 0 to
+    // eq. 5. Lit lights keep their index, so their photon seeds are the
+    // daemon's.
+    let (w, h) = (settings.width.max(1), settings.height.max(1));
+    let mut surfaces: Vec<Option<LightBuffer>> = vec![None; jobs.len()];
+    let bounds = PathBounds::build(&view);
+    let fail = |i: usize| move |source: BuildError| RenderError { light: i, source };
+    for run in fixture_runs(jobs) {
+        let lit: Vec<usize> = run.filter(|&i| jobs[i].k != Vec3::ZERO).collect();
+        if lit.len() < 2 {
+            for &i in &lit {
+                let mut build = LightBuild::new(jobs[i].light.clone(), i, build_settings, Cancel::never());
+                build.whitted(scene, &view).map_err(fail(i))?;
+                reshaded += build.reshaded();
+                surfaces[i] = Some(indirect_stage(scene, &view, build, &mut photon_time).map_err(fail(i))?);
+            }
             continue;
         }
-        let mut build = LightBuild::new(job.light.clone(), i, build_settings, Cancel::never());
-        let mut buffer = build.whitted(scene, &view).and_then(|b| {
-            if build.has_photons() {
-                let tp = Instant::now();
-                let b = build.photons(scene, &view);
-                photon_time += tp.elapsed();
-                b
-            } else {
-                Ok(b)
-            }
-        });
-        reshaded += build.reshaded();
-        // `--refine N`: N progressive passes, each blended with the photon map.
-        if buffer.is_ok() && build.will_refine() {
-            let tp = Instant::now();
-            let light = build.light().clone();
-            if let Some(mut refine) = build.into_refinement(scene, &view) {
-                while !refine.finished() && buffer.is_ok() {
-                    buffer = refine.pass(scene, &view);
+        // A fixture's lit cells: one Whitted pass over their footprints
+        // (equal to each built alone), then one photon stage for the cells
+        // alike with the one nearest their centre; the others alone.
+        let lights: Vec<Light> = lit.iter().map(|&i| jobs[i].light.clone()).collect();
+        let aa = Some(AaParams::new(settings.aa_threshold));
+        let (whitted, _) = whitted_together(scene, &view, &bounds, &lights, aa, &|| false)
+            .ok_or(RenderError { light: lit[0], source: Cancelled.into() })?;
+        reshaded += whitted.iter().map(|(_, r)| r).sum::<usize>();
+        let centre = lights.iter().map(|l| l.position).sum::<Vec3>() / lights.len() as f32;
+        let leader = (0..lit.len())
+            .min_by(|&a, &b| {
+                let d = |j: usize| (lights[j].position - centre).length_squared();
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap_or(0);
+        let mut whitted: Vec<Option<(LightBuffer, usize)>> = whitted.into_iter().map(Some).collect();
+        let (lw, lr) = whitted[leader].take().expect("the leader's Whitted term");
+        let li = lit[leader];
+        let build = LightBuild::new(lights[leader].clone(), li, build_settings, Cancel::never()).with_whitted(&lw, lr);
+        let leader_surface = indirect_stage(scene, &view, build, &mut photon_time).map_err(fail(li))?;
+        let indirect = build_settings.photons.is_some().then(|| shared_indirect(&leader_surface, &lw));
+        surfaces[li] = Some(leader_surface);
+        for (j, &i) in lit.iter().enumerate() {
+            let Some((own, r)) = whitted[j].take() else { continue };
+            surfaces[i] = Some(match &indirect {
+                Some(indirect) if indirect_alike(&lights[j], &lights[leader]) => {
+                    let buffer = follower_sum(&own, indirect);
+                    buffer.check().map_err(|e| fail(i)(e.into()))?;
+                    buffer
                 }
-            }
-            build = LightBuild::new(light, i, build_settings, Cancel::never());
-            photon_time += tp.elapsed();
+                _ => {
+                    let build =
+                        LightBuild::new(lights[j].clone(), i, build_settings, Cancel::never()).with_whitted(&own, r);
+                    indirect_stage(scene, &view, build, &mut photon_time).map_err(fail(i))?
+                }
+            });
         }
-        let buffer = buffer.and_then(|b| match &haze {
-            Some(h) => {
+    }
+    for (i, (job, surface)) in jobs.iter().zip(surfaces).enumerate() {
+        let buffer = match (surface, &haze) {
+            (None, _) => LightBuffer::empty(w, h),
+            (Some(b), None) => b,
+            (Some(b), Some(hz)) => {
                 let th = Instant::now();
-                let hazy = build.haze(scene, h, &b);
+                let mut build = LightBuild::new(job.light.clone(), i, build_settings, Cancel::never());
+                let hazy = build.haze(scene, hz, &b).map_err(fail(i))?;
                 haze_time += th.elapsed();
                 hazy
             }
-            None => Ok(b),
-        });
-        let buffer = buffer.map_err(|source| RenderError { light: i, source })?;
+        };
         buffers.push(buffer);
     }
     let t2 = Instant::now();

@@ -29,12 +29,12 @@
 //! share photon tracing; [`super::TracerSettings::share_indirect`]): when
 //! a cell's photon stage is due, the other settled cells of its fixture
 //! whose Whitted stage is done and whose beam and aim are the same
-//! ([`alike`]) become its *followers* ([`gather_followers`]): they drop
+//! ([`indirect_alike`]) become its *followers* ([`gather_followers`]): they drop
 //! their builds (no photon maps, no refinement state of their own) and
-//! keep only their Whitted term. Every time the leader publishes (its
-//! photon estimate, each refinement pass, its final picture) each follower
+//! keep only their Whitted term. When the leader publishes its photon
+//! estimate and its final picture (not each refinement pass) each follower
 //! publishes its own Whitted term plus the leader's indirect term
-//! ([`follower_sum`], [`lead`]) under its own request id and at the
+//! ([`shared_indirect`], [`follower_sum`], [`lead`]) under its own request id and at the
 //! leader's stage. A follower that moves leaves (its newer request is
 //! served as usual); when the leader moves or fails, its followers are
 //! released to trace photons of their own ([`release_orphans`]).
@@ -43,10 +43,11 @@ use super::{Request, Shared, Stage, after_direct, after_whitted, finished, new_b
 use crate::Light;
 use crate::render::View;
 use crate::render::buffer::LightBuffer;
-use crate::render::build::{BuildError, Cancel, LightBuild, follower_sum};
+use crate::render::build::{BuildError, Cancel, LightBuild, follower_sum, indirect_alike, shared_indirect};
 use crate::render::cells::{PathBounds, direct_together_at, whitted_together};
 use crate::render::footprint::DirectQuality;
 use crate::render::view::AaParams;
+use glam::Vec3;
 use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, Weak};
@@ -264,17 +265,6 @@ pub(super) fn whitted_batch(s: &Shared, index: usize) -> bool {
     true
 }
 
-/// Cosine of the largest angle between two cells' beam axes for them to
-/// share an indirect term (1°).
-const ALIKE_COS: f32 = 0.999_847_7;
-
-/// Two cells share an indirect term when their beams are the same
-/// (pattern, zoom, gobo: [`crate::fixture::Beam`]) and aimed within 1°;
-/// they sit in one fixture, centimetres apart.
-pub(super) fn alike(a: &Light, b: &Light) -> bool {
-    a.beam == b.beam && a.axis().dot(b.axis()) >= ALIKE_COS
-}
-
 /// A cell following another of its fixture through the photon and
 /// refinement stages (module doc).
 pub(super) struct Follow {
@@ -315,9 +305,53 @@ impl Lead {
     }
 }
 
+/// The light whose later stage runs when light `index`'s is scheduled:
+/// when `index` waits for its photon stage and cells of its fixture will
+/// follow it, the one of them (and it) nearest their centre leads, so no
+/// follower is farther from its leader than half the fixture (the
+/// 8-cell bar of `a_bars_cells_share_one_photon_stage_within_the_bound`
+/// led from its end: worst cell rel. MSE 8.1e-4; from its middle: 7.0e-4,
+/// and 1.8e-4 in the still, whose reference cells all refine). Otherwise
+/// `index` itself.
+pub(super) fn photon_leader(s: &Shared, index: usize) -> usize {
+    if !s.settings.share_indirect {
+        return index;
+    }
+    let Some(group) = batch_group(s, index) else { return index };
+    let now = Instant::now();
+    let waiting = |j: usize| -> Option<Light> {
+        let slot = &s.slots[j];
+        let st = slot.state.lock().expect("slot lock");
+        let ok = st.pending.is_none()
+            && st.follow.is_none()
+            && st.lead.is_none()
+            && st.last_move.is_none_or(|t| now.duration_since(t) >= s.settings.settle);
+        st.build
+            .as_ref()
+            .filter(|(bid, b, _)| {
+                ok && slot.latest.load(Ordering::SeqCst) == *bid && b.has_photons() && b.whitted_term().is_some()
+            })
+            .map(|(_, b, _)| b.light().clone())
+    };
+    let Some(me) = waiting(index) else { return index };
+    let cells: Vec<(usize, Vec3)> = group
+        .filter_map(|j| if j == index { Some(me.clone()) } else { waiting(j) }.map(|l| (j, l)))
+        .filter(|(_, l)| indirect_alike(l, &me))
+        .map(|(j, l)| (j, l.position))
+        .collect();
+    if cells.len() < 2 {
+        return index;
+    }
+    let centre = cells.iter().map(|c| c.1).sum::<Vec3>() / cells.len() as f32;
+    cells
+        .iter()
+        .min_by(|a, b| (a.1 - centre).length_squared().total_cmp(&(b.1 - centre).length_squared()))
+        .map_or(index, |c| c.0)
+}
+
 /// Before light `index`'s photon stage (request `id`, its Whitted term in
 /// `build`): the settled cells of its fixture that wait for theirs, with
-/// the same beam and aim ([`alike`]), become its followers.
+/// the same beam and aim ([`indirect_alike`]), become its followers.
 pub(super) fn gather_followers(s: &Shared, index: usize, id: u64, build: &LightBuild) {
     if !s.settings.share_indirect || !build.has_photons() {
         return;
@@ -336,7 +370,7 @@ pub(super) fn gather_followers(s: &Shared, index: usize, id: u64, build: &LightB
             && st.build.as_ref().is_some_and(|(bid, b, _)| {
                 slot.latest.load(Ordering::SeqCst) == *bid
                     && b.whitted_term().is_some()
-                    && alike(b.light(), build.light())
+                    && indirect_alike(b.light(), build.light())
             });
         if !due {
             continue;
@@ -353,11 +387,20 @@ pub(super) fn gather_followers(s: &Shared, index: usize, id: u64, build: &LightB
     }
 }
 
-/// After light `index` published request `id`'s buffer at `stage` (its
-/// photon estimate, a refinement pass or its final picture): each of its
-/// followers publishes its own Whitted term plus the leader's indirect
-/// term at the same stage; at [`Stage::Ready`] they are finished too.
+/// After light `index` published request `id`'s buffer at `stage`: at its
+/// photon estimate and at its final picture (not at each refinement pass
+/// in between) each of its followers publishes its own Whitted term plus
+/// the leader's indirect term at the same stage; at [`Stage::Ready`] they
+/// are finished too.
 pub(super) fn lead(s: &Shared, index: usize, id: u64, stage: Stage) {
+    // Between the photon estimate and the final picture the followers keep
+    // the estimate: each follower publish costs a dense sum on this thread
+    // and makes its emitter group's composite storage stale (festival show:
+    // every refinement pass published to 15 followers took the pixel chase
+    // from 33 to 25 Hz and the moved heads from 0.26 to 1.08 s).
+    if !matches!(stage, Stage::Photons | Stage::Ready) {
+        return;
+    }
     let lead = {
         let mut st = s.slots[index].state.lock().expect("slot lock");
         match &st.lead {
@@ -368,6 +411,7 @@ pub(super) fn lead(s: &Shared, index: usize, id: u64, stage: Stage) {
     };
     let Some(lead) = lead else { return };
     let leader = s.slots[index].published.lock().expect("published lock").buffer.clone();
+    let indirect = shared_indirect(&leader, &lead.whitted);
     for &j in &lead.followers {
         let slot = &s.slots[j];
         let next = {
@@ -375,7 +419,7 @@ pub(super) fn lead(s: &Shared, index: usize, id: u64, stage: Stage) {
             st.follow
                 .as_ref()
                 .filter(|f| f.leader == index && f.leader_id == id && slot.latest.load(Ordering::SeqCst) == f.id)
-                .map(|f| (f.id, f.light.clone(), f.at, follower_sum(&f.whitted, &leader, &lead.whitted)))
+                .map(|f| (f.id, f.light.clone(), f.at, follower_sum(&f.whitted, &indirect)))
         };
         let Some((fid, light, at, buffer)) = next else { continue };
         if let Err(e) = buffer.check() {
