@@ -594,20 +594,10 @@ pub fn indirect_alike(a: &Light, b: &Light) -> bool {
 /// where A_l is 0) is 0; a NaN stays NaN for [`LightBuffer::check`].
 pub fn shared_indirect(leader: &LightBuffer, leader_whitted: &LightBuffer) -> Vec<Vec3> {
     let mut indirect = leader.to_dense();
-    let w = leader.width as usize;
-    for (tx, ty) in leader_whitted.occupied() {
-        let Some(tile) = leader_whitted.tile(tx, ty) else { continue };
-        for (j, row) in tile.chunks_exact(TILE).enumerate() {
-            let y = ty * TILE + j;
-            for (i, d) in row.iter().enumerate() {
-                let x = tx * TILE + i;
-                if x < w && y * w + x < indirect.len() {
-                    let a = indirect[y * w + x] - *d;
-                    indirect[y * w + x] = Vec3::select(a.cmplt(Vec3::ZERO), Vec3::ZERO, a);
-                }
-            }
-        }
-    }
+    combine_tiles(&mut indirect, leader_whitted, |p, d| {
+        let a = *p - d;
+        *p = Vec3::select(a.cmplt(Vec3::ZERO), Vec3::ZERO, a);
+    });
     indirect
 }
 
@@ -619,18 +609,26 @@ pub fn follower_sum(own_whitted: &LightBuffer, indirect: &[Vec3]) -> LightBuffer
 
 fn plus_dense(direct: &LightBuffer, indirect: &[Vec3]) -> Vec<Vec3> {
     let mut sum = indirect.to_vec();
-    let w = direct.width as usize;
-    for (tx, ty) in direct.occupied() {
-        let Some(tile) = direct.tile(tx, ty) else { continue };
+    combine_tiles(&mut sum, direct, |p, d| *p += d);
+    sum
+}
+
+/// `f(pixel of dense, value of sparse)` at every pixel of `sparse`'s
+/// occupied tiles (within `dense`, a frame of `sparse`'s width).
+fn combine_tiles(dense: &mut [Vec3], sparse: &LightBuffer, mut f: impl FnMut(&mut Vec3, Vec3)) {
+    let w = sparse.width as usize;
+    for (tx, ty) in sparse.occupied() {
+        let Some(tile) = sparse.tile(tx, ty) else { continue };
         for (j, row) in tile.chunks_exact(TILE).enumerate() {
             let y = ty * TILE + j;
             for (i, d) in row.iter().enumerate() {
                 let x = tx * TILE + i;
-                if x < w && y * w + x < sum.len() {
-                    sum[y * w + x] += *d;
+                if x < w
+                    && let Some(p) = dense.get_mut(y * w + x)
+                {
+                    f(p, *d);
                 }
             }
         }
     }
-    sum
 }
