@@ -988,11 +988,11 @@ fn still_bodies(
 }
 
 fn jobs_for(show: &Show, universes: &footlight::fixture::Universes) -> Vec<LightJob> {
-    let ids = show.patch().fixtures.iter().map(|f| Some(f.id));
+    // One input per patch fixture, in patch order (`Show::decode`).
     show.decode(universes)
         .into_iter()
-        .zip(ids.chain(std::iter::repeat(None)))
-        .map(|(i, fixture)| LightJob { light: i.light, k_full: i.k_full, k: i.k, fixture })
+        .zip(&show.patch().fixtures)
+        .map(|(i, f)| LightJob { light: i.light, k_full: i.k_full, k: i.k, fixture: Some(f.id) })
         .collect()
 }
 

@@ -179,10 +179,11 @@ pub struct TracerSettings {
     /// Whitted stage replaces it: every lit light is on screen sooner.
     pub rush_backlog: usize,
     /// Cells of one fixture with the same beam and aim that wait for their
-    /// photon stage together share one: the first one traces photons and
-    /// refines, the others follow it with their own Whitted term plus its
-    /// indirect term ([`crate::render::build::follower_sum`]); false:
-    /// every cell traces its own photons.
+    /// photon stage together share one: the cell nearest their centre
+    /// traces photons and refines, the others follow it with their own
+    /// Whitted term plus its indirect term
+    /// ([`crate::render::build::shared_indirect`]); false: every cell
+    /// traces its own photons.
     pub share_indirect: bool,
     /// Memory budget in bytes for the lights' buffers, photon maps and the
     /// geometry caches ([`MemoryUsage`]): past it, dark lights' buffers and

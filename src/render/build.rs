@@ -572,8 +572,6 @@ impl Refinement {
     }
 }
 
-/// D + A: the tile-sparse direct term added to a dense indirect term
-/// (`indirect` is the view's width × height, row-major).
 /// Cosine of the largest angle between two cells' beam axes for them to
 /// share an indirect term (1°).
 const ALIKE_COS: f32 = 0.999_847_7;
@@ -607,6 +605,8 @@ pub fn follower_sum(own_whitted: &LightBuffer, indirect: &[Vec3]) -> LightBuffer
     LightBuffer::from_dense(own_whitted.width, own_whitted.height, &plus_dense(own_whitted, indirect))
 }
 
+/// D + A: the tile-sparse direct term added to a dense indirect term
+/// (`indirect` is the view's width × height, row-major).
 fn plus_dense(direct: &LightBuffer, indirect: &[Vec3]) -> Vec<Vec3> {
     let mut sum = indirect.to_vec();
     combine_tiles(&mut sum, direct, |p, d| *p += d);

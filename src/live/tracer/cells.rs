@@ -49,7 +49,7 @@ use crate::render::footprint::DirectQuality;
 use crate::render::view::AaParams;
 use glam::Vec3;
 use std::ops::Range;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, Weak};
 use std::time::Instant;
 
@@ -69,6 +69,10 @@ pub(super) struct Cells {
     lights: AtomicU64,
     /// Cells that followed another's photon stage (shared indirect term).
     followers: AtomicU64,
+    /// Set when a lead is made, cleared by a [`release_orphans`] sweep that
+    /// found none: the worker's per-job sweep is skipped while no cell
+    /// leads or follows.
+    sharing: AtomicBool,
 }
 
 impl Cells {
@@ -80,6 +84,7 @@ impl Cells {
             passes: AtomicU64::new(0),
             lights: AtomicU64::new(0),
             followers: AtomicU64::new(0),
+            sharing: AtomicBool::new(false),
         }
     }
 
@@ -305,6 +310,22 @@ impl Lead {
     }
 }
 
+/// Light `j`'s build (state `st`, under its lock) when it waits for its
+/// photon stage and may lead or follow: settled, nothing pending, its
+/// Whitted term done, photons configured, neither leading nor following.
+fn photon_due<'a>(s: &Shared, j: usize, st: &'a super::SlotState, now: Instant) -> Option<&'a LightBuild> {
+    let settled = st.last_move.is_none_or(|t| now.duration_since(t) >= s.settings.settle);
+    if st.pending.is_some() || st.follow.is_some() || st.lead.is_some() || st.refine.is_some() || !settled {
+        return None;
+    }
+    st.build
+        .as_ref()
+        .filter(|(bid, b, _)| {
+            s.slots[j].latest.load(Ordering::SeqCst) == *bid && b.has_photons() && b.whitted_term().is_some()
+        })
+        .map(|(_, b, _)| b)
+}
+
 /// The light whose later stage runs when light `index`'s is scheduled:
 /// when `index` waits for its photon stage and cells of its fixture will
 /// follow it, the one of them (and it) nearest their centre leads, so no
@@ -320,18 +341,8 @@ pub(super) fn photon_leader(s: &Shared, index: usize) -> usize {
     let Some(group) = batch_group(s, index) else { return index };
     let now = Instant::now();
     let waiting = |j: usize| -> Option<Light> {
-        let slot = &s.slots[j];
-        let st = slot.state.lock().expect("slot lock");
-        let ok = st.pending.is_none()
-            && st.follow.is_none()
-            && st.lead.is_none()
-            && st.last_move.is_none_or(|t| now.duration_since(t) >= s.settings.settle);
-        st.build
-            .as_ref()
-            .filter(|(bid, b, _)| {
-                ok && slot.latest.load(Ordering::SeqCst) == *bid && b.has_photons() && b.whitted_term().is_some()
-            })
-            .map(|(_, b, _)| b.light().clone())
+        let st = s.slots[j].state.lock().expect("slot lock");
+        photon_due(s, j, &st, now).map(|b| b.light().clone())
     };
     let Some(me) = waiting(index) else { return index };
     let cells: Vec<(usize, Vec3)> = group
@@ -358,21 +369,12 @@ pub(super) fn gather_followers(s: &Shared, index: usize, id: u64, build: &LightB
     }
     let (Some(group), Some(whitted)) = (batch_group(s, index), build.whitted_term()) else { return };
     let now = Instant::now();
+    // Leads and follows are made and swept on the worker thread alone.
+    s.cells.sharing.store(true, Ordering::SeqCst);
     let mut followers = Vec::new();
     for j in group.filter(|&j| j != index) {
-        let slot = &s.slots[j];
-        let mut st = slot.state.lock().expect("slot lock");
-        let due = st.pending.is_none()
-            && st.follow.is_none()
-            && st.lead.is_none()
-            && st.refine.is_none()
-            && st.last_move.is_none_or(|t| now.duration_since(t) >= s.settings.settle)
-            && st.build.as_ref().is_some_and(|(bid, b, _)| {
-                slot.latest.load(Ordering::SeqCst) == *bid
-                    && b.whitted_term().is_some()
-                    && indirect_alike(b.light(), build.light())
-            });
-        if !due {
+        let mut st = s.slots[j].state.lock().expect("slot lock");
+        if !photon_due(s, j, &st, now).is_some_and(|b| indirect_alike(b.light(), build.light())) {
             continue;
         }
         let Some((fid, b, at)) = st.build.take() else { continue };
@@ -462,11 +464,16 @@ pub(super) fn lead_ready(s: &Shared, index: usize, id: u64) {
 /// evicted go back to a photon stage of their own, from their Whitted
 /// term. A lead superseded by its light's newer request is dropped.
 pub(super) fn release_orphans(s: &Shared) {
+    if !s.cells.sharing.load(Ordering::SeqCst) {
+        return;
+    }
+    let mut any = false;
     for (j, slot) in s.slots.iter().enumerate() {
         let (follow, lead) = {
             let st = slot.state.lock().expect("slot lock");
             (st.follow.as_ref().map(|f| (f.leader, f.leader_id, f.id)), st.lead.as_ref().map(|l| l.id))
         };
+        any |= follow.is_some() || lead.is_some();
         let latest = slot.latest.load(Ordering::SeqCst);
         if lead.is_some_and(|l| l != latest) {
             let mut st = slot.state.lock().expect("slot lock");
@@ -499,6 +506,9 @@ pub(super) fn release_orphans(s: &Shared) {
                 st.build = Some((f.id, build, f.at));
             }
         }
+    }
+    if !any {
+        s.cells.sharing.store(false, Ordering::SeqCst);
     }
 }
 
