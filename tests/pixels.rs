@@ -236,7 +236,7 @@ fn k_of_show(show: &footlight::live::Show, u: &footlight::fixture::Universes) ->
     show.decode(u).into_iter().map(|i| i.k).collect()
 }
 
-/// The cells of a bar built together ([`footlight::render::cells::whitted_together`]:
+/// The cells of a bar built together ([`footlight::render::build::together::whitted_together`]:
 /// one pass over the union of their footprints, each cell's own shadow rays
 /// and anti-aliasing) equal each cell built alone (`LightBuild::whitted`),
 /// pixel by pixel to 1e-6 of the cell's peak, on a floor with a box that
@@ -245,8 +245,9 @@ fn k_of_show(show: &footlight::live::Show, u: &footlight::fixture::Universes) ->
 /// with them and stays empty. The same for the direct stage.
 #[test]
 fn cells_built_together_equal_cells_built_alone() {
+    use footlight::render::build::together::{direct_together, whitted_together};
     use footlight::render::build::{BuildSettings, Cancel, LightBuild};
-    use footlight::render::cells::{PathBounds, direct_together, whitted_together};
+    use footlight::render::footprint::TileBounds;
     use footlight::render::view::AaParams;
     let (scene, cam, mut lights) = bar_stage();
     let centre = lights[3].position;
@@ -255,7 +256,7 @@ fn cells_built_together_equal_cells_built_alone() {
     let v = view(&scene, cam, w, h, Sampling::Adaptive, 2);
     assert!(v.shading.vertices().iter().any(|x| x.depth > 0), "the mirror is seen");
     let settings = BuildSettings { photons: None, ..BuildSettings::default() };
-    let bounds = PathBounds::build(&v);
+    let bounds = TileBounds::paths(&v);
     let (together, stats) =
         whitted_together(&scene, &v, &bounds, &lights, Some(AaParams::new(settings.aa_threshold)), &|| false).unwrap();
     assert_eq!(together.len(), lights.len());
@@ -718,4 +719,80 @@ fn a_cell_moved_during_a_pass_is_never_published_stale() {
     // pass took it (then the pass had 7 cells).
     let during = before == Stage::Direct && tracer.batched_lights() == 16;
     eprintln!("moved during the Whitted pass: {during} ({} cells in passes)", tracer.batched_lights());
+}
+
+/// The build pipeline as one state machine (issue 33 item 1): a light's
+/// `next()` walks direct → Whitted → photons → refining 1..n-1 → ready, each
+/// buffer equal to the stage method's; a `GroupBuild` of one light is that
+/// light's build; a bar's `GroupBuild` builds its 8 cells' direct and
+/// Whitted stages in one pass each (equal to each cell alone to 1e-6 of the
+/// peak), traces photons once, and ends every cell.
+#[test]
+fn next_walks_the_stages_and_a_group_builds_its_cells_together() {
+    use footlight::render::build::{BuildSettings, Cancel, GroupBuild, LightBuild, NextStage, Stage};
+    use footlight::render::footprint::{DirectQuality, TileBounds};
+    use footlight::render::photon::PhotonSettings;
+    let (scene, cam, lights) = bar_stage();
+    let v = view(&scene, cam, 96, 64, Sampling::Adaptive, 2);
+    let settings = BuildSettings {
+        photons: Some(PhotonSettings { stored: 20_000, seed: 5, ..PhotonSettings::default() }),
+        refine_passes: 3,
+        ..BuildSettings::default()
+    };
+    let light = lights[3].clone();
+    let mut b = LightBuild::new(light.clone(), 3, settings, Cancel::never()).with_direct_first(DirectQuality::Full);
+    let mut stages = Vec::new();
+    let mut buffers = Vec::new();
+    while let Some(step) = b.next(&scene, &v).unwrap() {
+        stages.push(step.stage);
+        buffers.push(step.buffer.to_dense());
+    }
+    assert_eq!(
+        stages,
+        [Stage::Direct, Stage::Whitted, Stage::Photons, Stage::Refining(1), Stage::Refining(2), Stage::Ready]
+    );
+    assert_eq!(b.next_stage(), None);
+    // Each buffer is the stage method's, called one by one.
+    let mut m = LightBuild::new(light.clone(), 3, settings, Cancel::never());
+    assert_eq!(m.direct(&scene, &v, DirectQuality::Full).unwrap().0.to_dense(), buffers[0]);
+    assert_eq!(m.whitted(&scene, &v).unwrap().to_dense(), buffers[1]);
+    assert_eq!(m.photons(&scene, &v).unwrap().to_dense(), buffers[2]);
+    let mut r = m.into_refinement(&scene, &v).expect("refinement");
+    for want in &buffers[3..] {
+        assert_eq!(&r.pass(&scene, &v).unwrap().to_dense(), want);
+    }
+    assert!(r.finished());
+    // A group of one is its light's build.
+    let bounds = TileBounds::paths(&v);
+    let mut one = GroupBuild::new(vec![LightBuild::new(light, 3, settings, Cancel::never())], true);
+    let last = one.run_to_end(&scene, &v, &bounds).unwrap();
+    assert_eq!(last[0].as_ref().unwrap().to_dense(), buffers[5]);
+    // The bar: one Whitted pass for 8 cells, one photon leader, 7 followers.
+    let no_photons = BuildSettings { photons: None, refine_passes: 0, ..settings };
+    let builds = |s: BuildSettings| -> Vec<LightBuild> {
+        lights.iter().enumerate().map(|(i, l)| LightBuild::new(l.clone(), i, s, Cancel::never())).collect()
+    };
+    let mut bar = GroupBuild::new(builds(no_photons), true);
+    assert_eq!(bar.next_stage(), Some(NextStage::Whitted));
+    let steps = bar.next(&scene, &v, &bounds).unwrap();
+    assert_eq!(steps.len(), 8);
+    assert_eq!(bar.together_passes(), (1, 8));
+    assert!(bar.ended(), "without photons the Whitted stage is the last");
+    for s in &steps {
+        let step = s.step.as_ref().unwrap();
+        assert_eq!(step.stage, Stage::Ready);
+        let alone = LightBuild::new(lights[s.member].clone(), s.member, no_photons, Cancel::never())
+            .whitted(&scene, &v)
+            .unwrap()
+            .to_dense();
+        let peak = alone.iter().map(|p| p.max_element()).fold(0.0f32, f32::max);
+        let worst =
+            step.buffer.to_dense().iter().zip(&alone).map(|(a, b)| (*a - *b).abs().max_element()).fold(0.0, f32::max);
+        assert!(worst <= 1e-6 * peak.max(1e-12), "cell {}: {worst} of {peak}", s.member);
+    }
+    let mut bar = GroupBuild::new(builds(settings), true);
+    let last = bar.run_to_end(&scene, &v, &bounds).unwrap();
+    assert_eq!(bar.followers(), 7, "one photon leader for the bar");
+    assert!(bar.ended());
+    assert!(last.iter().all(|b| b.as_ref().is_some_and(|b| b.to_dense().iter().all(|p| p.is_finite()))));
 }

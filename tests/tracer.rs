@@ -80,13 +80,30 @@ fn a_panicking_build_marks_its_light_failed_and_the_others_still_build() {
     assert!(tracer.failed().is_empty());
 }
 
+/// A panic outside any build restarts the worker (counted, its message
+/// kept) and the lights go on building; panics past the restart limit end
+/// it for good, reported instead of silent.
 #[test]
-fn a_dead_worker_is_reported_not_silent() {
+fn a_panicking_worker_restarts_then_is_reported_not_silent() {
     let tracer = tracer(1, settings());
     assert!(tracer.worker_error().is_none());
     tracer.inject_worker_panic();
+    wait_until(|| tracer.worker_restarts().0 == 1, || "the worker was not restarted".into());
+    assert!(tracer.worker_restarts().1.unwrap().contains("injected worker panic"));
+    assert!(tracer.worker_error().is_none(), "restarted, not dead");
+    tracer.request(0, spot(0.0), 1.0);
+    wait_until(|| tracer.published(0).stage == Stage::Ready, || format!("{:?}", tracer.published(0).stage));
+    for n in 2..=3 {
+        tracer.inject_worker_panic();
+        wait_until(
+            || tracer.worker_restarts().0 >= n || tracer.worker_error().is_some(),
+            || format!("panic {n} went unnoticed"),
+        );
+    }
     wait_until(|| tracer.worker_error().is_some(), || "the worker's death was not reported".into());
     assert!(tracer.worker_error().unwrap().contains("injected worker panic"), "{:?}", tracer.worker_error());
+    assert_eq!(tracer.worker_restarts().0, 2, "two restarts, then the limit");
+    wait_until(|| tracer.worker_finished(), || "the dead worker's thread did not end".into());
 }
 
 /// Stop cuts a build inside its photon stage (issue 38 item 6): the worker

@@ -120,7 +120,7 @@ pub fn converge(
     reference_passes: u32,
     pipelines: &[Pipeline],
 ) -> Vec<ConvergeRow> {
-    use crate::render::build::{BuildSettings, Cancel, LightBuild};
+    use crate::render::build::{BuildSettings, Cancel, LightBuild, NextStage, Stage};
     use crate::render::footprint::DirectQuality;
     use crate::render::{Sampling, View};
     use std::time::Instant;
@@ -129,15 +129,7 @@ pub fn converge(
     let reference = {
         let settings = BuildSettings { refine_passes: reference_passes, ..BuildSettings::default() };
         let mut b = LightBuild::new(light.clone(), 7, settings, Cancel::never());
-        let mut last = b.photons(scene, &view).ok().map(|x| x.to_dense());
-        if let Some(mut r) = b.into_refinement(scene, &view) {
-            while !r.finished() {
-                match r.pass(scene, &view) {
-                    Ok(buf) => last = Some(buf.to_dense()),
-                    Err(_) => break,
-                }
-            }
-        }
+        let last = b.run_to_end(scene, &view).ok().flatten().map(|x| x.to_dense());
         last.unwrap_or_default().iter().map(|v| *v * k_full).collect::<Vec<Vec3>>()
     };
     let err = |dense: Vec<Vec3>| {
@@ -156,27 +148,23 @@ pub fn converge(
         let ms = || t0.elapsed().as_secs_f64() * 1e3;
         let mut b = LightBuild::new(light.clone(), 0, settings, Cancel::never())
             .with_coarse_indirect(p.coarse)
-            .with_refinement_from_coarse(p.from_coarse);
-        if let Ok((buf, _)) = b.direct(scene, &view, DirectQuality::Full) {
+            .with_refinement_from_coarse(p.from_coarse)
+            .with_direct_first(DirectQuality::Full);
+        let mut stage = b.next_stage();
+        while let Ok(Some(step)) = b.next(scene, &view) {
             let t = ms();
-            rows.push(row("direct (seen directly)".into(), t, err(buf.to_dense())));
-        }
-        if let Ok(buf) = b.whitted(scene, &view) {
-            let t = ms();
-            rows.push(row("Whitted + AA".into(), t, err(buf.to_dense())));
-        }
-        if let Ok(buf) = b.photons(scene, &view) {
-            let t = ms();
-            let what = if p.coarse > 1 { "photon map, coarse" } else { "photon map" };
-            rows.push(row(what.into(), t, err(buf.to_dense())));
-        }
-        if let Some(mut r) = b.into_refinement(scene, &view) {
-            while !r.finished() {
-                let Ok(buf) = r.pass(scene, &view) else { break };
-                let t = ms();
-                let done = r.done();
-                rows.push(row(format!("SPPM pass {done} (blended)"), t, err(buf.to_dense())));
-            }
+            let what = match stage {
+                Some(NextStage::Direct(_)) => "direct (seen directly)".into(),
+                Some(NextStage::Whitted) => "Whitted + AA".into(),
+                Some(NextStage::Photons) if p.coarse > 1 => "photon map, coarse".into(),
+                Some(NextStage::Photons) => "photon map".into(),
+                _ => {
+                    let done = if let Stage::Refining(n) = step.stage { n } else { p.passes };
+                    format!("SPPM pass {done} (blended)")
+                }
+            };
+            rows.push(row(what, t, err(step.buffer.to_dense())));
+            stage = b.next_stage();
         }
     }
     rows

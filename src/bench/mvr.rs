@@ -13,7 +13,7 @@
 //! a cell pays beyond its footprint) and the composite per 60 Hz frame with
 //! every fader moving and with one fader moving (the composite is
 //! tile-sparse: it redoes only the tiles of the lights whose k_i changed).
-//! The same cells are then built together ([`crate::render::cells`]: each
+//! The same cells are then built together ([`crate::render::build::together`]: each
 //! bar's cells in one pass over the union of their footprints, and the
 //! whole rig in one pass), timed against one by one, with the largest
 //! difference to the cells built alone next to each time. Last, the same
@@ -152,7 +152,7 @@ pub struct PixelReport {
     pub direct_build_ms: f64,
     /// Every cell's settled Whitted stage (anti-aliased), ms in all.
     pub whitted_build_ms: f64,
-    /// The cells built together ([`crate::render::cells`]): each bar's cells in one pass.
+    /// The cells built together ([`crate::render::build::together`]): each bar's cells in one pass.
     pub together: Together,
     /// Tiles a cell's cone reaches, mean.
     pub tiles_per_cell: f64,
@@ -322,11 +322,11 @@ impl PixelReport {
     }
 }
 
-/// The pixel cells built together ([`crate::render::cells`]) against one
+/// The pixel cells built together ([`crate::render::build::together`]) against one
 /// by one: times and the largest difference to the cells built alone.
 #[derive(Clone, Debug, Serialize)]
 pub struct Together {
-    /// Path bounds of the view ([`crate::render::cells::PathBounds::build`]), once per view, ms.
+    /// Path bounds of the view ([`crate::render::footprint::TileBounds::paths`]), once per view, ms.
     pub bounds_ms: f64,
     /// Every bar's direct stage, its cells together, ms in all.
     pub direct_ms: f64,
@@ -396,10 +396,11 @@ fn together(
     direct: &[LightBuffer],
     whitted: &[LightBuffer],
 ) -> Result<Together, String> {
-    use crate::render::cells::{PathBounds, direct_together, whitted_together};
+    use crate::render::build::together::{direct_together, whitted_together};
+    use crate::render::footprint::TileBounds;
     let aa = Some(crate::render::AaParams::new(crate::render::BuildSettings::default().aa_threshold));
     let t = Instant::now();
-    let bounds = PathBounds::build(view);
+    let bounds = TileBounds::paths(view);
     let bounds_ms = t.elapsed().as_secs_f64() * 1e3;
     let mut bars: std::collections::BTreeMap<u32, Vec<usize>> = std::collections::BTreeMap::new();
     for (i, b) in bar_of.iter().enumerate() {

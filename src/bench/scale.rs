@@ -289,8 +289,8 @@ pub fn pixel_chase(show: &std::path::Path, width: u32, height: u32, frames: usiz
     let mut buffers: Vec<LightBuffer> = Vec::with_capacity(fixtures.len());
     for r in &runs {
         let lights: Vec<crate::Light> = fixtures[r.clone()].iter().map(|f| f.light.clone()).collect();
-        let (built, _) =
-            crate::render::cells::direct_together(&scene, &view, &lights, &|| false).ok_or("direct stage cancelled")?;
+        let (built, _) = crate::render::build::together::direct_together(&scene, &view, &lights, &|| false)
+            .ok_or("direct stage cancelled")?;
         buffers.extend(built);
     }
     let build_s = t.elapsed().as_secs_f64();

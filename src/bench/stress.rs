@@ -45,7 +45,10 @@ fn render(scene: &Scene, camera: Camera, lights: &[Lit], photons: usize) -> Resu
     };
     for (i, (light, _)) in lights.iter().enumerate() {
         let mut build = LightBuild::new(light.clone(), i, settings, Cancel::never());
-        let b = build.photons(scene, &view).map_err(|e| format!("light {i}: {e}"))?;
+        let b = build
+            .run_to_end(scene, &view)
+            .map_err(|e| format!("light {i}: {e}"))?
+            .ok_or_else(|| format!("light {i}: no buffer"))?;
         if let Some(maps) = build.maps() {
             for p in maps.global.photons.iter().chain(&maps.caustic.photons) {
                 if !p.power.is_finite() || p.power.min_element() < 0.0 || !p.position.is_finite() {

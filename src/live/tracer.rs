@@ -51,7 +51,7 @@
 //! daemon groups consecutive lights with the same fixture id) that are due
 //! for the same stage at once (start-up, a view change, a moved bar) get
 //! their direct stage, then their Whitted stage, in one pass over the union
-//! of their footprints ([`crate::render::cells`]; scheduling, request ids,
+//! of their footprints ([`crate::render::build::together`]; scheduling, request ids,
 //! cancellation and publishing per cell as above: `src/live/tracer/cells.rs`).
 //! [`Tracer::batched_builds`] counts the passes; [`TracerSettings::batch_cells`]
 //! turns it off. Cells with the same beam and aim share one photon stage
@@ -112,7 +112,7 @@ mod cells;
 use super::cache::{GeometryCache, Knots};
 use crate::Light;
 use crate::render::buffer::HazeBuffer;
-use crate::render::build::{BuildError, BuildSettings, Cancel, LightBuild, Refinement};
+use crate::render::build::{BuildError, BuildSettings, Cancel, LightBuild, NextStage};
 use crate::render::footprint::DirectQuality;
 use crate::render::media::{HazeQuality, HazeView, Medium, knot_buffers, update_knots};
 use crate::render::photon::PhotonMaps;
@@ -124,23 +124,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
-/// How far a light's published buffer has got.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Stage {
-    /// Nothing built yet.
-    Queued,
-    /// Direct light on directly seen surfaces (full or moving quality).
-    Direct,
-    /// Direct light with mirrors, glass and anti-aliasing.
-    Whitted,
-    /// Plus the first photon-mapped indirect estimate.
-    Photons,
-    /// Plus this many progressive refinement passes.
-    Refining(u32),
-    /// Finished (all stages, refinement done or not configured).
-    Ready,
-}
+/// How far a light's published buffer has got (owned by the build pipeline).
+pub use crate::render::build::Stage;
 
 /// Tracer settings; [`Default`] holds every default in one place.
 #[derive(Clone, Copy, Debug)]
@@ -169,7 +154,7 @@ pub struct TracerSettings {
     pub refine_from_coarse: bool,
     /// Cells of one fixture (lights grouped by [`Tracer::set_groups`]) that
     /// are due at once get their direct and Whitted stages in one pass
-    /// ([`crate::render::cells`]); false: every light alone (the bench's
+    /// ([`crate::render::build::together`]); false: every light alone (the bench's
     /// comparison).
     pub batch_cells: bool,
     /// While more than this many lights of one class (lit, or dark) wait
@@ -314,10 +299,9 @@ struct SlotState {
     last_move: Option<Instant>,
     /// The request before the newest (moving-quality rule).
     previous_move: Option<Instant>,
-    /// A build past its direct stage, waiting for its later stages.
+    /// A build past its direct stage, waiting for its later stages
+    /// (Whitted, photons, refinement: [`LightBuild::next_stage`]).
     build: Option<(u64, LightBuild, Instant)>,
-    /// Progressive refinement in progress.
-    refine: Option<(u64, Refinement, Instant)>,
     /// Brightness priority (luminance of k_i).
     priority: f32,
     /// The newest requested geometry (what a view change rebuilds).
@@ -405,6 +389,9 @@ struct Shared {
     /// Why the worker thread ended while the tracer was not stopped (a
     /// panic outside any build: a bug); `None` while it runs.
     died: Mutex<Option<String>>,
+    /// Worker restarts after a panic outside any build, and the last panic.
+    restarts: AtomicU64,
+    last_panic: Mutex<Option<String>>,
     /// Test hook ([`Tracer::inject_worker_panic`]): the worker loop panics.
     panic_worker: AtomicBool,
     /// The memory budget (changed by [`Tracer::set_memory_budget`]).
@@ -558,6 +545,8 @@ impl Tracer {
             cells: cells::Cells::new(lights),
             names: Mutex::new(Vec::new()),
             died: Mutex::new(None),
+            restarts: AtomicU64::new(0),
+            last_panic: Mutex::new(None),
             panic_worker: AtomicBool::new(false),
             memory_budget: AtomicU64::new(settings.memory),
             memory: Mutex::new(MemoryUsage { budget_bytes: settings.memory, ..MemoryUsage::default() }),
@@ -636,11 +625,18 @@ impl Tracer {
         *self.shared.names.lock().expect("names lock") = names;
     }
 
-    /// Why the worker thread died (a panic outside any single build: a
-    /// bug), `None` while it runs. No light is rebuilt after it; the frame
-    /// clock keeps compositing the last published buffers.
+    /// Why the worker thread died for good (panics outside any single
+    /// build, a bug, more often than it is restarted), `None` while it runs.
+    /// No light is rebuilt after it; the daemon stops with this error.
     pub fn worker_error(&self) -> Option<String> {
-        self.shared.died.lock().expect("died lock").clone()
+        self.shared.died.lock().unwrap_or_else(std::sync::PoisonError::into_inner).clone()
+    }
+
+    /// Times the worker was restarted after a panic outside any build, and
+    /// that panic's message (the status shows both).
+    pub fn worker_restarts(&self) -> (u64, Option<String>) {
+        let last = self.shared.last_panic.lock().unwrap_or_else(std::sync::PoisonError::into_inner).clone();
+        (self.shared.restarts.load(Ordering::SeqCst), last)
     }
 
     /// Lights whose last build failed, with the error, in light order.
@@ -799,7 +795,6 @@ impl Tracer {
             slot.latest.store(id, Ordering::SeqCst);
             let mut st = slot.state.lock().expect("slot lock");
             st.build = None;
-            st.refine = None;
             // Nothing of the old view's haze is kept.
             st.beam = None;
             st.knots = None;
@@ -832,17 +827,8 @@ impl Tracer {
                 finished_kept.or_else(|| s.cache.lock().expect("cache lock").get_in(i, &light, s.haze.as_ref()));
             if let Some((buffer, knots)) = cached {
                 // Finished for this very view and geometry before.
-                st.shown = Some(light);
-                st.waiting_since = None;
+                restore(slot, st, light, buffer, knots);
                 restored += 1;
-                drop(st);
-                let mut p = slot.published.lock().expect("published lock");
-                p.buffer = buffer;
-                p.generation += 1;
-                p.stage = Stage::Ready;
-                if let Some(knots) = knots {
-                    p.hazy = knots;
-                }
                 continue;
             }
             if hit.is_some() {
@@ -891,7 +877,6 @@ impl Tracer {
         let now = Instant::now();
         let mut st = slot.state.lock().expect("slot lock");
         st.build = None;
-        st.refine = None;
         st.beam = None;
         st.priority = priority;
         if priority > 0.0 {
@@ -902,18 +887,7 @@ impl Tracer {
         st.previous_move = st.last_move.replace(now);
         let cached = s.cache.lock().expect("cache lock").get_in(index, &light, s.haze.as_ref());
         if let Some((buffer, knots)) = cached {
-            st.pending = None;
-            st.waiting_since = None;
-            st.shown = Some(light);
-            st.knots = None;
-            drop(st);
-            let mut p = slot.published.lock().expect("published lock");
-            p.buffer = buffer;
-            p.generation += 1;
-            p.stage = Stage::Ready;
-            if let Some(knots) = knots {
-                p.hazy = knots;
-            }
+            restore(slot, st, light, buffer, knots);
             tracing::debug!("light {index}: geometry found in cache");
             return;
         }
@@ -1061,7 +1035,6 @@ impl Shared {
                 let maps = st.maps.as_ref().map_or(0, |(_, m)| maps_bytes(m));
                 let (lit, last_lit) = (st.priority > 0.0, st.last_lit);
                 let building = st.build.as_ref().map_or(0, |(_, b, _)| b.bytes())
-                    + st.refine.as_ref().map_or(0, |(_, r, _)| r.bytes())
                     + st.follow.as_ref().map_or(0, cells::Follow::bytes)
                     + st.lead.as_ref().map_or(0, cells::Lead::bytes);
                 drop(st);
@@ -1149,7 +1122,6 @@ impl Shared {
         st.pending = None;
         st.waiting_since = None;
         st.build = None;
-        st.refine = None;
         st.follow = None;
         st.lead = None;
         st.beam = None;
@@ -1271,13 +1243,11 @@ impl Shared {
             .iter()
             .map(|slot| {
                 let st = slot.state.lock().expect("slot lock");
-                let later = if let Some((_, b, _)) = &st.build {
-                    Some(if b.has_whitted() { 1 } else { 0 })
-                } else if st.refine.is_some() {
-                    Some(2)
-                } else {
-                    None
-                };
+                let later = st.build.as_ref().and_then(|(_, b, _)| match b.next_stage()? {
+                    NextStage::Direct(_) | NextStage::Whitted => Some(0),
+                    NextStage::Photons => Some(1),
+                    NextStage::Refine => Some(2),
+                });
                 SlotView {
                     waiting_since: st.waiting_since.filter(|_| st.pending.is_some()),
                     weight: st.weight,
@@ -1295,12 +1265,38 @@ impl Shared {
             .iter()
             .filter_map(|slot| {
                 let st = slot.state.lock().expect("slot lock");
-                let waiting = st.build.is_some() || st.refine.is_some();
+                let waiting = st.build.is_some();
                 st.last_move.filter(|_| waiting).map(|t| (t + self.settings.settle).saturating_duration_since(now))
             })
             .min()
             .unwrap_or(Duration::from_millis(50))
             .clamp(Duration::from_millis(1), Duration::from_millis(50))
+    }
+}
+
+/// Publishes a finished buffer found in a cache (the geometry cache, or a
+/// view's kept buffers) for `light` at once, as ready: the one restore of
+/// [`Tracer::set_view`] and [`Tracer::request`]. Nothing of an earlier
+/// build waits on: no request, no knots of another geometry (in haze the
+/// cache entry brings its own knot buffers).
+fn restore(
+    slot: &Slot,
+    mut st: std::sync::MutexGuard<'_, SlotState>,
+    light: Light,
+    buffer: Arc<LightBuffer>,
+    knots: Option<Knots>,
+) {
+    st.pending = None;
+    st.waiting_since = None;
+    st.shown = Some(light);
+    st.knots = None;
+    drop(st);
+    let mut p = slot.published.lock().expect("published lock");
+    p.buffer = buffer;
+    p.generation += 1;
+    p.stage = Stage::Ready;
+    if let Some(knots) = knots {
+        p.hazy = knots;
     }
 }
 
@@ -1318,17 +1314,45 @@ fn prune(times: &mut VecDeque<Instant>, now: Instant) {
     }
 }
 
-/// The worker thread's body: [`worker`] under `catch_unwind`. A panic
-/// that escapes it (outside any build: a bug) is kept for
-/// [`Tracer::worker_error`] and logged, so the daemon's status says so
-/// instead of the lights staying queued in silence.
+/// Panics outside any single build after which the worker restarts; one
+/// more within [`RESTART_WINDOW`] of the first ends it for good.
+const MAX_RESTARTS: usize = 2;
+/// The window over which worker panics are counted.
+const RESTART_WINDOW: Duration = Duration::from_secs(10);
+
+/// The worker thread's body: [`worker`] under `catch_unwind`, restarted
+/// after a panic that escapes it (outside any build: a bug, logged and
+/// counted in [`Tracer::worker_restarts`]); the scheduling state lives in
+/// the slots, so the restarted loop goes on where it was. A third panic
+/// within [`RESTART_WINDOW`] ends it: the reason is kept for
+/// [`Tracer::worker_error`], so the daemon stops with that error instead of
+/// the lights staying queued in silence.
 fn supervised_worker(s: &Shared) {
-    if let Err(panic) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| worker(s))) {
+    let mut panics: VecDeque<Instant> = VecDeque::new();
+    loop {
+        let Err(panic) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| worker(s))) else { return };
         let message = panic_message(panic.as_ref());
-        tracing::error!(
-            "the light builder stopped: {message}; no light is rebuilt from now on (a bug; please report it)"
-        );
-        *s.died.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(message);
+        let now = Instant::now();
+        panics.push_back(now);
+        while panics.front().is_some_and(|t| now.duration_since(*t) > RESTART_WINDOW) {
+            panics.pop_front();
+        }
+        // Every slot lock a panic may have poisoned holds whole state (each
+        // field is set in one step): taken back.
+        for slot in &s.slots {
+            slot.state.clear_poison();
+            slot.published.clear_poison();
+        }
+        if panics.len() > MAX_RESTARTS || s.stopped() {
+            tracing::error!(
+                "the light builder stopped: {message}; no light is rebuilt from now on (a bug; please report it)"
+            );
+            *s.died.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(message);
+            return;
+        }
+        s.restarts.fetch_add(1, Ordering::SeqCst);
+        *s.last_panic.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(message.clone());
+        tracing::error!("the light builder panicked: {message}; restarting it (a bug; please report it)");
     }
 }
 
@@ -1399,7 +1423,7 @@ fn run_job(s: &Shared, job: Job, rush: bool) {
         }
         Job::Later(i) => {
             if !cells::whitted_batch(s, i) {
-                later_stage(s, cells::photon_leader(s, i));
+                later_stage(s, cells::leader_of(s, i));
             }
         }
     }));
@@ -1412,13 +1436,12 @@ fn run_job(s: &Shared, job: Job, rush: bool) {
         let mut st = slot.state.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         // A follower is not stranded: it is released when its leader is
         // ([`cells::release_orphans`]: the failed leader leads no more).
-        let stranded = st.pending.is_none() && st.build.is_none() && st.refine.is_none() && st.follow.is_none();
+        let stranded = st.pending.is_none() && st.build.is_none() && st.follow.is_none();
         if j != i && !(stranded && slot.published.lock().is_ok_and(|p| p.stage != Stage::Ready)) {
             continue;
         }
         // The build state of the failed stage is dropped: a new request builds it again.
         st.build = None;
-        st.refine = None;
         st.lead = None;
         st.beam = None;
         if st.failed.is_none() {
@@ -1446,16 +1469,16 @@ fn direct_stage(s: &Shared, index: usize, rush: bool) {
     let Some((req, waiting_since, moving)) = take_request(s, index) else { return };
     let quality = if moving || rush { DirectQuality::Moving } else { DirectQuality::Full };
     s.injected_panic(index);
-    let mut build = new_build(s, index, &req);
+    let mut build = new_build(s, index, &req).with_direct_first(quality);
     let view = s.view();
     s.builds.fetch_add(1, Ordering::SeqCst);
-    let result = s.pool.install(|| build.direct(&s.scene, &view, quality));
-    let (buffer, stats) = match result {
-        Ok(r) => r,
+    let step = match s.pool.install(|| build.next(&s.scene, &view)) {
+        Ok(Some(step)) => step,
+        Ok(None) => return,
         Err(e) => return report_bug(index, &e),
     };
-    let share = stats.tiles_in_beam as f32 / stats.tiles.max(1) as f32;
-    after_direct(s, index, req, waiting_since, build, buffer, share);
+    let share = step.footprint.map_or(0.0, |f| f.tiles_in_beam as f32 / f.tiles.max(1) as f32);
+    after_direct(s, index, req, waiting_since, build, step.buffer, share);
 }
 
 /// Takes light `index`'s pending request: the request, when its wait
@@ -1532,25 +1555,19 @@ fn after_whitted(s: &Shared, index: usize, id: u64, build: LightBuild, buffer: L
     }
 }
 
-/// The next later stage (Whitted, photons or a refinement pass) of a settled light.
+/// The next later stage (Whitted, photons or a refinement pass) of a
+/// settled light: one [`LightBuild::next`], published.
 fn later_stage(s: &Shared, index: usize) {
     let slot = &s.slots[index];
-    let (build, refine) = {
-        let mut st = slot.state.lock().expect("slot lock");
-        (st.build.take(), if st.build.is_none() { st.refine.take() } else { None })
-    };
+    let Some((id, mut build, at)) = slot.state.lock().expect("slot lock").build.take() else { return };
     s.injected_panic(index);
     let view = s.view();
-    if let Some((id, mut build, at)) = build {
-        if !build.has_whitted() {
-            match s.pool.install(|| build.whitted(&s.scene, &view)) {
-                Ok(buffer) => after_whitted(s, index, id, build, buffer, at),
-                Err(e) => report_bug(index, &e),
-            }
-            return;
-        }
+    let next = build.next_stage();
+    if next == Some(NextStage::Photons) {
         cells::gather_followers(s, index, id, &build);
-        let result = s.pool.install(|| build.photons(&s.scene, &view));
+    }
+    let result = s.pool.install(|| build.next(&s.scene, &view));
+    if next == Some(NextStage::Photons) {
         if build.traced_photons() {
             s.photon_traces.fetch_add(1, Ordering::SeqCst);
         }
@@ -1559,70 +1576,33 @@ fn later_stage(s: &Shared, index: usize) {
         {
             slot.state.lock().expect("slot lock").maps = Some((build.light().clone(), maps));
         }
-        match result {
-            Ok(buffer) => {
-                let refine = build.will_refine();
-                let stage = if refine { Stage::Photons } else { Stage::Ready };
-                let cached = (!refine).then(|| Arc::new(buffer.clone()));
-                let light = build.light().clone();
-                if !s.publish(index, id, buffer, stage, &light) {
-                    return;
-                }
-                cells::lead(s, index, id, stage);
-                if let Some(b) = cached {
-                    return finished(s, index, id, build.light(), b, at);
-                }
-                match s.pool.install(|| build.into_refinement(&s.scene, &view)) {
-                    Some(r) => start_refining(s, index, id, r, at),
-                    None => mark_ready(s, index, id, &light, at),
-                }
-            }
-            Err(e) => report_bug(index, &e),
-        }
+    }
+    let step = match result {
+        Ok(Some(step)) => step,
+        // A refinement given up with nothing left to finish: its last picture stays.
+        Ok(None) => return mark_ready(s, index, id, at),
+        Err(e) => return report_bug(index, &e),
+    };
+    if next == Some(NextStage::Whitted) {
+        // The refined haze beam comes with the Whitted stage.
+        return after_whitted(s, index, id, build, step.buffer, at);
+    }
+    let stage = step.stage;
+    let cached = (stage == Stage::Ready).then(|| Arc::new(step.buffer.clone()));
+    let light = build.light().clone();
+    if !s.publish(index, id, step.buffer, stage, &light) {
         return;
     }
-    let Some((id, mut refine, at)) = refine else { return };
-    if refine.finishing() {
-        // Refinement given up: only the exact photon-map estimate is left.
-        let light = refine.light().clone();
-        match s.pool.install(|| refine.exact_start(&s.scene, &view)) {
-            Ok(Some(buffer)) => {
-                let b = Arc::new(buffer.clone());
-                if s.publish(index, id, buffer, Stage::Ready, &light) {
-                    cells::lead(s, index, id, Stage::Ready);
-                    finished(s, index, id, &light, b, at);
-                }
+    cells::lead(s, index, id, stage);
+    match cached {
+        Some(b) => {
+            if build.refined() > 0 {
+                tracing::debug!("light {index}: converged after {} progressive passes", build.refined());
             }
-            Ok(None) => mark_ready(s, index, id, &light, at),
-            Err(e) => report_bug(index, &e),
+            finished(s, index, id, &light, b, at);
         }
-        return;
-    }
-    let result = s.pool.install(|| refine.pass(&s.scene, &view));
-    match result {
-        Ok(buffer) => {
-            let done = refine.finished();
-            let stage = if done { Stage::Ready } else { Stage::Refining(refine.done()) };
-            let cached = done.then(|| Arc::new(buffer.clone()));
-            let light = refine.light().clone();
-            if !s.publish(index, id, buffer, stage, &light) {
-                return;
-            }
-            cells::lead(s, index, id, stage);
-            match cached {
-                Some(b) => {
-                    tracing::debug!("light {index}: converged after {} progressive passes", refine.done());
-                    finished(s, index, id, refine.light(), b, at);
-                }
-                None => {
-                    let mut st = slot.state.lock().expect("slot lock");
-                    if slot.latest.load(Ordering::SeqCst) == id {
-                        st.refine = Some((id, refine, at));
-                    }
-                }
-            }
-        }
-        Err(e) => report_bug(index, &e),
+        None if next == Some(NextStage::Photons) => start_refining(s, index, id, build, at),
+        None => keep_build(s, index, id, build, at),
     }
 }
 
@@ -1636,46 +1616,35 @@ fn keep_build(s: &Shared, index: usize, id: u64, build: LightBuild, at: Instant)
 
 /// Holds refinement state for at most `max_refining` lights: the dimmest
 /// holder gives its state up (its picture stays at the photon estimate).
-fn start_refining(s: &Shared, index: usize, id: u64, refine: Refinement, at: Instant) {
-    let slot = &s.slots[index];
-    {
-        let mut st = slot.state.lock().expect("slot lock");
-        if slot.latest.load(Ordering::SeqCst) != id {
-            return;
-        }
-        st.refine = Some((id, refine, at));
-    }
+fn start_refining(s: &Shared, index: usize, id: u64, build: LightBuild, at: Instant) {
+    keep_build(s, index, id, build, at);
     let mut holders: Vec<(usize, f32)> = s
         .slots
         .iter()
         .enumerate()
         .filter_map(|(i, sl)| {
             let st = sl.state.lock().expect("slot lock");
-            st.refine.as_ref().filter(|(_, r, _)| !r.finishing()).map(|_| (i, st.priority))
+            st.build.as_ref().filter(|(_, b, _)| b.refining()).map(|_| (i, st.priority))
         })
         .collect();
     holders.sort_by(|a, b| b.1.total_cmp(&a.1));
     for &(i, _) in holders.iter().skip(s.settings.max_refining.max(1)) {
-        let taken = s.slots[i].state.lock().expect("slot lock").refine.take();
-        if let Some((rid, mut r, rat)) = taken {
-            if r.has_coarse_start() {
-                // Never left at a coarse first estimate: its exact estimate is
-                // its final picture, computed as a later stage of its own
-                // (after every light's photons stage, not here).
-                r.finish_only();
-                let mut st = s.slots[i].state.lock().expect("slot lock");
-                if s.slots[i].latest.load(Ordering::SeqCst) == rid {
-                    st.refine = Some((rid, r, rat));
-                }
-            } else {
-                mark_ready(s, i, rid, r.light(), rat);
-            }
+        let mut st = s.slots[i].state.lock().expect("slot lock");
+        let Some((rid, b, rat)) = st.build.as_mut() else { continue };
+        // Never left at a coarse first estimate: its exact estimate is its
+        // final picture, computed as a later stage of its own (after every
+        // light's photons stage, not here).
+        if !b.give_up_refinement() {
+            let (rid, rat) = (*rid, *rat);
+            st.build = None;
+            drop(st);
+            mark_ready(s, i, rid, rat);
         }
     }
 }
 
 /// Marks a light whose later stages ended without a new buffer as ready.
-fn mark_ready(s: &Shared, index: usize, id: u64, _light: &Light, at: Instant) {
+fn mark_ready(s: &Shared, index: usize, id: u64, at: Instant) {
     let slot = &s.slots[index];
     if slot.latest.load(Ordering::SeqCst) == id {
         slot.published.lock().expect("published lock").stage = Stage::Ready;

@@ -25,38 +25,58 @@ use glam::Vec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-/// Bounding sphere of the directly seen vertices of each buffer tile.
+/// Bounding sphere of the shading vertices of each 16×16 buffer tile, the
+/// one cone cull of the renderer: [`TileBounds::build`] bounds the directly
+/// seen (depth-0) vertices, what a direct stage shades;
+/// [`TileBounds::paths`] bounds every camera-path vertex (any depth: seen
+/// directly, through mirrors or through glass), what a Whitted stage
+/// shades. Built once per view and kept by its owner.
 pub struct TileBounds {
-    tiles_x: usize,
+    pub(crate) tiles_x: usize,
     tiles_y: usize,
-    /// Per tile: centre and radius, or `None` when the tile sees nothing.
+    /// Per tile: centre and radius, or `None` when no vertex is in it.
     spheres: Vec<Option<(Vec3, f32)>>,
+    /// A tile holds a vertex at a non-finite position: never culled
+    /// ([`TileBounds::paths`] only; the direct stage skips such vertices).
+    unbounded: Vec<bool>,
 }
 
 impl TileBounds {
     /// Bounds of `view`'s depth-0 shading vertices, tile by tile.
     pub fn build(view: &View) -> Self {
+        Self::of(view, true)
+    }
+
+    /// Bounds of every camera-path vertex of `view` (any depth), tile by tile.
+    pub fn paths(view: &View) -> Self {
+        Self::of(view, false)
+    }
+
+    fn of(view: &View, primary_only: bool) -> Self {
         let (w, h) = (view.width() as usize, view.height() as usize);
         let (tiles_x, tiles_y) = (w.div_ceil(TILE), h.div_ceil(TILE));
-        let spheres = (0..tiles_x * tiles_y)
+        let (spheres, unbounded) = (0..tiles_x * tiles_y)
             .into_par_iter()
             .map(|t| {
                 let (tx, ty) = (t % tiles_x, t / tiles_x);
                 let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+                let mut bad = false;
                 for y in ty * TILE..((ty + 1) * TILE).min(h) {
                     for x in tx * TILE..((tx + 1) * TILE).min(w) {
-                        for v in view.shading.pixel(y * w + x).iter().filter(|v| v.depth == 0) {
+                        for v in view.shading.pixel(y * w + x).iter().filter(|v| !primary_only || v.depth == 0) {
                             if v.position.is_finite() {
                                 lo = lo.min(v.position);
                                 hi = hi.max(v.position);
+                            } else {
+                                bad |= !primary_only;
                             }
                         }
                     }
                 }
-                (lo.x <= hi.x).then(|| ((lo + hi) * 0.5, (hi - lo).length() * 0.5))
+                ((lo.x <= hi.x).then(|| ((lo + hi) * 0.5, (hi - lo).length() * 0.5)), bad)
             })
-            .collect();
-        Self { tiles_x, tiles_y, spheres }
+            .unzip();
+        Self { tiles_x, tiles_y, spheres, unbounded }
     }
 
     /// Number of tiles.
@@ -69,18 +89,20 @@ impl TileBounds {
         self.spheres.is_empty()
     }
 
-    /// Tiles whose directly seen surfaces may lie inside `light`'s cone.
-    /// Conservative: a tile is skipped only when its bounding sphere lies
-    /// wholly outside the cone of half-angle `acos(cos_cutoff)`.
+    /// Tiles whose vertices may lie inside `light`'s cone (half-angle
+    /// `acos(cos_cutoff)`, where its pattern is zero beyond). Conservative:
+    /// a tile is left out only when its bounding sphere lies wholly outside
+    /// the cone.
     pub fn tiles_in_beam(&self, light: &Light) -> Vec<usize> {
         let axis = light.axis();
         let cutoff = light.beam.cos_cutoff().clamp(-1.0, 1.0).acos();
-        self.spheres
-            .iter()
-            .enumerate()
-            .filter_map(|(t, s)| {
-                let (centre, radius) = (*s)?;
-                sphere_may_meet_cone(centre, radius, light.position, axis, cutoff).then_some(t)
+        (0..self.spheres.len())
+            .filter(|&t| {
+                if self.unbounded[t] {
+                    return true;
+                }
+                let Some((centre, radius)) = self.spheres[t] else { return false };
+                sphere_may_meet_cone(centre, radius, light.position, axis, cutoff)
             })
             .collect()
     }

@@ -23,7 +23,6 @@
 pub mod bodies;
 pub mod buffer;
 pub mod build;
-pub mod cells;
 pub mod composite;
 pub mod display;
 pub mod footprint;

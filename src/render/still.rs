@@ -5,13 +5,11 @@
 
 use super::RenderSettings;
 use super::buffer::LightBuffer;
-use super::build::{
-    BuildError, BuildSettings, Cancel, Cancelled, Haze, LightBuild, follower_sum, indirect_alike, shared_indirect,
-};
-use super::cells::{PathBounds, whitted_together};
+use super::build::{BuildError, BuildSettings, Cancel, GroupBuild, Haze, LightBuild, NextStage};
 use super::composite::composite;
+use super::footprint::TileBounds;
 use super::media::{HazeQuality, HazeView, Medium};
-use super::view::{AaParams, View};
+use super::view::View;
 use crate::fixture::Light;
 use crate::scene::{Camera, Scene};
 use glam::Vec3;
@@ -100,32 +98,6 @@ fn fixture_runs(jobs: &[LightJob]) -> Vec<std::ops::Range<usize>> {
     runs
 }
 
-/// A build past its Whitted stage to its final surface buffer: the
-/// photon-mapped indirect term and `--refine N` progressive passes, each
-/// blended with the photon map; the Whitted buffer without photon
-/// settings. Adds the time spent to `photon_time`.
-fn indirect_stage(
-    scene: &Scene,
-    view: &View,
-    mut build: LightBuild,
-    photon_time: &mut Duration,
-) -> Result<LightBuffer, BuildError> {
-    if !build.has_photons() {
-        return build.whitted_term().cloned().ok_or_else(|| Cancelled.into());
-    }
-    let tp = Instant::now();
-    let mut buffer = build.photons(scene, view)?;
-    if build.will_refine()
-        && let Some(mut refine) = build.into_refinement(scene, view)
-    {
-        while !refine.finished() {
-            buffer = refine.pass(scene, view)?;
-        }
-    }
-    *photon_time += tp.elapsed();
-    Ok(buffer)
-}
-
 /// Renders `jobs` over `scene` from `camera`.
 pub fn render_still(
     scene: &Scene,
@@ -169,56 +141,32 @@ pub fn render_still_hazy(
     // daemon's.
     let (w, h) = (settings.width.max(1), settings.height.max(1));
     let mut surfaces: Vec<Option<LightBuffer>> = vec![None; jobs.len()];
-    let bounds = PathBounds::build(&view);
-    let fail = |i: usize| move |source: BuildError| RenderError { light: i, source };
+    let bounds = TileBounds::paths(&view);
     for run in fixture_runs(jobs) {
+        // A fixture's lit cells are one group ([`GroupBuild`]): one Whitted
+        // pass over their footprints (equal to each built alone), one photon
+        // stage for the cells alike, led by the one nearest their centre.
         let lit: Vec<usize> = run.filter(|&i| jobs[i].k != Vec3::ZERO).collect();
-        if lit.len() < 2 {
-            for &i in &lit {
-                let mut build = LightBuild::new(jobs[i].light.clone(), i, build_settings, Cancel::never());
-                build.whitted(scene, &view).map_err(fail(i))?;
-                reshaded += build.reshaded();
-                surfaces[i] = Some(indirect_stage(scene, &view, build, &mut photon_time).map_err(fail(i))?);
-            }
+        if lit.is_empty() {
             continue;
         }
-        // A fixture's lit cells: one Whitted pass over their footprints
-        // (equal to each built alone), then one photon stage for the cells
-        // alike with the one nearest their centre; the others alone.
-        let lights: Vec<Light> = lit.iter().map(|&i| jobs[i].light.clone()).collect();
-        let aa = Some(AaParams::new(settings.aa_threshold));
-        let (whitted, _) = whitted_together(scene, &view, &bounds, &lights, aa, &|| false)
-            .ok_or(RenderError { light: lit[0], source: Cancelled.into() })?;
-        reshaded += whitted.iter().map(|(_, r)| r).sum::<usize>();
-        let centre = lights.iter().map(|l| l.position).sum::<Vec3>() / lights.len() as f32;
-        let leader = (0..lit.len())
-            .min_by(|&a, &b| {
-                let d = |j: usize| (lights[j].position - centre).length_squared();
-                d(a).total_cmp(&d(b))
-            })
-            .unwrap_or(0);
-        let mut whitted: Vec<Option<(LightBuffer, usize)>> = whitted.into_iter().map(Some).collect();
-        let (lw, lr) = whitted[leader].take().expect("the leader's Whitted term");
-        let li = lit[leader];
-        let build = LightBuild::new(lights[leader].clone(), li, build_settings, Cancel::never()).with_whitted(&lw, lr);
-        let leader_surface = indirect_stage(scene, &view, build, &mut photon_time).map_err(fail(li))?;
-        let indirect = build_settings.photons.is_some().then(|| shared_indirect(&leader_surface, &lw));
-        surfaces[li] = Some(leader_surface);
-        for (j, &i) in lit.iter().enumerate() {
-            let Some((own, r)) = whitted[j].take() else { continue };
-            surfaces[i] = Some(match &indirect {
-                Some(indirect) if indirect_alike(&lights[j], &lights[leader]) => {
-                    let buffer = follower_sum(&own, indirect);
-                    buffer.check().map_err(|e| fail(i)(e.into()))?;
-                    buffer
-                }
-                _ => {
-                    let build =
-                        LightBuild::new(lights[j].clone(), i, build_settings, Cancel::never()).with_whitted(&own, r);
-                    indirect_stage(scene, &view, build, &mut photon_time).map_err(fail(i))?
-                }
-            });
+        let builds =
+            lit.iter().map(|&i| LightBuild::new(jobs[i].light.clone(), i, build_settings, Cancel::never())).collect();
+        let mut group = GroupBuild::new(builds, true);
+        while let Some(stage) = group.next_stage() {
+            let t = Instant::now();
+            let steps = group
+                .next(scene, &view, &bounds)
+                .map_err(|e| RenderError { light: lit[e.member], source: e.source })?;
+            if matches!(stage, NextStage::Photons | NextStage::Refine) {
+                photon_time += t.elapsed();
+            }
+            for s in steps {
+                let light = lit[s.member];
+                surfaces[light] = Some(s.step.map_err(|source| RenderError { light, source })?.buffer);
+            }
         }
+        reshaded += group.reshaded();
     }
     for (i, (job, surface)) in jobs.iter().zip(surfaces).enumerate() {
         let buffer = match (surface, &haze) {
@@ -227,7 +175,7 @@ pub fn render_still_hazy(
             (Some(b), Some(hz)) => {
                 let th = Instant::now();
                 let mut build = LightBuild::new(job.light.clone(), i, build_settings, Cancel::never());
-                let hazy = build.haze(scene, hz, &b).map_err(fail(i))?;
+                let hazy = build.haze(scene, hz, &b).map_err(|source| RenderError { light: i, source })?;
                 haze_time += th.elapsed();
                 hazy
             }

@@ -1,21 +1,22 @@
-//! The cells of one fixture built together by the live tracer (issue 14:
-//! pixel cells). An LED bar's cells are lights of their own (one unit
-//! buffer each, eq. 5), a few centimetres apart, and they are due at the
-//! same moments: at start-up, after a view change, when the bar moves. Built
-//! one by one, each cell's stages walk the picture on their own; built
-//! together ([`crate::render::cells`]), one pass over the union of the
-//! cells' footprints evaluates every cell at each vertex.
+//! Scheduling the cells of one fixture (issue 14: pixel cells; issue 33:
+//! the tracer only schedules). An LED bar's cells are lights of their own
+//! (one unit buffer each, eq. 5), a few centimetres apart, and they are due
+//! at the same moments: at start-up, after a view change, when the bar
+//! moves. The build of a fixture's cells is [`GroupBuild`]'s (one pass over
+//! the union of the cells' footprints, one photon leader for the cells
+//! alike: [`crate::render::build::group`]); this module decides which cells
+//! go into a pass and publishes each cell's result under its own request.
 //!
 //! The tracer's scheduling ([`super::schedule`]) is unchanged: it picks a
 //! light and a stage. When that light is a cell of a fixture (a group set
 //! by [`super::Tracer::set_groups`]) and other cells of the same fixture
-//! are due for the same stage, the whole set is built in one pass:
-//! - **direct stage** ([`direct_together_at`]): every cell of the group
-//!   with a pending request at the same quality (a moving bar's cells at
-//!   moving quality, one pixel per 2×2 block, together too);
-//! - **Whitted stage** ([`whitted_together`], with the view's
-//!   [`PathBounds`] made once per view): every settled cell of the group
-//!   whose build waits for its Whitted stage.
+//! are due for the same stage, the whole set is one [`GroupBuild::next`]:
+//! - **direct stage**: every cell of the group with a pending request at
+//!   the same quality (a moving bar's cells at moving quality, one pixel
+//!   per 2×2 block, together too);
+//! - **Whitted stage** (with the view's [`TileBounds::paths`] made once per
+//!   view): every settled cell of the group whose build waits for its
+//!   Whitted stage.
 //!
 //! Each cell keeps its own request id, [`LightBuild`] and buffer: after the
 //! pass each buffer goes through the same steps as a cell built alone (haze
@@ -29,7 +30,8 @@
 //! share photon tracing; [`super::TracerSettings::share_indirect`]): when
 //! a cell's photon stage is due, the other settled cells of its fixture
 //! whose Whitted stage is done and whose beam and aim are the same
-//! ([`indirect_alike`]) become its *followers* ([`gather_followers`]): they drop
+//! ([`indirect_alike`]; the leader is [`photon_leader`]'s, as in
+//! [`GroupBuild`]) become its *followers* ([`gather_followers`]): they drop
 //! their builds (no photon maps, no refinement state of their own) and
 //! keep only their Whitted term. When the leader publishes its photon
 //! estimate and its final picture (not each refinement pass) each follower
@@ -43,11 +45,11 @@ use super::{Request, Shared, Stage, after_direct, after_whitted, finished, new_b
 use crate::Light;
 use crate::render::View;
 use crate::render::buffer::LightBuffer;
-use crate::render::build::{BuildError, Cancel, LightBuild, follower_sum, indirect_alike, shared_indirect};
-use crate::render::cells::{PathBounds, direct_together_at, whitted_together};
+use crate::render::build::{
+    BuildError, GroupBuild, LightBuild, NextStage, follower_sum, indirect_alike, photon_leader, shared_indirect,
+};
 use crate::render::footprint::DirectQuality;
-use crate::render::view::AaParams;
-use glam::Vec3;
+use crate::render::footprint::TileBounds;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, Weak};
@@ -58,11 +60,11 @@ use std::time::Instant;
 pub(super) struct Cells {
     /// Per light: the lights of its fixture (itself alone by default).
     groups: Mutex<Arc<Vec<Range<usize>>>>,
-    /// [`PathBounds`] of the current view (made at the first Whitted pass),
+    /// [`TileBounds`] of the current view (made at the first Whitted pass),
     /// with a `Weak` to its view: it keeps no view alive (the view cache
     /// lets a view's caches go when nothing holds it), and the `Weak` keeps
     /// the allocation, so a new view never matches an old one's address.
-    bounds: Mutex<Option<(Weak<View>, Arc<PathBounds>)>>,
+    bounds: Mutex<Option<(Weak<View>, Arc<TileBounds>)>>,
     /// Passes that built two cells or more.
     passes: AtomicU64,
     /// Light stages built in those passes.
@@ -111,14 +113,14 @@ impl Cells {
     }
 
     /// The path bounds of `view`, made once per view.
-    fn bounds(&self, view: &Arc<View>) -> Arc<PathBounds> {
+    fn bounds(&self, view: &Arc<View>) -> Arc<TileBounds> {
         let mut kept = self.bounds.lock().expect("bounds lock");
         if let Some((v, b)) = kept.as_ref()
             && std::ptr::eq(v.as_ptr(), Arc::as_ptr(view))
         {
             return b.clone();
         }
-        let b = Arc::new(PathBounds::build(view));
+        let b = Arc::new(TileBounds::paths(view));
         *kept = Some((Arc::downgrade(view), b.clone()));
         b
     }
@@ -155,11 +157,6 @@ fn batch_group(s: &Shared, index: usize) -> Option<Range<usize>> {
     (s.settings.batch_cells && group.len() >= 2).then_some(group)
 }
 
-/// True once every token of `cancels` fired: the pass stops.
-fn all_fired(cancels: &[Cancel]) -> bool {
-    cancels.iter().all(Cancel::fired)
-}
-
 /// The direct stage of light `index` together with every other cell of
 /// its fixture that has a request waiting at the same quality (full, or
 /// moving for cells in motion; every cell at moving quality with `rush`,
@@ -180,12 +177,12 @@ pub(super) fn direct_batch(s: &Shared, index: usize, rush: bool) -> bool {
         return false;
     }
     // Only the worker takes requests: each member's is still there.
-    let taken: Vec<(usize, Request, Instant, LightBuild)> = members
+    let mut taken: Vec<(usize, Request, Instant, Option<LightBuild>)> = members
         .into_iter()
         .filter_map(|j| {
             let (req, since, _) = take_request(s, j)?;
             let build = new_build(s, j, &req);
-            Some((j, req, since, build))
+            Some((j, req, since, Some(build)))
         })
         .collect();
     for (j, ..) in &taken {
@@ -194,23 +191,28 @@ pub(super) fn direct_batch(s: &Shared, index: usize, rush: bool) -> bool {
     let view = s.view();
     s.builds.fetch_add(taken.len() as u64, Ordering::SeqCst);
     s.cells.count(taken.len());
-    let lights: Vec<Light> = taken.iter().map(|t| t.1.light.clone()).collect();
-    let cancels: Vec<Cancel> = taken.iter().map(|t| t.3.cancel().clone()).collect();
     let quality = if moving { DirectQuality::Moving } else { DirectQuality::Full };
-    let result = s.pool.install(|| direct_together_at(&s.scene, &view, &lights, quality, &|| all_fired(&cancels)));
+    let builds = taken.iter_mut().filter_map(|t| t.3.take()).map(|b| b.with_direct_first(quality)).collect();
+    let mut group = GroupBuild::new(builds, false);
+    let bounds = s.cells.bounds(&view);
     // Every cell superseded (their newer requests wait) or shutdown.
-    let Some((buffers, _)) = result else { return true };
-    let bounds = view.tile_bounds();
-    for ((j, req, since, build), buffer) in taken.into_iter().zip(buffers) {
+    let Ok(steps) = s.pool.install(|| group.next(&s.scene, &view, &bounds)) else { return true };
+    let mut builds = group.into_builds();
+    for step in steps {
+        let (j, req, since, _) = &mut taken[step.member];
+        let Some(build) = builds[step.member].take() else {
+            if let Err(e) = &step.step {
+                report_bug(*j, e);
+            }
+            continue;
+        };
         if build.cancel().fired() {
             continue; // moved during the pass: its newer request is served next
         }
-        if let Err(e) = buffer.check() {
-            report_bug(j, &BuildError::from(e));
-            continue;
-        }
-        let share = bounds.tiles_in_beam(&req.light).len() as f32 / bounds.len().max(1) as f32;
-        after_direct(s, j, req, since, build, buffer, share);
+        let Ok(step) = step.step else { continue };
+        let share = step.footprint.map_or(0.0, |f| f.tiles_in_beam as f32 / f.tiles.max(1) as f32);
+        let req = Request { id: req.id, light: req.light.clone(), at: req.at };
+        after_direct(s, *j, req, *since, build, step.buffer, share);
     }
     true
 }
@@ -224,7 +226,7 @@ pub(super) fn whitted_batch(s: &Shared, index: usize) -> bool {
     let due = |j: usize| {
         let st = s.slots[j].state.lock().expect("slot lock");
         st.pending.is_none()
-            && st.build.as_ref().is_some_and(|(_, b, _)| !b.has_whitted())
+            && st.build.as_ref().is_some_and(|(_, b, _)| b.next_stage() == Some(NextStage::Whitted))
             && st.last_move.is_none_or(|t| now.duration_since(t) >= s.settings.settle)
     };
     if !due(index) {
@@ -248,24 +250,23 @@ pub(super) fn whitted_batch(s: &Shared, index: usize) -> bool {
     let view = s.view();
     let bounds = s.cells.bounds(&view);
     s.cells.count(taken.len());
-    let lights: Vec<Light> = taken.iter().map(|t| t.2.light().clone()).collect();
-    let cancels: Vec<Cancel> = taken.iter().map(|t| t.2.cancel().clone()).collect();
-    // The threshold `LightBuild::whitted` uses: the light's own relative gradient.
-    let aa = Some(AaParams::new(s.settings.build.aa_threshold));
-    let result = s.pool.install(|| whitted_together(&s.scene, &view, &bounds, &lights, aa, &|| all_fired(&cancels)));
-    let Some((built, _)) = result else { return true };
-    for ((j, id, build, at), (buffer, reshaded)) in taken.into_iter().zip(built) {
+    let ids: Vec<(usize, u64, Instant)> = taken.iter().map(|t| (t.0, t.1, t.3)).collect();
+    let mut group = GroupBuild::new(taken.into_iter().map(|t| t.2).collect(), false);
+    let Ok(steps) = s.pool.install(|| group.next(&s.scene, &view, &bounds)) else { return true };
+    let mut builds = group.into_builds();
+    for step in steps {
+        let (j, id, at) = ids[step.member];
+        let Some(build) = builds[step.member].take() else {
+            if let Err(e) = &step.step {
+                report_bug(j, e);
+            }
+            continue;
+        };
         if build.cancel().fired() {
             continue;
         }
-        if let Err(e) = buffer.check() {
-            report_bug(j, &BuildError::from(e));
-            continue;
-        }
-        // Its photons stage goes on from this Whitted term (without photons
-        // the build ends here and needs no copy of it).
-        let build = if build.has_photons() { build.with_whitted(&buffer, reshaded) } else { build };
-        after_whitted(s, j, id, build, buffer, at);
+        let Ok(step) = step.step else { continue };
+        after_whitted(s, j, id, build, step.buffer, at);
     }
     true
 }
@@ -315,13 +316,15 @@ impl Lead {
 /// Whitted term done, photons configured, neither leading nor following.
 fn photon_due<'a>(s: &Shared, j: usize, st: &'a super::SlotState, now: Instant) -> Option<&'a LightBuild> {
     let settled = st.last_move.is_none_or(|t| now.duration_since(t) >= s.settings.settle);
-    if st.pending.is_some() || st.follow.is_some() || st.lead.is_some() || st.refine.is_some() || !settled {
+    if st.pending.is_some() || st.follow.is_some() || st.lead.is_some() || !settled {
         return None;
     }
     st.build
         .as_ref()
         .filter(|(bid, b, _)| {
-            s.slots[j].latest.load(Ordering::SeqCst) == *bid && b.has_photons() && b.whitted_term().is_some()
+            s.slots[j].latest.load(Ordering::SeqCst) == *bid
+                && b.next_stage() == Some(NextStage::Photons)
+                && b.whitted_term().is_some()
         })
         .map(|(_, b, _)| b)
 }
@@ -334,7 +337,7 @@ fn photon_due<'a>(s: &Shared, j: usize, st: &'a super::SlotState, now: Instant) 
 /// led from its end: worst cell rel. MSE 8.1e-4; from its middle: 7.0e-4,
 /// and 1.8e-4 in the still, whose reference cells all refine). Otherwise
 /// `index` itself.
-pub(super) fn photon_leader(s: &Shared, index: usize) -> usize {
+pub(super) fn leader_of(s: &Shared, index: usize) -> usize {
     if !s.settings.share_indirect {
         return index;
     }
@@ -345,19 +348,12 @@ pub(super) fn photon_leader(s: &Shared, index: usize) -> usize {
         photon_due(s, j, &st, now).map(|b| b.light().clone())
     };
     let Some(me) = waiting(index) else { return index };
-    let cells: Vec<(usize, Vec3)> = group
-        .filter_map(|j| if j == index { Some(me.clone()) } else { waiting(j) }.map(|l| (j, l)))
-        .filter(|(_, l)| indirect_alike(l, &me))
-        .map(|(j, l)| (j, l.position))
-        .collect();
-    if cells.len() < 2 {
-        return index;
-    }
-    let centre = cells.iter().map(|c| c.1).sum::<Vec3>() / cells.len() as f32;
-    cells
-        .iter()
-        .min_by(|a, b| (a.1 - centre).length_squared().total_cmp(&(b.1 - centre).length_squared()))
-        .map_or(index, |c| c.0)
+    let cells: Vec<(usize, Light)> =
+        group.filter_map(|j| if j == index { Some(me.clone()) } else { waiting(j) }.map(|l| (j, l))).collect();
+    let lights: Vec<&Light> = cells.iter().map(|(_, l)| l).collect();
+    let first = cells.iter().position(|(j, _)| *j == index).unwrap_or(0);
+    let all: Vec<usize> = (0..cells.len()).collect();
+    cells[photon_leader(&lights, &all, first).0].0
 }
 
 /// Before light `index`'s photon stage (request `id`, its Whitted term in

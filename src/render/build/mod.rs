@@ -1,22 +1,30 @@
 //! [`LightBuild`]: the only place a light's unit-intensity buffer
-//! I_h,ε_i (Vierjahn 2010, eq. 5) is built, one method per stage.
-//! `footlight render`, the live tracer, the stress matrix and the bench all
-//! call it; the tracer only decides *which* light and *when*.
+//! I_h,ε_i (Vierjahn 2010, eq. 5) is built: a state machine whose
+//! [`LightBuild::next`] runs the next [`Stage`] and returns the buffer to
+//! publish. `footlight render`, the live tracer, the stress matrix and the
+//! bench are loops over `next()`; the tracer only decides *which* light
+//! advances and *when*.
 //!
 //! ```text
-//! LightBuild::new ─ direct() ─> D⁰ (primary surfaces only: a moving light is seen moving)
-//!                 ─ whitted() ─> D (eq. 1 recursion: mirrors, glass, adaptive AA, §3.4)
-//!                 ─ photons() ─> D + A (eq. 3: the light's own photon maps)
-//! LightBuild::new(..).with_maps(maps) ─ direct() ─ whitted() ─ photons():
-//!                   a new view of an unmoved light: the photon maps are
-//!                   reused, only the per-vertex estimates are redone
-//!                 ─ into_refinement() ─> Refinement::pass() ─> D + A_sppm, pass after pass
+//!            with_direct_first(q)                 settings.photons     refine_passes > 0
+//! new ──> [Direct(q)] ──> Whitted ──> Photons ──> Refining(1) ─ … ─> Ready
+//!          D⁰: primary      D: eq. 1    D + A:      D + A_sppm, pass
+//!          surfaces only    recursion,  eq. 3       after pass
+//!          (a moving light  mirrors,
+//!          is seen moving)  glass, AA
 //! ```
+//! Without photon settings the Whitted stage is `Ready`; without refinement
+//! the photon stage is. `with_maps(maps)` (a new view of an unmoved light)
+//! reuses the photon maps: only the per-vertex estimates are redone. The
+//! stage methods ([`LightBuild::direct`], [`LightBuild::whitted`],
+//! [`LightBuild::photons`], [`LightBuild::into_refinement`]) are the steps
+//! `next()` takes; tests call them one by one.
 //!
 //! Every stage returns the buffer to publish, or [`Cancelled`] when the
 //! build's [`Cancel`] token fired (a newer position of the same light, or
-//! shutdown). Stages can be called in order or skipped ahead: `photons()`
-//! runs `whitted()` first when it has not run.
+//! shutdown). A [`GroupBuild`] (a fixture's cells) is the same machine for
+//! several lights at once: its direct and Whitted stages are one pass over
+//! the cells' footprints, its photon stage is shared by the cells alike.
 
 use super::buffer::{BadValue, LightBuffer, TILE};
 use super::footprint::{DirectQuality, FootprintStats, primary_direct};
@@ -25,8 +33,64 @@ use super::view::{AaParams, View};
 use crate::fixture::Light;
 use crate::scene::Scene;
 use glam::Vec3;
+use serde::Serialize;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+pub mod group;
+pub mod together;
+
+pub use group::{GroupBuild, GroupError, GroupStep, photon_leader};
+
+/// How far a light's published buffer has got (the stage [`LightBuild::next`]
+/// just ran; the live status shows it per light).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Stage {
+    /// Nothing built yet.
+    Queued,
+    /// Direct light on directly seen surfaces (full or moving quality).
+    Direct,
+    /// Direct light with mirrors, glass and anti-aliasing.
+    Whitted,
+    /// Plus the first photon-mapped indirect estimate.
+    Photons,
+    /// Plus this many progressive refinement passes.
+    Refining(u32),
+    /// Finished (all stages, refinement done or not configured).
+    Ready,
+}
+
+/// The stage [`LightBuild::next`] runs next (what a scheduler orders by).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NextStage {
+    /// The direct stage at this quality ([`LightBuild::with_direct_first`]).
+    Direct(DirectQuality),
+    /// The Whitted stage.
+    Whitted,
+    /// The photon stage.
+    Photons,
+    /// A progressive refinement pass, or, after
+    /// [`LightBuild::give_up_refinement`], finishing a coarse start.
+    Refine,
+}
+
+/// What one [`LightBuild::next`] produced.
+pub struct Step {
+    /// The stage the buffer is at ([`Stage::Ready`]: the build ended with it).
+    pub stage: Stage,
+    /// The buffer to publish.
+    pub buffer: LightBuffer,
+    /// The direct stage's footprint figures (direct stages only).
+    pub footprint: Option<FootprintStats>,
+}
+
+/// Where a [`LightBuild`] stands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Phase {
+    Next(NextStage),
+    Ended,
+}
 
 /// Defaults of a light build, in one place (CLI flags and the daemon
 /// override them).
@@ -155,6 +219,10 @@ pub struct LightBuild {
     /// Refinement starts SPPM from the coarse estimate itself (no exact
     /// fill first); see [`LightBuild::with_refinement_from_coarse`].
     from_coarse: bool,
+    /// The stage [`LightBuild::next`] runs next.
+    phase: Phase,
+    /// Refinement state once the photon stage ran through `next()`.
+    refinement: Option<Refinement>,
 }
 
 impl LightBuild {
@@ -173,7 +241,111 @@ impl LightBuild {
             coarse: 0,
             exact: None,
             from_coarse: false,
+            phase: Phase::Next(NextStage::Whitted),
+            refinement: None,
         }
+    }
+
+    /// Starts with a direct stage at `quality` ([`LightBuild::direct`]: the
+    /// live tracer's first picture of a moved light); without it `next()`
+    /// starts at the Whitted stage (`footlight render`).
+    pub fn with_direct_first(mut self, quality: DirectQuality) -> Self {
+        self.phase = Phase::Next(NextStage::Direct(quality));
+        self
+    }
+
+    /// The stage [`LightBuild::next`] runs next; `None` once the build ended.
+    pub fn next_stage(&self) -> Option<NextStage> {
+        match self.phase {
+            Phase::Next(stage) => Some(stage),
+            Phase::Ended => None,
+        }
+    }
+
+    /// Runs the next stage ([`LightBuild::next_stage`]) and returns its
+    /// buffer with the stage it is at; `Ok(None)` once the build has ended,
+    /// or when a refinement given up had nothing left to finish (the last
+    /// buffer returned stays the final one). A cancelled or failed stage
+    /// leaves the build where it was.
+    pub fn next(&mut self, scene: &Scene, view: &View) -> Result<Option<Step>, BuildError> {
+        let Phase::Next(stage) = self.phase else { return Ok(None) };
+        let step = |stage, buffer| Ok(Some(Step { stage, buffer, footprint: None }));
+        match stage {
+            NextStage::Direct(quality) => {
+                let (buffer, stats) = self.direct(scene, view, quality)?;
+                Ok(Some(Step { stage: Stage::Direct, buffer, footprint: Some(stats) }))
+            }
+            NextStage::Whitted => {
+                let buffer = self.whitted(scene, view)?;
+                step(if self.has_photons() { Stage::Whitted } else { Stage::Ready }, buffer)
+            }
+            NextStage::Photons => {
+                let buffer = self.photons(scene, view)?;
+                self.refinement = self.start_refinement(scene, view);
+                self.phase = if self.refinement.is_some() { Phase::Next(NextStage::Refine) } else { Phase::Ended };
+                step(if self.refinement.is_some() { Stage::Photons } else { Stage::Ready }, buffer)
+            }
+            NextStage::Refine => {
+                let Some(refine) = self.refinement.as_mut() else {
+                    self.phase = Phase::Ended;
+                    return Ok(None);
+                };
+                if refine.finishing() {
+                    let last = refine.exact_start(scene, view)?;
+                    self.end();
+                    return last.map_or(Ok(None), |buffer| step(Stage::Ready, buffer));
+                }
+                let buffer = refine.pass(scene, view)?;
+                if refine.finished() {
+                    self.end();
+                    return step(Stage::Ready, buffer);
+                }
+                let done = refine.done();
+                step(Stage::Refining(done), buffer)
+            }
+        }
+    }
+
+    /// Runs every remaining stage; the last buffer (`None` if none was left
+    /// to build).
+    pub fn run_to_end(&mut self, scene: &Scene, view: &View) -> Result<Option<LightBuffer>, BuildError> {
+        let mut last = None;
+        while let Some(step) = self.next(scene, view)? {
+            last = Some(step.buffer);
+        }
+        Ok(last)
+    }
+
+    /// Progressive passes done so far.
+    pub fn refined(&self) -> u32 {
+        self.refinement.as_ref().map_or(0, Refinement::done)
+    }
+
+    /// True while refinement passes are to come (not given up).
+    pub fn refining(&self) -> bool {
+        self.phase == Phase::Next(NextStage::Refine) && self.refinement.as_ref().is_some_and(|r| !r.finishing())
+    }
+
+    /// Gives refinement up (a tracer holding refinement state for too many
+    /// lights): true when a coarse photon-map start is still to finish
+    /// ([`Refinement::exact_start`], the next `next()`), false when the
+    /// build has ended at its last buffer.
+    pub fn give_up_refinement(&mut self) -> bool {
+        match self.refinement.as_mut() {
+            Some(r) if self.phase == Phase::Next(NextStage::Refine) && r.has_coarse_start() => {
+                r.finish_only();
+                true
+            }
+            _ => {
+                self.end();
+                false
+            }
+        }
+    }
+
+    fn end(&mut self) {
+        self.phase = Phase::Ended;
+        self.refinement = None;
     }
 
     /// With [`LightBuild::with_coarse_indirect`]: the first SPPM pass blends
@@ -235,11 +407,7 @@ impl LightBuild {
         self.direct.as_ref().map_or(0, LightBuffer::bytes)
             + self.start.as_ref().map_or(0, |s| s.len() * std::mem::size_of::<Vec3>())
             + self.exact.as_ref().map_or(0, Vec::len)
-    }
-
-    /// True once the Whitted stage has run.
-    pub fn has_whitted(&self) -> bool {
-        self.direct.is_some()
+            + self.refinement.as_ref().map_or(0, Refinement::bytes)
     }
 
     /// The light being built.
@@ -279,6 +447,7 @@ impl LightBuild {
         let (buffer, stats) = primary_direct(scene, view, view.tile_bounds(), &self.light, quality);
         self.cancel.check()?;
         buffer.check()?;
+        self.direct_done();
         Ok((buffer, stats))
     }
 
@@ -295,6 +464,7 @@ impl LightBuild {
         self.reshaded = reshaded;
         let buffer = Self::finish(view, &dense)?;
         self.direct = Some(buffer.clone());
+        self.after_whitted();
         Ok(buffer)
     }
 
@@ -305,13 +475,36 @@ impl LightBuild {
     }
 
     /// Hands in a Whitted stage built elsewhere for this same light and view
-    /// (the lights built together by [`super::cells::whitted_together`]):
+    /// (the lights built together by [`together::whitted_together`]):
     /// [`LightBuild::photons`] then goes on from it as if
     /// [`LightBuild::whitted`] had run.
     pub fn with_whitted(mut self, buffer: &LightBuffer, reshaded: usize) -> Self {
+        self.set_whitted(buffer, reshaded);
+        self
+    }
+
+    /// [`LightBuild::with_whitted`] in place.
+    pub fn set_whitted(&mut self, buffer: &LightBuffer, reshaded: usize) {
         self.direct = Some(buffer.clone());
         self.reshaded = reshaded;
-        self
+        self.after_whitted();
+    }
+
+    /// A direct stage built elsewhere for this light ([`together`]): the
+    /// build goes on at its Whitted stage.
+    pub fn direct_done(&mut self) {
+        if matches!(self.phase, Phase::Next(NextStage::Direct(_))) {
+            self.phase = Phase::Next(NextStage::Whitted);
+        }
+    }
+
+    /// The anti-aliasing threshold of its Whitted stage.
+    pub fn aa_threshold(&self) -> f32 {
+        self.settings.aa_threshold
+    }
+
+    fn after_whitted(&mut self) {
+        self.phase = if self.has_photons() { Phase::Next(NextStage::Photons) } else { Phase::Ended };
     }
 
     /// Stage 3: direct plus the photon-mapped indirect term (eq. 3, 5:
@@ -322,7 +515,10 @@ impl LightBuild {
             self.whitted(scene, view)?;
         }
         let Some(direct) = self.direct.as_ref() else { return Err(Cancelled.into()) };
-        let Some(photons) = self.settings.photons else { return Ok(direct.clone()) };
+        let Some(photons) = self.settings.photons else {
+            self.phase = Phase::Ended;
+            return Ok(direct.clone());
+        };
         self.cancel.check()?;
         let cancel = &self.cancel;
         let stop = || cancel.fired();
@@ -349,6 +545,8 @@ impl LightBuild {
         let sum = plus_dense(direct, &indirect);
         self.maps = Some(maps);
         self.start = Some(at_vertices);
+        // `next()` goes on to refinement from here; called alone, the stage ends the build.
+        self.phase = Phase::Ended;
         Self::finish(view, &sum)
     }
 
@@ -434,20 +632,28 @@ impl LightBuild {
 
     /// Stage 4 state: progressive photon mapping (SPPM) from the photon
     /// maps, `None` when there is nothing to refine.
-    pub fn into_refinement(self, scene: &Scene, view: &View) -> Option<Refinement> {
+    pub fn into_refinement(mut self, scene: &Scene, view: &View) -> Option<Refinement> {
+        self.start_refinement(scene, view)
+    }
+
+    /// [`LightBuild::into_refinement`] in place: the Whitted term and the
+    /// per-vertex start move into the refinement (the photon maps stay
+    /// shared with [`LightBuild::shared_maps`]).
+    fn start_refinement(&mut self, scene: &Scene, view: &View) -> Option<Refinement> {
         if !self.will_refine() || self.cancel.fired() {
             return None;
         }
-        let (maps, direct) = (self.maps?, self.direct?);
+        let (maps, direct) = (self.maps.clone()?, self.direct.take()?);
         let mut refinement = Refinement {
-            light: self.light,
+            light: self.light.clone(),
             direct,
             sppm: None,
             pending: None,
             passes: self.settings.refine_passes,
-            cancel: self.cancel,
+            cancel: self.cancel.clone(),
         };
-        if let (Some(start), Some(exact)) = (self.start.clone(), self.exact) {
+        let start = self.start.take();
+        if let (Some(start), Some(exact)) = (start.clone(), self.exact.take()) {
             // A coarse start: finished by the first pass (not here: the
             // tracer serves the other lights' stages first), or blended with
             // it as it is.
@@ -461,7 +667,7 @@ impl LightBuild {
         // Never worse than the picture on screen: the passes are blended with
         // the photon-map estimate just shown, weighted by photon counts.
         let mut sppm = Progressive::new(scene, view, &maps);
-        if let Some(start) = self.start {
+        if let Some(start) = start {
             sppm = sppm.starting_from(start, maps.settings.estimate as f32);
         }
         refinement.sppm = Some(sppm);

@@ -5,102 +5,32 @@
 //! frame (the bench measured 36 ms per cell at 800×500).
 //!
 //! [`whitted_together`] builds a set of lights in one pass: the tiles of
-//! the picture are bounded once ([`PathBounds`]: every camera-path vertex
+//! the picture are bounded once ([`TileBounds`]: every camera-path vertex
 //! of a tile, mirrors and glass included, in one sphere), each light keeps
 //! the tiles its cone reaches, and one parallel pass over the **union** of
 //! those tiles evaluates, at every vertex, the direct light of each light
-//! whose cone reaches the tile ([`super::whitted::direct`]: its own shadow
+//! whose cone reaches the tile ([`crate::render::whitted::direct`]: its own shadow
 //! ray). Each light then gets the same adaptive anti-aliasing as alone
 //! ([`View::reshade`] of the pixels its own relative gradient flags, §3.4),
 //! decided on a window around its lit tiles instead of the whole frame, and
 //! is stored in its own tile-sparse [`LightBuffer`]: eq. 5 is unchanged.
 //!
-//! The result equals [`super::build::LightBuild::whitted`] of each light
+//! The result equals [`super::LightBuild::whitted`] of each light
 //! alone (same vertices, same sums in the same order; a culled tile is one
 //! where every term is zero): `tests/pixels.rs` checks it to 1e-6, and
 //! `footlight bench --pixels-only` times both.
 
-use super::buffer::{LightBuffer, TILE};
-use super::footprint::DirectQuality;
-use super::view::{
+use crate::fixture::Light;
+use crate::render::buffer::{LightBuffer, TILE};
+use crate::render::footprint::{DirectQuality, TileBounds};
+use crate::render::view::{
     AA_REFERENCE_PERCENTILE, AaParams, LitWindow, Reshading, Sampling, View, facing_corners, mark_highlights_into,
     mark_pairs_into,
 };
-use super::whitted::direct;
-use crate::fixture::Light;
+use crate::render::whitted::direct;
 use crate::scene::Scene;
 use glam::Vec3;
 use rayon::prelude::*;
-
-/// Bounding sphere of **every** camera-path vertex (any depth: seen
-/// directly, through mirrors or through glass) of each 16×16 tile of a
-/// view. Unlike [`super::footprint::TileBounds`] (depth-0 vertices only,
-/// for the direct stage) it bounds what the Whitted stage shades. Built
-/// once per view and kept by the caller.
-pub struct PathBounds {
-    tiles_x: usize,
-    /// Per tile: centre and radius, or `None` when no vertex is in it.
-    spheres: Vec<Option<(Vec3, f32)>>,
-    /// A tile holds a vertex at a non-finite position: never culled.
-    unbounded: Vec<bool>,
-}
-
-impl PathBounds {
-    /// Bounds of `view`'s shading vertices, tile by tile.
-    pub fn build(view: &View) -> Self {
-        let (w, h) = (view.width() as usize, view.height() as usize);
-        let (tiles_x, tiles_y) = (w.div_ceil(TILE), h.div_ceil(TILE));
-        let (spheres, unbounded) = (0..tiles_x * tiles_y)
-            .into_par_iter()
-            .map(|t| {
-                let (tx, ty) = (t % tiles_x, t / tiles_x);
-                let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-                let mut bad = false;
-                for y in ty * TILE..((ty + 1) * TILE).min(h) {
-                    for x in tx * TILE..((tx + 1) * TILE).min(w) {
-                        for v in view.shading.pixel(y * w + x) {
-                            if v.position.is_finite() {
-                                lo = lo.min(v.position);
-                                hi = hi.max(v.position);
-                            } else {
-                                bad = true;
-                            }
-                        }
-                    }
-                }
-                ((lo.x <= hi.x).then(|| ((lo + hi) * 0.5, (hi - lo).length() * 0.5)), bad)
-            })
-            .unzip();
-        Self { tiles_x, spheres, unbounded }
-    }
-
-    /// Number of tiles.
-    pub fn len(&self) -> usize {
-        self.spheres.len()
-    }
-
-    /// True for an empty view.
-    pub fn is_empty(&self) -> bool {
-        self.spheres.is_empty()
-    }
-
-    /// Tiles with a vertex that may lie inside `light`'s cone (half-angle
-    /// `acos(cos_cutoff)`, where its pattern is zero beyond). Conservative:
-    /// a tile is left out only when its sphere lies wholly outside the cone.
-    pub fn tiles_in_beam(&self, light: &Light) -> Vec<usize> {
-        let axis = light.axis();
-        let cutoff = light.beam.cos_cutoff().clamp(-1.0, 1.0).acos();
-        (0..self.spheres.len())
-            .filter(|&t| {
-                if self.unbounded[t] {
-                    return true;
-                }
-                let Some((centre, radius)) = self.spheres[t] else { return false };
-                super::footprint::sphere_may_meet_cone(centre, radius, light.position, axis, cutoff)
-            })
-            .collect()
-    }
-}
 
 /// What [`whitted_together`] did, for the bench.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -119,13 +49,13 @@ pub struct TogetherStats {
 /// of every light of `lights`, built together: one pass over the union of
 /// their footprints, every vertex evaluating each light's direct light (one
 /// shadow ray per light), each light in its own unit buffer (eq. 5).
-/// Equal to [`super::build::LightBuild::whitted`] of each light alone.
-/// `bounds` must be [`PathBounds::build`] of `view`. Returns `None` once
+/// Equal to [`super::LightBuild::whitted`] of each light alone.
+/// `bounds` must be [`TileBounds::paths`] of `view`. Returns `None` once
 /// `stop` returns true (checked per tile and per light).
 pub fn whitted_together(
     scene: &Scene,
     view: &View,
-    bounds: &PathBounds,
+    bounds: &TileBounds,
     lights: &[Light],
     aa: Option<AaParams>,
     stop: &(dyn Fn() -> bool + Sync),
@@ -157,8 +87,8 @@ pub fn whitted_together(
     Some((out, stats))
 }
 
-/// The direct stage ([`super::footprint::primary_direct`] at
-/// [`super::footprint::DirectQuality::Full`]: directly seen surfaces only,
+/// The direct stage ([`crate::render::footprint::primary_direct`] at
+/// [`crate::render::footprint::DirectQuality::Full`]: directly seen surfaces only,
 /// no anti-aliasing) of every light of `lights`, built together over the
 /// union of their footprints ([`View::tile_bounds`]); equal to each light's
 /// own direct stage. `None` once `stop` returns true.
@@ -173,7 +103,7 @@ pub fn direct_together(
 
 /// [`direct_together`] at `quality`: with [`DirectQuality::Moving`] (lights
 /// in motion) one pixel per 2×2 block is shaded and repeated over the
-/// block, as [`super::footprint::primary_direct`] does for one light; equal
+/// block, as [`crate::render::footprint::primary_direct`] does for one light; equal
 /// to each light's own direct stage at that quality.
 pub fn direct_together_at(
     scene: &Scene,
