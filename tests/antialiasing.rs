@@ -223,8 +223,10 @@ fn reshaded_pixels_equal_nine_samples_in_a_lambert_scene() {
     use footlight::render::view::SampleSet;
     let (scene, light, cam) = floor_and_block();
     let v = view(&scene, cam, 160, 100, Sampling::Adaptive, 5);
-    // All 9 samples where the probed corners disagree (no reconstruction).
-    let aa = AaParams { reconstruct: false, ..AaParams::new(20.0) };
+    // The shipped rule: a one-bin pixel whose probed corners disagree is
+    // reconstructed from them and its base (`Reshading::reconstruct`), a
+    // pixel of several bins takes all 9 samples.
+    let aa = AaParams::new(20.0);
     let (base, _) = v.render_direct(&scene, &light, None);
     let flags = v.gradient_flags(&scene, &base, aa);
     let (adaptive, n) = v.render_direct(&scene, &light, Some(aa));
@@ -234,22 +236,20 @@ fn reshaded_pixels_equal_nine_samples_in_a_lambert_scene() {
     let binned = render_eq1(&scene, &v.gbuffer, &lights, &[Vec3::ONE], SampleSet::Binned, limits);
     assert!(n > 50 && n < base.len() / 4, "{n} pixels re-shaded");
     let corners = CornerProbes::new(&scene, &v, &lights, limits, &base, aa);
-    let (changed, kept) = check_reshaded(&adaptive, &base, &flags, &[], &nine, &binned, &corners);
-    assert!(changed > 20 && kept > 0, "{changed} pixels took 9 samples, {kept} kept their base at the corners");
-    // The shipped rule: a one-bin pixel whose probed corners disagree is
-    // reconstructed from them and its base (`Reshading::reconstruct`), a
-    // pixel of several bins takes all 9 samples.
-    let aa = AaParams::new(20.0);
-    let (adaptive, _) = v.render_direct(&scene, &light, Some(aa));
-    let corners = CornerProbes::new(&scene, &v, &lights, limits, &base, aa);
     let rebuilt = (0..base.len()).filter(|&i| corners.reconstruct[i] && flags[i]).count();
+    let several = (0..base.len()).filter(|&i| !corners.reconstruct[i] && flags[i]).count();
     let (changed, kept) = check_reshaded(&adaptive, &base, &flags, &[], &nine, &binned, &corners);
     assert!(changed > 20 && kept > 0 && rebuilt > 20, "{changed} changed, {kept} kept, {rebuilt} one-bin pixels");
-    // Round 4's whole re-shading: every marked pixel is the 9-sample render.
-    let whole = AaParams { corners_first: false, ..aa };
-    let (adaptive, _) = v.render_direct(&scene, &light, Some(whole));
+    assert!(several > 0, "some marked pixels hold several bins");
+    // The whole re-shade (what a highlight pixel takes): every marked pixel
+    // listed as whole is the 9-sample render.
+    let mut decision = v.aa_decision(&scene, &light, &base, aa);
+    assert_eq!(decision.flags, flags, "no highlight pixels in a Lambert scene");
     let every = (0..base.len()).filter(|&i| flags[i]).collect::<Vec<_>>();
-    assert_eq!(check_reshaded(&adaptive, &base, &flags, &every, &nine, &binned, &corners).1, 0);
+    decision.highlights = every.clone();
+    let mut whole = base.clone();
+    assert_eq!(v.reshade(&scene, &light, &mut whole, decision.reshading()), n);
+    assert_eq!(check_reshaded(&whole, &base, &flags, &every, &nine, &binned, &corners).1, 0);
 }
 
 /// Each pixel's 4 corner samples ([`corner_renders`]) and which of them it
@@ -258,7 +258,7 @@ struct CornerProbes {
     values: Vec<Vec<Vec3>>,
     facing: Vec<u8>,
     /// Pixels reconstructed from their probed corners when these disagree
-    /// (`AaParams::reconstruct` and one bin of all 9 samples).
+    /// (one bin of all 9 samples).
     reconstruct: Vec<bool>,
 }
 
@@ -272,8 +272,8 @@ impl CornerProbes {
         aa: AaParams,
     ) -> Self {
         let facing = facing_masks(&v.gradient_pairs(scene, base, aa), base.len());
-        let reconstruct =
-            (0..base.len()).map(|i| aa.reconstruct && matches!(v.gbuffer.bins(i), [b] if b.weight >= 1.0)).collect();
+        // The renderer reconstructs every one-bin pixel (`AaParams::new`).
+        let reconstruct = (0..base.len()).map(|i| matches!(v.gbuffer.bins(i), [b] if b.weight >= 1.0)).collect();
         Self { values: corner_renders(scene, &v.gbuffer, lights, limits), facing, reconstruct }
     }
 
@@ -592,10 +592,14 @@ fn reshaded_samples_take_their_weak_branches_from_the_base() {
     use footlight::render::view::{RESHADE_MIN_BRANCH, SampleSet};
     let (scene, light, cam) = floor_behind_glass();
     let v = view(&scene, cam, 160, 100, Sampling::Adaptive, 5);
-    let aa = AaParams { corners_first: false, ..AaParams::new(20.0) };
+    let aa = AaParams::new(20.0);
     let (base, _) = v.render_direct(&scene, &light, None);
-    let flags = v.aa_flags(&scene, &light, &base, aa);
-    let (adaptive, n) = v.render_direct(&scene, &light, Some(aa));
+    // Every marked pixel re-shaded whole, as a highlight pixel is.
+    let mut decision = v.aa_decision(&scene, &light, &base, aa);
+    let flags = decision.flags.clone();
+    let highlights = std::mem::replace(&mut decision.highlights, (0..base.len()).filter(|&i| flags[i]).collect());
+    let mut adaptive = base.clone();
+    let n = v.reshade(&scene, &light, &mut adaptive, decision.reshading());
     let lights = [light.clone()];
     let eq1 = |set, min_weight| {
         render_eq1(&scene, &v.gbuffer, &lights, &[Vec3::ONE], set, RecursionLimits { max_depth: 5, min_weight })
@@ -606,34 +610,23 @@ fn reshaded_samples_take_their_weak_branches_from_the_base() {
     let binned_strong = eq1(SampleSet::Binned, RESHADE_MIN_BRANCH);
     let scale = nine.iter().map(|x| x.max_element()).fold(0.0f32, f32::max);
     let near = |a: Vec3, b: Vec3| (a - b).abs().max_element() <= 1e-5 * scale;
-    // Corners first, else all 9 samples: each marked pixel keeps its base
-    // or takes the same value as when re-shaded whole.
-    let first = AaParams { reconstruct: false, ..AaParams::new(20.0) };
-    let (corners_first, _) = v.render_direct(&scene, &light, Some(first));
     // The shipped rule: a one-bin pixel whose probed corners disagree is
     // rebuilt from its base's strong part and its corners cut at the same
-    // weight, plus the base's weak part.
-    let shipped_aa = AaParams::new(20.0);
-    let (shipped, _) = v.render_direct(&scene, &light, Some(shipped_aa));
-    let highlights = v.aa_decision(&scene, &light, &base, shipped_aa).highlights;
+    // weight, plus the base's weak part; a pixel of several bins whose
+    // corners disagree takes the same value as when re-shaded whole.
+    let (shipped, _) = v.render_direct(&scene, &light, Some(aa));
     let strong = RecursionLimits { max_depth: 5, min_weight: RESHADE_MIN_BRANCH / 9.0 };
-    let probes = CornerProbes::new(&scene, &v, &lights, strong, &base, shipped_aa);
-    let (mut pruned, mut weak_lit, mut differs, mut probed, mut rebuilt) = (0, 0, 0, 0, 0);
+    let probes = CornerProbes::new(&scene, &v, &lights, strong, &base, aa);
+    let (mut pruned, mut weak_lit, mut differs, mut rebuilt) = (0, 0, 0, 0);
     for i in (0..base.len()).filter(|&i| flags[i]) {
         let one_bin = matches!(v.gbuffer.bins(i), [b] if b.weight >= 1.0);
         let weak = binned[i] - binned_strong[i];
         let expected = if one_bin { nine_strong[i] + weak } else { nine[i] };
         assert!(near(adaptive[i], expected), "pixel {i} (one bin: {one_bin}): {} vs {expected}", adaptive[i]);
-        assert!(
-            corners_first[i] == base[i] || near(corners_first[i], expected),
-            "pixel {i}: {} corners first",
-            corners_first[i]
-        );
         let grid =
             if one_bin && !highlights.contains(&i) { probes.rebuilt(i, base[i] - weak) + weak } else { expected };
         assert!(shipped[i] == base[i] || near(shipped[i], grid), "pixel {i}: {} vs rebuilt {grid}", shipped[i]);
         rebuilt += usize::from(one_bin && shipped[i] != base[i] && !near(grid, expected));
-        probed += usize::from(one_bin && corners_first[i] != base[i] && !near(expected, nine[i]));
         if one_bin && nine_strong[i] != nine[i] {
             pruned += 1;
             weak_lit += usize::from((binned[i] - binned_strong[i]).max_element() > 1e-3 * scale);
@@ -645,6 +638,5 @@ fn reshaded_samples_take_their_weak_branches_from_the_base() {
         pruned > 20 && weak_lit > 20 && differs > 5,
         "{pruned} pruned, {weak_lit} with lit weak branches, {differs} off 9 samples"
     );
-    assert!(probed > 5, "{probed} pruned pixels re-shaded after their corners");
     assert!(rebuilt > 5, "{rebuilt} pixels rebuilt from their corners, off their 9 samples");
 }

@@ -31,8 +31,6 @@ pub struct AccuracyReport {
     pub size: (u32, u32),
     /// AA cost and error per sampling variant.
     pub aa: Vec<sweeps::AaCostRow>,
-    /// Where the adaptive cost goes, before and after.
-    pub breakdowns: Vec<(String, sweeps::AaBreakdown)>,
     /// The whole picture's error (direct + indirect) with and without bins.
     pub picture: Vec<sweeps::AaPictureRow>,
     /// Interleaved rounds behind each AA time ([`sweeps::aa_rounds`]).
@@ -368,37 +366,13 @@ pub fn run(
     let limits = RecursionLimits::default();
     let threshold = crate::render::RenderSettings::default().aa_threshold;
     let gbuffer = GBuffer::build(scene, camera, size.0, size.1);
-    let (mut aa, mut breakdowns, mut picture) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut aa, mut picture) = (Vec::new(), Vec::new());
     let (mut gbuffer_ms, mut highlight_bounds) = (None, None);
     if wants(Part::Aa) {
         gbuffer_ms = Some(super::time_ms(3, || GBuffer::build(scene, camera, size.0, size.1)).0);
         let (ms, n) = super::time_ms(3, || gbuffer.find_highlight_bounds(scene));
         highlight_bounds = Some((ms, n));
         aa = sweeps::aa_cost(scene, &gbuffer, light, k_full, &display, limits, threshold, repeats);
-        use crate::render::SampleSet;
-        use sweeps::Decision;
-        let bd = |set, d| sweeps::aa_breakdown_with(scene, &gbuffer, light, limits, repeats, set, d);
-        breakdowns.push((
-            format!(
-                "before (R: triangle-ID bins, round 4's decision and 3×3 marks, threshold {})",
-                sweeps::ROUND4_THRESHOLD
-            ),
-            bd(SampleSet::TriangleBins, Decision::Round4(sweeps::ROUND4_THRESHOLD)),
-        ));
-        breakdowns.push((
-            format!("round 4 (surface bins, round 4's decision and 3×3 marks, threshold {})", sweeps::ROUND4_THRESHOLD),
-            bd(SampleSet::Binned, Decision::Round4(sweeps::ROUND4_THRESHOLD)),
-        ));
-        breakdowns.push((
-            format!(
-                "after (surface bins, one pass over the pairs, pair marks + highlight pixels, threshold {threshold})"
-            ),
-            bd(SampleSet::Binned, Decision::Now(crate::render::AaParams::new(threshold))),
-        ));
-        breakdowns.push((
-            format!("no bins (1 sample, every pair re-shaded with 9 samples, pair marks + highlight pixels, threshold {threshold})"),
-            bd(SampleSet::Centre, Decision::Now(crate::render::AaParams::new(threshold))),
-        ));
         picture = sweeps::aa_picture(scene, &gbuffer, light, k_full, &display, limits, threshold);
     }
     let reference_passes = if size.0 < 400 { 16 } else { 48 };
@@ -425,7 +399,6 @@ pub fn run(
     Ok(AccuracyReport {
         size,
         aa,
-        breakdowns,
         picture,
         aa_rounds: sweeps::aa_rounds(repeats),
         gbuffer_ms,
@@ -481,9 +454,6 @@ impl AccuracyReport {
                  bounds, {g:.1} ms; of it the highlight bounds of the {n} pixels that see a sharp specular surface \
                  {b:.1} ms.\n"
             );
-        }
-        for (label, b) in &self.breakdowns {
-            s += &b.sentence(label);
         }
         if !self.picture.is_empty() {
             s += "\nThe whole picture of the light (direct + indirect, the same photon maps, paper's settings) against \

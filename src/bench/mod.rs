@@ -114,8 +114,6 @@ pub struct Report {
     /// Issue 13.5: the anti-aliasing decision before (displayed value) and
     /// after (light-relative gradient): cost, error, re-shaded share.
     pub aa_rules: Vec<sweeps::AaRule>,
-    /// Where adaptive AA's cost goes: steps as % of 1-sample illumination.
-    pub aa_breakdown: sweeps::AaBreakdown,
     /// Indirect term at the paper's settings vs path tracing: relative MSE,
     /// variance and bias by region, before/after the edge clipping.
     pub indirect: Vec<indirect::IndirectRow>,
@@ -262,7 +260,6 @@ impl Report {
             );
         }
         s += "| paper (adaptive) | 119 | 0.006 | 0.004 | 0.0004 | |\n";
-        s += &self.aa_breakdown.sentence("fresh view");
         s += "\n## Indirect term at the paper's settings vs path tracing (issue 13)\n\n";
         s += &indirect::markdown(&self.indirect);
         let p = &self.photons;
@@ -786,7 +783,6 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         .fold(0.0, f64::max);
 
     let aa_rules = sweeps::aa_rules(scene, &gbuffer, light, k_full, &display, cfg.limits, cfg.aa_threshold, n);
-    let aa_breakdown = sweeps::aa_breakdown(scene, &gbuffer, light, cfg.limits, cfg.aa_threshold, n);
     progress.set_message("indirect error vs path tracing");
     let indirect = {
         let paper = crate::render::photon::PhotonSettings::default();
@@ -911,7 +907,6 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
         mse_vs_nine,
         adaptive_reshaded_share,
         aa_rules,
-        aa_breakdown,
         indirect,
         linearity_max_rel_error,
         photons,

@@ -297,7 +297,7 @@ pub fn aa_rules(
                 let (mut dense, _) = v.render_direct(scene, light, None);
                 let f = flags(&v, &dense);
                 // Every rule of this table re-shades its pixels whole (as
-                // round 4 did), so the rows differ only in the decision.
+                // the rule before issue 13 did), so the rows differ only in the decision.
                 let how = crate::render::view::Reshading {
                     flags: &f,
                     whole: &[],
@@ -329,234 +329,6 @@ pub fn aa_rules(
     });
     measure("geometry bins only (no re-shading)".into(), &|_, _| vec![false; w * h]);
     out
-}
-
-/// Where adaptive anti-aliasing's cost goes (issue 13.5), for one light on
-/// a fresh view: each step's time as a share of 1-sample expansion +
-/// shading, and the counts behind it.
-#[derive(Clone, Debug, Serialize)]
-pub struct AaBreakdown {
-    /// 1-sample expansion + shading, ms (the 100 %).
-    pub one_sample_ms: f64,
-    /// Camera-path expansion of the base (binned) set, % of one sample.
-    pub expand_percent: f64,
-    /// Shading the base set, %.
-    pub shade_percent: f64,
-    /// The gradient decision (reference level, sRGB, neighbours), %.
-    pub decide_percent: f64,
-    /// Re-shading the flagged pixels with 9 samples (expansion + shading), %.
-    pub reshade_percent: f64,
-    /// Shading vertices of the 1-sample set.
-    pub one_sample_vertices: usize,
-    /// Shading vertices of the base set.
-    pub base_vertices: usize,
-    /// Share of pixels whose base set holds more than one bin.
-    pub multi_bin_share: f64,
-    /// Share of pixels re-shaded.
-    pub reshaded_share: f64,
-    /// 1-sample shading alone (its view built outside the timer), ms.
-    pub one_shade_ms: f64,
-    /// Per light with the camera's paths shared (the view is built once
-    /// per camera for every light): base shading + decision + re-shading
-    /// over 1-sample shading, %.
-    pub per_light_percent: f64,
-    /// Share of pixels the light reaches in the 1-sample pass (non-zero).
-    pub lit_share: f64,
-    /// Time of one re-shaded sample (its expansion and shading) over the
-    /// time of one average pixel of the 1-sample pass: what bounds the
-    /// cost of re-shading from below (see `docs/rendering.md`).
-    pub sample_cost_ratio: f64,
-}
-
-impl AaBreakdown {
-    /// One Markdown sentence: where the cost goes, for the run named `label`.
-    pub fn sentence(&self, label: &str) -> String {
-        format!(
-            "\nWhere the adaptive cost goes, {label} (% of 1-sample expansion + shading = {:.1} ms): expansion {:.0} %, \
-             shading {:.0} %, gradient decision {:.0} %, 9-sample re-shading {:.0} %. Vertices: {} (1 sample) vs {} \
-             (base); {:.1} % of pixels hold more than one bin, {:.2} % re-shaded. Per light, the camera's paths \
-             shared by every light (built once per view): shading + decision + re-shading = {:.0} % of 1-sample \
-             shading ({:.1} ms). The light reaches {:.1} % of the 1-sample pixels; one re-shaded sample costs {:.1}× \
-             an average 1-sample pixel.\n",
-            self.one_sample_ms,
-            self.expand_percent,
-            self.shade_percent,
-            self.decide_percent,
-            self.reshade_percent,
-            self.one_sample_vertices,
-            self.base_vertices,
-            self.multi_bin_share * 100.0,
-            self.reshaded_share * 100.0,
-            self.per_light_percent,
-            self.one_shade_ms,
-            self.lit_share * 100.0,
-            self.sample_cost_ratio
-        )
-    }
-}
-
-/// Times each step of adaptive anti-aliasing for `light` over `gbuffer`
-/// (the renderer's decision, [`View::aa_flags`]).
-pub fn aa_breakdown(
-    scene: &Scene,
-    gbuffer: &GBuffer,
-    light: &Light,
-    limits: RecursionLimits,
-    threshold: f32,
-    repeats: usize,
-) -> AaBreakdown {
-    aa_breakdown_with(
-        scene,
-        gbuffer,
-        light,
-        limits,
-        repeats,
-        crate::render::SampleSet::Binned,
-        Decision::Now(AaParams::new(threshold)),
-    )
-}
-
-/// The anti-aliasing decision a breakdown times.
-#[derive(Clone, Copy, Debug)]
-pub enum Decision {
-    /// Round 4's implementation ([`round4_gradient_flags`]) at this threshold.
-    Round4(f32),
-    /// Today's [`View::aa_flags`] with these parameters.
-    Now(AaParams),
-}
-
-/// Round 4's decision, kept as the bench's "before" (the same pixels as
-/// [`View::gradient_flags`] with [`AaParams::round4`], the old way): the
-/// reference level by selecting among a copy of every lit value, the
-/// relative display values as a float buffer, every pixel's 4 neighbour
-/// pairs tested (each pair twice), then a 3×3 dilation pass over the image.
-pub fn round4_gradient_flags(view: &View, scene: &Scene, dense: &[Vec3], threshold: f32) -> Vec<bool> {
-    use crate::render::gbuffer::{CENTRE_SAMPLE, NO_HIT, SAME_SURFACE_COS};
-    use rayon::prelude::*;
-    let (w, h) = (view.width() as usize, view.height() as usize);
-    let mut lit: Vec<f32> = dense.iter().map(|v| v.max_element()).filter(|&m| m > 0.0 && m.is_finite()).collect();
-    if lit.is_empty() {
-        return vec![false; w * h];
-    }
-    let k = ((lit.len() - 1) as f32 * crate::render::view::AA_REFERENCE_PERCENTILE) as usize;
-    let (_, level, _) = lit.select_nth_unstable_by(k, f32::total_cmp);
-    let scale = Vec3::splat(1.0 / *level);
-    let display: Vec<Vec3> =
-        dense.par_iter().map(|&l| Vec3::from_array(crate::render::display::srgb8(l * scale).map(f32::from))).collect();
-    let surface = |i: usize| {
-        let s = &view.gbuffer.samples[i][CENTRE_SAMPLE];
-        (s.triangle != NO_HIT).then(|| {
-            let sp = scene.surface(&crate::scene::Hit { triangle: s.triangle, t: 0.0, u: s.u, v: s.v });
-            (sp.material, sp.shading_normal)
-        })
-    };
-    let same = |a: usize, b: usize| match (surface(a), surface(b)) {
-        (Some((ma, na)), Some((mb, nb))) => ma == mb && na.dot(nb) >= SAME_SURFACE_COS,
-        _ => false,
-    };
-    let edge = |a: usize, b: usize| (display[b] - display[a]).abs().max_element() > threshold && same(a, b);
-    let touched: Vec<bool> = (0..w * h)
-        .into_par_iter()
-        .map(|i| {
-            let (x, y) = (i % w, i / w);
-            (x + 1 < w && edge(i, i + 1))
-                || (y + 1 < h && edge(i, i + w))
-                || (x > 0 && edge(i - 1, i))
-                || (y > 0 && edge(i - w, i))
-        })
-        .collect();
-    let mut flags = vec![false; w * h];
-    flags.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
-        for (x, f) in row.iter_mut().enumerate() {
-            *f = (y.saturating_sub(1)..(y + 2).min(h))
-                .any(|yy| (x.saturating_sub(1)..(x + 2).min(w)).any(|xx| touched[yy * w + xx]));
-        }
-    });
-    flags
-}
-
-/// As [`aa_breakdown`] with the base sample set and the decision given
-/// (the bench's "before" uses [`crate::render::SampleSet::TriangleBins`]
-/// or [`Decision::Round4`]).
-pub fn aa_breakdown_with(
-    scene: &Scene,
-    gbuffer: &GBuffer,
-    light: &Light,
-    limits: RecursionLimits,
-    repeats: usize,
-    set: crate::render::SampleSet,
-    decision: Decision,
-) -> AaBreakdown {
-    use std::time::Instant;
-    let (w, h) = (gbuffer.width as usize, gbuffer.height as usize);
-    // Interleaved with the 1-sample runs; the fastest of [`aa_rounds`]
-    // (see [`aa_cost`]).
-    let (mut ones, mut one, mut runs, mut shades) = (Vec::new(), 0, Vec::new(), Vec::new());
-    let mut lit = 0;
-    // Each round's buffers are kept until the next round replaces them, as
-    // [`aa_cost`] keeps its outputs: freeing them at once let glibc hand
-    // the memory back to the OS, and the next 1-sample view paid ~10 ms of
-    // page faults in every round (34-35 ms against the table's 22 ms).
-    let mut kept: [Vec<Vec3>; 2] = Default::default();
-    for _ in 0..aa_rounds(repeats) {
-        let g = gbuffer.clone();
-        let t = Instant::now();
-        let v = View::from_gbuffer(scene, g, Sampling::One, limits);
-        let ts = Instant::now();
-        let (one_dense, _) = v.render_direct(scene, light, None);
-        ones.push(t.elapsed().as_secs_f64() * 1e3);
-        shades.push(ts.elapsed().as_secs_f64() * 1e3);
-        one = v.shading.vertex_count();
-        lit = one_dense.iter().filter(|x| **x != Vec3::ZERO).count();
-        drop(v);
-        kept[0] = one_dense;
-        let g = gbuffer.clone();
-        let t0 = Instant::now();
-        let v = View::from_gbuffer_with_set(scene, g, Sampling::Adaptive, set, limits);
-        let t1 = Instant::now();
-        let (mut dense, _) = v.render_direct(scene, light, None);
-        let t2 = Instant::now();
-        let decision = match decision {
-            Decision::Round4(threshold) => crate::render::view::AaDecision {
-                flags: round4_gradient_flags(&v, scene, &dense, threshold),
-                highlights: Vec::new(),
-                level: None,
-                facing: Vec::new(),
-                reconstruct: false,
-            },
-            Decision::Now(aa) => v.aa_decision(scene, light, &dense, aa),
-        };
-        let t3 = Instant::now();
-        let n = v.reshade(scene, light, &mut dense, decision.reshading());
-        let t4 = Instant::now();
-        let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
-        let multi = (0..w * h).filter(|&i| v.shading.bins_of(&v.gbuffer, i) > 1).count();
-        runs.push(([ms(t0, t1), ms(t1, t2), ms(t2, t3), ms(t3, t4)], v.shading.vertex_count(), multi, n));
-        drop(v);
-        kept[1] = dense;
-    }
-    runs.sort_by(|a, b| a.0.iter().sum::<f64>().total_cmp(&b.0.iter().sum::<f64>()));
-    let (t, base, multi, n) = runs[0];
-    ones.sort_by(f64::total_cmp);
-    let t_one = ones[0];
-    shades.sort_by(f64::total_cmp);
-    let t_shade = shades[0];
-    let pc = |x: f64| x / t_one * 100.0;
-    AaBreakdown {
-        one_sample_ms: t_one,
-        expand_percent: pc(t[0]),
-        shade_percent: pc(t[1]),
-        decide_percent: pc(t[2]),
-        reshade_percent: pc(t[3]),
-        one_sample_vertices: one,
-        base_vertices: base,
-        multi_bin_share: multi as f64 / (w * h) as f64,
-        reshaded_share: n as f64 / (w * h) as f64,
-        one_shade_ms: t_shade,
-        per_light_percent: (t[1] + t[2] + t[3]) / t_shade * 100.0,
-        lit_share: lit as f64 / (w * h) as f64,
-        sample_cost_ratio: (t[3] / (9 * n.max(1)) as f64) / (t_one / (w * h) as f64),
-    }
 }
 
 /// Rounds the anti-aliasing timings take for `repeats` (8 × `repeats` + 1),
@@ -648,25 +420,7 @@ pub fn aa_cost(
         ("1 sample".into(), Sampling::One, SampleSet::Centre, None),
         ("9 samples everywhere".into(), Sampling::Nine, SampleSet::All, None),
         ("before: triangle-ID bins only".into(), Sampling::Geometry, SampleSet::TriangleBins, None),
-        (
-            format!("before (R): triangle-ID bins + 9-sample re-shading, 3×3 marks, threshold {ROUND4_THRESHOLD}"),
-            Sampling::Adaptive,
-            SampleSet::TriangleBins,
-            Some(AaParams::round4(ROUND4_THRESHOLD)),
-        ),
         ("surface bins only".into(), Sampling::Geometry, SampleSet::Binned, None),
-        (
-            format!("round 4: surface bins + 9-sample re-shading, 3×3 marks, threshold {ROUND4_THRESHOLD}"),
-            Sampling::Adaptive,
-            SampleSet::Binned,
-            Some(AaParams::round4(ROUND4_THRESHOLD)),
-        ),
-        (
-            format!("round 4 + highlight pixels, threshold {ROUND4_THRESHOLD}"),
-            Sampling::Adaptive,
-            SampleSet::Binned,
-            Some(AaParams { glints: true, ..AaParams::round4(ROUND4_THRESHOLD) }),
-        ),
     ];
     // Without bins: one sample per pixel, every neighbour pair compared
     // (geometry edges too), 9-sample re-shading (the floor of the cost
@@ -831,13 +585,9 @@ pub fn aa_picture_markdown(rows: &[AaPictureRow]) -> String {
     s
 }
 
-/// Round 4's (and the paper's) anti-aliasing threshold, for the bench's
-/// "before" rows (0-255; since round 4 on the light's relative scale).
-pub const ROUND4_THRESHOLD: f32 = 20.0;
-
 /// The renderer's threshold before the reconstruction of one-bin pixels
-/// ([`crate::render::view::Reshading::reconstruct`]), for the bench's
-/// "before" row.
+/// from their probed corners ([`crate::render::view::aa`]), for the
+/// bench's "before" rows.
 pub const AA_THRESHOLD_BEFORE: f32 = 100.0;
 
 /// Thresholds of the bench's "no bins" rows (1-sample base, every pair

@@ -5,8 +5,8 @@
 //! * [`gbuffer`]: 9 primary samples per pixel, binned by triangle ID (§3.4).
 //! * [`whitted`]: Whitted recursion (eq. 1) expanded into camera-path
 //!   vertices once per camera; direct Phong light from one unit source.
-//! * [`view`]: the camera-dependent state and per-light buffer rendering
-//!   with adaptive anti-aliasing of the illumination (§3.4).
+//! * [`view`]: the camera-dependent state and per-light buffer rendering;
+//!   [`view::aa`], its adaptive anti-aliasing of the illumination (§3.4).
 //! * [`photon`]: per-light photon maps for the indirect term (eq. 3),
 //!   progressive refinement, and the path-traced reference.
 //! * [`buffer`]: sparse tiled per-light buffers.
@@ -17,7 +17,8 @@
 //! * [`media`]: haze: per-light single scattering, density re-weighting.
 //! * [`composite`]: I = Σ k_i ⊙ buffer_i (eq. 5, §3.3) on the CPU.
 //! * [`display`]: exposure, white balance, sRGB, PNG.
-//! * [`reference`]: single-pass eq. 1 renderer for the linearity tests.
+//! * [`reference`]: single-pass eq. 1 renderer for the linearity tests,
+//!   with its own light term (closed-form tests for what it shares).
 //! * [`still`]: the whole pipeline for one still image (`footlight render`).
 
 pub mod bodies;
