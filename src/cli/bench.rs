@@ -50,7 +50,7 @@ pub struct BenchOptions {
     pub section: BenchSection,
 }
 
-/// `size` at full size, [`QUICK_SIZE`] with `quick`.
+/// A section's picture: [`PICTURE_SIZE`], or [`QUICK_SIZE`] with `quick`.
 fn sized(quick: bool) -> (u32, u32) {
     if quick { QUICK_SIZE } else { PICTURE_SIZE }
 }
