@@ -17,9 +17,15 @@
 //! * [`live`]: the daemon: frame clock, background tracer, geometry cache.
 //! * [`serve`]: the HTTP preview.
 //! * [`bench`]: `footlight bench`, the paper's figure 6 as same-run ratios.
+//! * [`cli`]: the `footlight` commands (`render`'s still pipeline, `run`'s
+//!   daemon wiring, `bench`'s dispatch); `src/main.rs` only parses flags.
+//! * [`bundled`]: the bundled scenes, patches and test files, found at run
+//!   time (no path of the build checkout in the binary).
 #![deny(missing_docs)]
 
 pub mod bench;
+pub mod bundled;
+pub mod cli;
 pub mod gpu;
 pub mod live;
 pub mod memory;
@@ -37,7 +43,8 @@ pub use footlight_fixture::{Beam, Light, Patch};
 pub use render::{RenderSettings, Sampling};
 pub use scene::Scene;
 
-/// Path of the bundled default stage, relative to the repository root.
+/// Path of the bundled default stage, relative to the repository root
+/// (found at run time by [`bundled::find`]).
 pub const DEFAULT_SCENE: &str = "scenes/stage.glb";
 /// Path of the bundled default patch, relative to the repository root: the
 /// paper's rig plus colour and moving heads a desk can play.

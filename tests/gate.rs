@@ -111,6 +111,7 @@ fn render_matches_golden(name: &str, args: &[&str]) -> usize {
     let lit = actual.pixels().filter(|p| p.0.iter().any(|&c| c > 60)).count();
     if std::env::var_os("FOOTLIGHT_BLESS").is_some() {
         actual.save(&golden_path).unwrap();
+        blessed(&golden_path);
         return lit;
     }
     let golden = image::open(&golden_path).expect("golden image (bless with FOOTLIGHT_BLESS=1)").to_rgb8();

@@ -3,7 +3,8 @@
 //! only guards against unintended change; correctness is tested against
 //! closed forms and the eq. 1 reference elsewhere. On failure the test writes
 //! the actual image and an amplified difference image under
-//! `target/golden/`. Re-bless with `FOOTLIGHT_BLESS=1 cargo test golden`.
+//! `target/golden/`. Re-bless with `FOOTLIGHT_BLESS=1 cargo test golden`, only
+//! with a note in the commit and in `tests/golden/README.md`'s table.
 //!
 //! Re-blessed 2026-11-30 (issue 13, accuracy round), with the replay cue
 //! images: surface bins (tessellation edges no longer split a pixel) and
@@ -55,6 +56,7 @@ fn default_render_matches_golden() {
     let golden_path = root().join("tests/golden/default.png");
     if std::env::var_os("FOOTLIGHT_BLESS").is_some() {
         footlight::render::display::write_png(&golden_path, settings.width, settings.height, actual).unwrap();
+        blessed(&golden_path);
         return;
     }
     let golden = image::open(&golden_path).expect("tests/golden/default.png (bless with FOOTLIGHT_BLESS=1)").to_rgb8();

@@ -215,6 +215,7 @@ fn frames_at_marked_cues_match_golden_images() {
         let golden = root().join(format!("tests/golden/{name}.png"));
         if std::env::var_os("FOOTLIGHT_BLESS").is_some() {
             actual.save(&golden).unwrap();
+            blessed(&golden);
             continue;
         }
         let expected = image::open(&golden).expect("golden image (bless with FOOTLIGHT_BLESS=1)").to_rgb8();

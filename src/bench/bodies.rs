@@ -22,7 +22,6 @@ use crate::live::{Decode, Show};
 use crate::render::Display;
 use crate::render::bodies::body_models;
 use crate::scene::{Camera, Scene};
-use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -93,7 +92,7 @@ fn universes(moving: &dyn Fn(usize) -> bool, t: f64, dimmer: u8) -> Universes {
 
 /// Measures `frames` frames per scenario at `(w, h)` seen from `camera`.
 pub fn run(scene: &Arc<Scene>, camera: Camera, (w, h): (u32, u32), frames: usize) -> Result<BodiesReport, String> {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/replays/chase-44.toml");
+    let path = crate::bundled::find("tests/replays/chase-44.toml").map_err(|e| e.to_string())?;
     let patch = crate::Patch::load(&path).map_err(|e| format!("{}: {e}", path.display()))?;
     let show = Show::new(patch);
     let names: Vec<String> = show.patch().fixtures.iter().map(|f| f.name.clone()).collect();

@@ -110,8 +110,8 @@ pub fn run(
     seconds: f64,
     photons: usize,
 ) -> Result<ChaseReport, String> {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let patch = crate::Patch::load(&root.join("tests/replays/chase-44.toml")).map_err(|e| e.to_string())?;
+    let path = crate::bundled::find("tests/replays/chase-44.toml").map_err(|e| e.to_string())?;
+    let patch = crate::Patch::load(&path).map_err(|e| e.to_string())?;
     let show = Arc::new(Show::new(patch));
     let mut config = super::harness::config(width, height);
     config.tracer.build.photons =

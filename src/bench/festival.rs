@@ -63,13 +63,16 @@ pub struct FestivalConfig {
     pub binary: Option<PathBuf>,
 }
 
+/// The festival show, relative to the bundled files ([`crate::bundled`]).
+pub const FESTIVAL_SHOW: &str = "tests/data/mvr/festival.mvr";
+
 impl FestivalConfig {
     /// 800×500 and 240 s per phase; `quick`: 200×125 and 30 s.
     pub fn new(quick: bool) -> Self {
         Self {
-            show: Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr/festival.mvr"),
-            width: if quick { 200 } else { 800 },
-            height: if quick { 125 } else { 500 },
+            show: crate::bundled::resolve(Path::new(FESTIVAL_SHOW)),
+            width: if quick { crate::render::QUICK_SIZE.0 } else { crate::render::PICTURE_SIZE.0 },
+            height: if quick { crate::render::QUICK_SIZE.1 } else { crate::render::PICTURE_SIZE.1 },
             seconds: if quick { 30.0 } else { 240.0 },
             cue_seconds: if quick { 2.0 } else { 5.0 },
             photons: PhotonSettings::default().stored,
@@ -802,12 +805,14 @@ pub fn run(cfg: &FestivalConfig) -> Result<FestivalReport, String> {
     Ok(report)
 }
 
-/// The commit of the checkout the binary was built from, when git knows
-/// it, with "+ uncommitted changes" when tracked files differ from it.
+/// The commit of the checkout the festival show is read from (where the
+/// bundled files are found at run time), when git knows it, with
+/// "+ uncommitted changes" when tracked files differ from it.
 fn commit() -> Option<String> {
     let git = |args: &[&str]| {
         let out = Command::new("git")
-            .args(["-C", env!("CARGO_MANIFEST_DIR")])
+            .arg("-C")
+            .arg(crate::bundled::root_of(FESTIVAL_SHOW).unwrap_or_else(|_| PathBuf::from(".")))
             .args(args)
             .stderr(Stdio::null())
             .output()

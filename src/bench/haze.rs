@@ -799,8 +799,14 @@ fn run_rig(scene: &Scene, camera: Camera, lights: &[Light], medium: &Medium) -> 
 
 /// The 600-fixture rig's lights (`scale::rig_patch`), for the rig rows.
 pub fn rig_lights() -> Vec<Light> {
-    let root = env!("CARGO_MANIFEST_DIR");
-    crate::Patch::parse(std::path::Path::new("generated-600-rig.toml"), &super::scale::rig_patch(root))
+    let root = match crate::bundled::root_of("patch/fixtures") {
+        Ok(root) => root.to_string_lossy().into_owned(),
+        Err(e) => {
+            tracing::error!("the 600-fixture rig: {e}");
+            return Vec::new();
+        }
+    };
+    crate::Patch::parse(std::path::Path::new("generated-600-rig.toml"), &super::scale::rig_patch(&root))
         .map(|p| p.lights())
         .unwrap_or_default()
 }

@@ -31,6 +31,7 @@ use crate::render::composite::{CompositeInput, Compositor, composite_into};
 use crate::render::display::Display;
 use crate::render::gbuffer::GBuffer;
 use crate::render::view::{AaParams, Sampling, View};
+use crate::render::{PICTURE_SIZE, QUICK_SIZE};
 use crate::render::{RecursionLimits, RenderSettings};
 use crate::scene::{Camera, Scene};
 use glam::Vec3;
@@ -38,6 +39,10 @@ use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
+
+/// The 150-fixture MVR show of the MVR and pixel-bar sections, relative to
+/// the bundled files ([`crate::bundled`]).
+pub const SHOW150: &str = "tests/data/mvr/show150.mvr";
 
 /// What to measure and at what size.
 #[derive(Clone, Debug)]
@@ -65,8 +70,8 @@ impl BenchConfig {
     pub fn new(quick: bool, scene_path: PathBuf) -> Self {
         let s = RenderSettings::default();
         Self {
-            width: if quick { 200 } else { s.width },
-            height: if quick { 125 } else { s.height },
+            width: if quick { QUICK_SIZE.0 } else { s.width },
+            height: if quick { QUICK_SIZE.1 } else { s.height },
             repeats: if quick { 1 } else { 3 },
             composite_lights: 32,
             limits: s.limits,
@@ -826,9 +831,9 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     progress.set_message("daemon: composite scaling and geometry latency");
     let scene_arc = Arc::new(crate::scene::load(&cfg.scene_path).map_err(std::io::Error::other)?);
     let (sizes, counts): (Vec<(u32, u32)>, Vec<usize>) = if cfg.quick {
-        (vec![(200, 125)], vec![1, 8, 32])
+        (vec![QUICK_SIZE], vec![1, 8, 32])
     } else {
-        (vec![(800, 500), (1920, 1080)], vec![1, 8, 32, 128])
+        (vec![PICTURE_SIZE, (1920, 1080)], vec![1, 8, 32, 128])
     };
     let live = live::run(&scene_arc, camera, &sizes, &counts, (w, h), (light, k_full), if cfg.quick { 4 } else { 16 });
     let scale = if cfg.quick {
@@ -860,33 +865,33 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     }
     progress.set_message("44 moving heads in a chase");
     let chase = if cfg.quick {
-        chase::run(&scene_arc, camera, (200, 125), 2.0, 0)
+        chase::run(&scene_arc, camera, QUICK_SIZE, 2.0, 0)
     } else {
-        chase::run(&scene_arc, camera, (800, 500), 10.0, crate::render::photon::PhotonSettings::default().stored)
+        chase::run(&scene_arc, camera, PICTURE_SIZE, 10.0, crate::render::photon::PhotonSettings::default().stored)
     };
     let chase = chase.map_err(|e| tracing::error!("chase: {e}")).ok();
     progress.set_message("preview clients");
     let clients = if cfg.quick {
-        clients::run(&scene_arc, patch, camera, (200, 125), &[0, 20], 1.0)
+        clients::run(&scene_arc, patch, camera, QUICK_SIZE, &[0, 20], 1.0)
     } else {
-        clients::run(&scene_arc, patch, camera, (800, 500), &[0, 20, 200], 10.0)
+        clients::run(&scene_arc, patch, camera, PICTURE_SIZE, &[0, 20, 200], 10.0)
     };
     let clients = clients.map_err(|e| tracing::error!("preview clients: {e}")).unwrap_or_default();
     progress.set_message("MVR import and strobe");
-    let show150 = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr/show150.mvr");
+    let show150 = crate::bundled::resolve(Path::new(SHOW150));
     let mvr = mvr::run(&scene_arc, camera, (w, h), &show150, cfg.repeats, 50);
     progress.set_message("browser stream");
     use stream::Viewer::{Buffers, None as NoViewers, Pictures, Polling, Switching};
-    let (stream_size, stream_seconds) = if cfg.quick { ((200, 125), 2.0) } else { ((800, 500), 12.0) };
+    let (stream_size, stream_seconds) = if cfg.quick { (QUICK_SIZE, 2.0) } else { (PICTURE_SIZE, 12.0) };
     // (Switching, 20): a storm of stream mode switches, rate-limited per client (issue 35).
     let levels = [(NoViewers, 0), (Buffers, 20), (Pictures, 20), (Polling, 20), (Buffers, 60), (Switching, 20)];
     let stream_rows = stream::run(&scene_arc, patch, camera, stream_size, &levels, stream_seconds);
     let stream = (stream_rows.map_err(|e| tracing::error!("browser stream: {e}")).unwrap_or_default(), stream_size);
     progress.set_message("walking the stage");
     let walk = if cfg.quick {
-        walk::run(&scene_arc, patch, camera, (200, 125), 1.0, 0)
+        walk::run(&scene_arc, patch, camera, QUICK_SIZE, 1.0, 0)
     } else {
-        walk::run(&scene_arc, patch, camera, (800, 500), 5.0, crate::render::photon::PhotonSettings::default().stored)
+        walk::run(&scene_arc, patch, camera, PICTURE_SIZE, 5.0, crate::render::photon::PhotonSettings::default().stored)
     };
     let walk = walk.map_err(|e| tracing::error!("walking the stage: {e}")).ok();
     let festival = (!cfg.quick).then(|| {

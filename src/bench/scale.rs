@@ -89,9 +89,10 @@ pub fn rig_patch(root: &str) -> String {
 
 /// Runs the large-rig measurements at `width`×`height`.
 pub fn run(scene: &Arc<Scene>, camera: Camera, width: u32, height: u32) -> Result<ScaleReport, String> {
-    let root = env!("CARGO_MANIFEST_DIR");
-    let patch = crate::Patch::parse(std::path::Path::new("generated-600-rig.toml"), &rig_patch(root))
-        .map_err(|e| e.to_string())?;
+    let root = crate::bundled::root_of("patch/fixtures").map_err(|e| e.to_string())?;
+    let patch =
+        crate::Patch::parse(std::path::Path::new("generated-600-rig.toml"), &rig_patch(&root.to_string_lossy()))
+            .map_err(|e| e.to_string())?;
     let decoder = Show::new(patch.clone());
     let mut universes = Universes::new();
     let max_u = patch.fixtures.iter().filter_map(|f| f.dmx.map(|(u, _)| u)).max().unwrap_or(1);
@@ -147,9 +148,9 @@ pub fn run(scene: &Arc<Scene>, camera: Camera, width: u32, height: u32) -> Resul
     let dense_mib = buffers.len() as f64 * (width * height) as f64 * 12.0 / (1 << 20) as f64;
     drop(comp);
     drop(buffers);
-    let festival = std::path::Path::new(root).join("tests/data/mvr/festival.mvr");
-    let pixel_chase =
-        pixel_chase(&festival, 800, 500, 30).map_err(|e| tracing::error!("festival pixel chase: {e}")).ok();
+    let festival = root.join(super::festival::FESTIVAL_SHOW);
+    let (w, h) = crate::render::PICTURE_SIZE;
+    let pixel_chase = pixel_chase(&festival, w, h, 30).map_err(|e| tracing::error!("festival pixel chase: {e}")).ok();
     Ok(ScaleReport {
         fixtures: patch.fixtures.len(),
         universes: max_u as usize,

@@ -325,14 +325,17 @@ pub fn run_matrix(photons: usize) -> Vec<StressCase> {
         }
         // Real fixture types at absurd settings: zoom, iris, focus, pan and
         // tilt far outside their ranges, through the patch's state → light → k.
-        let root = env!("CARGO_MANIFEST_DIR");
-        let text = format!(
-            "fixtures = \"{root}/patch/fixtures\"\ngels = \"{root}/patch/gels.toml\"\n\
-             [[fixture]]\nid = 1\ntype = \"generic-moving-spot\"\nmode = \"standard\"\nuniverse = 1\naddress = 1\nposition = [0.0, 3.0, 0.0]\n\
-             [[fixture]]\nid = 2\ntype = \"strand-castor\"\nmode = \"1ch\"\nuniverse = 1\naddress = 40\nposition = [1.0, 3.0, 1.0]\naim = [0.0, 0.0, 0.0]\n\
-             [[fixture]]\nid = 3\ntype = \"niethammer-hpz-115-d\"\nmode = \"1ch\"\nuniverse = 1\naddress = 41\nposition = [-1.0, 3.0, 1.0]\naim = [0.0, 0.0, 0.0]\n"
+        let parsed = crate::bundled::root_of("patch/fixtures").map_err(|e| e.to_string()).and_then(|root| {
+            let root = root.display();
+            let text = format!(
+                "fixtures = \"{root}/patch/fixtures\"\ngels = \"{root}/patch/gels.toml\"\n\
+                 [[fixture]]\nid = 1\ntype = \"generic-moving-spot\"\nmode = \"standard\"\nuniverse = 1\naddress = 1\nposition = [0.0, 3.0, 0.0]\n\
+                 [[fixture]]\nid = 2\ntype = \"strand-castor\"\nmode = \"1ch\"\nuniverse = 1\naddress = 40\nposition = [1.0, 3.0, 1.0]\naim = [0.0, 0.0, 0.0]\n\
+                 [[fixture]]\nid = 3\ntype = \"niethammer-hpz-115-d\"\nmode = \"1ch\"\nuniverse = 1\naddress = 41\nposition = [-1.0, 3.0, 1.0]\naim = [0.0, 0.0, 0.0]\n"
         );
-        match crate::Patch::parse(std::path::Path::new("stress-patch.toml"), &text) {
+            crate::Patch::parse(std::path::Path::new("stress-patch.toml"), &text).map_err(|e| e.to_string())
+        });
+        match parsed {
             Err(e) => out.push(StressCase {
                 name: "extreme zoom, iris, focus, pan and tilt".into(),
                 ok: false,

@@ -87,8 +87,8 @@ pub struct DaemonConfig {
 impl Default for DaemonConfig {
     fn default() -> Self {
         Self {
-            width: 800,
-            height: 500,
+            width: crate::render::PICTURE_SIZE.0,
+            height: crate::render::PICTURE_SIZE.1,
             fps: 60.0,
             // Beams in haze over display white must read as beams (issue 15):
             // the live picture rolls highlights off; `render` PNGs clip unless asked.

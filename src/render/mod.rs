@@ -43,6 +43,15 @@ pub use display::Display;
 pub use view::{AaParams, SampleSet, Sampling, View};
 pub use whitted::RecursionLimits;
 
+/// The picture size of every default (width, height): `render`'s and
+/// `run`'s `--width`/`--height`, [`RenderSettings::default`],
+/// `DaemonConfig::default` and the bench's full-size figures (paper: 800×500).
+pub const PICTURE_SIZE: (u32, u32) = (800, 500);
+
+/// The bench's CI-sized picture (`footlight bench --quick`): a quarter of
+/// [`PICTURE_SIZE`] on each side.
+pub const QUICK_SIZE: (u32, u32) = (PICTURE_SIZE.0 / 4, PICTURE_SIZE.1 / 4);
+
 /// Settings of one render, with the paper's defaults (section 4).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderSettings {
@@ -70,8 +79,8 @@ pub struct RenderSettings {
 impl Default for RenderSettings {
     fn default() -> Self {
         Self {
-            width: 800,
-            height: 500,
+            width: PICTURE_SIZE.0,
+            height: PICTURE_SIZE.1,
             limits: RecursionLimits::default(),
             sampling: Sampling::Adaptive,
             aa_threshold: view::AA_THRESHOLD,

@@ -16,6 +16,18 @@ pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
+/// Says, when `FOOTLIGHT_BLESS` rewrote a golden image, what the policy of
+/// `tests/golden/README.md` asks for: a note in the commit and a row in its
+/// table saying what changed and why (issue 33 item 6).
+pub fn blessed(path: &std::path::Path) {
+    eprintln!(
+        "FOOTLIGHT_BLESS: rewrote {}. A golden is re-blessed only with a note: say in the commit what \
+         changed and why, and add a row (with RMS and % of values off by > 8 against the previous \
+         golden) to tests/golden/README.md",
+        path.display()
+    );
+}
+
 /// The bundled stage, loaded once per test that needs it.
 pub fn stage() -> Scene {
     footlight::scene::load(&root().join(footlight::DEFAULT_SCENE)).expect("bundled stage loads")
