@@ -638,8 +638,11 @@ fn a_still_shares_a_bars_photon_stage_within_the_bound() {
     let settings = RenderSettings {
         width: 96,
         height: 64,
-        photons: Some(PhotonSettings { stored: 60_000, seed: 38, ..PhotonSettings::default() }),
-        refine_passes: 4,
+        build: footlight::render::BuildSettings {
+            photons: Some(PhotonSettings { stored: 60_000, seed: 38, ..PhotonSettings::default() }),
+            refine_passes: 4,
+            ..footlight::render::BuildSettings::still()
+        },
         ..RenderSettings::default()
     };
     let jobs = |fixture: Option<u32>| -> Vec<LightJob> {

@@ -7,7 +7,7 @@ use crate::common::*;
 use footlight::live::{DaemonConfig, Decode, DmxSource, Show};
 use footlight::render::photon::PhotonSettings;
 use footlight::render::still::{LightJob, render_still};
-use footlight::render::{Display, RenderSettings};
+use footlight::render::{BuildSettings, Display, RenderSettings};
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -188,7 +188,10 @@ fn frames_at_marked_cues_match_golden_images() {
     let settings = RenderSettings {
         width: W,
         height: H,
-        photons: Some(PhotonSettings { stored: PHOTONS, ..PhotonSettings::default() }),
+        build: BuildSettings {
+            photons: Some(PhotonSettings { stored: PHOTONS, ..PhotonSettings::default() }),
+            ..BuildSettings::still()
+        },
         ..RenderSettings::default()
     };
     let cues = [

@@ -285,8 +285,13 @@ async fn orbit_through_a_recorded_camera_path_with_dmx_ends_on_the_render_and_re
     assert_eq!(s.view.cache.entries, 1, "the start view is cached");
     let last = path.last().unwrap().1.camera().unwrap();
     let k = Vec3::splat(1000.0 * f32::from(255 - 10 * 11u8) / 255.0);
-    let settings =
-        RenderSettings { width: W, height: H, display, photons: Some(photons()), ..RenderSettings::default() };
+    let settings = RenderSettings {
+        width: W,
+        height: H,
+        display,
+        build: BuildSettings { photons: Some(photons()), ..BuildSettings::still() },
+        ..RenderSettings::default()
+    };
     let still = render_still(
         &scene,
         last,

@@ -364,7 +364,7 @@ pub fn run(
     let k_full: Vec3 = fixture.k_full();
     let display = Display::default();
     let limits = RecursionLimits::default();
-    let threshold = crate::render::RenderSettings::default().aa_threshold;
+    let threshold = crate::render::RenderSettings::default().build.aa_threshold;
     let gbuffer = GBuffer::build(scene, camera, size.0, size.1);
     let (mut aa, mut picture) = (Vec::new(), Vec::new());
     let (mut gbuffer_ms, mut highlight_bounds) = (None, None);

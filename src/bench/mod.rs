@@ -75,7 +75,7 @@ impl BenchConfig {
             repeats: if quick { 1 } else { 3 },
             composite_lights: 32,
             limits: s.limits,
-            aa_threshold: s.aa_threshold,
+            aa_threshold: s.build.aa_threshold,
             quick,
             scene_path,
         }

@@ -11,7 +11,7 @@ use crate::render::display::{
 };
 use crate::render::photon::PhotonSettings;
 use crate::render::still::{LightJob, StillHaze, render_still_hazy};
-use crate::render::{RecursionLimits, RenderSettings, Sampling};
+use crate::render::{BuildSettings, RecursionLimits, RenderSettings, Sampling};
 use crate::scene::{Camera, Scene};
 use anyhow::{Context, Result, bail};
 use glam::Vec3;
@@ -100,14 +100,16 @@ pub fn render(args: &StillOptions) -> Result<()> {
         height: args.height,
         limits: RecursionLimits { max_depth: args.depth, ..RecursionLimits::default() },
         sampling: args.sampling,
-        aa_threshold: args.aa_threshold,
         display: Display { white_balance: gains, ..Display::for_white_lux(args.white_lux) },
-        photons: (args.photons > 0).then(|| PhotonSettings {
-            stored: args.photons,
-            estimate: args.estimate,
-            ..PhotonSettings::default()
-        }),
-        refine_passes: args.refine,
+        build: BuildSettings {
+            aa_threshold: args.aa_threshold,
+            photons: (args.photons > 0).then(|| PhotonSettings {
+                stored: args.photons,
+                estimate: args.estimate,
+                ..PhotonSettings::default()
+            }),
+            refine_passes: args.refine,
+        },
     };
     if args.refine > 0 && args.photons == 0 {
         bail!("--refine {}: refinement needs photons (--photons is 0)", args.refine);

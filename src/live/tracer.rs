@@ -1228,7 +1228,7 @@ impl Shared {
         let result = self.pool.install(|| build.haze_beam(&self.scene, &hv, medium, quality));
         let beam = match result {
             Ok(b) => b,
-            Err(e) => return report_bug(index, &e),
+            Err(e) => return report_bug(self, index, &e),
         };
         let slot = &self.slots[index];
         let mut st = slot.state.lock().expect("slot lock");
@@ -1457,10 +1457,17 @@ fn run_job(s: &Shared, job: Job, rush: bool) {
     }
 }
 
-fn report_bug(index: usize, e: &BuildError) {
-    if let BuildError::Bad(bad) = e {
-        tracing::error!("light {index}: {bad}; keeping the previous buffer (this is a bug)");
+/// A stage that failed with a NaN/Inf (a bug): logged once, and the light
+/// marked failed with the error in its status until a later build of it
+/// publishes; its previous buffer stays on screen. A cancelled stage is no
+/// failure.
+fn report_bug(s: &Shared, index: usize, e: &BuildError) {
+    let BuildError::Bad(bad) = e else { return };
+    let mut st = s.slots[index].state.lock().expect("slot lock");
+    if st.failed.is_none() {
+        tracing::error!("{}: {bad}; keeping the previous buffer (this is a bug)", s.name(index));
     }
+    st.failed = Some(bad.to_string());
 }
 
 /// Stage 1 for the light that waited longest; at moving quality when it
@@ -1475,7 +1482,7 @@ fn direct_stage(s: &Shared, index: usize, rush: bool) {
     let step = match s.pool.install(|| build.next(&s.scene, &view)) {
         Ok(Some(step)) => step,
         Ok(None) => return,
-        Err(e) => return report_bug(index, &e),
+        Err(e) => return report_bug(s, index, &e),
     };
     let share = step.footprint.map_or(0.0, |f| f.tiles_in_beam as f32 / f.tiles.max(1) as f32);
     after_direct(s, index, req, waiting_since, build, step.buffer, share);
@@ -1581,7 +1588,7 @@ fn later_stage(s: &Shared, index: usize) {
         Ok(Some(step)) => step,
         // A refinement given up with nothing left to finish: its last picture stays.
         Ok(None) => return mark_ready(s, index, id, at),
-        Err(e) => return report_bug(index, &e),
+        Err(e) => return report_bug(s, index, &e),
     };
     if next == Some(NextStage::Whitted) {
         // The refined haze beam comes with the Whitted stage.

@@ -63,17 +63,11 @@ pub struct RenderSettings {
     pub limits: RecursionLimits,
     /// Sampling mode (paper: adaptive).
     pub sampling: Sampling,
-    /// Anti-aliasing gradient threshold on the light's relative 0-255 scale
-    /// ([`view::AA_THRESHOLD`]; paper: 15-25 on the displayed picture).
-    pub aa_threshold: f32,
     /// Exposure and white balance.
     pub display: Display,
-    /// Photon mapping for the indirect term; `None` renders direct light
-    /// (and Whitted recursion) only.
-    pub photons: Option<photon::PhotonSettings>,
-    /// Progressive (SPPM) passes after the photon-map estimate, blended
-    /// with it ([`photon::Progressive::starting_from`]); 0 = none.
-    pub refine_passes: u32,
+    /// How each light's buffer is built (anti-aliasing threshold, photons,
+    /// refinement passes): [`BuildSettings`], the one owner of those defaults.
+    pub build: BuildSettings,
 }
 
 impl Default for RenderSettings {
@@ -83,10 +77,8 @@ impl Default for RenderSettings {
             height: PICTURE_SIZE.1,
             limits: RecursionLimits::default(),
             sampling: Sampling::Adaptive,
-            aa_threshold: view::AA_THRESHOLD,
             display: Display::default(),
-            photons: Some(photon::PhotonSettings::default()),
-            refine_passes: 0,
+            build: BuildSettings::still(),
         }
     }
 }

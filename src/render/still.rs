@@ -5,7 +5,7 @@
 
 use super::RenderSettings;
 use super::buffer::LightBuffer;
-use super::build::{BuildError, BuildSettings, Cancel, GroupBuild, Haze, LightBuild, NextStage};
+use super::build::{BuildError, Cancel, GroupBuild, Haze, LightBuild, NextStage};
 use super::composite::composite;
 use super::footprint::TileBounds;
 use super::media::{HazeQuality, HazeView, Medium};
@@ -131,11 +131,7 @@ pub fn render_still_hazy(
     let mut buffers = Vec::with_capacity(jobs.len());
     let mut reshaded = 0;
     let mut photon_time = Duration::ZERO;
-    let build_settings = BuildSettings {
-        aa_threshold: settings.aa_threshold,
-        photons: settings.photons,
-        refine_passes: settings.refine_passes,
-    };
+    let build_settings = settings.build;
     // Only what the look lights is built: a dark light adds exactly 0 to
     // eq. 5. Lit lights keep their index, so their photon seeds are the
     // daemon's.

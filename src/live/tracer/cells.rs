@@ -202,7 +202,7 @@ pub(super) fn direct_batch(s: &Shared, index: usize, rush: bool) -> bool {
         let (j, req, since, _) = &mut taken[step.member];
         let Some(build) = builds[step.member].take() else {
             if let Err(e) = &step.step {
-                report_bug(*j, e);
+                report_bug(s, *j, e);
             }
             continue;
         };
@@ -258,7 +258,7 @@ pub(super) fn whitted_batch(s: &Shared, index: usize) -> bool {
         let (j, id, at) = ids[step.member];
         let Some(build) = builds[step.member].take() else {
             if let Err(e) = &step.step {
-                report_bug(j, e);
+                report_bug(s, j, e);
             }
             continue;
         };
@@ -421,7 +421,7 @@ pub(super) fn lead(s: &Shared, index: usize, id: u64, stage: Stage) {
         };
         let Some((fid, light, at, buffer)) = next else { continue };
         if let Err(e) = buffer.check() {
-            report_bug(j, &BuildError::from(e));
+            report_bug(s, j, &BuildError::from(e));
             continue;
         }
         let cached = (stage == Stage::Ready).then(|| Arc::new(buffer.clone()));

@@ -106,6 +106,15 @@ pub struct BuildSettings {
     pub refine_passes: u32,
 }
 
+impl BuildSettings {
+    /// A still's settings (`footlight render`): the defaults without
+    /// refinement passes, which a still runs only when asked (`--refine N`);
+    /// the live tracer refines while idle ([`BuildSettings::default`]).
+    pub fn still() -> Self {
+        Self { refine_passes: 0, ..Self::default() }
+    }
+}
+
 impl Default for BuildSettings {
     /// The paper's settings (section 4): 50,000 photons, 150 in the
     /// estimate; the anti-aliasing threshold of [`super::view::AA_THRESHOLD`]
