@@ -607,7 +607,7 @@ fn resolve(path: &Path) -> PathBuf {
     if from_checkout.exists() { from_checkout } else { path.to_path_buf() }
 }
 
-fn load_inputs(args: &SceneArgs) -> Result<(Scene, Patch, footlight::live::ImportStatus)> {
+fn load_inputs(args: &SceneArgs) -> Result<(Scene, Patch, footlight::output::ImportStatus)> {
     let t = std::time::Instant::now();
     let (scene_path, scene) = load_scene(args)?;
     tracing::info!(
@@ -621,7 +621,7 @@ fn load_inputs(args: &SceneArgs) -> Result<(Scene, Patch, footlight::live::Impor
     // A TOML patch, or an MVR show whose fixtures come from its GDTF files.
     let patch_path = resolve(args.patch());
     let checked = footlight_mvr::check_report(&patch_path).map_err(|e| problems(&patch_path, &e))?;
-    let import = footlight::live::ImportStatus::of(&checked);
+    let import = footlight::output::ImportStatus::of(&checked);
     log_import(&patch_path, &checked);
     let patch = checked.patch;
     tracing::info!("{}: {}", patch.path.display(), fixture_summary(&patch, &patch.listing()));
@@ -829,7 +829,7 @@ fn run_daemon(
                 args.input.patch().display()
             );
         }
-        let show = Arc::new(Show::new(patch));
+        let show = Arc::new(Show::new(patch)?);
         let bodies = match args.bodies {
             BodiesChoice::On => true,
             BodiesChoice::Off => false,
@@ -1159,7 +1159,7 @@ fn check_output(path: &Path, force: bool) -> Result<()> {
 
 fn record(args: RecordArgs) -> Result<()> {
     check_output(&args.out, args.force)?;
-    let show = Show::new(footlight_mvr::load_patch(&resolve(&args.patch))?);
+    let show = Show::new(footlight_mvr::load_patch(&resolve(&args.patch))?)?;
     runtime()?.block_on(async move {
         let signals = Signals::install()?;
         let config = args.dmx.config(&show)?;
@@ -1192,7 +1192,7 @@ fn render(args: RenderArgs) -> Result<()> {
         .map_err(|e| anyhow::anyhow!("--white-balance {e}"))?;
     tracing::info!("white balance {}: {}", white.setting, white.note);
     let gains = white.gains;
-    let show = Show::new(patch);
+    let show = Show::new(patch)?;
     let settings = RenderSettings {
         width: args.width,
         height: args.height,
