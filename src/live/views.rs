@@ -703,7 +703,7 @@ impl CameraControl for Views {
         self.white.lock().unwrap_or_else(|e| e.into_inner()).clone()
     }
 
-    /// `views` in `/api/status`.
+    /// `view` in `/api/status`.
     fn status(&self) -> ViewStatus {
         let st = self.lock();
         let stage = (0..self.tracer.len())

@@ -347,7 +347,7 @@ pub enum Phase {
     Building,
 }
 
-/// `views` in `/api/status` (documented in docs/live.md).
+/// `view` in `/api/status` (documented in docs/live.md).
 #[derive(Clone, Debug, Serialize)]
 pub struct ViewStatus {
     /// The camera now (the latest write).
