@@ -14,7 +14,11 @@
 //! * [`render`]: G-buffer, Whitted per-light buffers, anti-aliasing,
 //!   composite, display.
 //! * [`gpu`]: the GPU compositor adapter (crate `footlight-gpu`).
-//! * [`live`]: the daemon: frame clock, background tracer, geometry cache.
+//! * [`live`]: the daemon: frame clock, background tracer, geometry cache;
+//!   it starts the HTTP preview.
+//! * [`output`]: the output contract: [`output::Frame`], the typed
+//!   [`output::DaemonStatus`], the [`output::CameraControl`] trait. The
+//!   daemon fills it in; [`serve`] and the window import only it.
 //! * [`serve`]: the HTTP preview.
 //! * [`bench`]: `footlight bench`, the paper's figure 6 as same-run ratios.
 //! * [`cli`]: the `footlight` commands (`render`'s still pipeline, `run`'s
@@ -29,6 +33,7 @@ pub mod cli;
 pub mod gpu;
 pub mod live;
 pub mod memory;
+pub mod output;
 pub mod render;
 pub mod scene;
 pub mod serve;

@@ -12,14 +12,13 @@
 //! drag = orbit, shift-drag or right-drag = pan, wheel = dolly,
 //! alt + wheel = field of view; arrow keys orbit, `w`/`s` dolly, `+`/`-`
 //! zoom, `1`-`9` jump to the named views in list order. Each move is a
-//! camera write to [`Views`] (the window is local: no token). The mapping
+//! camera write to the daemon's [`CameraControl`] (the window is local: no token). The mapping
 //! from input to pose is the pure [`control`] (tested in `tests/views.rs`
 //! without a display); this file only turns winit events into
 //! [`Control`] values. The window itself is not run by any test (CI has
 //! no display).
 
-use crate::live::Frame;
-use crate::live::views::{Control, ControlKey, PIXELS_PER_LINE, Phase, Pose, Views, control, view_key};
+use crate::output::{CameraControl, Control, ControlKey, Frame, PIXELS_PER_LINE, Phase, Pose, control, view_key};
 use std::num::NonZeroU32;
 use std::rc::Rc;
 use std::sync::Arc;
@@ -45,7 +44,7 @@ struct App {
     surface: Option<softbuffer::Surface<Rc<Window>, Rc<Window>>>,
     shown: u64,
     error: Option<String>,
-    views: Option<Arc<Views>>,
+    views: Option<Arc<dyn CameraControl>>,
     /// The pose being edited (taken from the daemon when a move starts).
     pose: Option<Pose>,
     cursor: Option<(f64, f64)>,
@@ -218,7 +217,7 @@ impl ApplicationHandler for App {
 
 /// Shows `frames` in a window until it is closed, with camera controls
 /// writing to `views`. Must run on the main thread.
-pub fn show(frames: watch::Receiver<Arc<Frame>>, views: Option<Arc<Views>>) -> Result<(), WindowError> {
+pub fn show(frames: watch::Receiver<Arc<Frame>>, views: Option<Arc<dyn CameraControl>>) -> Result<(), WindowError> {
     let event_loop = EventLoop::new().map_err(|e| WindowError::EventLoop(e.to_string()))?;
     let mut app = App {
         frames,

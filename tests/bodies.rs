@@ -185,7 +185,7 @@ async fn a_dmx_pan_moves_one_body_in_the_next_frame_and_rebuilds_only_its_light(
     let path = crate::common::root().join("tests/data/mvr/bodies.mvr");
     let import = footlight_mvr::load_mvr(&path).expect("bodies.mvr loads");
     let patch = import.patch;
-    let show = Show::new(patch.clone());
+    let show = Show::new(patch.clone()).unwrap();
     let names: Vec<String> = patch.fixtures.iter().map(|f| f.name.clone()).collect();
     let (models, warnings) = body_models(&path, &names, &show.fixture_ids());
     assert!(warnings.is_empty(), "{warnings:?}");
@@ -202,7 +202,7 @@ async fn a_dmx_pan_moves_one_body_in_the_next_frame_and_rebuilds_only_its_light(
     assert_eq!(lights, 3);
     let tracer = Arc::new(Tracer::new(scene.clone(), Arc::new(view), lights, settings));
     let mut clock = FrameClock::new(
-        Arc::new(Show::new(patch.clone())),
+        Arc::new(Show::new(patch.clone()).unwrap()),
         tracer.clone(),
         Compositor::new(LW, LH, Display::neutral(2000.0)),
     )

@@ -7,7 +7,8 @@ use crate::common::*;
 use footlight::fixture::beam::{Blade, Gate, ShapedBeam};
 use footlight::fixture::state::{Change, SPIN_UPDATE_HZ, classify};
 use footlight::fixture::{Beam, Light, SpotBeam};
-use footlight::live::{Decode, FrameClock, Show, Stage, Tracer, TracerSettings};
+use footlight::live::{Decode, FrameClock, Show, Tracer, TracerSettings};
+use footlight::output::Stage;
 use footlight::render::composite::Compositor;
 use footlight::render::view::Sampling;
 use footlight::render::{Display, RecursionLimits, View};
@@ -170,7 +171,7 @@ fn a_spinning_gobo_is_rebuilt_at_a_bounded_rate() {
     let mut u = patch.look_universes.clone();
     u.set_slot(1, 10, 255);
     patch.fixtures.truncate(1);
-    let show = Show::new(patch);
+    let show = Show::new(patch).unwrap();
     let mut last = show.decode_at(&u, 0.0);
     assert!(last[0].state.gobo_spin > 300.0, "{}", last[0].state.gobo_spin);
     let mut rebuilds = 0;
@@ -208,8 +209,11 @@ fn the_frame_clock_rebuilds_a_spinning_gobo_only_when_its_angle_steps() {
     let mut settings = TracerSettings { threads: 1, ..TracerSettings::default() };
     settings.build.photons = None;
     let tracer = Arc::new(Tracer::new(scene.clone(), Arc::new(view), 1, settings));
-    let mut clock =
-        FrameClock::new(Arc::new(Show::new(patch)), tracer.clone(), Compositor::new(32, 32, Display::neutral(1000.0)));
+    let mut clock = FrameClock::new(
+        Arc::new(Show::new(patch).unwrap()),
+        tracer.clone(),
+        Compositor::new(32, 32, Display::neutral(1000.0)),
+    );
     // Waits until the light has published past generation `after` and is Ready.
     let ready_after = |tracer: &Tracer, after: u64| {
         let t = Instant::now();

@@ -470,7 +470,8 @@ fn beam_screen_bounds_cull_nothing_the_beam_lights() {
 #[tokio::test(start_paused = true)]
 async fn hazer_change_is_a_composite_weight_in_the_next_frame() {
     use footlight::fixture::{DmxSlots, FixtureState, Universes};
-    use footlight::live::{Decode, FrameClock, LightInput, Stage, Tracer, TracerSettings};
+    use footlight::live::{Decode, FrameClock, LightInput, Tracer, TracerSettings};
+    use footlight::output::Stage;
     use footlight::render::composite::Compositor;
     use footlight::render::{Display, View};
     use std::sync::Arc;
@@ -527,7 +528,7 @@ async fn hazer_change_is_a_composite_weight_in_the_next_frame() {
     assert_eq!((builds, haze_stages), (1, 2), "one build: coarse beam with the direct stage, refined after Whitted");
 
     // The clock's composite against the exact resolve of the still path.
-    let linear = |f: &footlight::live::Frame| {
+    let linear = |f: &footlight::output::Frame| {
         let bufs: Vec<&LightBuffer> = f.buffers.iter().map(|(_, b)| b.as_ref()).collect();
         composite::composite(&bufs, &f.k, w, h)
     };
@@ -629,7 +630,8 @@ async fn hazer_change_is_a_composite_weight_in_the_next_frame() {
 /// beam within 1e-5.
 #[test]
 fn haze_presets_and_views_come_back_from_the_cache_with_their_beams() {
-    use footlight::live::{Stage, Tracer, TracerSettings};
+    use footlight::live::{Tracer, TracerSettings};
+    use footlight::output::Stage;
     use footlight::render::View;
     use std::sync::Arc;
     use std::time::{Duration, Instant};

@@ -184,7 +184,7 @@ fn the_page_lists_the_import_summary_in_a_folded_section() {
     let Some(chromium) = chromium() else { return };
     let checked = footlight_mvr::check_report(&root().join("tests/data/mvr/features.mvr")).unwrap();
     let (types, warnings) = (checked.types.len(), checked.warnings.len());
-    let import = footlight::live::ImportStatus::of(&checked);
+    let import = footlight::output::ImportStatus::of(&checked);
     let daemon = ShowDaemon::start_with_import(checked.patch, 160, 100, Default::default(), import);
     let mut browser = open_at(chromium, &format!("http://{}/", daemon.http), 1280, 800);
     let read = "new Promise((ok, fail) => { const t0 = performance.now(); const t = () => {

@@ -5,9 +5,8 @@
 
 use crate::common::*;
 use footlight::fixture::{DmxSlots, FixtureState, Universes};
-use footlight::live::{
-    Daemon, DaemonConfig, Decode, DmxSource, Frame, FrameClock, LightInput, Stage, Tracer, TracerSettings,
-};
+use footlight::live::{Daemon, DaemonConfig, Decode, DmxSource, FrameClock, LightInput, Tracer, TracerSettings};
+use footlight::output::{Frame, Stage};
 use footlight::render::composite::Compositor;
 use footlight::render::{Display, RecursionLimits, Sampling, View};
 use footlight::scene::{Camera, Scene, SceneBuilder};
@@ -351,7 +350,7 @@ pub(crate) struct ShowDaemon {
 impl ShowDaemon {
     /// Starts the daemon at `width`×`height` with `dmx` as the first levels.
     pub(crate) fn start(patch: footlight::Patch, width: u32, height: u32, dmx: footlight_dmx::Universes) -> Self {
-        Self::start_with_import(patch, width, height, dmx, footlight::live::ImportStatus::default())
+        Self::start_with_import(patch, width, height, dmx, footlight::output::ImportStatus::default())
     }
 
     /// [`ShowDaemon::start`], the status's `import` given.
@@ -360,7 +359,7 @@ impl ShowDaemon {
         width: u32,
         height: u32,
         dmx: footlight_dmx::Universes,
-        import: footlight::live::ImportStatus,
+        import: footlight::output::ImportStatus,
     ) -> Self {
         let (dmx_tx, dmx_rx) = watch::channel(dmx);
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
@@ -382,7 +381,7 @@ impl ShowDaemon {
                     compositor: footlight::gpu::CompositorChoice::Cpu,
                     ..DaemonConfig::default()
                 };
-                let show = Arc::new(footlight::live::Show::new(patch));
+                let show = Arc::new(footlight::live::Show::new(patch).unwrap());
                 Daemon::new(Arc::new(b.build()), show, camera, config)
                     .input(DmxSource::Channel(dmx_rx))
                     .import_status(import)
@@ -422,7 +421,7 @@ impl Drop for ShowDaemon {
 fn status_lists_the_import_summary() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mvr/features.mvr");
     let checked = footlight_mvr::check_report(&path).unwrap();
-    let import = footlight::live::ImportStatus::of(&checked);
+    let import = footlight::output::ImportStatus::of(&checked);
     let said: Vec<String> = checked.warnings.iter().map(ToString::to_string).collect();
     let d = ShowDaemon::start_with_import(checked.patch, 40, 25, Default::default(), import);
     let status = d.status();

@@ -121,7 +121,7 @@ async fn split_bar_breaks_reach_the_daemon_and_a_recording() {
     use footlight::live::{Daemon, DaemonConfig, Decode, DmxSource, Show};
     use std::sync::Arc;
     let import = footlight_mvr::load_mvr(&root().join("tests/data/mvr/features.mvr")).unwrap();
-    let show = Arc::new(Show::new(import.patch));
+    let show = Arc::new(Show::new(import.patch).unwrap());
     assert!(show.universes().contains(&2), "universe 2 (the bar's break 2) is listened to: {:?}", show.universes());
     let ltp = &show.input_patch().ltp;
     assert!(ltp.contains_key(&2), "cell colours merge latest-takes-precedence on universe 2");
@@ -459,7 +459,8 @@ fn bar_tracer(
 /// the buffers are the same.
 #[test]
 fn live_tracer_builds_a_bars_cells_together() {
-    use footlight::live::{Stage, Tracer, TracerSettings};
+    use footlight::live::{Tracer, TracerSettings};
+    use footlight::output::Stage;
     use footlight::render::build::{Cancel, LightBuild};
     use footlight::render::footprint::DirectQuality;
     use std::sync::Arc;
@@ -579,7 +580,8 @@ fn live_tracer_builds_a_bars_cells_together() {
 /// noise), with 1 photon trace instead of 8.
 #[test]
 fn a_bars_cells_share_one_photon_stage_within_the_bound() {
-    use footlight::live::{Stage, Tracer, TracerSettings};
+    use footlight::live::{Tracer, TracerSettings};
+    use footlight::output::Stage;
     use footlight::render::photon::PhotonSettings;
     use std::time::{Duration, Instant};
     let (scene, v, lights, _) = bar_live(96, 64);
@@ -673,7 +675,8 @@ fn a_still_shares_a_bars_photon_stage_within_the_bound() {
 /// the other cells at theirs.
 #[test]
 fn a_cell_moved_during_a_pass_is_never_published_stale() {
-    use footlight::live::{Stage, Tracer, TracerSettings};
+    use footlight::live::{Tracer, TracerSettings};
+    use footlight::output::Stage;
     use footlight::render::build::{Cancel, LightBuild};
     use std::time::{Duration, Instant};
     let (scene, v, lights, build) = bar_live(160, 112);

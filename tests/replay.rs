@@ -52,7 +52,7 @@ impl Daemon {
             rt.block_on(async move {
                 let scene = Arc::new(stage());
                 let camera = scene.camera.unwrap();
-                let show = Arc::new(Show::new(patch()));
+                let show = Arc::new(Show::new(patch()).unwrap());
                 let listener = footlight::live::bind_http("127.0.0.1:0".parse().unwrap()).await.unwrap();
                 let http = listener.local_addr().unwrap();
                 let dmx = match source {
@@ -202,7 +202,7 @@ fn frames_at_marked_cues_match_golden_images() {
     ];
     for (file, at, name) in cues {
         let rec = footlight_dmx::Recording::open(recording(file)).unwrap();
-        let show = Show::new((*patch).clone());
+        let show = Show::new((*patch).clone()).unwrap();
         let frames = footlight_dmx::state_at(&rec, Duration::from_secs_f64(at), show.input_patch()).unwrap();
         let mut universes = footlight::fixture::Universes::new();
         for f in &frames {
@@ -243,7 +243,7 @@ fn show150_look_recording_lights_the_mvr_show_in_colour_and_moves_its_heads() {
     // The recording itself: 44 heads turn between two moments 5 s apart
     // (the file's decoded states, independent of the daemon's timing).
     let rec = footlight_dmx::Recording::open(recording("show150-look.pcapng")).unwrap();
-    let show = Show::new(show150_patch());
+    let show = Show::new(show150_patch()).unwrap();
     let axes = |at: f64| -> Vec<glam::Vec3> {
         let frames = footlight_dmx::state_at(&rec, Duration::from_secs_f64(at), show.input_patch()).unwrap();
         let mut universes = footlight::fixture::Universes::new();

@@ -6,7 +6,7 @@
 //! published. Real sockets need real time: every wait here is a generous
 //! upper bound (the assertion is that something happens, never how fast).
 
-use footlight::live::Frame;
+use footlight::output::{DaemonStatus, Frame};
 use footlight::render::composite::UpdateStats;
 use footlight::serve::{HostPolicy, ServeConfig, ServeState, ServeStats, Server};
 use std::io::{Read, Write};
@@ -54,12 +54,7 @@ fn start(config: ServeConfig) -> Running {
     let (addr, stats, done) = rt.block_on(async {
         let listener = footlight::serve::bind("127.0.0.1:0".parse().unwrap()).unwrap();
         let addr = listener.local_addr().unwrap();
-        let state = ServeState {
-            frames: rx,
-            status: Arc::new(|| serde_json::json!({"packets": 0})),
-            views: None,
-            write_token: None,
-        };
+        let state = ServeState { frames: rx, status: Arc::new(DaemonStatus::default), views: None, write_token: None };
         let server = Server::new(state, config);
         let stats = server.stats();
         let done = tokio::spawn(server.run(listener, async {

@@ -13,7 +13,8 @@
 
 use crate::common::browser::{Browser, chromium};
 use crate::common::*;
-use footlight::live::{DaemonConfig, DmxSource, Frame, Show};
+use footlight::live::{DaemonConfig, DmxSource, Show};
+use footlight::output::{DaemonStatus, Frame};
 use footlight::render::buffer::LightBuffer;
 use footlight::render::composite::UpdateStats;
 use footlight::render::display::Display;
@@ -100,7 +101,7 @@ impl Daemon {
                 config.tracer.build.photons = None;
                 config.tracer.build.refine_passes = 0;
                 let (running_tx, running_rx) = std::sync::mpsc::channel();
-                let daemon = footlight::live::Daemon::new(scene, Arc::new(Show::new(patch)), camera, config)
+                let daemon = footlight::live::Daemon::new(scene, Arc::new(Show::new(patch).unwrap()), camera, config)
                     .input(dmx)
                     .serve(listener)
                     .bodies(bodies)
@@ -359,7 +360,7 @@ fn serve(first: Arc<Frame>) -> Running {
     let (frames, rx) = tokio::sync::watch::channel(first);
     let listener = rt.block_on(tokio::net::TcpListener::bind("127.0.0.1:0")).unwrap();
     let addr = listener.local_addr().unwrap();
-    let state = ServeState { frames: rx, status: Arc::new(|| serde_json::json!({})), views: None, write_token: None };
+    let state = ServeState { frames: rx, status: Arc::new(DaemonStatus::default), views: None, write_token: None };
     let (stop, stop_rx) = tokio::sync::oneshot::channel::<()>();
     rt.spawn(Server::new(state, ServeConfig::default()).run(listener, async {
         let _ = stop_rx.await;
@@ -801,8 +802,8 @@ fn the_display_changes_live_over_http() {
 
 /// Body tiles of a 48×32 picture (3×2 tiles): `set` gives (tile, revision,
 /// seed) for tiles with a body pattern; the rest empty at revision 0.
-fn body_tiles(set: &[(usize, u64, u32)]) -> Arc<footlight::live::bodies::BodyTiles> {
-    use footlight::live::bodies::{BodyTile, BodyTiles};
+fn body_tiles(set: &[(usize, u64, u32)]) -> Arc<footlight::output::BodyTiles> {
+    use footlight::output::{BodyTile, BodyTiles};
     use footlight::render::bodies::BodyPixel;
     let tiles = (0..6)
         .map(|t| {
@@ -860,12 +861,12 @@ fn apply_bodies(layer: &mut [Vec<Option<footlight::render::bodies::BodyPixel>>],
 fn body_tiles_reach_each_viewer_once_per_change_encoded_once_for_all() {
     let (w, h) = (48, 32);
     let buffer = noise(w, h, 3);
-    let with = |n: u64, tiles: &Arc<footlight::live::bodies::BodyTiles>| {
+    let with = |n: u64, tiles: &Arc<footlight::output::BodyTiles>| {
         Arc::new(Frame { bodies: Some(tiles.clone()), ..(*frame(n, w, h, buffer.clone(), 1)).clone() })
     };
     let s0 = body_tiles(&[(1, 1, 3)]);
     let server = serve(with(0, &s0));
-    let pixels = |t: &footlight::live::bodies::BodyTiles| t.tiles.iter().map(|t| t.pixels.clone()).collect::<Vec<_>>();
+    let pixels = |t: &footlight::output::BodyTiles| t.tiles.iter().map(|t| t.pixels.clone()).collect::<Vec<_>>();
     let mut viewers = Vec::new();
     for _ in 0..2 {
         let mut ws = server.connect("");

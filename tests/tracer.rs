@@ -5,7 +5,8 @@
 //! rebuilt at once.
 
 use crate::common::*;
-use footlight::live::{Stage, Tracer, TracerSettings};
+use footlight::live::{Tracer, TracerSettings};
+use footlight::output::Stage;
 use footlight::render::{RecursionLimits, Sampling, View};
 use footlight::scene::{Camera, Scene, SceneBuilder};
 use glam::Vec3;

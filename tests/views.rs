@@ -10,8 +10,9 @@
 use crate::common::*;
 use footlight::fixture::{DmxSlots, FixtureState};
 use footlight::gpu::CompositorChoice;
-use footlight::live::views::{Phase, Pose, Views, preview};
-use footlight::live::{Daemon, DaemonConfig, Decode, DmxSource, LightInput, Stage, Tracer, TracerSettings};
+use footlight::live::views::{Views, preview};
+use footlight::live::{Daemon, DaemonConfig, Decode, DmxSource, LightInput, Tracer, TracerSettings};
+use footlight::output::{CameraControl, DaemonStatus, Phase, Pose, Stage};
 use footlight::render::build::{BuildSettings, Cancel, LightBuild};
 use footlight::render::display::check_finite;
 use footlight::render::photon::PhotonSettings;
@@ -353,7 +354,7 @@ async fn camera_writes_need_the_token_from_another_machine_but_not_from_loopback
         RecursionLimits::default(),
         Default::default(),
     ));
-    let frame = footlight::live::Frame {
+    let frame = footlight::output::Frame {
         number: 0,
         width: W,
         height: H,
@@ -371,7 +372,7 @@ async fn camera_writes_need_the_token_from_another_machine_but_not_from_loopback
     let (_tx, rx) = watch::channel(Arc::new(frame));
     let state = ServeState {
         frames: rx,
-        status: Arc::new(|| serde_json::json!({})),
+        status: Arc::new(DaemonStatus::default),
         views: Some(views.clone()),
         write_token: Some("s3cret".into()),
     };
@@ -615,7 +616,7 @@ fn a_gltf_camera_keeps_its_roll_through_the_named_view_and_json() {
 /// projection of the old target), the limits, and NaN/∞ inputs.
 #[test]
 fn window_controls_map_input_to_poses_within_limits_and_nan_safe() {
-    use footlight::live::views::{Control, ControlKey, control, view_key};
+    use footlight::output::{Control, ControlKey, control, view_key};
     let p = Pose { position: [0.0, 2.0, 8.0], target: [0.0, 1.0, 0.0], fov_y: 40.0, up: None };
     let off = |q: &Pose| Vec3::from_array(q.position) - Vec3::from_array(q.target);
     let r = off(&p).length();
@@ -943,7 +944,7 @@ impl StageDaemon {
                 config.tracer.build.photons = None;
                 config.tracer.build.refine_passes = 0;
                 let (run_tx, run_rx) = std::sync::mpsc::channel();
-                let daemon = Daemon::new(served, Arc::new(footlight::live::Show::new(patch)), camera, config)
+                let daemon = Daemon::new(served, Arc::new(footlight::live::Show::new(patch).unwrap()), camera, config)
                     .named_views(named)
                     .serve(listener)
                     .on_running(run_tx);
@@ -966,7 +967,7 @@ impl StageDaemon {
 
     /// Waits until the camera is still and every light is built for its
     /// view (bounded; no speed is asserted), then returns the camera status.
-    fn still(&self) -> footlight::live::ViewStatus {
+    fn still(&self) -> footlight::output::ViewStatus {
         let t = Instant::now();
         loop {
             let s = (self.handle.status)();
@@ -1027,7 +1028,7 @@ fn inside(p: [f32; 3], (lo, hi): (Vec3, Vec3)) -> bool {
 /// far out stops inside too.
 #[test]
 fn drags_of_500_px_each_way_over_http_keep_the_camera_on_the_stage_and_the_picture_lit() {
-    use footlight::live::views::{Control, control};
+    use footlight::output::{Control, control};
     let d = StageDaemon::start();
     let start = d.still();
     let lit = d.luma();

@@ -17,8 +17,9 @@
 
 use super::chase::{HEADS, chase_pan_tilt};
 use crate::fixture::Universes;
-use crate::live::bodies::{BodyTiles, LiveBodies};
+use crate::live::bodies::LiveBodies;
 use crate::live::{Decode, Show};
+use crate::output::BodyTiles;
 use crate::render::Display;
 use crate::render::bodies::body_models;
 use crate::scene::{Camera, Scene};
@@ -94,7 +95,7 @@ fn universes(moving: &dyn Fn(usize) -> bool, t: f64, dimmer: u8) -> Universes {
 pub fn run(scene: &Arc<Scene>, camera: Camera, (w, h): (u32, u32), frames: usize) -> Result<BodiesReport, String> {
     let path = crate::bundled::find("tests/replays/chase-44.toml").map_err(|e| e.to_string())?;
     let patch = crate::Patch::load(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let show = Show::new(patch);
+    let show = Show::new(patch).map_err(|e| e.to_string())?;
     let names: Vec<String> = show.patch().fixtures.iter().map(|f| f.name.clone()).collect();
     let display = Display::default();
     let composite = Arc::new(vec![0u8; (w * h * 3) as usize]);

@@ -112,7 +112,7 @@ pub fn run(
 ) -> Result<ChaseReport, String> {
     let path = crate::bundled::find("tests/replays/chase-44.toml").map_err(|e| e.to_string())?;
     let patch = crate::Patch::load(&path).map_err(|e| e.to_string())?;
-    let show = Arc::new(Show::new(patch));
+    let show = Arc::new(Show::new(patch).map_err(|e| e.to_string())?);
     let mut config = super::harness::config(width, height);
     config.tracer.build.photons =
         (photons > 0).then(|| PhotonSettings { stored: photons, ..PhotonSettings::default() });
@@ -167,7 +167,7 @@ pub fn run(
     let limit = Duration::from_secs(if photons > 0 { 180 } else { 60 });
     let converged_ms = loop {
         let s = (handle.status)();
-        if s.lights.iter().all(|l| l.build.as_ref().is_some_and(|b| b.stage == crate::live::Stage::Ready)) {
+        if s.lights.iter().all(|l| l.build.as_ref().is_some_and(|b| b.stage == crate::output::Stage::Ready)) {
             break Some(stopped.elapsed().as_secs_f64() * 1e3);
         }
         if stopped.elapsed() > limit {

@@ -44,9 +44,10 @@ pub fn run(
     let listener = rt.block_on(crate::live::bind_http("127.0.0.1:0".parse().map_err(|e| format!("{e}"))?));
     let listener = listener.map_err(|e| e.to_string())?;
     let addr = listener.local_addr().map_err(|e| e.to_string())?;
-    let daemon = Daemon::new(scene.clone(), Arc::new(Show::new(patch.clone())), camera, config)
-        .input(DmxSource::None)
-        .serve(listener);
+    let daemon =
+        Daemon::new(scene.clone(), Arc::new(Show::new(patch.clone()).map_err(|e| e.to_string())?), camera, config)
+            .input(DmxSource::None)
+            .serve(listener);
     let running = super::harness::Running::start(rt, daemon)?;
     let handle = running.handle.clone();
     // The clients run on their own runtime, as separate processes would.

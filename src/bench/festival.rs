@@ -23,7 +23,8 @@
 use crate::Patch;
 use crate::fixture::fixture_type::{Action, Channel};
 use crate::fixture::{Attribute, FixtureModel, Universes};
-use crate::live::{Daemon, DmxSource, Show, Stage};
+use crate::live::{Daemon, DmxSource, Show};
+use crate::output::Stage;
 use crate::render::photon::PhotonSettings;
 use crate::render::{RecursionLimits, Sampling, View};
 use crate::scene::{Camera, Scene};
@@ -322,7 +323,7 @@ impl Look {
                 }
             }
         }
-        let show = Show::new(patch.clone());
+        let show = Show::new(patch.clone()).expect("the generated festival patch has no [[input]] routes");
         let universes = show.universes();
         let mut base = Universes::new();
         for &u in &universes {
@@ -658,7 +659,7 @@ fn rank(stage: Stage) -> u8 {
 }
 
 /// One sample of the daemon's status, counting the lights `lit` marks.
-fn sample(status: &crate::live::DaemonStatus, lit: &[bool], t_s: f64) -> ReadySample {
+fn sample(status: &crate::output::DaemonStatus, lit: &[bool], t_s: f64) -> ReadySample {
     let mut s = ReadySample {
         t_s,
         fps: status.clock.fps,
@@ -689,7 +690,7 @@ fn sample(status: &crate::live::DaemonStatus, lit: &[bool], t_s: f64) -> ReadySa
 }
 
 /// True when every lit light's direct stage for its current geometry is on screen.
-fn direct_done(status: &crate::live::DaemonStatus, lit: &[bool]) -> bool {
+fn direct_done(status: &crate::output::DaemonStatus, lit: &[bool]) -> bool {
     status
         .lights
         .iter()
@@ -834,7 +835,7 @@ fn live(
     lit: &[bool],
     report: &mut FestivalReport,
 ) -> Result<(), String> {
-    let show = Arc::new(Show::new(patch));
+    let show = Arc::new(Show::new(patch).map_err(|e| e.to_string())?);
     let mut config = super::harness::config(cfg.width, cfg.height);
     config.tracer.build.photons =
         (cfg.photons > 0).then(|| PhotonSettings { stored: cfg.photons, ..PhotonSettings::default() });
@@ -912,7 +913,8 @@ fn live_phases(
     report.moved_lights = moved.len();
     let frames = look.moved(&heads, 0.1);
     let before = (handle.status)();
-    let updates = |s: &crate::live::DaemonStatus, i: usize| s.lights[i].build.as_ref().map_or(0, |b| b.direct_updates);
+    let updates =
+        |s: &crate::output::DaemonStatus, i: usize| s.lights[i].build.as_ref().map_or(0, |b| b.direct_updates);
     let dmx_before: Vec<Vec<u8>> = moved.iter().map(|&i| before.lights[i].dmx.clone()).collect();
     let updates_before: Vec<u64> = moved.iter().map(|&i| updates(&before, i)).collect();
     let start = Instant::now();

@@ -825,7 +825,8 @@ pub fn moved_beam(
     light: &Light,
     moves: usize,
 ) -> Option<MovedBeam> {
-    use crate::live::{Stage, Tracer, TracerSettings};
+    use crate::live::{Tracer, TracerSettings};
+    use crate::output::Stage;
     use std::time::{Duration, Instant};
     let medium = bench_medium(scene)?;
     let view = crate::render::View::build(

@@ -5,7 +5,8 @@
 
 use crate::Light;
 use crate::live::daemon::median;
-use crate::live::{Stage, Tracer, TracerSettings};
+use crate::live::{Tracer, TracerSettings};
+use crate::output::Stage;
 use crate::render::composite::{CompositeInput, Compositor, composite_into};
 use crate::render::photon::PhotonSettings;
 use crate::render::{Display, LightBuffer, RecursionLimits, Sampling, View};

@@ -230,7 +230,8 @@ pub fn through_tracer(
     batch: bool,
     first_only: bool,
 ) -> (f64, Vec<LightBuffer>, u64) {
-    use crate::live::{Stage, Tracer, TracerSettings};
+    use crate::live::{Tracer, TracerSettings};
+    use crate::output::Stage;
     let mut settings = TracerSettings { batch_cells: batch, settle: Duration::ZERO, ..TracerSettings::default() };
     settings.build.photons = None;
     settings.build.refine_passes = 0;

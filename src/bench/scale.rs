@@ -93,7 +93,7 @@ pub fn run(scene: &Arc<Scene>, camera: Camera, width: u32, height: u32) -> Resul
     let patch =
         crate::Patch::parse(std::path::Path::new("generated-600-rig.toml"), &rig_patch(&root.to_string_lossy()))
             .map_err(|e| e.to_string())?;
-    let decoder = Show::new(patch.clone());
+    let decoder = Show::new(patch.clone()).map_err(|e| e.to_string())?;
     let mut universes = Universes::new();
     let max_u = patch.fixtures.iter().filter_map(|f| f.dmx.map(|(u, _)| u)).max().unwrap_or(1);
     // Every channel at half: dimmers half up, CMY flags half in, heads centred.
@@ -416,7 +416,7 @@ mod tests {
         for u in 1..=universes {
             all.set(u, &[255; 512]);
         }
-        let inputs = Show::new(patch).decode(&all);
+        let inputs = Show::new(patch).expect("the generated rig has no [[input]] routes").decode(&all);
         assert!(inputs.iter().all(|i| i.k.is_finite() && i.light.position.is_finite()));
         // Every channel at 255: conventionals and LED PARs full on; moving
         // spots with all three CMY flags in are black, as they should be.

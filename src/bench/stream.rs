@@ -185,16 +185,17 @@ pub fn run(
     let listener = rt.block_on(crate::live::bind_http("127.0.0.1:0".parse().map_err(|e| format!("{e}"))?));
     let listener = listener.map_err(|e| e.to_string())?;
     let addr = listener.local_addr().map_err(|e| e.to_string())?;
-    let daemon = Daemon::new(scene.clone(), Arc::new(Show::new(patch.clone())), camera, config)
-        .input(DmxSource::Network {
-            artnet: Some(footlight_dmx::artnet::ArtNetConfig {
-                bind: "127.0.0.1:0".parse().map_err(|e| format!("{e}"))?,
-                ..Default::default()
-            }),
-            sacn: None,
-            usbpro: None,
-        })
-        .serve(listener);
+    let daemon =
+        Daemon::new(scene.clone(), Arc::new(Show::new(patch.clone()).map_err(|e| e.to_string())?), camera, config)
+            .input(DmxSource::Network {
+                artnet: Some(footlight_dmx::artnet::ArtNetConfig {
+                    bind: "127.0.0.1:0".parse().map_err(|e| format!("{e}"))?,
+                    ..Default::default()
+                }),
+                sacn: None,
+                usbpro: None,
+            })
+            .serve(listener);
     let running = super::harness::Running::start(rt, daemon)?;
     let handle = running.handle.clone();
     let target = handle.dmx.as_ref().and_then(|d| d.artnet).ok_or("no Art-Net socket")?;
@@ -208,7 +209,7 @@ pub fn run(
     send(255, 0)?;
     let t = Instant::now();
     let ready =
-        |l: &crate::live::daemon::LightStatus| l.build.as_ref().is_some_and(|b| b.stage == crate::live::Stage::Ready);
+        |l: &crate::output::LightStatus| l.build.as_ref().is_some_and(|b| b.stage == crate::output::Stage::Ready);
     while !(handle.status)().lights.iter().all(ready) {
         if t.elapsed() > Duration::from_secs(600) {
             return Err("lights never finished building".into());

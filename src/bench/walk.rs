@@ -14,8 +14,8 @@
 //! * **return to a cached view**: from the named-view write to its kept
 //!   buffers on screen (target < one frame).
 
-use crate::live::views::Phase;
-use crate::live::{Daemon, DmxSource, Show, Stage};
+use crate::live::{Daemon, DmxSource, Show};
+use crate::output::{CameraControl, Phase, Stage};
 use crate::render::photon::PhotonSettings;
 use crate::scene::{Camera, Scene};
 use serde::Serialize;
@@ -202,7 +202,7 @@ pub fn run(
     photons: usize,
 ) -> Result<WalkReport, String> {
     let profile = profile(scene, patch, camera, (width, height), photons)?;
-    let show = Arc::new(Show::new(patch.clone()));
+    let show = Arc::new(Show::new(patch.clone()).map_err(|e| e.to_string())?);
     let lights = patch.fixtures.len();
     let mut config = super::harness::config(width, height);
     config.tracer.build.photons =
@@ -435,7 +435,7 @@ pub fn profile(
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| e.to_string())?;
     let ms = |t: Instant| t.elapsed().as_secs_f64() * 1e3;
     let settings = crate::render::build::BuildSettings::default();
-    let moved = crate::live::views::Pose::focused(scene, &camera).orbit(30f32.to_radians(), 0.0).camera()?;
+    let moved = crate::output::Pose::focused(scene, &camera).orbit(30f32.to_radians(), 0.0).camera()?;
     pool.install(|| {
         let t = Instant::now();
         let gbuffer = GBuffer::build(scene, moved, width, height);

@@ -36,7 +36,7 @@ impl Inputs {
 
 /// The scene, the checked patch and its import status for `/api/status`,
 /// each logged once as it loads.
-pub fn load_inputs(args: &Inputs) -> Result<(Scene, Patch, crate::live::ImportStatus)> {
+pub fn load_inputs(args: &Inputs) -> Result<(Scene, Patch, crate::output::ImportStatus)> {
     let t = std::time::Instant::now();
     let (scene_path, scene) = load_scene(args)?;
     tracing::info!(
@@ -50,7 +50,7 @@ pub fn load_inputs(args: &Inputs) -> Result<(Scene, Patch, crate::live::ImportSt
     // A TOML patch, or an MVR show whose fixtures come from its GDTF files.
     let patch_path = args.patch_path()?;
     let checked = footlight_mvr::check_report(&patch_path).map_err(|e| problems(&patch_path, &e))?;
-    let import = crate::live::ImportStatus::of(&checked);
+    let import = crate::output::ImportStatus::of(&checked);
     log_import(&patch_path, &checked);
     let patch = checked.patch;
     tracing::info!("{}: {}", patch.path.display(), fixture_summary(&patch, &patch.listing()));

@@ -61,7 +61,7 @@ impl DmxOptions {
 /// `footlight record`: the DMX that arrives, to a pcapng file until a signal.
 pub fn record(dmx: &DmxOptions, patch: &std::path::Path, out: &std::path::Path, force: bool) -> Result<()> {
     check_output(out, force)?;
-    let show = Show::new(footlight_mvr::load_patch(&crate::bundled::resolve(patch))?);
+    let show = Show::new(footlight_mvr::load_patch(&crate::bundled::resolve(patch))?)?;
     runtime()?.block_on(async move {
         let signals = Signals::install()?;
         let config = dmx.config(&show)?;
@@ -221,7 +221,7 @@ fn run_daemon(
                 args.inputs.patch().display()
             );
         }
-        let show = Arc::new(Show::new(patch));
+        let show = Arc::new(Show::new(patch)?);
         let patch_path = args.inputs.patch_path()?;
         let bodies = match args.bodies {
             BodiesChoice::On => true,

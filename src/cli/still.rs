@@ -94,7 +94,7 @@ pub fn render(args: &StillOptions) -> Result<()> {
         .map_err(|e| anyhow::anyhow!("--white-balance {e}"))?;
     tracing::info!("white balance {}: {}", white.setting, white.note);
     let gains = white.gains;
-    let show = Show::new(patch);
+    let show = Show::new(patch)?;
     let settings = RenderSettings {
         width: args.width,
         height: args.height,

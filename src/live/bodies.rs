@@ -16,7 +16,7 @@
 //! The moving-camera preview shows no bodies (it is not a composite).
 //!
 //! For the browser stream the layer is also kept as 16×16 tiles of
-//! [`BodyPixel`]s ([`BodyTiles`], shared with every [`super::Frame`]): each
+//! [`BodyPixel`]s ([`BodyTiles`], shared with every [`crate::output::Frame`]): each
 //! pixel's housing radiance and lens glow per unit k_i, so the browser
 //! multiplies by the frame's k_i itself (a dimmer change sends no body
 //! bytes). A tile gets a new revision only when its pixels changed: a moved
@@ -27,8 +27,9 @@
 
 use super::clock::LightInput;
 use crate::fixture::Light;
+use crate::output::{BodyTile, BodyTiles};
 use crate::render::Display;
-use crate::render::bodies::{Body, BodyLayer, BodyModel, BodyPixel, Rect};
+use crate::render::bodies::{Body, BodyLayer, BodyModel, Rect};
 use crate::render::buffer::TILE;
 use crate::scene::{Camera, Scene};
 use glam::{Quat, Vec3};
@@ -43,44 +44,6 @@ pub struct BodyUpdate {
     pub pixels_tested: u64,
     /// True when the whole layer was cast again (first frame, camera change).
     pub rebuilt: bool,
-}
-
-/// One 16×16 tile of the body layer as the stream sends it.
-#[derive(Clone, Debug, PartialEq)]
-pub struct BodyTile {
-    /// Changes whenever the tile's pixels change (counts up over the life of a [`LiveBodies`]).
-    pub revision: u64,
-    /// 16×16 pixels row-major; `None` where the stage shows (and beyond the picture's edge).
-    pub pixels: Vec<Option<BodyPixel>>,
-}
-
-impl BodyTile {
-    /// True when no pixel of the tile shows a body.
-    pub fn is_empty(&self) -> bool {
-        self.pixels.iter().all(Option::is_none)
-    }
-}
-
-/// The body layer as tiles (row-major over ⌈width/16⌉ × ⌈height/16⌉), the
-/// browser stream's view of it.
-#[derive(Clone, Debug)]
-pub struct BodyTiles {
-    /// Picture width.
-    pub width: u32,
-    /// Picture height.
-    pub height: u32,
-    /// Number of lights N (a glow's k_i is light i's; in haze the frame's k
-    /// vector holds N entries per density knot).
-    pub lights: u32,
-    /// The tiles, shared between snapshots.
-    pub tiles: Vec<Arc<BodyTile>>,
-}
-
-impl BodyTiles {
-    /// Tiles across.
-    pub fn tiles_x(&self) -> usize {
-        (self.width as usize).div_ceil(TILE)
-    }
 }
 
 /// The last composite in, the k_i it was shaded with, the picture out.

@@ -7,12 +7,13 @@
 //! first stage. The clock never waits for the tracer: it only reads the
 //! buffers the tracer has published.
 
+use super::show::Show;
 use super::tracer::{Published, Tracer};
 use crate::Light;
-use crate::fixture::{Change, DmxSlots, FixtureState, classify};
+use crate::fixture::{Change, DmxSlots, FixtureState};
+use crate::output::{Frame, LightLabel};
 use crate::render::buffer::LightBuffer;
 use crate::render::composite::{CompositeInput, Compositor, UpdateStats};
-use crate::render::display::Display;
 use glam::Vec3;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -20,7 +21,7 @@ use std::time::{Duration, Instant};
 /// One fixture's state as the renderer needs it, decoded from DMX.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LightInput {
-    /// Geometry and beam (rebuilt when [`classify`] says the geometry changed).
+    /// Geometry and beam (rebuilt when [`Show::change`] says the geometry changed).
     pub light: Light,
     /// k_i now (eq. 4).
     pub k: Vec3,
@@ -28,15 +29,6 @@ pub struct LightInput {
     pub k_full: Vec3,
     /// The fixture state in real units: what the change rule compares.
     pub state: FixtureState,
-}
-
-/// How a light is named in logs and in the status.
-#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
-pub struct LightLabel {
-    /// The fixture id as the patch (and the desk) numbers it.
-    pub fixture: Option<u32>,
-    /// Display name.
-    pub name: String,
 }
 
 /// Turns DMX into fixture states. [`super::Show`] implements it over the
@@ -70,45 +62,6 @@ pub trait Decode: Send + Sync {
     fn slots_of(&self, _index: usize, _universes: &dyn DmxSlots) -> Vec<u8> {
         Vec::new()
     }
-}
-
-/// A published frame.
-#[derive(Clone, Debug)]
-pub struct Frame {
-    /// Frame number (0 = the first).
-    pub number: u64,
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-    /// 8-bit sRGB, row-major RGB.
-    pub rgb: Arc<Vec<u8>>,
-    /// Luminance of each light's k_i (cd) in this frame, 0 when dark.
-    pub intensity: Arc<Vec<f32>>,
-    /// Composite time of this frame; for a moving preview, the time its picture took (also when reused).
-    pub composite_time: Duration,
-    /// What the incremental composite did.
-    pub update: UpdateStats,
-    /// Each buffer's weight in this frame, in light order: k_i (eq. 4) per
-    /// light; in haze, w_j(d) k_i for the knots j = 0, ½, 1 (all lights'
-    /// knot-0 buffers, then all knot-½, then all knot-1;
-    /// [`crate::render::media::knot_weights`]). What the browser stream
-    /// sends every frame (issue 17).
-    pub k: Arc<Vec<Vec3>>,
-    /// Each light's published buffer and its generation, in light order,
-    /// then in haze every light's knot-½ and knot-1 buffers (shared, never
-    /// copied: the stream sends a buffer when its generation changes).
-    pub buffers: Arc<Vec<(u64, Arc<LightBuffer>)>>,
-    /// The haze density of this frame (0-1), `None` without haze.
-    pub haze_density: Option<f32>,
-    /// The display settings the frame's sRGB pixels were encoded with.
-    pub display: Display,
-    /// A moving-camera preview (not a composite of the per-light buffers):
-    /// the browser stream pushes it as a picture.
-    pub preview: bool,
-    /// The fixture body layer as tiles, when bodies are shown (the browser
-    /// stream sends the tiles that changed; [`super::bodies::BodyTiles`]).
-    pub bodies: Option<Arc<super::bodies::BodyTiles>>,
 }
 
 /// Frame state carried from tick to tick.
@@ -312,7 +265,7 @@ impl FrameClock {
             };
             let moved = match &self.last[i] {
                 None => true,
-                Some(old) => classify(old, &input.state) == Change::Geometry,
+                Some(old) => Show::change(old, &input.state) == Change::Geometry,
             };
             if moved {
                 self.tracer.request(i, input.light.clone(), priority);

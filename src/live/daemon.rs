@@ -24,19 +24,22 @@
 //! work gets [`DaemonConfig::shutdown_grace`], and a light build still
 //! running after it is left to end with the process.
 
-use super::clock::{Decode, Frame, FrameClock, LightLabel};
-use super::show::{LightPatch, LiveSlots, Show};
-use super::tracer::{LightReport, Tracer, TracerSettings};
-use super::views::{NamedView, ViewSettings, ViewStatus, Views};
+use super::clock::{Decode, FrameClock};
+use super::show::{LiveSlots, Show};
+use super::tracer::{Tracer, TracerSettings};
+use super::views::{ViewSettings, Views};
+use crate::output::{
+    CacheSummary, CameraControl, ClockStatus, DaemonStatus, Frame, ImportStatus, InputSummary, LightStatus, NamedView,
+    StatusFn,
+};
 use crate::render::composite::Compositor;
 use crate::render::{Display, RecursionLimits, Sampling, View};
 use crate::scene::{Camera, Scene};
-use crate::serve::{ServeConfig, ServeState, StatusFn};
+use crate::serve::{ServeConfig, ServeState};
 use footlight_dmx::artnet::ArtNetConfig;
 use footlight_dmx::sacn::SacnConfig;
 use footlight_dmx::usbpro::UsbProConfig;
 use footlight_dmx::{InputConfig, Recording, ReplayOptions, Universes};
-use serde::Serialize;
 use std::collections::VecDeque;
 use std::future::Future;
 use std::net::SocketAddr;
@@ -193,122 +196,6 @@ impl StopSignal {
     }
 }
 
-/// The frame clock's own measurements.
-#[derive(Clone, Debug, Default, Serialize)]
-pub struct ClockStatus {
-    /// Frames per second over the last second.
-    pub fps: f64,
-    /// 99th percentile of the interval between published frames over the
-    /// last 600 frames, ms (the clock's jitter).
-    pub frame_interval_p99_ms: f64,
-    /// Composite time of the last frame, ms.
-    pub composite_ms: f64,
-    /// Compositor in use.
-    pub compositor: String,
-}
-
-/// A light in `/api/status`.
-#[derive(Clone, Debug, Serialize)]
-pub struct LightStatus {
-    /// Fixture id and name as the patch gives them.
-    #[serde(flatten)]
-    pub label: LightLabel,
-    /// Its fixture (a cell's fixture), DMX address, mode and position
-    /// (all `null` for a daemon without a patch).
-    #[serde(flatten)]
-    pub patch: LightPatch,
-    /// DMX values of its footprint.
-    pub dmx: Vec<u8>,
-    /// Luminance of its k_i now (cd), 0 when dark.
-    pub intensity: f32,
-    /// Build state.
-    #[serde(flatten)]
-    pub build: Option<LightReport>,
-}
-
-/// The DMX input in `/api/status`: the DMX crate's typed status
-/// (`footlight_dmx::InputStatus`: per patch universe its inputs, sources,
-/// packets, age and `stale`; unpatched input universes) plus totals.
-#[derive(Clone, Debug, Default, Serialize)]
-pub struct InputSummary {
-    /// `network`, `replay`, `channel` or `none`.
-    pub kind: &'static str,
-    /// DMX packets received (all protocols).
-    pub packets: u64,
-    /// Malformed packets.
-    pub malformed: u64,
-    /// Per universe and unpatched input, with counters per protocol.
-    #[serde(flatten)]
-    pub dmx: footlight_dmx::InputStatus,
-}
-
-/// Cache usage in `/api/status`.
-#[derive(Clone, Debug, Default, Serialize)]
-pub struct CacheSummary {
-    /// Geometry states cached.
-    pub entries: usize,
-    /// Bytes they hold.
-    pub bytes: usize,
-    /// The budget.
-    pub budget_bytes: usize,
-}
-
-/// `/api/status`: the typed status of the daemon (documented in docs/live.md).
-#[derive(Clone, Debug, Serialize)]
-pub struct DaemonStatus {
-    /// Footlight version.
-    pub version: &'static str,
-    /// Number of the latest frame.
-    pub frame: u64,
-    /// Picture width.
-    pub width: u32,
-    /// Picture height.
-    pub height: u32,
-    /// Frame clock figures.
-    #[serde(flatten)]
-    pub clock: ClockStatus,
-    /// DMX input.
-    pub input: InputSummary,
-    /// Geometry cache.
-    pub cache: CacheSummary,
-    /// The memory budget and what the tracer holds against it (light
-    /// buffers, photon maps, caches; `--memory`).
-    pub memory: super::tracer::MemoryUsage,
-    /// The camera: current view, its build stage, the view cache.
-    pub view: ViewStatus,
-    /// Problems a user should see (stale universes, unpatched DMX).
-    pub warnings: Vec<String>,
-    /// Every light, in patch order.
-    pub lights: Vec<LightStatus>,
-    /// What importing the patch said: one summary per fixture type, the
-    /// warnings once each (issue 36 item 3; empty for a patch without GDTF types).
-    pub import: ImportStatus,
-}
-
-/// `/api/status` `import`: the patch's fixture types summed up (modelled,
-/// partly and why, or not) and its warnings and notes, each said once
-/// ([`footlight_mvr::check_report`]); the preview lists them under "import warnings".
-#[derive(Clone, Debug, Default, Serialize)]
-pub struct ImportStatus {
-    /// One per GDTF fixture type, in the order the patch names them.
-    pub types: Vec<footlight_mvr::TypeSummary>,
-    /// Each warning once, `file:line: message (N fixtures, M cells)`.
-    pub warnings: Vec<String>,
-    /// Names read not quite as written (a `GDTFSpec` without `.gdtf`).
-    pub notes: Vec<String>,
-}
-
-impl ImportStatus {
-    /// The summary of a checked patch.
-    pub fn of(checked: &footlight_mvr::Checked) -> Self {
-        Self {
-            types: checked.types.clone(),
-            warnings: checked.warnings.iter().map(ToString::to_string).collect(),
-            notes: checked.notes.iter().map(ToString::to_string).collect(),
-        }
-    }
-}
-
 /// What [`Daemon::frames_tap`] hands a window: the frames and the camera control.
 pub type FramesTap = (watch::Receiver<Arc<Frame>>, Arc<Views>);
 
@@ -336,7 +223,7 @@ pub struct DaemonHandle {
     /// Local addresses of the DMX sockets, when network input runs.
     pub dmx: Option<footlight_dmx::LocalAddrs>,
     /// The typed status, built on request.
-    pub status: Arc<dyn Fn() -> DaemonStatus + Send + Sync>,
+    pub status: StatusFn,
     /// The camera control (what the HTTP routes and the window write to).
     pub views: Arc<Views>,
     /// The write token for non-loopback clients, if the preview needs one.
@@ -547,7 +434,7 @@ impl Daemon {
         let (frames_tx, frames_rx) = watch::channel(first);
         let clock_status = Arc::new(Mutex::new(ClockStatus { compositor, ..ClockStatus::default() }));
 
-        let status_fn: Arc<dyn Fn() -> DaemonStatus + Send + Sync> = {
+        let status_fn: StatusFn = {
             let (frames, inputs, tracer, decoder) =
                 (frames_rx.clone(), inputs.clone(), tracer.clone(), decoder.clone());
             let clock_status = clock_status.clone();
@@ -615,6 +502,7 @@ impl Daemon {
                     warnings,
                     lights,
                     import: import.clone(),
+                    stream: None,
                 }
             })
         };
@@ -624,10 +512,6 @@ impl Daemon {
         tasks.spawn(views.clone().run(stop.clone()));
         let mut http_token = None;
         if let Some(listener) = listener {
-            let status: StatusFn = {
-                let status_fn = status_fn.clone();
-                Arc::new(move || serde_json::to_value(status_fn()).unwrap_or_default())
-            };
             // Timeouts, connection limit and Host check; loopback-only Host
             // unless the address is public on purpose (docs/live.md).
             let local = listener.local_addr().ok();
@@ -642,7 +526,7 @@ impl Daemon {
             }
             let state = ServeState {
                 frames: frames_rx.clone(),
-                status,
+                status: status_fn.clone(),
                 views: Some(views.clone()),
                 write_token: http_token.clone(),
             };
@@ -751,19 +635,19 @@ impl Daemon {
 /// What the page should warn about: stale universes and DMX that reaches
 /// no patch universe.
 fn warnings(dmx: &footlight_dmx::InputStatus, map: &footlight_dmx::UniverseMap) -> Vec<String> {
-    use footlight_dmx::{FeedState, InputUniverse, Protocol};
+    use footlight_dmx::FeedState;
     let stale = dmx
         .universes
         .iter()
         .filter(|u| u.state == FeedState::Stale)
         .map(|u| format!("patch universe {}: every source stopped sending; holding the last levels", u.universe));
+    // Show's one protocol → input mapping (the DMX crate only reports
+    // inputs it received, so a USB Pro widget past 255 is said, not clamped).
     let unpatched = dmx.unpatched.iter().filter(|u| !u.blocked).map(|u| {
-        let input = match u.input.protocol {
-            Protocol::ArtNet => InputUniverse::ArtNet(u.input.universe),
-            Protocol::Sacn => InputUniverse::Sacn(u.input.universe),
-            Protocol::UsbPro => InputUniverse::UsbPro(u8::try_from(u.input.universe).unwrap_or(u8::MAX)),
-        };
-        footlight_dmx::status::unpatched_message(map, input, u.packets)
+        match Show::input_universe(u.input.protocol, u.input.universe) {
+            Ok(input) => footlight_dmx::status::unpatched_message(map, input, u.packets),
+            Err(e) => format!("unpatched input: {e}"),
+        }
     });
     let sockets = [("Art-Net", dmx.sockets.artnet), ("sACN", dmx.sockets.sacn)];
     let drops = sockets.into_iter().filter_map(|(name, s)| {

@@ -10,7 +10,9 @@
 //! * [`cache`]: recent geometry states per light (position presets are instant).
 //! * [`views`]: camera writes, named views, the moving preview and the view cache.
 //! * [`bodies`]: fixture bodies over each composite (issue 14 item 5).
-//! * [`daemon`]: [`Daemon`], the owner of every task and the one stop signal.
+//! * [`daemon`]: [`Daemon`], the owner of every task and the one stop signal;
+//!   it fills in the output contract ([`crate::output`]: frames, the typed
+//!   status, the camera control) and starts the HTTP preview with it.
 //!
 //! Threads: DMX input and HTTP run on tokio; each frame-clock tick runs on
 //! tokio's blocking pool; builds run on the tracer's own thread and rayon
@@ -24,10 +26,8 @@ pub mod show;
 pub mod tracer;
 pub mod views;
 
-pub use clock::{Decode, Frame, FrameClock, LightInput, LightLabel};
-pub use daemon::{
-    Daemon, DaemonConfig, DaemonError, DaemonHandle, DaemonStatus, DmxSource, ImportStatus, bind_http, run_clock,
-};
+pub use clock::{Decode, FrameClock, LightInput};
+pub use daemon::{Daemon, DaemonConfig, DaemonError, DaemonHandle, DmxSource, bind_http, run_clock};
 pub use show::{LiveSlots, Show};
-pub use tracer::{Kept, LightReport, Stage, Tracer, TracerSettings};
-pub use views::{NamedView, Pose, ViewSettings, ViewStatus, Views};
+pub use tracer::{Kept, Tracer, TracerSettings};
+pub use views::{ViewSettings, Views};

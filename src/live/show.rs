@@ -5,8 +5,11 @@
 //! patch ──> Show ──┬─ input_patch(): [[input]] routes as the DMX crate's UniverseMap,
 //!                  │  the universes to join (sACN) and announce (ArtPollReply),
 //!                  │  LTP masks — used by live input, record, replay and render --dmx
+//!                  ├─ input_universe(protocol, n): the one protocol → input mapping
+//!                  │  (routes, and the status's unpatched inputs; a USB Pro widget past 255 is an error)
 //!                  ├─ decode(slots): every fixture's state, tracer light and k_i (eq. 4)
-//!                  └─ change(old, new): the fixture crate's one rule (composite or geometry)
+//!                  └─ change(old, new): the fixture crate's one rule (composite or geometry),
+//!                     applied by the frame clock to every light each frame
 //! ```
 //!
 //! The DMX it decodes is read in place through [`DmxSlots`]: the daemon
@@ -16,8 +19,9 @@
 
 use crate::Patch;
 use crate::fixture::{Change, DmxSlots, FixtureState, classify};
-use crate::live::clock::{Decode, LightInput, LightLabel};
-use footlight_dmx::{InputPatch, InputUniverse, SlotMask, UniverseMap};
+use crate::live::clock::{Decode, LightInput};
+use crate::output::{LightLabel, LightPatch};
+use footlight_dmx::{InputPatch, InputUniverse, Protocol, SlotMask, UniverseMap};
 use footlight_fixture::patch::InputProtocol;
 use std::sync::Arc;
 
@@ -27,18 +31,47 @@ pub struct Show {
     input: InputPatch,
 }
 
+/// Why a protocol universe cannot be an input of the DMX crate
+/// ([`Show::input_universe`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum RouteError {
+    /// A USB Pro input is a widget index 0-255, not a DMX universe number.
+    #[error(
+        "USB Pro widget index {universe} is outside 0-255 (a USB Pro input's `universe` is the widget's \
+         index, the one --usbpro opens is 0; give the patch universe it feeds as patch_universe)"
+    )]
+    UsbProWidget {
+        /// The index asked for.
+        universe: u16,
+    },
+}
+
+/// Why a patch cannot be shown ([`Show::new`]).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ShowError {
+    /// An `[[input]]` route names an input no DMX node can receive.
+    #[error("{} line {line}: [[input]]: {source}", path.display())]
+    Route {
+        /// The patch file.
+        path: std::path::PathBuf,
+        /// The route's line in it.
+        line: usize,
+        /// What is wrong with it.
+        source: RouteError,
+    },
+}
+
 impl Show {
     /// The show of `patch`: its `[[input]]` routes (inputs without a route
     /// keep the default rule: sACN N and Art-Net Port-Address N−1 feed patch
-    /// universe N), the patched universes and the LTP slots.
-    pub fn new(patch: Patch) -> Self {
+    /// universe N), the patched universes and the LTP slots. A route the
+    /// DMX input cannot take (a USB Pro widget index past 255) is an error
+    /// naming the patch file and line, never a different input in silence.
+    pub fn new(patch: Patch) -> Result<Self, ShowError> {
         let mut map = UniverseMap::default();
         for route in &patch.inputs {
-            let input = match route.protocol {
-                InputProtocol::Sacn => InputUniverse::Sacn(route.universe),
-                InputProtocol::ArtNet => InputUniverse::ArtNet(route.universe),
-                InputProtocol::UsbPro => InputUniverse::UsbPro(u8::try_from(route.universe).unwrap_or(u8::MAX)),
-            };
+            let input = Self::input_universe(protocol_of(route.protocol), route.universe)
+                .map_err(|source| ShowError::Route { path: patch.path.clone(), line: route.line, source })?;
             match route.patch_universe {
                 Some(u) => map.route(input, u),
                 None => map.block(input),
@@ -51,7 +84,21 @@ impl Show {
         universes.dedup();
         let ltp = patch.ltp_addresses().into_iter().map(|(u, addrs)| (u, SlotMask::from_addresses(addrs))).collect();
         let input = InputPatch { map, universes, ltp, ..InputPatch::default() };
-        Self { patch: Arc::new(patch), input }
+        Ok(Self { patch: Arc::new(patch), input })
+    }
+
+    /// The input universe `universe` of `protocol` names as the DMX crate
+    /// keys it: the one mapping from a protocol and its number to an input,
+    /// for the patch's `[[input]]` routes and for the status's unpatched
+    /// inputs alike. A USB Pro widget index past 255 is an error.
+    pub fn input_universe(protocol: Protocol, universe: u16) -> Result<InputUniverse, RouteError> {
+        Ok(match protocol {
+            Protocol::Sacn => InputUniverse::Sacn(universe),
+            Protocol::ArtNet => InputUniverse::ArtNet(universe),
+            Protocol::UsbPro => {
+                InputUniverse::UsbPro(u8::try_from(universe).map_err(|_| RouteError::UsbProWidget { universe })?)
+            }
+        })
     }
 
     /// The patch.
@@ -92,52 +139,21 @@ impl Show {
         slots.map(|sl| sl[start.min(end)..end].to_vec()).unwrap_or_default()
     }
 
-    /// What a state change of a fixture costs: the fixture crate's rule.
+    /// What a state change of a fixture costs: the fixture crate's rule,
+    /// the one the frame clock applies to every light each frame (a
+    /// geometry change asks the tracer for a rebuild; anything else is a
+    /// new k_i, a composite).
     pub fn change(old: &FixtureState, new: &FixtureState) -> Change {
         classify(old, new)
     }
 }
 
-/// Where a light is patched and hung, as a desk shows it (the status's
-/// per-light patch fields, [`Show::light_patches`]; docs/live.md).
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
-pub struct LightPatch {
-    /// The fixture's own name: for a cell, its fixture's (the light's
-    /// `name` is `"fixture / cell"`); else the light's name.
-    pub fixture_name: Option<String>,
-    /// 1-based number of the cell within its fixture, when the fixture is
-    /// several lights (an MVR pixel bar's pixels); `None` for a one-light
-    /// fixture. A fixture's cells are consecutive lights under one id.
-    pub cell: Option<u32>,
-    /// Patch universe of the start address; `None` when unpatched.
-    pub universe: Option<u16>,
-    /// Start address, 1-512; `None` when unpatched.
-    pub address: Option<u16>,
-    /// `universe.address` as desks write it (`"2.17"`); `None` when unpatched.
-    pub dmx_address: Option<String>,
-    /// Channels the fixture's mode uses from its start address.
-    pub footprint: Option<u16>,
-    /// The DMX mode's name (GDTF and library types); `None` for the built-in spot.
-    pub mode: Option<String>,
-    /// Where the fixture hangs, metres to the millimetre, stage axes (y up):
-    /// the patch's `position`, an MVR fixture's origin (shared by its cells).
-    pub position: Option<[f64; 3]>,
-}
-
-impl LightPatch {
-    /// The patch data of one fixture instance.
-    fn of(f: &footlight_fixture::Fixture) -> Self {
-        let fixture_name = f.cell.as_ref().map_or_else(|| f.name.clone(), |c| c.fixture_name.clone());
-        Self {
-            fixture_name: Some(fixture_name),
-            cell: f.cell.as_ref().map(|c| c.number),
-            universe: f.dmx.map(|(u, _)| u),
-            address: f.dmx.map(|(_, a)| a),
-            dmx_address: f.dmx.map(|(u, a)| format!("{u}.{a}")),
-            footprint: Some(f.footprint()),
-            mode: f.mode_name().map(str::to_string),
-            position: Some(f.position.to_array().map(|v| (f64::from(v) * 1000.0).round() / 1000.0)),
-        }
+/// The DMX crate's protocol of a patch route's protocol.
+fn protocol_of(p: InputProtocol) -> Protocol {
+    match p {
+        InputProtocol::Sacn => Protocol::Sacn,
+        InputProtocol::ArtNet => Protocol::ArtNet,
+        InputProtocol::UsbPro => Protocol::UsbPro,
     }
 }
 
@@ -194,5 +210,61 @@ impl Decode for Show {
         let spec = self.patch.haze.as_ref()?;
         let slots = spec.dmx.and_then(|(u, _)| universes.slots(u).or_else(|| self.patch.look_universes.get(u)));
         Some(slots.map_or(spec.density, |sl| spec.density_from_slots(sl)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use footlight_fixture::patch::InputRoute;
+    use std::path::Path;
+
+    /// One spot on universe 1.
+    const SPOT: &str = "[[fixture]]\nid = 1\ntype = \"spot\"\nposition = [0.0, 6.0, 6.0]\naim = [0.0, 0.0, 0.0]\n\
+                        intensity = 1000.0\nuniverse = 1\naddress = 1\n";
+
+    /// The one-spot patch with these `[[input]]` routes (text).
+    fn patch(routes: &str) -> Result<Patch, footlight_fixture::PatchError> {
+        Patch::parse(Path::new("rig.toml"), &format!("{SPOT}{routes}"))
+    }
+
+    #[test]
+    fn one_mapping_from_a_protocol_number_to_an_input() {
+        assert_eq!(Show::input_universe(Protocol::Sacn, 7), Ok(InputUniverse::Sacn(7)));
+        assert_eq!(Show::input_universe(Protocol::ArtNet, 0), Ok(InputUniverse::ArtNet(0)));
+        assert_eq!(Show::input_universe(Protocol::UsbPro, 255), Ok(InputUniverse::UsbPro(255)));
+        // Past a widget index: an error, never widget 255 in silence.
+        assert_eq!(Show::input_universe(Protocol::UsbPro, 256), Err(RouteError::UsbProWidget { universe: 256 }));
+    }
+
+    #[test]
+    fn a_usb_pro_route_past_widget_255_is_an_error_naming_the_patch_and_line() {
+        // The patch file refuses it itself (the parser's range check) ...
+        let e = patch("\n[[input]]\nprotocol = \"usbpro\"\nuniverse = 300\npatch_universe = 1\n")
+            .expect_err("widget 300 is refused");
+        assert!(e.to_string().contains("USB Pro widget index 300"), "{e}");
+        // ... and a patch built in code with such a route is refused by Show
+        // (it used to be routed as widget 255).
+        let mut p = patch("").expect("the spot alone parses");
+        p.inputs.push(InputRoute { protocol: InputProtocol::UsbPro, universe: 300, patch_universe: Some(1), line: 12 });
+        let e = Show::new(p).err().expect("widget 300 is an error");
+        assert_eq!(
+            e,
+            ShowError::Route { path: "rig.toml".into(), line: 12, source: RouteError::UsbProWidget { universe: 300 } }
+        );
+        let said = e.to_string();
+        assert!(said.starts_with("rig.toml line 12: [[input]]: USB Pro widget index 300 is outside 0-255"), "{said}");
+        // Widget 255 and the other protocols route as written.
+        let show = Show::new(
+            patch(
+                "\n[[input]]\nprotocol = \"usbpro\"\nuniverse = 255\npatch_universe = 1\n\n\
+             [[input]]\nprotocol = \"artnet\"\nuniverse = 4\nblock = true\n",
+            )
+            .expect("valid routes"),
+        )
+        .expect("valid routes");
+        let map = &show.input_patch().map;
+        assert_eq!(map.patch_universe(InputUniverse::UsbPro(255)), Some(1));
+        assert_eq!(map.entry(InputUniverse::ArtNet(4)), Some(None));
     }
 }

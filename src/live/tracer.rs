@@ -111,6 +111,7 @@ mod cells;
 
 use super::cache::{GeometryCache, Knots};
 use crate::Light;
+use crate::output::{LightReport, MemoryUsage, Stage};
 use crate::render::buffer::HazeBuffer;
 use crate::render::build::{BuildError, BuildSettings, Cancel, LightBuild, NextStage};
 use crate::render::footprint::DirectQuality;
@@ -118,14 +119,10 @@ use crate::render::media::{HazeQuality, HazeView, Medium, knot_buffers, update_k
 use crate::render::photon::PhotonMaps;
 use crate::render::{LightBuffer, View};
 use crate::scene::Scene;
-use serde::Serialize;
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
-
-/// How far a light's published buffer has got (owned by the build pipeline).
-pub use crate::render::build::Stage;
 
 /// Tracer settings; [`Default`] holds every default in one place.
 #[derive(Clone, Copy, Debug)]
@@ -178,36 +175,6 @@ pub struct TracerSettings {
     pub memory: u64,
 }
 
-/// What the tracer holds against its memory budget
-/// ([`TracerSettings::memory`]), in `/api/status` as `memory`.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
-pub struct MemoryUsage {
-    /// The budget.
-    pub budget_bytes: u64,
-    /// Everything below, summed.
-    pub used_bytes: u64,
-    /// The published buffers (and haze knot buffers) of the lights, and
-    /// the state their builds in progress keep between stages (the Whitted
-    /// term, the start and state of refinement: [`LightBuild::bytes`],
-    /// [`Refinement::bytes`]).
-    pub buffers_bytes: u64,
-    /// The lights' photon maps and irradiance caches (an estimate: photons
-    /// and cache points with their kd-tree, twice their size).
-    pub photon_maps_bytes: u64,
-    /// The geometry caches (the current view's and those kept for others).
-    pub caches_bytes: u64,
-    /// Of those, held by the lit lights alone (never evicted).
-    pub lit_bytes: u64,
-    /// Dark lights evicted to stay within the budget (rebuilt when lit).
-    pub evicted_lights: usize,
-    /// Evictions so far.
-    pub evictions: u64,
-    /// Set when the lit lights alone need more than the budget: nothing
-    /// more can go, the daemon keeps going over it (never an OOM kill by
-    /// choice) and the status warns.
-    pub over_budget: bool,
-}
-
 impl Default for TracerSettings {
     fn default() -> Self {
         Self {
@@ -257,29 +224,6 @@ pub struct Kept {
     pub buffer: Arc<LightBuffer>,
     /// Its stage.
     pub stage: Stage,
-}
-
-/// A light's build state for the status page (issue 18: the status tells
-/// the truth about moving lights).
-#[derive(Clone, Debug, Serialize)]
-pub struct LightReport {
-    /// The stage of the buffer on screen.
-    pub stage: Stage,
-    /// A request is waiting, or the last one is younger than the settle time.
-    pub moving: bool,
-    /// Age of the oldest unserved request, ms (`None`: nothing waiting).
-    pub pending_ms: Option<f64>,
-    /// Direct stages published in the last second (Hz).
-    pub direct_hz: f64,
-    /// Direct stages published since start.
-    pub direct_updates: u64,
-    /// Time from the oldest unserved request to its direct stage on screen, ms (last one).
-    pub first_stage_ms: Option<f64>,
-    /// Time from the last request to the light's final stage, ms (last finished build).
-    pub last_build_ms: Option<f64>,
-    /// Why the light's last build failed (it panicked: a bug), while no
-    /// later build of it has published; its last picture stays on screen.
-    pub failed: Option<String>,
 }
 
 struct Request {

@@ -1,5 +1,5 @@
 // Footlight camera controls (issue 16): orbit / pan / dolly / field of view
-// (the same arithmetic as the window's, `control` in src/live/views.rs)
+// (the same arithmetic as the window's, `control` in src/output/camera.rs)
 // on the picture's container, a list of named views and "save view".
 // A separate module so the page's picture element (an <img> today, a canvas
 // later) can change without touching this file: the handlers sit on the

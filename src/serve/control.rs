@@ -24,7 +24,7 @@
 //! this server never grants.
 
 use super::App;
-use crate::live::views::{Pose, Views};
+use crate::output::{CameraControl, Pose, WhiteState};
 use axum::body::Body;
 use axum::extract::{Request, State};
 use axum::http::{StatusCode, header};
@@ -91,7 +91,10 @@ fn error(status: StatusCode, message: impl Into<String>) -> Response {
 }
 
 /// Checks the write policy and reads a small JSON body.
-async fn authorized_json<T: for<'de> Deserialize<'de>>(app: &App, req: Request) -> Result<(Arc<Views>, T), Response> {
+async fn authorized_json<T: for<'de> Deserialize<'de>>(
+    app: &App,
+    req: Request,
+) -> Result<(Arc<dyn CameraControl>, T), Response> {
     let Some(views) = app.state.views.clone() else {
         return Err(error(StatusCode::NOT_FOUND, "this server has no camera control"));
     };
@@ -218,7 +221,7 @@ struct DisplayWrite {
 /// The display settings as JSON (what `GET /api/display` answers): the
 /// white balance as its gains, the setting in force (`auto`, `tungsten`…),
 /// what it makes neutral, and the rig's own white (what `auto` gives).
-fn display_json(d: &crate::render::Display, white: Option<&crate::live::views::WhiteState>) -> serde_json::Value {
+fn display_json(d: &crate::render::Display, white: Option<&WhiteState>) -> serde_json::Value {
     let rig = white.and_then(|w| w.rig.as_ref()).map(|r| {
         serde_json::json!({ "xy": r.xy.to_array(), "cct_k": r.cct_k, "lights": r.lights, "tungsten": r.tungsten,
             "note": r.describe() })

@@ -11,7 +11,7 @@
 //! PNG work is one blocking thread however many clients poll.
 
 use super::ServeStats;
-use crate::live::clock::Frame;
+use crate::output::Frame;
 use axum::body::Bytes;
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};

@@ -48,8 +48,7 @@
 //! deferred, so no real viewer waits.
 
 use super::png::PngCache;
-use crate::live::bodies::BodyTiles;
-use crate::live::clock::Frame;
+use crate::output::{BodyTiles, Frame, StreamCounters};
 use crate::render::bodies::BodyPixel;
 use crate::render::buffer::{LightBuffer, TILE};
 use crate::render::display::Display;
@@ -186,30 +185,30 @@ pub struct StreamStats {
 }
 
 impl StreamStats {
-    /// The counters as JSON.
-    pub fn json(&self) -> serde_json::Value {
+    /// The counters now (`stream` in `/api/status`).
+    pub fn snapshot(&self) -> StreamCounters {
         let r = |a: &AtomicU64| a.load(Ordering::Relaxed);
-        serde_json::json!({
-            "open": r(&self.open),
-            "accepted": r(&self.accepted),
-            "refused": r(&self.refused),
-            "buffer_messages": r(&self.buffer_messages),
-            "body_messages": r(&self.body_messages),
-            "body_tiles": r(&self.body_tiles),
-            "body_encodes": r(&self.body_encodes),
-            "frame_messages": r(&self.frame_messages),
-            "picture_messages": r(&self.picture_messages),
-            "bytes_sent": r(&self.bytes_sent),
-            "frames_skipped": r(&self.frames_skipped),
-            "dropped_stalled": r(&self.dropped_stalled),
-            "closed_bad_message": r(&self.closed_bad_message),
-            "mode_switches": r(&self.mode_switches),
-            "mode_restarts": r(&self.mode_restarts),
-            "switches_limited": r(&self.switches_limited),
-            "buffer_encodes": r(&self.buffer_encodes),
-            "pending_bytes": r(&self.pending_bytes),
-            "max_pending_per_client": r(&self.max_pending_per_client),
-        })
+        StreamCounters {
+            open: r(&self.open),
+            accepted: r(&self.accepted),
+            refused: r(&self.refused),
+            buffer_messages: r(&self.buffer_messages),
+            body_messages: r(&self.body_messages),
+            body_tiles: r(&self.body_tiles),
+            body_encodes: r(&self.body_encodes),
+            frame_messages: r(&self.frame_messages),
+            picture_messages: r(&self.picture_messages),
+            bytes_sent: r(&self.bytes_sent),
+            frames_skipped: r(&self.frames_skipped),
+            dropped_stalled: r(&self.dropped_stalled),
+            closed_bad_message: r(&self.closed_bad_message),
+            mode_switches: r(&self.mode_switches),
+            mode_restarts: r(&self.mode_restarts),
+            switches_limited: r(&self.switches_limited),
+            buffer_encodes: r(&self.buffer_encodes),
+            pending_bytes: r(&self.pending_bytes),
+            max_pending_per_client: r(&self.max_pending_per_client),
+        }
     }
 }
 
@@ -975,7 +974,7 @@ mod tests {
 
     #[test]
     fn body_tiles_round_trip_exactly() {
-        use crate::live::bodies::{BodyTile, BodyTiles};
+        use crate::output::{BodyTile, BodyTiles};
         let px = |j: usize| match j % 3 {
             0 => None,
             1 => Some(BodyPixel { base: 0.3, glow: 0.0, light: 0 }),
