@@ -107,6 +107,30 @@ fn a_panicking_worker_restarts_then_is_reported_not_silent() {
     wait_until(|| tracer.worker_finished(), || "the dead worker's thread did not end".into());
 }
 
+/// The daemon's supervision task (issue 33): it ends with the light
+/// builder's error once the worker died for good (the daemon then stops
+/// with that error), and with Ok when the daemon stops first.
+#[test]
+fn the_daemons_supervision_task_reports_a_dead_light_builder() {
+    use footlight::live::daemon::{stop_signal, supervise_tracer};
+    let rt = tokio::runtime::Builder::new_current_thread().enable_time().start_paused(true).build().unwrap();
+    let alive = Arc::new(tracer(1, settings()));
+    let (tx, stop) = stop_signal();
+    tx.send(true).unwrap();
+    let (task, result) = rt.block_on(supervise_tracer(alive.clone(), stop));
+    assert_eq!((task, result), ("light builder", Ok(())));
+    let dying = Arc::new(tracer(1, settings()));
+    for n in 1..=3 {
+        dying.inject_worker_panic();
+        wait_until(|| dying.worker_restarts().0 >= n || dying.worker_error().is_some(), || format!("panic {n}"));
+    }
+    wait_until(|| dying.worker_error().is_some(), || "the worker did not die".into());
+    let (_tx, stop) = stop_signal();
+    let (task, result) = rt.block_on(supervise_tracer(dying, stop));
+    assert_eq!(task, "light builder");
+    assert!(result.as_ref().is_err_and(|e| e.contains("injected worker panic")), "{result:?}");
+}
+
 /// Stop cuts a build inside its photon stage (issue 38 item 6): the worker
 /// ends with the photon stage of a two-million-photon light unfinished (no
 /// photon trace counted, the Whitted buffer still on screen), instead of

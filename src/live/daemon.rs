@@ -51,8 +51,9 @@ use tokio::task::JoinSet;
 /// How long open work gets on shutdown, all of it together: the tasks (the
 /// HTTP server's connections among them) and the light build in progress
 /// share this one deadline, so `footlight run` exits within a second of
-/// SIGTERM (issue 33: one value, in one place).
-pub const SHUTDOWN_GRACE: Duration = Duration::from_millis(500);
+/// SIGTERM (issue 33: one value, in one place: the server's
+/// [`ServeConfig::SHUTDOWN_GRACE`]).
+pub const SHUTDOWN_GRACE: Duration = ServeConfig::SHUTDOWN_GRACE;
 
 /// Every default of the daemon, in one place (CLI flags override them).
 #[derive(Clone, Debug)]
@@ -469,6 +470,11 @@ impl Daemon {
                          buffers (a bug; please report it)"
                     ));
                 }
+                if let (n @ 1.., Some(e)) = tracer.worker_restarts() {
+                    warnings.push(format!(
+                        "the light builder panicked and was restarted ({n}×; last: {e}) (a bug; please report it)"
+                    ));
+                }
                 warnings.extend(tracer.failed().into_iter().map(|(i, e)| {
                     let name = labels.get(i).map_or_else(|| format!("light {i}"), |l| l.name.clone());
                     format!("{name}: {e}; its last picture stays (a bug; please report it)")
@@ -510,6 +516,7 @@ impl Daemon {
         let mut tasks: JoinSet<(&'static str, Result<(), String>)> = JoinSet::new();
         tasks.spawn(run_clock(clock, config.fps, inputs.clone(), frames_tx, clock_status, stop.clone()));
         tasks.spawn(views.clone().run(stop.clone()));
+        tasks.spawn(supervise_tracer(tracer.clone(), stop.clone()));
         let mut http_token = None;
         if let Some(listener) = listener {
             // Timeouts, connection limit and Host check; loopback-only Host
@@ -628,6 +635,29 @@ impl Daemon {
         match failure {
             Some(e) => Err(e),
             None => Ok(()),
+        }
+    }
+}
+
+/// The light builder in the daemon's task set (issue 33: a supervised
+/// tracer). Its worker restarts itself after a panic outside any build
+/// ([`Tracer::worker_restarts`]); once it has died for good
+/// ([`Tracer::worker_error`]) this task ends with the error, so the daemon
+/// stops with a non-zero exit code instead of showing a picture that no
+/// longer follows the desk. Polled every 100 ms (paused time in tests).
+pub async fn supervise_tracer(tracer: Arc<Tracer>, stop: StopSignal) -> (&'static str, Result<(), String>) {
+    const TASK: &str = "light builder";
+    let mut tick = tokio::time::interval(std::time::Duration::from_millis(100));
+    let fired = stop.fired();
+    tokio::pin!(fired);
+    loop {
+        tokio::select! {
+            () = &mut fired => return (TASK, Ok(())),
+            _ = tick.tick() => {
+                if let Some(e) = tracer.worker_error() {
+                    return (TASK, Err(format!("it stopped: {e}")));
+                }
+            }
         }
     }
 }

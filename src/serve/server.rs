@@ -113,8 +113,10 @@ impl ServeConfig {
     /// Default [`ServeConfig::max_connections`]: 256 (a browser opens up to
     /// six per page, so this holds some 40 viewers; each costs one tokio task).
     pub const MAX_CONNECTIONS: usize = 256;
-    /// Default [`ServeConfig::shutdown_grace`]: 1 s.
-    pub const SHUTDOWN_GRACE: Duration = Duration::from_secs(1);
+    /// Default [`ServeConfig::shutdown_grace`]: 0.5 s, the one shutdown
+    /// deadline of the whole daemon (`footlight run` exits within a second
+    /// of SIGTERM; the daemon's `SHUTDOWN_GRACE` is this value).
+    pub const SHUTDOWN_GRACE: Duration = Duration::from_millis(500);
     /// Default [`ServeConfig::max_request_body`]: 16 KiB (the only bodies
     /// are the camera and display writes' JSON, a few hundred bytes; the
     /// write routes take 4 KiB at most themselves).
