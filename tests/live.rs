@@ -648,3 +648,123 @@ fn status_gives_each_mvr_fixtures_cells_address_mode_and_position() {
     // Positions in the status are to the millimetre; the file's to 1/1000 mm.
     assert_status_patch(&daemon.status(), &expected, 0.0005 + 1e-6);
 }
+
+/// Universe 1: slot i+1 = dimmer of light i, a row of `0` spots 1 m apart.
+struct RowDecoder(usize);
+
+impl Decode for RowDecoder {
+    fn len(&self) -> usize {
+        self.0
+    }
+    fn decode(&self, u: &dyn DmxSlots) -> Vec<LightInput> {
+        let slots = u.slots(1).copied().unwrap_or([0; 512]);
+        (0..self.0)
+            .map(|i| {
+                let v = f32::from(slots[i]) / 255.0;
+                let x = i as f32 - (self.0 as f32 - 1.0) / 2.0;
+                let light = spot_at(x, 20.0);
+                let state = FixtureState { v, pan: x, ..FixtureState::default() };
+                LightInput { light, k: Vec3::splat(1000.0 * v), k_full: Vec3::splat(1000.0), state }
+            })
+            .collect()
+    }
+    fn slots_of(&self, index: usize, u: &dyn DmxSlots) -> Vec<u8> {
+        u.slots(1).map(|s| vec![s[index]]).unwrap_or_default()
+    }
+}
+
+/// Issue 38 (done means), through the daemon in paused time: with every
+/// other light of a row dark, no dark light leaves `queued` before every
+/// lit one is `ready` (dark lights are built in idle time), and the dark
+/// ones are built after; with a memory budget that holds the lit lights
+/// and half a buffer more, the dark lights' buffers are evicted, the lit
+/// lights stay ready and the memory used ends within the budget.
+#[tokio::test(start_paused = true)]
+async fn the_daemon_builds_lit_lights_first_and_holds_its_memory_budget() {
+    use footlight::output::DaemonStatus;
+    const N: usize = 8;
+    let lit = |i: usize| i % 2 == 1;
+    async fn run(budget: Option<u64>, lit: impl Fn(usize) -> bool) -> DaemonStatus {
+        let (scene, cam) = small_stage();
+        let mut slots = [0u8; 512];
+        for (i, s) in slots.iter_mut().enumerate().take(N) {
+            *s = if lit(i) { 255 } else { 0 };
+        }
+        let mut dmx = footlight_dmx::Universes::default();
+        dmx.update(&footlight_dmx::UniverseFrame { universe: 1, slots, at: tokio::time::Instant::now(), stale: false });
+        let (_dmx_tx, dmx_rx) = watch::channel(dmx);
+        let mut tracer = TracerSettings { settle: Duration::ZERO, ..no_photons() };
+        if let Some(b) = budget {
+            tracer.memory = b;
+        }
+        let config = DaemonConfig {
+            width: 48,
+            height: 32,
+            fps: 30.0,
+            tracer,
+            compositor: footlight::gpu::CompositorChoice::Cpu,
+            ..DaemonConfig::default()
+        };
+        let (running_tx, running_rx) = std::sync::mpsc::channel();
+        let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+        let daemon = tokio::spawn(
+            Daemon::with_decoder(scene, Arc::new(RowDecoder(N)), cam, config)
+                .input(DmxSource::Channel(dmx_rx))
+                .on_running(running_tx)
+                .run(async {
+                    let _ = stop_rx.await;
+                }),
+        );
+        let handle = loop {
+            if let Ok(h) = running_rx.try_recv() {
+                break h;
+            }
+            tokio::task::yield_now().await;
+        };
+        let started = Instant::now();
+        let mut last_frame = 0;
+        let end = loop {
+            let s = (handle.status)();
+            assert!(s.frame >= last_frame, "frame numbers go forward");
+            last_frame = s.frame;
+            let stages: Vec<Stage> =
+                s.lights.iter().map(|l| l.build.as_ref().map_or(Stage::Queued, |b| b.stage)).collect();
+            let lit_ready = (0..N).filter(|&i| lit(i)).all(|i| stages[i] == Stage::Ready);
+            let dark_started = (0..N).filter(|&i| !lit(i)).any(|i| stages[i] != Stage::Queued);
+            assert!(!dark_started || lit_ready || budget.is_some(), "a dark light was built first: {stages:?}");
+            let dark_done = match budget {
+                None => (0..N).all(|i| stages[i] == Stage::Ready),
+                Some(_) => {
+                    s.memory.evicted_lights >= 1
+                        && s.lights.iter().all(|l| l.build.as_ref().is_some_and(|b| b.pending_ms.is_none()))
+                }
+            };
+            if lit_ready && dark_done {
+                break s;
+            }
+            assert!(started.elapsed() < Duration::from_secs(120), "not built: {stages:?} {:?}", s.memory);
+            // Real time for the tracer's threads (the daemon's clock is paused).
+            tokio::task::spawn_blocking(|| std::thread::sleep(Duration::from_millis(5))).await.unwrap();
+        };
+        stop_tx.send(()).unwrap();
+        daemon.await.unwrap().unwrap();
+        end
+    }
+    // Without a budget: lit first, then every dark light.
+    let all = run(None, lit).await;
+    assert!(!all.memory.over_budget && all.memory.evicted_lights == 0, "{:?}", all.memory);
+    let per_light = all.memory.buffers_bytes / N as u64;
+    assert!(per_light > 0 && all.memory.lit_bytes > 0, "{:?}", all.memory);
+    // A budget for the lit lights (their buffers) and half a buffer more.
+    let budget = all.memory.lit_bytes + per_light / 2;
+    let held = run(Some(budget), lit).await;
+    assert!(held.memory.used_bytes <= budget, "{:?}", held.memory);
+    assert!(!held.memory.over_budget, "{:?}", held.memory);
+    for (i, l) in held.lights.iter().enumerate() {
+        let stage = l.build.as_ref().map(|b| b.stage);
+        if lit(i) {
+            assert_eq!(stage, Some(Stage::Ready), "lit light {i} kept");
+        }
+    }
+    assert!(held.memory.evicted_lights >= 1, "{:?}", held.memory);
+}
