@@ -158,6 +158,22 @@ pub fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
+/// A light's build priority (lit first, brighter first; issue 38): 0 when
+/// it is dark, else its luminance at full times (0.1 + its level). The
+/// level is k_i with the shutter's steady state ([`FixtureState::shutter_at`]
+/// at t = 0: open, closed, or open while strobing), not this frame's strobe
+/// phase: a light strobing at full stays lit between its flashes, so the
+/// memory budget never evicts it and it never waits behind the lit lights
+/// as a dark one would.
+pub fn build_priority(input: &LightInput) -> f32 {
+    let k = input.k * input.state.shutter_at(0.0);
+    if luminance(k) > 0.0 {
+        luminance(input.k_full).max(0.0) * (0.1 + luminance(k) / luminance(input.k_full).max(1e-6))
+    } else {
+        0.0
+    }
+}
+
 impl FrameClock {
     /// A clock over `tracer`'s lights compositing into `compositor`.
     pub fn new(decoder: Arc<dyn Decode>, tracer: Arc<Tracer>, compositor: Compositor) -> Self {
@@ -250,19 +266,16 @@ impl FrameClock {
         let mut inputs = self.decoder.decode_at(universes, t_seconds);
         // Haze: the density is a set of weights of this frame (no rebuild).
         let density = self.decoder.haze_density(universes).filter(|_| self.tracer.has_haze());
+        // Brighter first; exactly 0 when dark, so the tracer builds it only
+        // when no lit light has work (lit first, issue 38); a strobing light
+        // counts as lit between its flashes.
+        let priorities: Vec<f32> = inputs.iter().map(build_priority).collect();
         for input in &mut inputs {
             input.k *= input.state.shutter_at(t_seconds);
         }
         let mut published: Vec<Published> = Vec::with_capacity(inputs.len());
         for (i, input) in inputs.iter().enumerate().take(self.tracer.len()) {
-            // Brighter first; exactly 0 when dark, so the tracer builds it
-            // only when no lit light has work (lit first, issue 38).
-            let lit = luminance(input.k) > 0.0;
-            let priority = if lit {
-                luminance(input.k_full).max(0.0) * (0.1 + luminance(input.k) / luminance(input.k_full).max(1e-6))
-            } else {
-                0.0
-            };
+            let priority = priorities[i];
             let moved = match &self.last[i] {
                 None => true,
                 Some(old) => Show::change(old, &input.state) == Change::Geometry,
@@ -371,5 +384,37 @@ impl FrameClock {
         };
         self.number += 1;
         frame
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A light strobing at full keeps its build priority between flashes
+    /// (its k_i is 0 then, but it is not dark); a closed shutter or a
+    /// dimmer at 0 is dark.
+    #[test]
+    fn a_strobing_light_stays_lit_between_flashes() {
+        let light = crate::Light::aimed(
+            Vec3::new(0.0, 5.0, 0.0),
+            Vec3::ZERO,
+            crate::Beam::Spot(crate::fixture::SpotBeam::from_beam_field(20.0, 30.0)),
+        );
+        let input = |v: f32, shutter: f32, strobe: f32| LightInput {
+            light: light.clone(),
+            k: Vec3::splat(1000.0 * v),
+            k_full: Vec3::splat(1000.0),
+            state: FixtureState { v, shutter, strobe, ..FixtureState::default() },
+        };
+        let strobing = input(1.0, 1.0, 10.0);
+        // 10 Hz: at t = 0.09 s the flash of the period is over.
+        assert_eq!(strobing.state.shutter_at(0.09), 0.0, "between flashes");
+        let steady = build_priority(&input(1.0, 1.0, 0.0));
+        assert!(steady > 0.0);
+        assert_eq!(build_priority(&strobing), steady, "strobing at full is as lit as steady at full");
+        assert_eq!(build_priority(&input(1.0, 0.0, 0.0)), 0.0, "shutter closed: dark");
+        assert_eq!(build_priority(&input(0.0, 1.0, 10.0)), 0.0, "dimmer at 0: dark");
+        assert!(build_priority(&input(0.5, 1.0, 0.0)) < steady, "brighter first");
     }
 }
