@@ -72,6 +72,9 @@ pub struct FrameClock {
     gpu: Option<crate::gpu::GpuFrames>,
     /// Each light's last decoded state (the change rule's "old").
     last: Vec<Option<FixtureState>>,
+    /// The build priority last told the tracer per light (NaN: none yet):
+    /// an unchanged one is not said again (a slot lock per light and frame).
+    told: Vec<f32>,
     number: u64,
     /// The last published picture, shared again while nothing changes
     /// (copying a 1080p frame 60 times a second is 370 MB/s for nothing).
@@ -185,6 +188,7 @@ impl FrameClock {
             compositor,
             gpu: None,
             last: vec![None; n],
+            told: vec![f32::NAN; n],
             number: 0,
             last_rgb: None,
             epoch,
@@ -282,9 +286,10 @@ impl FrameClock {
             };
             if moved {
                 self.tracer.request(i, input.light.clone(), priority);
-            } else {
+            } else if priority.to_bits() != self.told[i].to_bits() {
                 self.tracer.set_priority(i, priority);
             }
+            self.told[i] = priority;
             self.last[i] = Some(input.state);
             published.push(self.tracer.published(i));
         }

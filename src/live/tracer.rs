@@ -847,7 +847,13 @@ impl Tracer {
     pub fn set_priority(&self, index: usize, priority: f32) {
         let Some(slot) = self.shared.slots.get(index) else { return };
         let mut st = slot.state.lock().expect("slot lock");
+        let was_lit = st.priority > 0.0;
         st.priority = priority;
+        if was_lit && priority.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            // The eviction order's "last lit": when it went dark (a caller
+            // may leave an unchanged priority unsaid).
+            st.last_lit = Some(Instant::now());
+        }
         if priority > 0.0 {
             st.last_lit = Some(Instant::now());
             if st.evicted {
