@@ -195,3 +195,53 @@ fn adaptive_is_never_worse_than_nine_on_a_hard_beam_rim() {
         }
     }
 }
+
+#[test]
+fn hard_rims_built_together_equal_rims_built_alone() {
+    // Cells built together (`render::build::together`) find a hard beam's
+    // rim in their lit window as a light alone finds it on the whole frame:
+    // same pixels re-shaded, same buffers (1e-6 of the peak). A block on
+    // the floor puts rim pixels on two surfaces (all 9 samples) and a
+    // shadow edge across the rim.
+    use footlight::render::build::together::whitted_together;
+    use footlight::render::build::{BuildSettings, Cancel, LightBuild};
+    use footlight::render::footprint::TileBounds;
+    let mut b = SceneBuilder::new();
+    let m = lambert(&mut b, RHO);
+    floor(&mut b, FLOOR_HALF, 0.0, m);
+    cube(&mut b, Vec3::new(-0.3, 0.0, -0.3), Vec3::new(0.3, 0.5, 0.3), m);
+    let scene = b.build();
+    let s = &SETUPS[0];
+    let camera = Camera::look_at(s.eye, s.look, 50f32.to_radians());
+    let hard = |position: Vec3, target: Vec3, half_deg: f32| {
+        let half = f32::to_radians(half_deg);
+        Light::aimed(position, target, Beam::Spot(SpotBeam::from_half_angles(half, half)))
+    };
+    let lights =
+        vec![light(s), hard(Vec3::new(2.0, 3.0, 1.0), Vec3::new(0.1, 0.0, 0.2), 10.0), omni(Vec3::new(-1.2, 2.5, 1.5))];
+    let v = view(&scene, camera, W, H, Sampling::Adaptive, 2);
+    let settings = BuildSettings { photons: None, ..BuildSettings::default() };
+    let aa = AaParams::new(settings.aa_threshold);
+    let (mut cover, mut nine) = (0, 0);
+    for l in &lights[..2] {
+        let (base, _) = v.render_direct(&scene, l, None);
+        let decision = v.aa_decision(&scene, l, &base, aa);
+        cover += decision.rim.cover.len();
+        nine += decision.rim.nine.len();
+    }
+    eprintln!("rim pixels: {cover} by cell coverage, {nine} with 9 samples");
+    assert!(cover > 100 && nine > 0, "rim pixels: {cover} by coverage, {nine} with 9 samples");
+    let bounds = TileBounds::paths(&v);
+    let (together, _) = whitted_together(&scene, &v, &bounds, &lights, Some(aa), &|| false).unwrap();
+    for (i, l) in lights.iter().enumerate() {
+        let mut alone_build = LightBuild::new(l.clone(), i, settings, Cancel::never());
+        let alone = alone_build.whitted(&scene, &v).unwrap().to_dense();
+        let (buf, reshaded) = &together[i];
+        assert_eq!(*reshaded, alone_build.reshaded(), "light {i}: same pixels re-shaded");
+        let peak = alone.iter().map(|p| p.max_element()).fold(0.0f32, f32::max);
+        assert!(peak > 0.0);
+        for (p, (x, y)) in alone.iter().zip(&buf.to_dense()).enumerate() {
+            assert!((*x - *y).abs().max_element() <= 1e-6 * peak, "light {i} pixel {p}: alone {x}, together {y}");
+        }
+    }
+}
