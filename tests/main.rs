@@ -12,6 +12,8 @@ mod linearity;
 mod recursion;
 // Adaptive anti-aliasing against 9× oversampling on the bundled stage.
 mod antialiasing;
+// The rim of a hard-edged beam: nine samples and adaptive AA against a box-filtered reference.
+mod beam_rim;
 // NaN vertices, zero-area triangles, empty scenes, lights and cameras inside geometry.
 mod degenerate;
 // Full-size golden image of the default render (guards against change).

@@ -304,6 +304,9 @@ pub fn aa_rules(
                     corners_first: None,
                     facing: &[],
                     reconstruct: false,
+                    rim: &[],
+                    rim_nine: &[],
+                    edge: None,
                 };
                 let n = v.reshade(scene, light, &mut dense, how);
                 (dense, n)

@@ -11,13 +11,15 @@
 //! expansions of re-shaded pixels, cached for the next light or rebuild.
 
 pub mod aa;
+pub mod rim;
 
 pub use aa::{
     AA_REFERENCE_PERCENTILE, AA_THRESHOLD, AaDecision, AaMarking, AaParams, CORNER_AGREEMENT, GLINT_EXPONENT,
     LitWindow, RESHADE_MIN_BRANCH, Reshading, RowSpans, dilate, facing_corners, is_sharp, lit_window, mark_gradients,
-    mark_gradients_with, mark_highlights_into, mark_pairs, mark_pairs_into, reference_in_window, reference_level,
-    row_spans,
+    mark_gradients_with, mark_highlights_into, mark_pairs, mark_pairs_into, mark_rim_into, reference_in_window,
+    reference_level, row_spans,
 };
+pub use rim::{BeamEdge, BeamRim};
 
 use super::buffer::LightBuffer;
 use super::gbuffer::PrimarySample;
@@ -583,24 +585,25 @@ impl View {
         dense
     }
 
-    /// The 9-sample camera paths of pixel `index` in [`CORNERS_FIRST`]
-    /// order and each sample's vertex count, from the cache or freshly
-    /// expanded (into `scratch` once the cache budget is spent).
+    /// The 9-sample camera paths of pixel `index`: the order of the
+    /// samples (a cached expansion's, else [`CORNERS_FIRST`]), each one's
+    /// vertex count in that order and the vertices, from the cache or
+    /// freshly expanded (into `scratch` once the cache budget is spent).
     fn nine_paths<'a>(
         &'a self,
         scene: &Scene,
         index: usize,
         scratch: &'a mut Vec<ShadingVertex>,
-    ) -> ([u32; SAMPLES_PER_PIXEL], &'a [ShadingVertex]) {
+    ) -> ([usize; SAMPLES_PER_PIXEL], [u32; SAMPLES_PER_PIXEL], &'a [ShadingVertex]) {
         if let Some(paths) = self.nine_cache[index].get() {
-            return (paths.counts, &paths.vertices);
+            return (paths.order, paths.counts, &paths.vertices);
         }
         scratch.clear();
         let mut counts = [0u32; SAMPLES_PER_PIXEL];
         self.expand_samples(scene, index, &CORNERS_FIRST, &mut counts, scratch);
         match self.cache_nine(index, CORNERS_FIRST, counts, scratch) {
-            Some(paths) => (paths.counts, &paths.vertices),
-            None => (counts, scratch),
+            Some(paths) => (paths.order, paths.counts, &paths.vertices),
+            None => (CORNERS_FIRST, counts, scratch),
         }
     }
 

@@ -170,12 +170,40 @@ pub fn direct_hinted(scene: &Scene, light: &Light, v: &ShadingVertex, hint: &mut
     direct_with(scene, light, v, |origin, wi, len| scene.accel.occluded_hinted(origin, wi, len, hint))
 }
 
+/// [`direct_hinted`] with the beam's pattern f_ε replaced by `pattern`
+/// (the value the pattern would have at the vertex: a beam rim's
+/// anti-aliasing ([`crate::render::view::aa`]) shades a sample just
+/// outside a hard cone edge with the value just inside it, weighted by
+/// the share of its cell inside the cone). Zero where `pattern` ≤ 0.
+pub fn direct_with_pattern(
+    scene: &Scene,
+    light: &Light,
+    v: &ShadingVertex,
+    pattern: f32,
+    hint: &mut OccluderHint,
+) -> Vec3 {
+    direct_with_f(scene, light, v, |_| pattern, |origin, wi, len| scene.accel.occluded_hinted(origin, wi, len, hint))
+}
+
 /// [`direct`] with the shadow test `occluded(origin, direction, length)`.
 #[inline(always)]
 fn direct_with(
     scene: &Scene,
     light: &Light,
     v: &ShadingVertex,
+    occluded: impl FnOnce(Vec3, Vec3, f32) -> bool,
+) -> Vec3 {
+    direct_with_f(scene, light, v, |dir| light.pattern_toward(dir), occluded)
+}
+
+/// [`direct_with`] with the pattern value toward a world direction (from
+/// the light) given by `pattern`.
+#[inline(always)]
+fn direct_with_f(
+    scene: &Scene,
+    light: &Light,
+    v: &ShadingVertex,
+    pattern: impl FnOnce(Vec3) -> f32,
     occluded: impl FnOnce(Vec3, Vec3, f32) -> bool,
 ) -> Vec3 {
     let to_light = light.position - v.position;
@@ -192,7 +220,7 @@ fn direct_with(
     if cos <= 0.0 {
         return Vec3::ZERO;
     }
-    let f_e = light.pattern_toward(-wi);
+    let f_e = pattern(-wi);
     if f_e <= 0.0 {
         return Vec3::ZERO;
     }

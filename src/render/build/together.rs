@@ -24,8 +24,8 @@ use crate::fixture::Light;
 use crate::render::buffer::{LightBuffer, TILE};
 use crate::render::footprint::{DirectQuality, TileBounds};
 use crate::render::view::{
-    AA_REFERENCE_PERCENTILE, AaParams, LitWindow, Reshading, Sampling, View, facing_corners, mark_highlights_into,
-    mark_pairs_into,
+    AA_REFERENCE_PERCENTILE, AaParams, BeamEdge, BeamRim, LitWindow, Reshading, Sampling, View, facing_corners,
+    mark_highlights_into, mark_pairs_into, mark_rim_into, row_spans,
 };
 use crate::render::whitted::direct;
 use crate::scene::Scene;
@@ -261,12 +261,26 @@ fn anti_alias(
         mark_pairs_into(flags, &pairs, w, h, aa.marking);
         mark_highlights_into(flags, &glints, w, h, aa.marking);
         let facing = if aa.corners_first { facing_corners(&pairs, w) } else { Vec::new() };
+        // A hard beam edge's rim ([`View::beam_rim`]), looked for around
+        // the rows' lit spans as for a light alone (the same pixels: the
+        // rim lies within a pixel of a lit one, inside the window). Only a
+        // light with a hard edge pays the pass over the frame.
+        let lit = LitWindow { x0, x1, y0, y1 };
+        let rim = if aa.rim && BeamEdge::of(light).is_some() {
+            view.beam_rim(scene, light, &row_spans(dense, w)).within(lit, w)
+        } else {
+            BeamRim::default()
+        };
+        mark_rim_into(flags, &rim);
         let how = Reshading {
             flags,
             whole: &glints,
             corners_first: aa.corners_first.then_some(level),
             facing: &facing,
             reconstruct: aa.reconstruct,
+            rim: &rim.cover,
+            rim_nine: &rim.nine,
+            edge: rim.edge,
         };
         reshaded = view.reshade(scene, light, dense, how);
         window = (x0, y0, x1, y1);

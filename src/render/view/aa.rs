@@ -11,7 +11,10 @@
 //! from those corners and its base, [`Reshading`]), and, on sharp specular
 //! surfaces, with all 9 samples the pixels whose 9 samples would see the
 //! light's highlight ([`View::glint_pixels`]: a highlight smaller than a
-//! pixel shows no jump). The bench (`footlight bench --accuracy-only
+//! pixel shows no jump), and the pixels a light's hard cone edge crosses
+//! by cell coverage ([`super::rim`]: the gradient pairs miss some of them,
+//! and the corner reconstruction is coarser than 9 samples there). The
+//! bench (`footlight bench --accuracy-only
 //! --accuracy-part aa`) measures the error of both against 81 samples per
 //! pixel, and their time.
 //!
@@ -31,6 +34,7 @@
 //! on the way there (which pixels a pair marks, corners first or not, the
 //! reconstruction of one-bin pixels) stay inside the crate, for the bench.
 
+use super::rim::{BeamEdge, BeamRim, cell_coverage, grid_gradient};
 use super::{View, shade_hinted};
 use crate::fixture::Light;
 use crate::render::display::srgb8;
@@ -38,7 +42,7 @@ use crate::render::gbuffer::{
     CENTRE_SAMPLE, NO_HIT, PrimarySample, SAME_SURFACE_COS, SAMPLES_PER_PIXEL, sharp_samples,
 };
 use crate::render::view::SampleSet;
-use crate::render::whitted::{RecursionLimits, ShadingVertex, direct_hinted};
+use crate::render::whitted::{RecursionLimits, ShadingVertex, direct_hinted, direct_with_pattern};
 use crate::scene::bvh::OccluderHint;
 use crate::scene::{Hit, Scene};
 use glam::Vec3;
@@ -91,14 +95,19 @@ pub struct AaParams {
     /// ([`Reshading::reconstruct`]) instead of taking all 9 samples (true;
     /// the bench's "before" rows measure it off).
     pub(crate) reconstruct: bool,
+    /// Shade the pixels a hard beam edge crosses by cell coverage
+    /// ([`View::beam_rim`], [`super::rim`]) whatever their gradient (true;
+    /// the bench's "before" rows measure it off).
+    pub(crate) rim: bool,
 }
 
 impl AaParams {
     /// The renderer's parameters with the given threshold (0-255 scale):
     /// pair marks, highlight pixels, corners first, one-bin pixels
-    /// reconstructed from their probed corners.
+    /// reconstructed from their probed corners, hard beam rims by cell
+    /// coverage.
     pub fn new(threshold: f32) -> Self {
-        Self { threshold, marking: AaMarking::Pair, glints: true, corners_first: true, reconstruct: true }
+        Self { threshold, marking: AaMarking::Pair, glints: true, corners_first: true, reconstruct: true, rim: true }
     }
 }
 
@@ -135,6 +144,16 @@ pub struct Reshading<'a> {
     /// the corners not probed at the base's value, each edge midpoint the
     /// mean of its two corners. Pixels of several bins take all 9 samples.
     pub(crate) reconstruct: bool,
+    /// Marked pixels a hard beam edge crosses, of one surface (sorted,
+    /// [`BeamRim::cover`]): shaded from their 9 sample paths with each
+    /// sample's first vertex weighted by its cell's share inside the cone
+    /// ([`super::rim`]); before any other rule.
+    pub(crate) rim: &'a [usize],
+    /// Marked pixels a hard beam edge crosses, of several surfaces
+    /// (sorted, [`BeamRim::nine`]): all 9 samples at once, as `whole`.
+    pub(crate) rim_nine: &'a [usize],
+    /// The light's hard edge when `rim` is not empty.
+    pub(crate) edge: Option<BeamEdge>,
 }
 
 /// What adaptive anti-aliasing re-shades for one light
@@ -153,6 +172,9 @@ pub struct AaDecision {
     /// Whether one-bin pixels are reconstructed from their probed corners
     /// ([`AaParams::reconstruct`]).
     pub(crate) reconstruct: bool,
+    /// The pixels a hard beam edge crosses ([`View::beam_rim`]; empty
+    /// without one).
+    pub rim: BeamRim,
 }
 
 impl AaDecision {
@@ -164,6 +186,9 @@ impl AaDecision {
             corners_first: self.level,
             facing: &self.facing,
             reconstruct: self.reconstruct,
+            rim: &self.rim.cover,
+            rim_nine: &self.rim.nine,
+            edge: self.rim.edge,
         }
     }
 }
@@ -306,8 +331,11 @@ impl View {
                 // often blocked by one triangle (the same values; a hint per
                 // pixel keeps the order of the tests fixed).
                 let hint = &mut OccluderHint::default();
+                if let Some(edge) = how.edge.filter(|_| how.rim.binary_search(&i).is_ok()) {
+                    return self.rim_cover(scene, light, &edge, i, scratch, hint);
+                }
                 match how.corners_first {
-                    Some(level) if whole.binary_search(&i).is_err() => {
+                    Some(level) if whole.binary_search(&i).is_err() && how.rim_nine.binary_search(&i).is_err() => {
                         let mask =
                             how.facing.binary_search_by_key(&i, |f| f.0).map_or(ALL_CORNERS, |k| how.facing[k].1);
                         let probe = CornerProbe { base: base[i], level, mask, reconstruct: how.reconstruct };
@@ -315,7 +343,7 @@ impl View {
                     }
                     _ => {
                         let weak = self.weak_branches(scene, light, i, hint);
-                        shade_hinted(scene, light, self.nine_paths(scene, i, scratch).1, hint) + weak
+                        shade_hinted(scene, light, self.nine_paths(scene, i, scratch).2, hint) + weak
                     }
                 }
             })
@@ -359,6 +387,7 @@ impl View {
                 level: None,
                 facing: Vec::new(),
                 reconstruct: aa.reconstruct,
+                rim: BeamRim::default(),
             };
         };
         let pairs = self.pairs_over(scene, dense, reference, aa.threshold, spans);
@@ -367,12 +396,15 @@ impl View {
             if aa.glints { self.glint_pixels(scene, light, dense, reference, aa.threshold) } else { Vec::new() };
         mark_highlights_into(&mut flags, &highlights, w, h, aa.marking);
         let facing = if aa.corners_first { facing_corners(&pairs, w) } else { Vec::new() };
+        let rim = if aa.rim { self.beam_rim(scene, light, spans) } else { BeamRim::default() };
+        mark_rim_into(&mut flags, &rim);
         AaDecision {
             flags,
             highlights,
             level: aa.corners_first.then_some(reference),
             facing,
             reconstruct: aa.reconstruct,
+            rim,
         }
     }
 
@@ -462,6 +494,48 @@ impl View {
         let value = sum + shade_hinted(scene, light, &scratch[at..], hint) + weak;
         self.cache_nine(index, order, counts, scratch);
         value
+    }
+
+    /// A rim pixel of one surface shaded by cell coverage ([`super::rim`]):
+    /// its 9 sample paths (cache or fresh), the first vertex of each taken
+    /// with the pattern just inside the cone ([`BeamEdge::inside_value`])
+    /// and weighted by the share of the sample's cell inside the cone
+    /// ([`cell_coverage`], the cone's cosine to the axis fitted across the
+    /// pixel by [`grid_gradient`]); the deeper vertices as shaded. A cell
+    /// wholly inside is its sample's plain value, one wholly outside adds
+    /// nothing at its first vertex.
+    fn rim_cover(
+        &self,
+        scene: &Scene,
+        light: &Light,
+        edge: &BeamEdge,
+        index: usize,
+        scratch: &mut Vec<ShadingVertex>,
+        hint: &mut OccluderHint,
+    ) -> Vec3 {
+        let (c, _) = self.sample_cosines(scene, edge, index);
+        let (gx, gy) = grid_gradient(&c);
+        let weak = self.weak_branches(scene, light, index, hint);
+        let (order, counts, vertices) = self.nine_paths(scene, index, scratch);
+        let mut at = 0;
+        let mut sum = Vec3::ZERO;
+        for (&s, &n) in order.iter().zip(&counts) {
+            let path = &vertices[at..at + n as usize];
+            at += n as usize;
+            let share = cell_coverage(c[s], edge.cos_cut, gx, gy);
+            for v in path {
+                sum += if v.depth > 0 || (share >= 1.0 && c[s] >= edge.cos_cut) {
+                    v.weight * direct_hinted(scene, light, v, hint)
+                } else if share > 0.0 {
+                    let toward = (v.position - light.position).normalize_or_zero();
+                    let f = edge.inside_value(light, toward);
+                    v.weight * direct_with_pattern(scene, light, v, f, hint) * share
+                } else {
+                    Vec3::ZERO
+                };
+            }
+        }
+        sum + weak
     }
 
     /// The light-free part of [`View::aa_flags`]: the pixels
@@ -798,6 +872,13 @@ pub fn mark_highlights_into(flags: &mut [bool], highlights: &[usize], w: usize, 
             AaMarking::Dilated => dilate(flags, w, h, i),
             AaMarking::Pair | AaMarking::Across => flags[i] = true,
         }
+    }
+}
+
+/// Marks `rim`'s pixels in `flags` ([`View::beam_rim`]).
+pub fn mark_rim_into(flags: &mut [bool], rim: &BeamRim) {
+    for &i in rim.cover.iter().chain(&rim.nine) {
+        flags[i] = true;
     }
 }
 
