@@ -131,6 +131,37 @@ fn the_daemons_supervision_task_reports_a_dead_light_builder() {
     assert!(result.as_ref().is_err_and(|e| e.contains("injected worker panic")), "{result:?}");
 }
 
+/// Scheduling rule 6 (issue 38: moved heads while the rig builds): a
+/// photon stage in progress yields to a lit light's new request, whose
+/// direct stage is published before any photon stage finished; the
+/// yielded build is kept and its photon stage runs again, this time to the
+/// end even when another light moves meanwhile (a build yields once).
+#[test]
+fn a_photon_stage_yields_once_to_a_lit_light_that_moves() {
+    let mut settings = TracerSettings { settle: Duration::ZERO, ..settings() };
+    settings.build.photons = Some(footlight::render::photon::PhotonSettings { stored: 600_000, ..Default::default() });
+    settings.build.refine_passes = 0;
+    let tracer = tracer(3, settings);
+    tracer.request(0, spot(-1.0), 1.0);
+    // Whitted published: the 600,000-photon stage is next and nothing else is due.
+    wait_until(|| tracer.published(0).stage == Stage::Whitted, || format!("{:?}", tracer.published(0).stage));
+    std::thread::sleep(Duration::from_millis(20));
+    tracer.request(1, spot(0.5), 1.0);
+    wait_until(|| tracer.published(1).stage != Stage::Queued, || "no direct stage for the moved light".into());
+    assert_eq!(tracer.photon_traces(), 0, "the photon stage yielded before it finished");
+    assert_eq!(tracer.photon_yields(), 1);
+    assert_eq!(tracer.published(0).stage, Stage::Whitted, "the yielded light keeps its picture");
+    // Light 1's own photon stage may yield to light 2; light 0's retry may not.
+    wait_until(|| tracer.published(1).stage == Stage::Ready, || format!("{:?}", tracer.published(1).stage));
+    tracer.request(2, spot(1.5), 1.0);
+    wait_until(
+        || (0..3).all(|i| tracer.published(i).stage == Stage::Ready),
+        || format!("{:?}", (0..3).map(|i| tracer.published(i).stage).collect::<Vec<_>>()),
+    );
+    assert_eq!(tracer.photon_yields(), 1, "light 0's second photon stage did not yield to light 2");
+    assert_eq!(tracer.photon_traces(), 3, "every light traced its photons once to the end");
+}
+
 /// Stop cuts a build inside its photon stage (issue 38 item 6): the worker
 /// ends with the photon stage of a two-million-photon light unfinished (no
 /// photon trace counted, the Whitted buffer still on screen), instead of

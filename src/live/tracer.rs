@@ -38,6 +38,14 @@
 //!    too (a quarter of the pixels shaded), and each light's Whitted stage
 //!    replaces it as in rule 4: every lit light is on screen about four
 //!    times sooner.
+//! 6. **A photon stage yields to a moved lit light.** A lit light's new
+//!    request sets a flag that stops the photon stage in progress (its
+//!    [`Cancel`] fires, [`Cancel::preempted`] says the build is still
+//!    good): the build waits for its turn again and the moved light's
+//!    direct stage runs first, instead of after up to a second of photon
+//!    tracing. Each build yields once ([`LightBuild::yielded`]), so lights
+//!    that move again and again cannot starve it
+//!    ([`Tracer::photon_yields`] counts them).
 //!
 //! A newer request for a light cancels its build in progress (the
 //! [`Cancel`] token compares request ids) at the next stage boundary; a
@@ -346,6 +354,11 @@ struct Shared {
     evictions: AtomicU64,
     /// Publishes so far, all lights (the publish order).
     publishes: AtomicU64,
+    /// Set by a lit light's new request: a photon stage in progress yields
+    /// to its direct stage (once per build: [`LightBuild::yielded`]).
+    urgent: Arc<AtomicBool>,
+    /// Photon stages that yielded so far.
+    yields: AtomicU64,
 }
 
 /// Background builder of per-light buffers.
@@ -496,6 +509,8 @@ impl Tracer {
             memory: Mutex::new(MemoryUsage { budget_bytes: settings.memory, ..MemoryUsage::default() }),
             evictions: AtomicU64::new(0),
             publishes: AtomicU64::new(0),
+            urgent: Arc::new(AtomicBool::new(false)),
+            yields: AtomicU64::new(0),
         });
         let worker = {
             let shared = shared.clone();
@@ -646,6 +661,12 @@ impl Tracer {
     /// Light stages built in those passes (the cells of every batch, summed).
     pub fn batched_lights(&self) -> u64 {
         self.shared.cells.lights()
+    }
+
+    /// Photon stages that yielded to a lit light's new request so far
+    /// (scheduling rule 6).
+    pub fn photon_yields(&self) -> u64 {
+        self.shared.yields.load(Ordering::SeqCst)
     }
 
     /// Cells that followed another cell's photon stage (shared indirect
@@ -825,6 +846,8 @@ impl Tracer {
         st.priority = priority;
         if priority > 0.0 {
             st.last_lit = Some(now);
+            // A lit light moved: a photon stage in progress yields to its direct stage.
+            s.urgent.store(true, Ordering::SeqCst);
         }
         st.evicted = false;
         st.current = Some(light.clone());
@@ -1522,8 +1545,22 @@ fn later_stage(s: &Shared, index: usize) {
     let next = build.next_stage();
     if next == Some(NextStage::Photons) {
         cells::gather_followers(s, index, id, &build);
+        // Rule 6: the photon stage yields (once) to a lit light that moves
+        // meanwhile; only requests from now on count.
+        if !build.yielded() {
+            s.urgent.store(false, Ordering::SeqCst);
+            build.set_preempt(Some(s.urgent.clone()));
+        }
     }
     let result = s.pool.install(|| build.next(&s.scene, &view));
+    if next == Some(NextStage::Photons) && build.cancel().preempted() {
+        // Not done, still good: it waits for its turn again, after the direct stage.
+        build.set_preempt(None);
+        build.mark_yielded();
+        s.yields.fetch_add(1, Ordering::SeqCst);
+        return keep_build(s, index, id, build, at);
+    }
+    build.set_preempt(None);
     if next == Some(NextStage::Photons) {
         if build.traced_photons() {
             s.photon_traces.fetch_add(1, Ordering::SeqCst);

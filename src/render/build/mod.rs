@@ -160,6 +160,9 @@ pub enum BuildError {
 pub struct Cancel {
     latest: Option<(Arc<AtomicU64>, u64)>,
     stop: Option<Arc<AtomicBool>>,
+    /// Set by a scheduler that wants the stage in progress to yield to
+    /// more urgent work ([`Cancel::preempted`]); the build itself stays good.
+    preempt: Option<Arc<AtomicBool>>,
 }
 
 impl Cancel {
@@ -170,18 +173,34 @@ impl Cancel {
 
     /// Fires when `latest` no longer holds `id` (a newer request) or `stop` is set.
     pub fn new(latest: Arc<AtomicU64>, id: u64, stop: Arc<AtomicBool>) -> Self {
-        Self { latest: Some((latest, id)), stop: Some(stop) }
+        Self { latest: Some((latest, id)), stop: Some(stop), preempt: None }
     }
 
     /// Fires when `stop` is set.
     pub fn on_stop(stop: Arc<AtomicBool>) -> Self {
-        Self { latest: None, stop: Some(stop) }
+        Self { latest: None, stop: Some(stop), preempt: None }
     }
 
     /// True once the build should stop.
     pub fn fired(&self) -> bool {
+        self.superseded() || self.preempt.as_ref().is_some_and(|p| p.load(Ordering::Relaxed))
+    }
+
+    /// True once the build is of no use any more: a newer request, or the stop.
+    pub fn superseded(&self) -> bool {
         self.stop.as_ref().is_some_and(|s| s.load(Ordering::Relaxed))
             || self.latest.as_ref().is_some_and(|(l, id)| l.load(Ordering::Relaxed) != *id)
+    }
+
+    /// True when the token fired only because its stage was asked to yield
+    /// ([`Cancel::with_preempt`]): the build is still good and may be run again.
+    pub fn preempted(&self) -> bool {
+        !self.superseded() && self.preempt.as_ref().is_some_and(|p| p.load(Ordering::Relaxed))
+    }
+
+    /// The token that also fires when `preempt` is set (`None`: never for that).
+    pub fn with_preempt(&self, preempt: Option<Arc<AtomicBool>>) -> Self {
+        Self { preempt, ..self.clone() }
     }
 
     /// `Err(Cancelled)` once fired.
@@ -230,6 +249,8 @@ pub struct LightBuild {
     from_coarse: bool,
     /// The stage [`LightBuild::next`] runs next.
     phase: Phase,
+    /// A stage of it yielded once to more urgent work ([`LightBuild::yielded`]).
+    yielded: bool,
     /// Refinement state once the photon stage ran through `next()`.
     refinement: Option<Refinement>,
 }
@@ -251,8 +272,28 @@ impl LightBuild {
             exact: None,
             from_coarse: false,
             phase: Phase::Next(NextStage::Whitted),
+            yielded: false,
             refinement: None,
         }
+    }
+
+    /// Lets the next stage yield to more urgent work: it stops with
+    /// [`Cancelled`] once `preempt` is set, and [`Cancel::preempted`] then
+    /// says the build is still good (the stage runs again from its start).
+    /// `None`: it does not yield.
+    pub fn set_preempt(&mut self, preempt: Option<Arc<AtomicBool>>) {
+        self.cancel = self.cancel.with_preempt(preempt);
+    }
+
+    /// Marks that a stage of this build yielded: a scheduler lets each
+    /// build yield once, so a light moved again and again cannot starve it.
+    pub fn mark_yielded(&mut self) {
+        self.yielded = true;
+    }
+
+    /// True once a stage of this build yielded ([`LightBuild::mark_yielded`]).
+    pub fn yielded(&self) -> bool {
+        self.yielded
     }
 
     /// Starts with a direct stage at `quality` ([`LightBuild::direct`]: the
@@ -659,7 +700,8 @@ impl LightBuild {
             sppm: None,
             pending: None,
             passes: self.settings.refine_passes,
-            cancel: self.cancel.clone(),
+            // Refinement passes are short: they never yield.
+            cancel: self.cancel.with_preempt(None),
         };
         let start = self.start.take();
         if let (Some(start), Some(exact)) = (start.clone(), self.exact.take()) {
