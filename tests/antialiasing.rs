@@ -522,9 +522,7 @@ fn lights_built_together_re_shade_the_same_highlights_as_alone() {
     // Cells built together (`render::build::together`) find sub-pixel highlights on
     // their window as a light alone finds them on the whole frame: same
     // pixels re-shaded, same buffers (1e-6 of the peak), on the chrome balls.
-    use footlight::render::build::together::whitted_together;
-    use footlight::render::build::{BuildSettings, Cancel, LightBuild};
-    use footlight::render::footprint::TileBounds;
+    use footlight::render::build::BuildSettings;
     use footlight::render::view::reference_level;
     let (scene, light, cam) = chrome_balls();
     let lights = vec![light.clone(), omni(Vec3::new(-1.2, 2.5, 1.5)), omni(Vec3::new(1.5, 2.0, -0.5))];
@@ -534,19 +532,7 @@ fn lights_built_together_re_shade_the_same_highlights_as_alone() {
     let (base, _) = v.render_direct(&scene, &light, None);
     let glints = v.glint_pixels(&scene, &light, &base, reference_level(&base).unwrap(), aa.threshold);
     assert!(!glints.is_empty(), "the chrome balls hold sub-pixel highlights");
-    let bounds = TileBounds::paths(&v);
-    let (together, _) = whitted_together(&scene, &v, &bounds, &lights, Some(aa), &|| false).unwrap();
-    for (i, l) in lights.iter().enumerate() {
-        let mut alone_build = LightBuild::new(l.clone(), i, settings, Cancel::never());
-        let alone = alone_build.whitted(&scene, &v).unwrap().to_dense();
-        let (buf, reshaded) = &together[i];
-        assert_eq!(*reshaded, alone_build.reshaded(), "light {i}: same pixels re-shaded");
-        let peak = alone.iter().map(|p| p.max_element()).fold(0.0f32, f32::max);
-        assert!(peak > 0.0);
-        for (p, (x, y)) in alone.iter().zip(&buf.to_dense()).enumerate() {
-            assert!((*x - *y).abs().max_element() <= 1e-6 * peak, "light {i} pixel {p}: alone {x}, together {y}");
-        }
-    }
+    crate::common::assert_together_equals_alone(&scene, &v, &lights, settings);
 }
 
 /// A Lambert floor seen through, and reflected in, a vertical glass pane

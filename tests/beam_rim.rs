@@ -203,9 +203,7 @@ fn hard_rims_built_together_equal_rims_built_alone() {
     // same pixels re-shaded, same buffers (1e-6 of the peak). A block on
     // the floor puts rim pixels on two surfaces (all 9 samples) and a
     // shadow edge across the rim.
-    use footlight::render::build::together::whitted_together;
-    use footlight::render::build::{BuildSettings, Cancel, LightBuild};
-    use footlight::render::footprint::TileBounds;
+    use footlight::render::build::BuildSettings;
     let mut b = SceneBuilder::new();
     let m = lambert(&mut b, RHO);
     floor(&mut b, FLOOR_HALF, 0.0, m);
@@ -231,17 +229,5 @@ fn hard_rims_built_together_equal_rims_built_alone() {
     }
     eprintln!("rim pixels: {cover} by cell coverage, {nine} with 9 samples");
     assert!(cover > 100 && nine > 0, "rim pixels: {cover} by coverage, {nine} with 9 samples");
-    let bounds = TileBounds::paths(&v);
-    let (together, _) = whitted_together(&scene, &v, &bounds, &lights, Some(aa), &|| false).unwrap();
-    for (i, l) in lights.iter().enumerate() {
-        let mut alone_build = LightBuild::new(l.clone(), i, settings, Cancel::never());
-        let alone = alone_build.whitted(&scene, &v).unwrap().to_dense();
-        let (buf, reshaded) = &together[i];
-        assert_eq!(*reshaded, alone_build.reshaded(), "light {i}: same pixels re-shaded");
-        let peak = alone.iter().map(|p| p.max_element()).fold(0.0f32, f32::max);
-        assert!(peak > 0.0);
-        for (p, (x, y)) in alone.iter().zip(&buf.to_dense()).enumerate() {
-            assert!((*x - *y).abs().max_element() <= 1e-6 * peak, "light {i} pixel {p}: alone {x}, together {y}");
-        }
-    }
+    crate::common::assert_together_equals_alone(&scene, &v, &lights, settings);
 }

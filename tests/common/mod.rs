@@ -197,3 +197,32 @@ pub fn textured_plane_gltf(dir: &std::path::Path, name: &str, image: &str, facto
     std::fs::write(&path, json).unwrap();
     path
 }
+
+/// The lights built together in one Whitted pass
+/// ([`footlight::render::build::together::whitted_together`]) equal each
+/// built alone with `LightBuild::whitted`: the same pixels re-shaded, every
+/// pixel within 1e-6 of the light's peak.
+pub fn assert_together_equals_alone(
+    scene: &Scene,
+    v: &View,
+    lights: &[Light],
+    settings: footlight::render::build::BuildSettings,
+) {
+    use footlight::render::build::together::whitted_together;
+    use footlight::render::build::{Cancel, LightBuild};
+    use footlight::render::footprint::TileBounds;
+    let aa = footlight::render::AaParams::new(settings.aa_threshold);
+    let bounds = TileBounds::paths(v);
+    let (together, _) = whitted_together(scene, v, &bounds, lights, Some(aa), &|| false).unwrap();
+    for (i, l) in lights.iter().enumerate() {
+        let mut alone_build = LightBuild::new(l.clone(), i, settings, Cancel::never());
+        let alone = alone_build.whitted(scene, v).unwrap().to_dense();
+        let (buf, reshaded) = &together[i];
+        assert_eq!(*reshaded, alone_build.reshaded(), "light {i}: same pixels re-shaded");
+        let peak = alone.iter().map(|p| p.max_element()).fold(0.0f32, f32::max);
+        assert!(peak > 0.0);
+        for (p, (x, y)) in alone.iter().zip(&buf.to_dense()).enumerate() {
+            assert!((*x - *y).abs().max_element() <= 1e-6 * peak, "light {i} pixel {p}: alone {x}, together {y}");
+        }
+    }
+}
