@@ -598,7 +598,10 @@ fn a_bars_cells_share_one_photon_stage_within_the_bound() {
             assert!(t.elapsed() < Duration::from_secs(300), "tracer stuck before every cell is ready");
             std::thread::sleep(Duration::from_millis(5));
         }
-        let buffers = (0..n).map(|i| tracer.published(i).buffer.to_dense()).collect();
+        let buffers = (0..n).map(|i| tracer.published(i).to_dense()).collect();
+        if tracer.shared_indirect_cells() > 0 {
+            regrouped_composite_is_the_sum_of_the_cells(&tracer, &lights);
+        }
         let out = (buffers, tracer.photon_traces(), tracer.shared_indirect_cells());
         let _: &Tracer = &tracer;
         out
@@ -623,6 +626,59 @@ fn a_bars_cells_share_one_photon_stage_within_the_bound() {
     let e = rel(&sums.0, &sums.1);
     eprintln!("whole bar: rel. MSE {e:.2e}");
     assert!(e <= 1e-3, "whole bar: rel. MSE {e}");
+}
+
+/// The frame's entries over a bar whose cells share one indirect layer
+/// (`Published::shared`): every cell shows its own Whitted term, the one
+/// layer sits at its first cell's place with the summed k, and the eq. 5
+/// composite of the entries equals Σ_i k_i (W_i + A) summed here pixel by
+/// pixel from each cell's dense picture (distinct k per cell), to f32
+/// rounding. The bar holds one dense layer, not one per cell.
+fn regrouped_composite_is_the_sum_of_the_cells(tracer: &footlight::live::Tracer, lights: &[footlight::Light]) {
+    use footlight::live::LightInput;
+    use footlight::live::clock::frame_entries;
+    use footlight::render::composite::composite;
+    let n = lights.len();
+    let published: Vec<_> = (0..n).map(|i| tracer.published(i)).collect();
+    let ids: std::collections::HashSet<u64> =
+        published.iter().filter_map(|p| p.shared.as_ref().map(|l| l.id)).collect();
+    assert_eq!(ids.len(), 1, "one layer for the bar");
+    assert!(published.iter().all(|p| p.shared.is_some()), "every cell, the leader too, shows the layer");
+    let places = tracer.shared_places();
+    assert_eq!(*places, (0..n).collect::<Vec<_>>(), "every cell of the bar has a place");
+    let inputs: Vec<LightInput> = lights
+        .iter()
+        .enumerate()
+        .map(|(i, l)| LightInput {
+            light: l.clone(),
+            k: Vec3::new(100.0 + 37.0 * i as f32, 250.0 - 11.0 * i as f32, 3.0 + 19.0 * i as f32),
+            k_full: Vec3::splat(300.0),
+            state: Default::default(),
+        })
+        .collect();
+    let (w, h) = (published[0].buffer.width, published[0].buffer.height);
+    let empty = footlight::render::LightBuffer::empty(w, h);
+    let entries = frame_entries(&published, &inputs, None, &places, &empty);
+    assert_eq!(entries.len(), 2 * n, "n cells, then n places");
+    let sum_k: Vec3 = inputs.iter().map(|i| i.k).sum();
+    let held: Vec<_> = entries[n..].iter().filter(|e| e.k != Vec3::ZERO).collect();
+    assert_eq!(held.len(), 1, "one place holds the layer");
+    assert!((held[0].k - sum_k).abs().max_element() <= 1e-3 * sum_k.max_element(), "with the summed k");
+    let buffers: Vec<_> = entries.iter().map(|e| e.buffer).collect();
+    let ks: Vec<Vec3> = entries.iter().map(|e| e.k).collect();
+    let got = composite(&buffers, &ks, w, h);
+    let mut want = vec![Vec3::ZERO; (w * h) as usize];
+    for (p, input) in published.iter().zip(&inputs) {
+        want.iter_mut().zip(p.to_dense()).for_each(|(s, x)| *s += input.k * x);
+    }
+    let peak = want.iter().map(|p| p.max_element()).fold(0.0f32, f32::max);
+    let worst = got.iter().zip(&want).map(|(a, b)| (*a - *b).abs().max_element()).fold(0.0f32, f32::max);
+    assert!(peak > 0.0 && worst <= 1e-5 * peak, "regrouped vs per cell: worst {worst}, peak {peak}");
+    let own: usize = published.iter().map(|p| p.buffer.bytes()).sum();
+    let layer = published[0].shared.as_ref().unwrap().buffer.bytes();
+    let dense = n * (w * h) as usize * 12;
+    eprintln!("bar: own buffers {own} B + one layer {layer} B, vs {dense} B as a dense buffer per cell");
+    assert!(own + layer < dense / 2, "the bar holds its indirect light once");
 }
 
 /// The same sharing in a still (`footlight render`, issue 38): jobs that

@@ -204,7 +204,7 @@ fn chromium_composites_the_paper_rig_from_the_buffer_stream_like_the_server() {
         // Every light's buffer came once; the dimmer changes after it sent none.
         let buffers = page["counts"]["buffer"].as_u64().unwrap() + page["counts"]["cleared"].as_u64().unwrap();
         assert_eq!(*buffers_after_connect.get_or_insert(buffers), buffers, "state {levels:?}: a buffer was re-sent");
-        assert_eq!(buffers, 6, "one buffer per light of the paper rig");
+        assert_eq!(buffers, 6, "one buffer per light of the paper rig (no multi-cell fixture: no shared-layer places)");
         pictures.push(got);
     }
     // The states differ on screen (the comparison above could fail).

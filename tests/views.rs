@@ -148,7 +148,8 @@ fn photon_maps_survive_a_camera_move_and_a_cached_view_comes_back_with_its_buffe
 
     // A kept buffer that never finished shows at once and is built again.
     let partial = Arc::new(footlight::render::LightBuffer::from_dense(W, H, &vec![Vec3::splat(0.5); (W * H) as usize]));
-    let unfinished = footlight::live::Kept { light: spot(1.0), buffer: partial.clone(), stage: Stage::Direct };
+    let unfinished =
+        footlight::live::Kept { light: spot(1.0), buffer: partial.clone(), shared: None, stage: Stage::Direct };
     // (A view never shown before: A's own geometry cache already holds this
     // light finished, and a finished buffer wins over an unfinished one.)
     let vc = view(&scene, Camera::look_at(Vec3::new(-4.0, 3.0, 4.0), Vec3::ZERO, 55f32.to_radians()));

@@ -12,6 +12,7 @@
 
 use crate::Light;
 use crate::render::LightBuffer;
+use crate::render::buffer::SharedLayer;
 use crate::render::media::Medium;
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -20,21 +21,45 @@ use std::sync::Arc;
 /// buffer itself).
 pub type Knots = [Arc<LightBuffer>; 2];
 
+/// What a light showed when it finished: the value a cache entry keeps.
+#[derive(Clone, Debug)]
+pub struct Finished {
+    /// Its buffer (a cell of a group: its own Whitted term).
+    pub buffer: Arc<LightBuffer>,
+    /// The group's shared indirect layer shown with it (issue 38), if any.
+    pub shared: Option<SharedLayer>,
+    /// In haze: its buffers at the density knots ½ and 1.
+    pub knots: Option<Knots>,
+}
+
+impl Finished {
+    /// A light's own finished buffer, no shared layer, no knots.
+    pub fn alone(buffer: Arc<LightBuffer>) -> Self {
+        Self { buffer, shared: None, knots: None }
+    }
+
+    /// Bytes it holds: the shared layer counted in full (the cache's own
+    /// bound, an upper bound where other cells share the layer).
+    fn bytes(&self) -> usize {
+        self.buffer.bytes()
+            + self.shared.as_ref().map_or(0, |l| l.buffer.bytes())
+            + self.knots.as_ref().map_or(0, |k| k.iter().map(|b| b.bytes()).sum())
+    }
+}
+
 struct Entry {
     /// The exact geometry state (the key: compared with `==`, so two
     /// states differing in any field never share a buffer).
     light: Light,
     /// The haze the entry was built in (part of the key; `None`: clear air).
     haze: Option<Medium>,
-    buffer: Arc<LightBuffer>,
-    /// In haze: the buffers at the density knots ½ and 1.
-    knots: Option<Knots>,
+    finished: Finished,
     last_used: u64,
 }
 
 impl Entry {
     fn bytes(&self) -> usize {
-        self.buffer.bytes() + self.knots.as_ref().map_or(0, |k| k.iter().map(|b| b.bytes()).sum())
+        self.finished.bytes()
     }
 }
 
@@ -61,22 +86,18 @@ impl GeometryCache {
     /// The finished buffer for this light index and exact geometry in clear
     /// air, if cached.
     pub fn get(&mut self, index: usize, light: &Light) -> Option<Arc<LightBuffer>> {
-        self.get_in(index, light, None).map(|(buffer, _)| buffer)
+        self.get_in(index, light, None).map(|f| f.buffer)
     }
 
-    /// The finished buffer and, in haze, its knot buffers for this light
-    /// index, exact geometry and exact `haze` (`None`: clear air), if cached.
-    pub fn get_in(
-        &mut self,
-        index: usize,
-        light: &Light,
-        haze: Option<&Medium>,
-    ) -> Option<(Arc<LightBuffer>, Option<Knots>)> {
+    /// What this light index showed finished (buffer, shared layer and, in
+    /// haze, its knot buffers) for this exact geometry and exact `haze`
+    /// (`None`: clear air), if cached.
+    pub fn get_in(&mut self, index: usize, light: &Light, haze: Option<&Medium>) -> Option<Finished> {
         self.clock += 1;
         let clock = self.clock;
         let e = self.entries.get_mut(&index)?.iter_mut().find(|e| e.light == *light && e.haze.as_ref() == haze)?;
         e.last_used = clock;
-        Some((e.buffer.clone(), e.knots.clone()))
+        Some(e.finished.clone())
     }
 
     /// Evicts least recently used entries until at most `bytes` are held;
@@ -100,21 +121,14 @@ impl GeometryCache {
     /// Stores a finished buffer (clear air), evicting least recently used
     /// entries past the budget.
     pub fn insert(&mut self, index: usize, light: &Light, buffer: Arc<LightBuffer>) {
-        self.insert_in(index, light, None, buffer, None);
+        self.insert_in(index, light, None, Finished::alone(buffer));
     }
 
-    /// Stores a finished buffer built in `haze` with its knot buffers
-    /// (both counted against the budget), evicting least recently used
-    /// entries past the budget.
-    pub fn insert_in(
-        &mut self,
-        index: usize,
-        light: &Light,
-        haze: Option<Medium>,
-        buffer: Arc<LightBuffer>,
-        knots: Option<Knots>,
-    ) {
-        let entry = Entry { light: light.clone(), haze, buffer, knots, last_used: 0 };
+    /// Stores what a light showed finished, built in `haze` (its knot
+    /// buffers and shared layer counted against the budget too), evicting
+    /// least recently used entries past the budget.
+    pub fn insert_in(&mut self, index: usize, light: &Light, haze: Option<Medium>, finished: Finished) {
+        let entry = Entry { light: light.clone(), haze, finished, last_used: 0 };
         let size = entry.bytes();
         if size > self.budget {
             return;
@@ -203,20 +217,20 @@ mod tests {
         let haze = Medium::new(0.03, 0.003, 0.7, Vec3::ZERO, Vec3::ONE).unwrap();
         let thicker = Medium { sigma_s: 0.031, ..haze };
         let a = light(1.0);
-        c.insert_in(0, &a, Some(haze), buf(1.0), Some([buf(0.5), buf(0.25)]));
+        c.insert_in(0, &a, Some(haze), Finished { knots: Some([buf(0.5), buf(0.25)]), ..Finished::alone(buf(1.0)) });
         assert_eq!(c.bytes(), 3 * one, "buffer and both knots");
         assert!(c.get(0, &a).is_none(), "an entry made in haze is not served in clear air");
         assert!(c.get_in(0, &a, Some(&thicker)).is_none(), "nor in other haze");
-        let (b, knots) = c.get_in(0, &a, Some(&haze)).expect("same light, same haze");
+        let Finished { buffer: b, knots, .. } = c.get_in(0, &a, Some(&haze)).expect("same light, same haze");
         assert_eq!(b.get(0, 0), Vec3::ONE);
         let knots = knots.expect("knots kept");
         assert_eq!((knots[0].get(0, 0), knots[1].get(0, 0)), (Vec3::splat(0.5), Vec3::splat(0.25)));
         // The same light in clear air and in the thicker haze: entries of their own.
         c.insert(0, &a, buf(2.0));
-        c.insert_in(0, &a, Some(thicker), buf(3.0), Some([buf(3.0), buf(3.0)]));
+        c.insert_in(0, &a, Some(thicker), Finished { knots: Some([buf(3.0), buf(3.0)]), ..Finished::alone(buf(3.0)) });
         assert_eq!(c.len(), 2, "budget 6 buffers: the least recently used hazy entry went");
         assert_eq!(c.get(0, &a).unwrap().get(0, 0), Vec3::splat(2.0));
-        assert_eq!(c.get_in(0, &a, Some(&thicker)).unwrap().0.get(0, 0), Vec3::splat(3.0));
+        assert_eq!(c.get_in(0, &a, Some(&thicker)).unwrap().buffer.get(0, 0), Vec3::splat(3.0));
         assert!(c.bytes() <= 6 * one);
     }
 }

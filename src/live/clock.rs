@@ -12,9 +12,10 @@ use super::tracer::{Published, Tracer};
 use crate::Light;
 use crate::fixture::{Change, DmxSlots, FixtureState};
 use crate::output::{Frame, LightLabel};
-use crate::render::buffer::LightBuffer;
+use crate::render::buffer::{LightBuffer, SharedLayer};
 use crate::render::composite::{CompositeInput, Compositor, UpdateStats};
 use glam::Vec3;
+use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -90,22 +91,25 @@ pub struct FrameClock {
     last_preview: Option<LastPreview>,
     /// Fixture bodies over the composite (issue 14 item 5), when shown.
     bodies: Option<super::bodies::LiveBodies>,
+    /// An empty buffer of the frame's size: the entry of a shared-layer
+    /// place no layer holds ([`frame_layers`]).
+    empty: Arc<LightBuffer>,
 }
 
 /// The last moving preview: its camera, every light with its k_i and the
 /// haze density, its pixels, and how long it took to make.
 type LastPreview = (crate::scene::Camera, (Vec<(Light, Vec3)>, Option<f32>), Arc<Vec<u8>>, Duration);
 
-/// The eq. 5 entries of a frame: every light's buffer with k_i; in haze
-/// (`density` given) every light's buffer at each density knot with
-/// w_j(d) k_i ([`crate::render::media::live`]): a hazer change is a set of
-/// weights, no rebuild.
+/// The eq. 5 entries of a frame ([`frame_layers`] with each layer's
+/// weight folded into its entries' k).
 pub fn frame_entries<'a>(
     published: &'a [Published],
     inputs: &[LightInput],
     density: Option<f32>,
+    places: &[usize],
+    empty: &'a LightBuffer,
 ) -> Vec<CompositeInput<'a>> {
-    let (layers, weights) = frame_layers(published, inputs, density);
+    let (layers, weights) = frame_layers(published, inputs, density, places, empty);
     weighted(&layers, &weights)
 }
 
@@ -116,44 +120,106 @@ fn weighted<'a>(layers: &[CompositeInput<'a>], weights: &[f32]) -> Vec<Composite
     layers.iter().zip(0..).map(|(e, i)| CompositeInput { k: e.k * weights[i / n], ..*e }).collect()
 }
 
+/// The shared indirect layers of a frame in clear air (issue 38,
+/// [`crate::render::buffer::SharedLayer`]): per place (`places[r]` is a
+/// light that can show a layer, [`Tracer::shared_places`]), the layer
+/// whose first light (lowest index) showing it is that light, with the
+/// summed k of every light showing it; `None` where it is no layer's first
+/// light. A layer keeps its place while its first light shows it.
+fn shared_layers<'a>(
+    published: &'a [Published],
+    inputs: &[LightInput],
+    places: &[usize],
+) -> Vec<Option<(&'a SharedLayer, Vec3)>> {
+    let mut slots: Vec<Option<(&SharedLayer, Vec3)>> = vec![None; places.len()];
+    let mut first: HashMap<u64, usize> = HashMap::new();
+    for (i, (p, input)) in published.iter().zip(inputs).enumerate() {
+        let Some(layer) = &p.shared else { continue };
+        let r = match first.get(&layer.id) {
+            Some(&r) => r,
+            None => {
+                // Only cells of a group share a layer, and every such cell has a place.
+                let Ok(r) = places.binary_search(&i) else {
+                    debug_assert!(false, "light {i} shows a shared layer but has no place");
+                    continue;
+                };
+                first.insert(layer.id, r);
+                r
+            }
+        };
+        let (_, k) = slots[r].get_or_insert((layer, Vec3::ZERO));
+        *k += input.k;
+    }
+    slots
+}
+
 /// The entries of [`frame_entries`] as layers for
-/// [`crate::render::composite::Compositor::update_layers`]: every light's
-/// surface buffer, then (in haze) its buffers at the knots ½ and 1, each
-/// with k_i itself; and the layers' weights (1 without haze, w_j(d) in
-/// haze). A hazer change is then new weights only: the CPU compositor
-/// recombines its three kept sums instead of recomposing every buffer.
+/// [`crate::render::composite::Compositor::update_layers`], and the
+/// layers' weights.
+///
+/// In clear air (`density` `None`): every light's own buffer with k_i,
+/// then one entry per place (`places`, [`Tracer::shared_places`]) for the
+/// shared layer its light is the first to show, with the summed k of the
+/// lights showing it (eq. 5 regrouped:
+/// Σ_i k_i (W_i + A_g) = Σ_i k_i W_i + (Σ_i k_i) A_g), `empty` with k = 0
+/// where it shows none; one weight, 1. The count is fixed (N + places),
+/// so the compositor's and the stream's per-entry state stays in place.
+///
+/// In haze (no shared layers there): every light's surface buffer, then
+/// its buffers at the knots ½ and 1, each with k_i itself; weights
+/// w_j(d) ([`crate::render::media::knot_weights`]). A hazer change is then
+/// new weights only: the CPU compositor recombines its three kept sums
+/// instead of recomposing every buffer.
 pub fn frame_layers<'a>(
     published: &'a [Published],
     inputs: &[LightInput],
     density: Option<f32>,
+    places: &[usize],
+    empty: &'a LightBuffer,
 ) -> (Vec<CompositeInput<'a>>, Vec<f32>) {
     let surface = published.iter().zip(inputs).map(|(p, input)| CompositeInput {
         buffer: &p.buffer,
         generation: p.generation,
         k: input.k,
     });
-    let haze = density.into_iter().flat_map(|_| {
-        (0..2).flat_map(move |j| {
-            published.iter().zip(inputs).map(move |(p, input)| CompositeInput {
-                buffer: &p.hazy[j],
-                generation: p.generation,
-                k: input.k,
-            })
+    let Some(d) = density else {
+        let shared = shared_layers(published, inputs, places).into_iter().map(|slot| match slot {
+            Some((layer, k)) => CompositeInput { buffer: &layer.buffer, generation: layer.id, k },
+            None => CompositeInput { buffer: empty, generation: 0, k: Vec3::ZERO },
+        });
+        return (surface.chain(shared).collect(), vec![1.0]);
+    };
+    let haze = (0..2).flat_map(move |j| {
+        published.iter().zip(inputs).map(move |(p, input)| CompositeInput {
+            buffer: &p.hazy[j],
+            generation: p.generation,
+            k: input.k,
         })
     });
-    let weights = match density {
-        Some(d) => crate::render::media::knot_weights(d).to_vec(),
-        None => vec![1.0],
-    };
-    (surface.chain(haze).collect(), weights)
+    (surface.chain(haze).collect(), crate::render::media::knot_weights(d).to_vec())
 }
 
-/// The buffers of [`frame_entries`] with their generations, shared.
-fn frame_buffers(published: &[Published], density: Option<f32>) -> Vec<(u64, Arc<LightBuffer>)> {
-    let haze = density
-        .iter()
-        .flat_map(|_| (0..2).flat_map(|j| published.iter().map(move |p| (p.generation, p.hazy[j].clone()))));
-    published.iter().map(|p| (p.generation, p.buffer.clone())).chain(haze).collect()
+/// The buffers of [`frame_entries`] with their generations, shared, in
+/// the same order.
+fn frame_buffers(
+    published: &[Published],
+    inputs: &[LightInput],
+    density: Option<f32>,
+    places: &[usize],
+    empty: &Arc<LightBuffer>,
+) -> Vec<(u64, Arc<LightBuffer>)> {
+    let surface = published.iter().map(|p| (p.generation, p.buffer.clone()));
+    match density {
+        None => surface
+            .chain(shared_layers(published, inputs, places).into_iter().map(|slot| match slot {
+                Some((layer, _)) => (layer.id, layer.buffer.clone()),
+                None => (0, empty.clone()),
+            }))
+            .collect(),
+        Some(_) => surface
+            .chain((0..2).flat_map(|j| published.iter().map(move |p| (p.generation, p.hazy[j].clone()))))
+            .collect(),
+    }
 }
 
 /// Relative luminance of linear sRGB (Rec. 709 weights).
@@ -182,6 +248,7 @@ impl FrameClock {
     pub fn new(decoder: Arc<dyn Decode>, tracer: Arc<Tracer>, compositor: Compositor) -> Self {
         let n = decoder.len();
         let epoch = tokio::time::Instant::now();
+        let empty = Arc::new(LightBuffer::empty(compositor.width(), compositor.height()));
         Self {
             decoder,
             tracer,
@@ -195,6 +262,7 @@ impl FrameClock {
             views: None,
             last_preview: None,
             bodies: None,
+            empty,
         }
     }
 
@@ -277,6 +345,7 @@ impl FrameClock {
         for input in &mut inputs {
             input.k *= input.state.shutter_at(t_seconds);
         }
+        let places = self.tracer.shared_places();
         let mut published: Vec<Published> = Vec::with_capacity(inputs.len());
         for (i, input) in inputs.iter().enumerate().take(self.tracer.len()) {
             let priority = priorities[i];
@@ -325,8 +394,10 @@ impl FrameClock {
                 update: UpdateStats::default(),
                 // The buffer stream keeps the last full view while the camera
                 // moves (its clients composite those buffers with this k).
-                k: Arc::new(frame_entries(&published, &inputs, density).iter().map(|l| l.k).collect()),
-                buffers: Arc::new(frame_buffers(&published, density)),
+                k: Arc::new(
+                    frame_entries(&published, &inputs, density, &places, &self.empty).iter().map(|l| l.k).collect(),
+                ),
+                buffers: Arc::new(frame_buffers(&published, &inputs, density, &places, &self.empty)),
                 haze_density: density,
                 display: self.compositor.display(),
                 preview: true,
@@ -337,7 +408,7 @@ impl FrameClock {
         }
         // The layers once: flat weighted entries for the GPU and the frame,
         // the layers themselves for the CPU compositor in haze.
-        let (layers, weights) = frame_layers(&published, &inputs, density);
+        let (layers, weights) = frame_layers(&published, &inputs, density, &places, &self.empty);
         let lights = weighted(&layers, &weights);
         // The GPU path never waits: it submits this frame and takes the
         // newest finished readback (None: keep showing the last picture).
@@ -361,7 +432,7 @@ impl FrameClock {
         };
         let intensity = inputs.iter().map(|input| luminance(input.k)).collect();
         let k = Arc::new(lights.iter().map(|l| l.k).collect());
-        let buffers = Arc::new(frame_buffers(&published, density));
+        let buffers = Arc::new(frame_buffers(&published, &inputs, density, &places, &self.empty));
         let mut rgb = self.frame_rgb(gpu_rgb, &update);
         if let Some(bodies) = &mut self.bodies {
             // The body layer after Σ k_i buffer_i (CPU or GPU picture alike).

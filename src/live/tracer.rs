@@ -117,10 +117,10 @@
 
 mod cells;
 
-use super::cache::{GeometryCache, Knots};
+use super::cache::{Finished, GeometryCache, Knots};
 use crate::Light;
 use crate::output::{LightReport, MemoryUsage, Stage};
-use crate::render::buffer::HazeBuffer;
+use crate::render::buffer::{HazeBuffer, SharedLayer};
 use crate::render::build::{BuildError, BuildSettings, Cancel, LightBuild, NextStage};
 use crate::render::footprint::DirectQuality;
 use crate::render::media::{HazeQuality, HazeView, Medium, knot_buffers, update_knots};
@@ -220,6 +220,21 @@ pub struct Published {
     /// ([`crate::render::media::knot_buffers`]; `buffer` is the knot 0),
     /// published with `buffer` and under its `generation`. Empty without haze.
     pub hazy: [Arc<LightBuffer>; 2],
+    /// The indirect term this cell shares with its photon leader's group
+    /// (issue 38; without haze only): the light shows `buffer` (then its
+    /// own Whitted term) plus this layer, which the frame composites once
+    /// for the whole group ([`super::clock::frame_layers`]).
+    pub shared: Option<SharedLayer>,
+}
+
+impl Published {
+    /// What the light shows, dense row-major: its buffer plus its shared layer.
+    pub fn to_dense(&self) -> Vec<glam::Vec3> {
+        match &self.shared {
+            Some(layer) => layer.plus(&self.buffer),
+            None => self.buffer.to_dense(),
+        }
+    }
 }
 
 /// What a light showed in a view: kept by the view cache
@@ -230,6 +245,8 @@ pub struct Kept {
     pub light: Light,
     /// The buffer.
     pub buffer: Arc<LightBuffer>,
+    /// The group's indirect layer shown with it ([`Published::shared`]).
+    pub shared: Option<SharedLayer>,
     /// Its stage.
     pub stage: Stage,
 }
@@ -464,6 +481,7 @@ impl Tracer {
                     generation: 0,
                     stage: Stage::Queued,
                     hazy: [empty.clone(), empty.clone()],
+                    shared: None,
                 }),
             })
             .collect();
@@ -576,6 +594,19 @@ impl Tracer {
     /// or a light not listed: built alone.
     pub fn set_groups(&self, fixture: &[Option<u32>]) {
         self.shared.cells.set_groups(fixture);
+    }
+
+    /// The lights that can show a shared indirect layer
+    /// ([`Published::shared`]), ascending: the cells of a fixture with two
+    /// or more, when cells share photon stages in clear air (else none).
+    /// The frame gives each a place for the layer it is the first to show
+    /// ([`super::clock::frame_layers`]); fixed once the groups are set.
+    pub fn shared_places(&self) -> Arc<Vec<usize>> {
+        if self.shared.settings.share_indirect && self.shared.haze.is_none() {
+            self.shared.cells.places()
+        } else {
+            Arc::new(Vec::new())
+        }
     }
 
     /// Names the lights for log lines (`names[i]` is light i's, e.g. the
@@ -702,7 +733,12 @@ impl Tracer {
             .map(|slot| {
                 let shown = slot.state.lock().expect("slot lock").shown.clone()?;
                 let p = slot.published.lock().expect("published lock");
-                (p.stage != Stage::Queued).then(|| Kept { light: shown, buffer: p.buffer.clone(), stage: p.stage })
+                (p.stage != Stage::Queued).then(|| Kept {
+                    light: shown,
+                    buffer: p.buffer.clone(),
+                    shared: p.shared.clone(),
+                    stage: p.stage,
+                })
             })
             .collect()
     }
@@ -777,6 +813,7 @@ impl Tracer {
                 drop(st);
                 let mut p = slot.published.lock().expect("published lock");
                 p.buffer = empty.clone();
+                p.shared = None;
                 p.generation += 1;
                 p.stage = Stage::Queued;
                 continue;
@@ -787,12 +824,14 @@ impl Tracer {
             // else this view's geometry cache. Lock order as in `request`:
             // slot state, then the cache.
             // In haze the cache entry carries the knot buffers and its key the haze.
-            let finished_kept = hit.filter(|k| k.stage == Stage::Ready).map(|k| (k.buffer.clone(), None));
+            let finished_kept = hit
+                .filter(|k| k.stage == Stage::Ready)
+                .map(|k| Finished { shared: k.shared.clone(), ..Finished::alone(k.buffer.clone()) });
             let cached =
                 finished_kept.or_else(|| s.cache.lock().expect("cache lock").get_in(i, &light, s.haze.as_ref()));
-            if let Some((buffer, knots)) = cached {
+            if let Some(finished) = cached {
                 // Finished for this very view and geometry before.
-                restore(slot, st, light, buffer, knots);
+                restore(slot, st, light, finished);
                 restored += 1;
                 continue;
             }
@@ -815,10 +854,12 @@ impl Tracer {
             match hit {
                 Some(k) => {
                     p.buffer = k.buffer.clone();
+                    p.shared = k.shared.clone();
                     p.stage = k.stage;
                 }
                 None => {
                     p.buffer = empty.clone();
+                    p.shared = None;
                     p.stage = Stage::Queued;
                 }
             }
@@ -853,8 +894,8 @@ impl Tracer {
         st.current = Some(light.clone());
         st.previous_move = st.last_move.replace(now);
         let cached = s.cache.lock().expect("cache lock").get_in(index, &light, s.haze.as_ref());
-        if let Some((buffer, knots)) = cached {
-            restore(slot, st, light, buffer, knots);
+        if let Some(finished) = cached {
+            restore(slot, st, light, finished);
             tracing::debug!("light {index}: geometry found in cache");
             return;
         }
@@ -999,6 +1040,8 @@ impl Shared {
     /// says so and the tracer keeps going.
     fn enforce_budget(&self) -> MemoryUsage {
         let budget = self.memory_budget.load(Ordering::SeqCst);
+        // Shared layers (issue 38): counted once each, lit when a lit light shows it.
+        let mut layers: std::collections::HashMap<u64, (u64, bool)> = std::collections::HashMap::new();
         // Per light: bytes held, lit, last lit.
         let held: Vec<(u64, u64, bool, Option<Instant>)> = self
             .slots
@@ -1013,6 +1056,9 @@ impl Shared {
                 drop(st);
                 let p = slot.published.lock().expect("published lock");
                 let buffers = building + p.buffer.bytes() + p.hazy.iter().map(|b| b.bytes()).sum::<usize>();
+                if let Some(layer) = &p.shared {
+                    layers.entry(layer.id).or_insert((layer.buffer.bytes() as u64, false)).1 |= lit;
+                }
                 (buffers as u64, maps, lit, last_lit)
             })
             .collect();
@@ -1020,10 +1066,13 @@ impl Shared {
             let c = s.cache.lock().expect("cache lock").bytes();
             (c + s.kept_caches.lock().expect("kept caches lock").iter().map(|(_, k)| k.bytes()).sum::<usize>()) as u64
         };
-        let mut buffers: u64 = held.iter().map(|h| h.0).sum();
+        // Evicting a dark light frees its own buffers; a layer it shares
+        // stays counted (freed only with its last light: an upper bound).
+        let mut buffers: u64 = held.iter().map(|h| h.0).sum::<u64>() + layers.values().map(|l| l.0).sum::<u64>();
         let mut maps: u64 = held.iter().map(|h| h.1).sum();
         let mut cache = caches(self);
-        let lit_bytes: u64 = held.iter().filter(|h| h.2).map(|h| h.0 + h.1).sum();
+        let lit_bytes: u64 = held.iter().filter(|h| h.2).map(|h| h.0 + h.1).sum::<u64>()
+            + layers.values().filter(|l| l.1).map(|l| l.0).sum::<u64>();
         if buffers + maps + cache > budget {
             // 1. Dark lights, least recently lit first (never lit: first of all).
             let mut dark: Vec<(Option<Instant>, usize)> =
@@ -1108,6 +1157,7 @@ impl Shared {
         let mut p = slot.published.lock().expect("published lock");
         p.buffer = empty.clone();
         p.hazy = [empty.clone(), empty];
+        p.shared = None;
         p.generation += 1;
         p.stage = Stage::Queued;
         self.evictions.fetch_add(1, Ordering::SeqCst);
@@ -1132,11 +1182,19 @@ impl Shared {
     }
 
     /// Publishes `buffer` (of geometry `light`) for `index` if request `id`
-    /// still owns the slot.
-    fn publish(&self, index: usize, id: u64, buffer: LightBuffer, stage: Stage, light: &Light) -> bool {
+    /// still owns the slot; returns the published buffer (shared, never
+    /// copied: the geometry cache keeps the same one).
+    fn publish(
+        &self,
+        index: usize,
+        id: u64,
+        buffer: LightBuffer,
+        stage: Stage,
+        light: &Light,
+    ) -> Option<Arc<LightBuffer>> {
         let slot = &self.slots[index];
         if slot.latest.load(Ordering::SeqCst) != id {
-            return false; // superseded: a newer request owns the slot
+            return None; // superseded: a newer request owns the slot
         }
         let buffer = Arc::new(buffer);
         let hazy = match (&self.haze, self.haze_view()) {
@@ -1171,8 +1229,53 @@ impl Shared {
         if let Some(hazy) = hazy {
             p.hazy = hazy;
         }
-        p.buffer = buffer;
+        p.buffer = buffer.clone();
+        p.shared = None;
         p.generation += 1;
+        p.stage = stage;
+        Some(buffer)
+    }
+
+    /// Publishes a cell of a group (clear air only): what it `shows`, its
+    /// own Whitted term with the group's indirect layer ([`Published::shared`]), if
+    /// request `id` still owns the slot and, when `replaces` is given, the
+    /// slot still shows that very buffer (a leader split after its own
+    /// publish: nothing newer is overwritten).
+    fn publish_shared(
+        &self,
+        index: usize,
+        id: u64,
+        shows: Finished,
+        stage: Stage,
+        light: &Light,
+        replaces: Option<&Arc<LightBuffer>>,
+    ) -> bool {
+        let Finished { buffer: own, shared: Some(layer), .. } = shows else { return false };
+        debug_assert!(self.haze.is_none(), "shared layers are for clear air");
+        let slot = &self.slots[index];
+        let mut st = slot.state.lock().expect("slot lock");
+        if slot.latest.load(Ordering::SeqCst) != id {
+            return false;
+        }
+        let mut p = slot.published.lock().expect("published lock");
+        if replaces.is_some_and(|b| !Arc::ptr_eq(b, &p.buffer)) {
+            return false;
+        }
+        st.shown = Some(light.clone());
+        st.failed = None;
+        if replaces.is_none() {
+            let n = self.publishes.fetch_add(1, Ordering::SeqCst);
+            st.first_publish.get_or_insert(n);
+            st.last_publish = Some(n);
+        }
+        // The cell's own buffer unchanged (a follower at its leader's next
+        // pass): same generation, so its emitter group's composite storage
+        // stays current; the new layer has an id of its own.
+        if !Arc::ptr_eq(&p.buffer, &own) {
+            p.generation += 1;
+        }
+        p.buffer = own;
+        p.shared = Some(layer);
         p.stage = stage;
         true
     }
@@ -1252,23 +1355,18 @@ impl Shared {
 /// [`Tracer::set_view`] and [`Tracer::request`]. Nothing of an earlier
 /// build waits on: no request, no knots of another geometry (in haze the
 /// cache entry brings its own knot buffers).
-fn restore(
-    slot: &Slot,
-    mut st: std::sync::MutexGuard<'_, SlotState>,
-    light: Light,
-    buffer: Arc<LightBuffer>,
-    knots: Option<Knots>,
-) {
+fn restore(slot: &Slot, mut st: std::sync::MutexGuard<'_, SlotState>, light: Light, finished: Finished) {
     st.pending = None;
     st.waiting_since = None;
     st.shown = Some(light);
     st.knots = None;
     drop(st);
     let mut p = slot.published.lock().expect("published lock");
-    p.buffer = buffer;
+    p.buffer = finished.buffer;
+    p.shared = finished.shared;
     p.generation += 1;
     p.stage = Stage::Ready;
-    if let Some(knots) = knots {
+    if let Some(knots) = finished.knots {
         p.hazy = knots;
     }
 }
@@ -1505,7 +1603,7 @@ fn after_direct(
     let slot = &s.slots[index];
     // The moved beam comes with the first picture of the moved light.
     s.haze_stage(index, req.id, &build, HazeQuality::COARSE);
-    if !s.publish(index, req.id, buffer, Stage::Direct, &req.light) {
+    if s.publish(index, req.id, buffer, Stage::Direct, &req.light).is_none() {
         return;
     }
     let now = Instant::now();
@@ -1524,13 +1622,12 @@ fn after_direct(
 /// publish, then the build kept for its photons, or finished.
 fn after_whitted(s: &Shared, index: usize, id: u64, build: LightBuild, buffer: LightBuffer, at: Instant) {
     let stage = if build.has_photons() { Stage::Whitted } else { Stage::Ready };
-    let cached = (stage == Stage::Ready).then(|| Arc::new(buffer.clone()));
     let light = build.light().clone();
     s.haze_stage(index, id, &build, HazeQuality::REFINED);
-    if s.publish(index, id, buffer, stage, &light) {
-        match cached {
-            Some(b) => finished(s, index, id, build.light(), b, at),
-            None => keep_build(s, index, id, build, at),
+    if let Some(b) = s.publish(index, id, buffer, stage, &light) {
+        match stage {
+            Stage::Ready => finished(s, index, id, build.light(), Finished::alone(b), at),
+            _ => keep_build(s, index, id, build, at),
         }
     }
 }
@@ -1582,21 +1679,22 @@ fn later_stage(s: &Shared, index: usize) {
         return after_whitted(s, index, id, build, step.buffer, at);
     }
     let stage = step.stage;
-    let cached = (stage == Stage::Ready).then(|| Arc::new(step.buffer.clone()));
     let light = build.light().clone();
-    if !s.publish(index, id, step.buffer, stage, &light) {
+    let Some(published) = s.publish(index, id, step.buffer, stage, &light) else {
         return;
-    }
-    cells::lead(s, index, id, stage);
-    match cached {
-        Some(b) => {
+    };
+    // A leader shares its indirect term (and shows its own Whitted term
+    // with it): what it shows finished is then the split pair.
+    let shown = cells::lead(s, index, id, stage, &light, &published);
+    match stage {
+        Stage::Ready => {
             if build.refined() > 0 {
                 tracing::debug!("light {index}: converged after {} progressive passes", build.refined());
             }
-            finished(s, index, id, &light, b, at);
+            finished(s, index, id, &light, shown.unwrap_or_else(|| Finished::alone(published)), at);
         }
-        None if next == Some(NextStage::Photons) => start_refining(s, index, id, build, at),
-        None => keep_build(s, index, id, build, at),
+        _ if next == Some(NextStage::Photons) => start_refining(s, index, id, build, at),
+        _ => keep_build(s, index, id, build, at),
     }
 }
 
@@ -1649,7 +1747,7 @@ fn mark_ready(s: &Shared, index: usize, id: u64, at: Instant) {
 }
 
 /// A light's final buffer: cached for position presets, build time recorded.
-fn finished(s: &Shared, index: usize, id: u64, light: &Light, buffer: Arc<LightBuffer>, at: Instant) {
+fn finished(s: &Shared, index: usize, id: u64, light: &Light, finished: Finished, at: Instant) {
     if s.slots[index].latest.load(Ordering::SeqCst) != id {
         return; // a view change or a newer request superseded it
     }
@@ -1658,7 +1756,7 @@ fn finished(s: &Shared, index: usize, id: u64, light: &Light, buffer: Arc<LightB
     let knots = st.knots.clone().filter(|(kid, ..)| *kid == id).map(|(.., k)| k);
     if s.haze.is_none() || knots.is_some() {
         // Lock order: slot state, then the cache.
-        s.cache.lock().expect("cache lock").insert_in(index, light, s.haze, buffer, knots);
+        s.cache.lock().expect("cache lock").insert_in(index, light, s.haze, Finished { knots, ..finished });
     }
     let elapsed = at.elapsed();
     st.last_build = Some(elapsed);

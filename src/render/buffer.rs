@@ -26,6 +26,35 @@ pub struct LightBuffer {
     data: Vec<Vec3>,
 }
 
+/// An indirect term one photon leader shares with the cells that follow it
+/// (issue 38, emitter groups): the leader's buffer less its Whitted term
+/// ([`crate::render::build::shared_indirect`]). Each cell of the group
+/// shows its own Whitted term W_i plus this A_g, and eq. 5 regroups as
+/// Σ_i k_i (W_i + A_g) = Σ_i k_i W_i + (Σ_i k_i) A_g: the group's indirect
+/// light is stored once and composited once with the summed weight,
+/// instead of a dense buffer per cell.
+#[derive(Clone, Debug)]
+pub struct SharedLayer {
+    /// Unique per layer and never reused (a new layer for each leader
+    /// publish): the compositor's and the stream's generation for it.
+    pub id: u64,
+    /// A_g, in the units of a light's buffer (cd/m² per cd).
+    pub buffer: std::sync::Arc<LightBuffer>,
+}
+
+impl SharedLayer {
+    /// A new layer with a fresh id.
+    pub fn new(buffer: LightBuffer) -> Self {
+        static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+        Self { id: NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed), buffer: std::sync::Arc::new(buffer) }
+    }
+
+    /// `own` plus this layer, dense row-major (what the cell shows).
+    pub fn plus(&self, own: &LightBuffer) -> Vec<Vec3> {
+        own.to_dense().iter().zip(self.buffer.to_dense()).map(|(a, b)| *a + b).collect()
+    }
+}
+
 /// A NaN/Inf or negative value found in a buffer, with where it is.
 #[derive(Debug, thiserror::Error, PartialEq)]
 #[error("buffer value {value} at pixel ({x}, {y}) is not a finite non-negative number")]

@@ -43,8 +43,9 @@
 
 use super::{Request, Shared, Stage, after_direct, after_whitted, finished, new_build, report_bug, take_request};
 use crate::Light;
+use crate::live::cache::Finished;
 use crate::render::View;
-use crate::render::buffer::LightBuffer;
+use crate::render::buffer::{LightBuffer, SharedLayer};
 use crate::render::build::{
     BuildError, GroupBuild, LightBuild, NextStage, follower_sum, indirect_alike, photon_leader, shared_indirect,
 };
@@ -60,6 +61,9 @@ use std::time::Instant;
 pub(super) struct Cells {
     /// Per light: the lights of its fixture (itself alone by default).
     groups: Mutex<Arc<Vec<Range<usize>>>>,
+    /// The lights in a group of two or more, ascending: those that can
+    /// show a shared layer ([`super::Tracer::shared_places`]).
+    places: Mutex<Arc<Vec<usize>>>,
     /// [`TileBounds`] of the current view (made at the first Whitted pass),
     /// with a `Weak` to its view: it keeps no view alive (the view cache
     /// lets a view's caches go when nothing holds it), and the `Weak` keeps
@@ -87,6 +91,7 @@ impl Cells {
             lights: AtomicU64::new(0),
             followers: AtomicU64::new(0),
             sharing: AtomicBool::new(false),
+            places: Mutex::new(Arc::new(Vec::new())),
         }
     }
 
@@ -104,7 +109,14 @@ impl Cells {
             groups.extend((start..end).map(|_| start..end));
             start = end;
         }
+        let places = (0..n).filter(|&i| groups[i].len() >= 2).collect();
         *self.groups.lock().expect("groups lock") = Arc::new(groups);
+        *self.places.lock().expect("places lock") = Arc::new(places);
+    }
+
+    /// The lights in a group of two or more, ascending.
+    pub(super) fn places(&self) -> Arc<Vec<usize>> {
+        self.places.lock().expect("places lock").clone()
     }
 
     /// The lights of light `index`'s fixture (itself alone by default).
@@ -282,8 +294,8 @@ pub(super) struct Follow {
     id: u64,
     light: Light,
     at: Instant,
-    /// This cell's own Whitted term.
-    whitted: LightBuffer,
+    /// This cell's own Whitted term (what it shows with the shared layer).
+    whitted: Arc<LightBuffer>,
 }
 
 impl Follow {
@@ -375,7 +387,8 @@ pub(super) fn gather_followers(s: &Shared, index: usize, id: u64, build: &LightB
         }
         let Some((fid, b, at)) = st.build.take() else { continue };
         let Some(own) = b.whitted_term().cloned() else { continue };
-        st.follow = Some(Follow { leader: index, leader_id: id, id: fid, light: b.light().clone(), at, whitted: own });
+        let whitted = Arc::new(own);
+        st.follow = Some(Follow { leader: index, leader_id: id, id: fid, light: b.light().clone(), at, whitted });
         followers.push(j);
     }
     if !followers.is_empty() {
@@ -385,19 +398,37 @@ pub(super) fn gather_followers(s: &Shared, index: usize, id: u64, build: &LightB
     }
 }
 
-/// After light `index` published request `id`'s buffer at `stage`: at its
-/// photon estimate and at its final picture (not at each refinement pass
-/// in between) each of its followers publishes its own Whitted term plus
-/// the leader's indirect term at the same stage; at [`Stage::Ready`] they
-/// are finished too.
-pub(super) fn lead(s: &Shared, index: usize, id: u64, stage: Stage) {
-    // Between the photon estimate and the final picture the followers keep
-    // the estimate: each follower publish costs a dense sum on this thread
-    // and makes its emitter group's composite storage stale (festival show:
-    // every refinement pass published to 15 followers took the pixel chase
-    // from 33 to 25 Hz and the moved heads from 0.26 to 1.08 s).
-    if !matches!(stage, Stage::Photons | Stage::Ready) {
-        return;
+/// After light `index` published request `id`'s buffer `published` at
+/// `stage` (photons or later): if it leads, it shares its indirect term.
+///
+/// In clear air the term becomes one [`SharedLayer`] for the group: the
+/// leader and each follower show their own Whitted term with it
+/// ([`Published::shared`](super::Published)); the frame composites the
+/// layer once with the summed weight. A follower's own buffer does not
+/// change, so its generation does not either (its emitter group's
+/// composite storage stays current): each refinement pass costs one dense
+/// layer, not a dense sum per cell. Returns what the leader shows then
+/// (the geometry cache keeps that pair at [`Stage::Ready`]).
+///
+/// In haze each cell's knot buffers depend on its own position, so each
+/// follower publishes its own Whitted term plus the term, dense, at the
+/// photon estimate and at the final picture only (module doc).
+pub(super) fn lead(
+    s: &Shared,
+    index: usize,
+    id: u64,
+    stage: Stage,
+    light: &Light,
+    published: &Arc<LightBuffer>,
+) -> Option<Finished> {
+    let hazy = s.haze.is_some();
+    // In haze, between the photon estimate and the final picture the
+    // followers keep the estimate: each follower publish costs a dense sum
+    // on this thread and makes its emitter group's composite storage stale
+    // (festival show: every refinement pass published to 15 followers took
+    // the pixel chase from 33 to 25 Hz and the moved heads from 0.26 to 1.08 s).
+    if hazy && !matches!(stage, Stage::Photons | Stage::Ready) {
+        return None;
     }
     let lead = {
         let mut st = s.slots[index].state.lock().expect("slot lock");
@@ -406,10 +437,16 @@ pub(super) fn lead(s: &Shared, index: usize, id: u64, stage: Stage) {
             Some(l) if l.id == id => Some(l.clone()),
             _ => None,
         }
-    };
-    let Some(lead) = lead else { return };
-    let leader = s.slots[index].published.lock().expect("published lock").buffer.clone();
-    let indirect = shared_indirect(&leader, &lead.whitted);
+    }?;
+    let indirect = shared_indirect(published, &lead.whitted);
+    if hazy {
+        publish_dense_followers(s, index, id, stage, &lead, &indirect);
+        return None;
+    }
+    let layer = SharedLayer::new(LightBuffer::from_dense(published.width, published.height, &indirect));
+    let shows = |own: &Arc<LightBuffer>| Finished { buffer: own.clone(), shared: Some(layer.clone()), knots: None };
+    let leader =
+        s.publish_shared(index, id, shows(&lead.whitted), stage, light, Some(published)).then(|| shows(&lead.whitted));
     for &j in &lead.followers {
         let slot = &s.slots[j];
         let next = {
@@ -417,19 +454,39 @@ pub(super) fn lead(s: &Shared, index: usize, id: u64, stage: Stage) {
             st.follow
                 .as_ref()
                 .filter(|f| f.leader == index && f.leader_id == id && slot.latest.load(Ordering::SeqCst) == f.id)
-                .map(|f| (f.id, f.light.clone(), f.at, follower_sum(&f.whitted, &indirect)))
+                .map(|f| (f.id, f.light.clone(), f.at, f.whitted.clone()))
+        };
+        let Some((fid, light, at, own)) = next else { continue };
+        if s.publish_shared(j, fid, shows(&own), stage, &light, None) && stage == Stage::Ready {
+            slot.state.lock().expect("slot lock").follow = None;
+            finished(s, j, fid, &light, shows(&own), at);
+        }
+    }
+    leader
+}
+
+/// [`lead`] in haze: each follower publishes its own Whitted term plus
+/// the leader's `indirect` term, dense.
+fn publish_dense_followers(s: &Shared, index: usize, id: u64, stage: Stage, lead: &Lead, indirect: &[glam::Vec3]) {
+    for &j in &lead.followers {
+        let slot = &s.slots[j];
+        let next = {
+            let st = slot.state.lock().expect("slot lock");
+            st.follow
+                .as_ref()
+                .filter(|f| f.leader == index && f.leader_id == id && slot.latest.load(Ordering::SeqCst) == f.id)
+                .map(|f| (f.id, f.light.clone(), f.at, follower_sum(&f.whitted, indirect)))
         };
         let Some((fid, light, at, buffer)) = next else { continue };
         if let Err(e) = buffer.check() {
             report_bug(s, j, &BuildError::from(e));
             continue;
         }
-        let cached = (stage == Stage::Ready).then(|| Arc::new(buffer.clone()));
-        if s.publish(j, fid, buffer, stage, &light)
-            && let Some(b) = cached
+        if let Some(b) = s.publish(j, fid, buffer, stage, &light)
+            && stage == Stage::Ready
         {
             slot.state.lock().expect("slot lock").follow = None;
-            finished(s, j, fid, &light, b, at);
+            finished(s, j, fid, &light, Finished::alone(b), at);
         }
     }
 }
