@@ -124,6 +124,15 @@ pub struct ReadySample {
     pub composite_ms: f64,
     /// Resident memory of this process (the daemon runs in it), MB.
     pub rss_mb: f64,
+    /// The tracer's light buffers (own buffers, shared layers, builds in
+    /// progress; the status' `memory.buffers_bytes`), MB.
+    pub buffers_mb: f64,
+    /// The tracer's photon maps, MB.
+    pub maps_mb: f64,
+    /// The geometry caches, MB.
+    pub caches_mb: f64,
+    /// The compositor's emitter-group storage, MB.
+    pub groups_mb: f64,
 }
 
 /// A `footlight` subprocess' run: its wall time, whether it finished.
@@ -658,6 +667,9 @@ fn rank(stage: Stage) -> u8 {
     }
 }
 
+/// Bytes per MB in the report (MiB, like the RSS column).
+const MB: f64 = (1u64 << 20) as f64;
+
 /// One sample of the daemon's status, counting the lights `lit` marks.
 fn sample(status: &crate::output::DaemonStatus, lit: &[bool], t_s: f64) -> ReadySample {
     let mut s = ReadySample {
@@ -666,6 +678,10 @@ fn sample(status: &crate::output::DaemonStatus, lit: &[bool], t_s: f64) -> Ready
         p99_ms: status.clock.frame_interval_p99_ms,
         composite_ms: status.clock.composite_ms,
         rss_mb: rss_mb("self").0,
+        buffers_mb: status.memory.buffers_bytes as f64 / MB,
+        maps_mb: status.memory.photon_maps_bytes as f64 / MB,
+        caches_mb: status.memory.caches_bytes as f64 / MB,
+        groups_mb: status.clock.group_storage_bytes as f64 / MB,
         ..ReadySample::default()
     };
     for (l, &is_lit) in status.lights.iter().zip(lit) {
@@ -1250,13 +1266,13 @@ impl FestivalReport {
             s += &format!("* error: {e}\n");
         }
         s += "\nLit lights by the stage on screen after the look was sent (`festival-ready.svg`):\n\n\
-              | t (s) | queued | direct | Whitted | indirect | ready | dark built | fps | p99 (ms) | composite (ms) | RSS (MB) |\n\
-              |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+              | t (s) | queued | direct | Whitted | indirect | ready | dark built | fps | p99 (ms) | composite (ms) | RSS (MB) | buffers (MB) | photon maps (MB) | caches (MB) | groups (MB) |\n\
+              |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
         let step = (self.samples.len() / 24).max(1);
         let last = self.samples.len().saturating_sub(1);
         for (_, p) in self.samples.iter().enumerate().filter(|(i, _)| i % step == 0 || *i == last) {
             s += &format!(
-                "| {:.1} | {} | {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.0} |\n",
+                "| {:.1} | {} | {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} |\n",
                 p.t_s,
                 p.queued,
                 p.direct,
@@ -1267,7 +1283,11 @@ impl FestivalReport {
                 p.fps,
                 p.p99_ms,
                 p.composite_ms,
-                p.rss_mb
+                p.rss_mb,
+                p.buffers_mb,
+                p.maps_mb,
+                p.caches_mb,
+                p.groups_mb
             );
         }
         if let Some(chase) = &self.composite_chase {

@@ -244,6 +244,12 @@ pub fn build_priority(input: &LightInput) -> f32 {
 }
 
 impl FrameClock {
+    /// Bytes the compositor's emitter groups hold
+    /// ([`crate::render::composite::Compositor::group_bytes`]).
+    pub fn group_storage_bytes(&self) -> usize {
+        self.compositor.group_bytes()
+    }
+
     /// A clock over `tracer`'s lights compositing into `compositor`.
     pub fn new(decoder: Arc<dyn Decode>, tracer: Arc<Tracer>, compositor: Compositor) -> Self {
         let n = decoder.len();

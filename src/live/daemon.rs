@@ -740,6 +740,7 @@ pub async fn run_clock(
         };
         clock = back;
         let composite_ms = frame.composite_time.as_secs_f64() * 1e3;
+        let group_bytes = clock.group_storage_bytes() as u64;
         let _ = frames.send(Arc::new(frame));
         let now = tokio::time::Instant::now();
         if intervals.len() == 600 {
@@ -751,6 +752,7 @@ pub async fn run_clock(
         let elapsed = window.0.elapsed();
         let mut s = status.lock().expect("clock status lock");
         s.composite_ms = composite_ms;
+        s.group_storage_bytes = group_bytes;
         if elapsed >= Duration::from_secs(1) {
             s.fps = f64::from(window.1) / elapsed.as_secs_f64();
             s.frame_interval_p99_ms = percentile(intervals.iter().copied(), 0.99);

@@ -1188,7 +1188,7 @@ impl Shared {
         &self,
         index: usize,
         id: u64,
-        buffer: LightBuffer,
+        buffer: Arc<LightBuffer>,
         stage: Stage,
         light: &Light,
     ) -> Option<Arc<LightBuffer>> {
@@ -1196,7 +1196,6 @@ impl Shared {
         if slot.latest.load(Ordering::SeqCst) != id {
             return None; // superseded: a newer request owns the slot
         }
-        let buffer = Arc::new(buffer);
         let hazy = match (&self.haze, self.haze_view()) {
             (Some(m), Some(hv)) => {
                 let (beam, previous) = {
@@ -1603,7 +1602,7 @@ fn after_direct(
     let slot = &s.slots[index];
     // The moved beam comes with the first picture of the moved light.
     s.haze_stage(index, req.id, &build, HazeQuality::COARSE);
-    if s.publish(index, req.id, buffer, Stage::Direct, &req.light).is_none() {
+    if s.publish(index, req.id, Arc::new(buffer), Stage::Direct, &req.light).is_none() {
         return;
     }
     let now = Instant::now();
@@ -1624,6 +1623,9 @@ fn after_whitted(s: &Shared, index: usize, id: u64, build: LightBuild, buffer: L
     let stage = if build.has_photons() { Stage::Whitted } else { Stage::Ready };
     let light = build.light().clone();
     s.haze_stage(index, id, &build, HazeQuality::REFINED);
+    // The build keeps its Whitted term for the photon stage: publish that
+    // very buffer (one copy, not two, per light waiting for its photons).
+    let buffer = build.whitted_shared().unwrap_or_else(|| Arc::new(buffer));
     if let Some(b) = s.publish(index, id, buffer, stage, &light) {
         match stage {
             Stage::Ready => finished(s, index, id, build.light(), Finished::alone(b), at),
@@ -1680,7 +1682,7 @@ fn later_stage(s: &Shared, index: usize) {
     }
     let stage = step.stage;
     let light = build.light().clone();
-    let Some(published) = s.publish(index, id, step.buffer, stage, &light) else {
+    let Some(published) = s.publish(index, id, Arc::new(step.buffer), stage, &light) else {
         return;
     };
     // A leader shares its indirect term (and shows its own Whitted term

@@ -31,14 +31,20 @@ pub struct Frame {
     /// What the incremental composite did.
     pub update: UpdateStats,
     /// Each buffer's weight in this frame, in light order: k_i (eq. 4) per
-    /// light; in haze, w_j(d) k_i for the knots j = 0, ½, 1 (all lights'
-    /// knot-0 buffers, then all knot-½, then all knot-1;
-    /// [`crate::render::media::knot_weights`]). What the browser stream
-    /// sends every frame (issue 17).
+    /// light, then in clear air one weight per shared-layer place (a
+    /// fixture's cells sharing one indirect layer: the summed k of the
+    /// cells showing it, 0 where a place holds none;
+    /// `live::clock::frame_layers`); in haze, w_j(d) k_i for the knots
+    /// j = 0, ½, 1 (all lights' knot-0 buffers, then all knot-½, then all
+    /// knot-1; [`crate::render::media::knot_weights`]). What the browser
+    /// stream sends every frame (issue 17).
     pub k: Arc<Vec<Vec3>>,
-    /// Each light's published buffer and its generation, in light order,
-    /// then in haze every light's knot-½ and knot-1 buffers (shared, never
-    /// copied: the stream sends a buffer when its generation changes).
+    /// The buffers those weights apply to, with their generations: each
+    /// light's published buffer in light order, then in clear air each
+    /// shared-layer place's layer (its id as generation; an empty buffer
+    /// where it holds none), in haze every light's knot-½ and knot-1
+    /// buffers (shared, never copied: the stream sends a buffer when its
+    /// generation changes).
     pub buffers: Arc<Vec<(u64, Arc<LightBuffer>)>>,
     /// The haze density of this frame (0-1), `None` without haze.
     pub haze_density: Option<f32>,

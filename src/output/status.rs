@@ -26,6 +26,10 @@ pub struct ClockStatus {
     pub frame_interval_p99_ms: f64,
     /// Composite time of the last frame, ms.
     pub composite_ms: f64,
+    /// Bytes the CPU compositor's emitter groups hold (their cells'
+    /// buffers stored by what differs, `render::group`), outside the
+    /// tracer's memory budget.
+    pub group_storage_bytes: u64,
     /// Compositor in use.
     pub compositor: String,
 }

@@ -47,7 +47,8 @@ use crate::live::cache::Finished;
 use crate::render::View;
 use crate::render::buffer::{LightBuffer, SharedLayer};
 use crate::render::build::{
-    BuildError, GroupBuild, LightBuild, NextStage, follower_sum, indirect_alike, photon_leader, shared_indirect,
+    BuildError, GroupBuild, LightBuild, NextStage, follower_sum, indirect_alike, only_here, photon_leader,
+    shared_indirect,
 };
 use crate::render::footprint::DirectQuality;
 use crate::render::footprint::TileBounds;
@@ -299,9 +300,9 @@ pub(super) struct Follow {
 }
 
 impl Follow {
-    /// Bytes held (its Whitted term).
+    /// Bytes held (its Whitted term, unless it is also published).
     pub(super) fn bytes(&self) -> usize {
-        self.whitted.bytes()
+        only_here(&self.whitted)
     }
 }
 
@@ -317,9 +318,9 @@ pub(super) struct Lead {
 }
 
 impl Lead {
-    /// Bytes held (its Whitted term).
+    /// Bytes held (its Whitted term, unless it is also published).
     pub(super) fn bytes(&self) -> usize {
-        self.whitted.bytes()
+        only_here(&self.whitted)
     }
 }
 
@@ -375,7 +376,7 @@ pub(super) fn gather_followers(s: &Shared, index: usize, id: u64, build: &LightB
     if !s.settings.share_indirect || !build.has_photons() {
         return;
     }
-    let (Some(group), Some(whitted)) = (batch_group(s, index), build.whitted_term()) else { return };
+    let (Some(group), Some(whitted)) = (batch_group(s, index), build.whitted_shared()) else { return };
     let now = Instant::now();
     // Leads and follows are made and swept on the worker thread alone.
     s.cells.sharing.store(true, Ordering::SeqCst);
@@ -386,15 +387,13 @@ pub(super) fn gather_followers(s: &Shared, index: usize, id: u64, build: &LightB
             continue;
         }
         let Some((fid, b, at)) = st.build.take() else { continue };
-        let Some(own) = b.whitted_term().cloned() else { continue };
-        let whitted = Arc::new(own);
+        let Some(whitted) = b.whitted_shared() else { continue };
         st.follow = Some(Follow { leader: index, leader_id: id, id: fid, light: b.light().clone(), at, whitted });
         followers.push(j);
     }
     if !followers.is_empty() {
         s.cells.count_followers(followers.len());
-        s.slots[index].state.lock().expect("slot lock").lead =
-            Some(Lead { id, whitted: Arc::new(whitted.clone()), followers });
+        s.slots[index].state.lock().expect("slot lock").lead = Some(Lead { id, whitted, followers });
     }
 }
 
@@ -482,7 +481,7 @@ fn publish_dense_followers(s: &Shared, index: usize, id: u64, stage: Stage, lead
             report_bug(s, j, &BuildError::from(e));
             continue;
         }
-        if let Some(b) = s.publish(j, fid, buffer, stage, &light)
+        if let Some(b) = s.publish(j, fid, Arc::new(buffer), stage, &light)
             && stage == Stage::Ready
         {
             slot.state.lock().expect("slot lock").follow = None;

@@ -226,8 +226,10 @@ pub struct LightBuild {
     /// The Whitted direct term D, once built (kept for the indirect sum),
     /// tile-sparse: a light waiting for its photon stage holds only the
     /// tiles its light reaches (dense, a festival rig's 3,600 lights waiting
-    /// between stages held 4.8 MB each at 800×500: 13 GB).
-    direct: Option<LightBuffer>,
+    /// between stages held 4.8 MB each at 800×500: 13 GB), and shared
+    /// with what the tracer publishes ([`LightBuild::whitted_shared`]), not
+    /// a second copy.
+    direct: Option<Arc<LightBuffer>>,
     /// Pixels re-shaded by anti-aliasing in the Whitted stage.
     reshaded: usize,
     /// The light's photon maps: traced by [`LightBuild::photons`], or
@@ -454,7 +456,7 @@ impl LightBuild {
     /// per-vertex start of refinement and its exact flags; photon maps are
     /// counted with the light's maps), for the tracer's memory budget.
     pub fn bytes(&self) -> usize {
-        self.direct.as_ref().map_or(0, LightBuffer::bytes)
+        self.direct.as_ref().map_or(0, only_here)
             + self.start.as_ref().map_or(0, |s| s.len() * std::mem::size_of::<Vec3>())
             + self.exact.as_ref().map_or(0, Vec::len)
             + self.refinement.as_ref().map_or(0, Refinement::bytes)
@@ -513,7 +515,7 @@ impl LightBuild {
             view.render_direct_until(scene, &self.light, Some(aa), &|| cancel.fired()).ok_or(Cancelled)?;
         self.reshaded = reshaded;
         let buffer = Self::finish(view, &dense)?;
-        self.direct = Some(buffer.clone());
+        self.direct = Some(Arc::new(buffer.clone()));
         self.after_whitted();
         Ok(buffer)
     }
@@ -521,7 +523,13 @@ impl LightBuild {
     /// The Whitted direct term D, once built (a follower's own term when
     /// its fixture's cells share the indirect term: [`follower_sum`]).
     pub fn whitted_term(&self) -> Option<&LightBuffer> {
-        self.direct.as_ref()
+        self.direct.as_deref()
+    }
+
+    /// [`LightBuild::whitted_term`], shared: what a caller publishes or
+    /// keeps of it is the build's own buffer, not a copy.
+    pub fn whitted_shared(&self) -> Option<Arc<LightBuffer>> {
+        self.direct.clone()
     }
 
     /// Hands in a Whitted stage built elsewhere for this same light and view
@@ -535,7 +543,7 @@ impl LightBuild {
 
     /// [`LightBuild::with_whitted`] in place.
     pub fn set_whitted(&mut self, buffer: &LightBuffer, reshaded: usize) {
-        self.direct = Some(buffer.clone());
+        self.direct = Some(Arc::new(buffer.clone()));
         self.reshaded = reshaded;
         self.after_whitted();
     }
@@ -564,7 +572,7 @@ impl LightBuild {
         if self.direct.is_none() {
             self.whitted(scene, view)?;
         }
-        let Some(direct) = self.direct.as_ref() else { return Err(Cancelled.into()) };
+        let Some(direct) = self.direct.as_deref() else { return Err(Cancelled.into()) };
         let Some(photons) = self.settings.photons else {
             self.phase = Phase::Ended;
             return Ok(direct.clone());
@@ -730,7 +738,7 @@ impl LightBuild {
 /// iteration at the view's shading vertices.
 pub struct Refinement {
     light: Light,
-    direct: LightBuffer,
+    direct: Arc<LightBuffer>,
     /// `None` until a coarse start is finished ([`Refinement::exact_start`]).
     sppm: Option<Progressive>,
     /// A coarse start still to finish: the maps, its values, which are exact.
@@ -749,7 +757,7 @@ impl Refinement {
     /// to finish, and the SPPM state: [`Progressive::bytes`]), for the
     /// tracer's memory budget.
     pub fn bytes(&self) -> usize {
-        self.direct.bytes()
+        only_here(&self.direct)
             + self
                 .pending
                 .as_ref()
@@ -838,6 +846,12 @@ const ALIKE_COS: f32 = 0.999_847_7;
 /// gobo) and aimed within 1°.
 pub fn indirect_alike(a: &Light, b: &Light) -> bool {
     a.beam == b.beam && a.axis().dot(b.axis()) >= ALIKE_COS
+}
+
+/// Bytes of `buffer` held by this owner alone (0 while another, such as the
+/// tracer's published buffer, holds it too: counted there).
+pub fn only_here(buffer: &Arc<LightBuffer>) -> usize {
+    if Arc::strong_count(buffer) == 1 { buffer.bytes() } else { 0 }
 }
 
 /// The indirect term a leader shares with the other cells of its fixture
