@@ -592,7 +592,7 @@ fn a_bars_cells_share_one_photon_stage_within_the_bound() {
     let settings =
         TracerSettings { threads: 1, build, settle: Duration::ZERO, share_indirect: true, ..TracerSettings::default() };
     let run = |settings: TracerSettings| -> (Vec<Vec<Vec3>>, u64, u64) {
-        let tracer = bar_tracer(&scene, &v, &lights, settings);
+        let tracer: std::sync::Arc<Tracer> = std::sync::Arc::new(bar_tracer(&scene, &v, &lights, settings));
         let t = Instant::now();
         while !(0..n).all(|i| tracer.published(i).stage == Stage::Ready) {
             assert!(t.elapsed() < Duration::from_secs(300), "tracer stuck before every cell is ready");
@@ -601,10 +601,9 @@ fn a_bars_cells_share_one_photon_stage_within_the_bound() {
         let buffers = (0..n).map(|i| tracer.published(i).to_dense()).collect();
         if tracer.shared_indirect_cells() > 0 {
             regrouped_composite_is_the_sum_of_the_cells(&tracer, &lights);
+            the_clock_shows_the_sum_of_the_cells(&tracer, &lights);
         }
-        let out = (buffers, tracer.photon_traces(), tracer.shared_indirect_cells());
-        let _: &Tracer = &tracer;
-        out
+        (buffers, tracer.photon_traces(), tracer.shared_indirect_cells())
     };
     let (shared, traces, followers) = run(settings);
     assert_eq!((traces, followers), (1, 7), "one photon stage for the bar, seven followers");
@@ -679,6 +678,50 @@ fn regrouped_composite_is_the_sum_of_the_cells(tracer: &footlight::live::Tracer,
     let dense = n * (w * h) as usize * 12;
     eprintln!("bar: own buffers {own} B + one layer {layer} B, vs {dense} B as a dense buffer per cell");
     assert!(own + layer < dense / 2, "the bar holds its indirect light once");
+}
+
+/// The frame clock over the same bar: its CPU frame (the cells' own
+/// buffers tile by tile plus the shared layer's sum added before encoding,
+/// `render::layers`) is the encoding of Σ_i k_i (W_i + A) summed here from
+/// each cell's dense picture, to one 8-bit step.
+fn the_clock_shows_the_sum_of_the_cells(tracer: &std::sync::Arc<footlight::live::Tracer>, lights: &[footlight::Light]) {
+    use footlight::live::{Decode, FrameClock, LightInput};
+    use footlight::render::Display;
+    use footlight::render::composite::Compositor;
+    struct Fixed(Vec<LightInput>);
+    impl Decode for Fixed {
+        fn len(&self) -> usize {
+            self.0.len()
+        }
+        fn decode(&self, _: &dyn footlight::fixture::DmxSlots) -> Vec<LightInput> {
+            self.0.clone()
+        }
+    }
+    let inputs: Vec<LightInput> = lights
+        .iter()
+        .enumerate()
+        .map(|(i, l)| LightInput {
+            light: l.clone(),
+            k: Vec3::new(40.0 + 9.0 * i as f32, 70.0 - 5.0 * i as f32, 10.0 + 6.0 * i as f32),
+            k_full: Vec3::splat(100.0),
+            state: Default::default(),
+        })
+        .collect();
+    let published: Vec<_> = (0..lights.len()).map(|i| tracer.published(i)).collect();
+    let (w, h) = (published[0].buffer.width, published[0].buffer.height);
+    let display = Display::neutral(200.0);
+    let mut clock =
+        FrameClock::new(std::sync::Arc::new(Fixed(inputs.clone())), tracer.clone(), Compositor::new(w, h, display));
+    let frame = clock.tick(&footlight::fixture::Universes::new());
+    assert_eq!(frame.buffers.len(), 2 * lights.len(), "the cells, then a place per cell");
+    let mut want = vec![Vec3::ZERO; (w * h) as usize];
+    for (p, input) in published.iter().zip(&inputs) {
+        want.iter_mut().zip(p.to_dense()).for_each(|(s, x)| *s += input.k * x);
+    }
+    let want = display.to_srgb8(&want);
+    assert!(want.iter().any(|&c| c > 20), "the bar lights the picture");
+    let worst = frame.rgb.iter().zip(&want).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
+    assert!(worst <= 1, "clock frame vs Σ k_i (W_i + A): worst {worst} steps");
 }
 
 /// The same sharing in a still (`footlight render`, issue 38): jobs that

@@ -14,6 +14,7 @@ use crate::fixture::{Change, DmxSlots, FixtureState};
 use crate::output::{Frame, LightLabel};
 use crate::render::buffer::{LightBuffer, SharedLayer};
 use crate::render::composite::{CompositeInput, Compositor, UpdateStats};
+use crate::render::layers::LayerSum;
 use glam::Vec3;
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -94,6 +95,9 @@ pub struct FrameClock {
     /// An empty buffer of the frame's size: the entry of a shared-layer
     /// place no layer holds ([`frame_layers`]).
     empty: Arc<LightBuffer>,
+    /// The CPU compositor's sum of the shared indirect layers, made off
+    /// the clock ([`crate::render::layers`]).
+    layer_sum: LayerSum,
 }
 
 /// The last moving preview: its camera, every light with its k_i and the
@@ -255,6 +259,7 @@ impl FrameClock {
         let n = decoder.len();
         let epoch = tokio::time::Instant::now();
         let empty = Arc::new(LightBuffer::empty(compositor.width(), compositor.height()));
+        let layer_sum = LayerSum::new(compositor.width(), compositor.height());
         Self {
             decoder,
             tracer,
@@ -268,6 +273,7 @@ impl FrameClock {
             views: None,
             last_preview: None,
             bodies: None,
+            layer_sum,
             empty,
         }
     }
@@ -430,15 +436,26 @@ impl FrameClock {
                 }
             }
         }
+        let buffers = Arc::new(frame_buffers(&published, &inputs, density, &places, &self.empty));
         let update = match (gpu_rgb.is_none() && !gpu_pending, density) {
             (false, _) => UpdateStats::default(),
+            (true, None) if !places.is_empty() => {
+                // The lights' own buffers tile by tile; the shared layers'
+                // sum (dense, every tile) made off the clock and added
+                // before encoding (`render::layers`).
+                let n = published.len();
+                let shared: Vec<(Vec3, u64, &Arc<LightBuffer>)> =
+                    lights[n..].iter().zip(&buffers[n..]).map(|(l, (g, b))| (l.k, *g, b)).collect();
+                let overlay = self.layer_sum.update(&shared);
+                self.compositor.set_overlay(overlay);
+                self.compositor.update(&lights[..n])
+            }
             (true, None) => self.compositor.update(&lights),
             // In haze the knots are layers: a hazer change recombines them.
             (true, Some(_)) => self.compositor.update_layers(&layers, &weights),
         };
         let intensity = inputs.iter().map(|input| luminance(input.k)).collect();
         let k = Arc::new(lights.iter().map(|l| l.k).collect());
-        let buffers = Arc::new(frame_buffers(&published, &inputs, density, &places, &self.empty));
         let mut rgb = self.frame_rgb(gpu_rgb, &update);
         if let Some(bodies) = &mut self.bodies {
             // The body layer after Σ k_i buffer_i (CPU or GPU picture alike).

@@ -186,6 +186,11 @@ pub struct Compositor {
     /// Stale groups rebuilt in the background, when asked for
     /// ([`Compositor::with_group_members`]).
     background: Option<Background>,
+    /// A dense term added to every pixel before encoding, with its
+    /// generation ([`Compositor::set_overlay`]).
+    overlay: Option<(u64, Arc<Vec<Vec3>>)>,
+    /// The overlay changed since the last update: re-encode every tile.
+    overlay_changed: bool,
 }
 
 /// Rebuilds of stale groups off the frame clock, on a pool of their own
@@ -260,6 +265,33 @@ fn frame_parts<'a>(groups: &'a [CompositeGroup], current: &[bool], lights: &[Com
     Parts { lights, groups: active }
 }
 
+/// Encodes `linear` (plus `overlay`, the same length, when given) into
+/// `out` on the calling thread: a span of at most one tile row.
+fn encode_span_with(display: &Display, linear: &[Vec3], overlay: Option<&[Vec3]>, out: &mut [u8]) {
+    match overlay {
+        None => display.encode_span(linear, out),
+        Some(o) => {
+            let mut sum = [Vec3::ZERO; TILE];
+            for ((l, o), out) in linear.chunks(TILE).zip(o.chunks(TILE)).zip(out.chunks_mut(TILE * 3)) {
+                let n = l.len();
+                sum[..n].iter_mut().zip(l.iter().zip(o)).for_each(|(s, (a, b))| *s = *a + *b);
+                display.encode_span(&sum[..n], out);
+            }
+        }
+    }
+}
+
+/// Encodes the whole frame `linear` (plus `overlay` when given) into `out`.
+fn encode_all(display: &Display, linear: &[Vec3], overlay: Option<&[Vec3]>, out: &mut [u8]) {
+    match overlay {
+        None => display.to_srgb8_into(linear, out),
+        Some(o) => out
+            .par_chunks_mut(3 * 4096)
+            .zip(linear.par_chunks(4096).zip(o.par_chunks(4096)))
+            .for_each(|(out, (l, o))| encode_span_with(display, l, Some(o), out)),
+    }
+}
+
 /// The tiles a light's buffer covers (its occupied tiles), as tile indices.
 fn covered_tiles(buffer: &LightBuffer, tiles_x: usize, n_tiles: usize) -> Vec<u32> {
     (0..n_tiles as u32).filter(|&t| buffer.tile(t as usize % tiles_x, t as usize / tiles_x).is_some()).collect()
@@ -315,7 +347,30 @@ impl Compositor {
             group_current: Vec::new(),
             regrouped: false,
             background: None,
+            overlay: None,
+            overlay_changed: false,
         }
+    }
+
+    /// Sets the dense term added to every pixel after the lights' composite
+    /// and before encoding: `(generation, pixels)` (row-major, the frame's
+    /// size), or `None`. The live clock's sum of the shared indirect
+    /// layers ([`super::layers::LayerSum`]). A new generation re-encodes
+    /// every tile at the next [`Compositor::update`]; nothing is
+    /// recomposed for it. [`Compositor::linear`] stays the lights' sum
+    /// without it. Not used by [`Compositor::update_layers`] (haze).
+    ///
+    /// # Panics
+    /// If the pixels are not the frame's size.
+    pub fn set_overlay(&mut self, overlay: Option<(u64, Arc<Vec<Vec3>>)>) {
+        if let Some((_, o)) = &overlay {
+            assert_eq!(o.len(), self.linear.len(), "overlay size");
+        }
+        let before = self.overlay.as_ref().map(|(g, _)| *g);
+        if before != overlay.as_ref().map(|(g, _)| *g) {
+            self.overlay_changed = true;
+        }
+        self.overlay = overlay;
     }
 
     /// This compositor with emitter groups of the given members (indices
@@ -480,11 +535,13 @@ impl Compositor {
     /// recomposes nothing).
     pub fn set_display(&mut self, display: Display) {
         self.display = display;
-        self.display.to_srgb8_into(&self.linear, &mut self.srgb);
+        let overlay = self.overlay.as_ref().map(|(_, o)| o.as_slice());
+        encode_all(&self.display, &self.linear, overlay, &mut self.srgb);
     }
 
     /// Brings the frame up to date with `lights` (stable order: index i is
-    /// the same light every call; a changed count recomposes everything).
+    /// the same light every call; a changed count recomposes everything),
+    /// plus the overlay ([`Compositor::set_overlay`]).
     pub fn update(&mut self, lights: &[CompositeInput]) -> UpdateStats {
         let w = self.width as usize;
         let tiles_x = w.div_ceil(TILE);
@@ -502,36 +559,42 @@ impl Compositor {
         let changed = mark_changes(lights, &mut self.seen, tiles_x, &mut dirty);
         self.mark_group_changes(lights, &mut dirty);
         let tiles = dirty.iter().filter(|&&d| d).count();
-        if tiles == 0 {
+        let reencode = std::mem::take(&mut self.overlay_changed);
+        if tiles == 0 && !reencode {
             return UpdateStats { tiles, changed_lights: changed };
         }
         let parts = frame_parts(&self.groups, &self.group_current, lights);
+        let display = self.display;
+        let overlay = self.overlay.as_ref().map(|(_, o)| o.as_slice());
         if tiles * 2 > n_tiles {
             // Most of the frame changed (a grand-master fade): one full pass
             // is cheaper than tile-by-tile recomposing and encoding.
             parts.composite_into(self.width, self.height, &mut self.linear);
-            self.display.to_srgb8_into(&self.linear, &mut self.srgb);
-            return UpdateStats { tiles, changed_lights: changed };
+            encode_all(&display, &self.linear, overlay, &mut self.srgb);
+            return UpdateStats { tiles: if reencode { n_tiles } else { tiles }, changed_lights: changed };
         }
-        let display = self.display;
         self.linear.par_chunks_mut(w * TILE).zip(self.srgb.par_chunks_mut(w * TILE * 3)).enumerate().for_each(
             |(ty, (band, band_srgb))| {
                 let rows = band.len() / w.max(1);
-                for tx in (0..tiles_x).filter(|tx| dirty[ty * tiles_x + tx]) {
+                let start = ty * TILE * w;
+                for tx in (0..tiles_x).filter(|tx| reencode || dirty[ty * tiles_x + tx]) {
                     let x0 = tx * TILE;
                     let cols = TILE.min(w - x0);
-                    for r in 0..rows {
-                        band[r * w + x0..r * w + x0 + cols].fill(Vec3::ZERO);
+                    if dirty[ty * tiles_x + tx] {
+                        for r in 0..rows {
+                            band[r * w + x0..r * w + x0 + cols].fill(Vec3::ZERO);
+                        }
+                        parts.accumulate_tile(tx, ty, w, band);
                     }
-                    parts.accumulate_tile(tx, ty, w, band);
                     for r in 0..rows {
                         let px = r * w + x0;
-                        display.encode_span(&band[px..px + cols], &mut band_srgb[px * 3..(px + cols) * 3]);
+                        let over = overlay.map(|o| &o[start + px..start + px + cols]);
+                        encode_span_with(&display, &band[px..px + cols], over, &mut band_srgb[px * 3..(px + cols) * 3]);
                     }
                 }
             },
         );
-        UpdateStats { tiles, changed_lights: changed }
+        UpdateStats { tiles: if reencode { n_tiles } else { tiles }, changed_lights: changed }
     }
 
     /// Brings the frame up to date with lights in weighted layers: I = Σ_j
@@ -805,5 +868,53 @@ mod tests {
         let plain = [CompositeInput { buffer: &ba, generation: 0, k: k[0] }];
         assert_eq!(c.update(&plain).tiles, all_tiles);
         assert_eq!(c.linear(), &composite(&[&ba], &k[..1], w, h)[..]);
+    }
+
+    /// The overlay (the shared layers' sum) is added before encoding: the
+    /// sRGB pixels are the encoding of the lights' composite plus the
+    /// overlay, after a full pass, after a tile-by-tile update and after an
+    /// overlay change alone (which re-encodes every tile and recomposes
+    /// nothing: `linear` stays the lights' sum); `None` drops it.
+    #[test]
+    fn the_overlay_is_added_before_encoding() {
+        let (w, h) = (50u32, 40u32);
+        let (ba, bb) = buffers(w, h);
+        let display = Display::for_white_lux(50.0).with_rolloff(Some(Default::default()));
+        let mut c = Compositor::new(w, h, display);
+        let n = (w * h) as usize;
+        let over = |v: f32| Arc::new((0..n).map(|i| Vec3::new(v, 0.5 * v, (i % 7) as f32 * v)).collect::<Vec<_>>());
+        let expect = |lights: &[Vec3], o: &[Vec3]| {
+            let sum: Vec<Vec3> = composite(&[&ba, &bb], lights, w, h).iter().zip(o).map(|(a, b)| *a + *b).collect();
+            display.to_srgb8(&sum)
+        };
+        let k = [Vec3::new(0.02, 0.01, 0.03), Vec3::splat(40.0)];
+        let lights = |k: &[Vec3; 2]| {
+            [
+                CompositeInput { buffer: &ba, generation: 0, k: k[0] },
+                CompositeInput { buffer: &bb, generation: 0, k: k[1] },
+            ]
+        };
+        let (o1, o2) = (over(3.0), over(7.0));
+        c.set_overlay(Some((1, o1.clone())));
+        c.update(&lights(&k));
+        assert_eq!(c.srgb8(), &expect(&k, &o1)[..], "full pass");
+        // The small light alone changes: one tile, with the overlay.
+        let k2 = [k[0], Vec3::splat(90.0)];
+        let stats = c.update(&lights(&k2));
+        assert!(
+            stats.tiles >= 1 && stats.tiles * 2 <= c.width().div_ceil(16) as usize * c.height().div_ceil(16) as usize
+        );
+        assert_eq!(c.srgb8(), &expect(&k2, &o1)[..], "tile by tile");
+        // A new overlay alone: every tile re-encoded, nothing recomposed.
+        let before = c.linear().to_vec();
+        c.set_overlay(Some((2, o2.clone())));
+        assert!(c.update(&lights(&k2)).tiles > 0);
+        assert_eq!(c.linear(), &before[..], "the lights' sum is untouched");
+        assert_eq!(c.srgb8(), &expect(&k2, &o2)[..], "overlay change");
+        c.set_overlay(Some((2, o2.clone())));
+        assert_eq!(c.update(&lights(&k2)).tiles, 0, "same generation: nothing to do");
+        c.set_overlay(None);
+        c.update(&lights(&k2));
+        assert_eq!(c.srgb8(), &display.to_srgb8(&composite(&[&ba, &bb], &k2, w, h))[..], "no overlay");
     }
 }

@@ -29,6 +29,7 @@ pub mod display;
 pub mod footprint;
 pub mod gbuffer;
 pub mod group;
+pub mod layers;
 pub mod media;
 pub mod photon;
 pub mod reference;
