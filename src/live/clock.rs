@@ -437,6 +437,7 @@ impl FrameClock {
             }
         }
         let buffers = Arc::new(frame_buffers(&published, &inputs, density, &places, &self.empty));
+        let t_layers = t0.elapsed();
         let update = match (gpu_rgb.is_none() && !gpu_pending, density) {
             (false, _) => UpdateStats::default(),
             (true, None) if !places.is_empty() => {
@@ -456,6 +457,7 @@ impl FrameClock {
         };
         let intensity = inputs.iter().map(|input| luminance(input.k)).collect();
         let k = Arc::new(lights.iter().map(|l| l.k).collect());
+        let t_composite = t0.elapsed();
         let mut rgb = self.frame_rgb(gpu_rgb, &update);
         if let Some(bodies) = &mut self.bodies {
             // The body layer after Σ k_i buffer_i (CPU or GPU picture alike).
@@ -472,7 +474,21 @@ impl FrameClock {
             height: self.compositor.height(),
             rgb,
             intensity: Arc::new(intensity),
-            composite_time: t0.elapsed(),
+            composite_time: {
+                let total = t0.elapsed();
+                if total > Duration::from_millis(20) {
+                    tracing::debug!(
+                        "slow frame {}: {:.1} ms (decode and entries {:.1}, composite {:.1}: {} tiles, {} changed)",
+                        self.number,
+                        total.as_secs_f64() * 1e3,
+                        t_layers.as_secs_f64() * 1e3,
+                        (t_composite - t_layers).as_secs_f64() * 1e3,
+                        update.tiles,
+                        update.changed_lights
+                    );
+                }
+                total
+            },
             update,
             k,
             buffers,

@@ -113,6 +113,9 @@ pub struct UpdateStats {
     pub tiles: usize,
     /// Lights whose k or buffer changed.
     pub changed_lights: usize,
+    /// Tiles whose new buffers wait for a later frame (the composite
+    /// budget, [`Compositor::update`]).
+    pub deferred: usize,
 }
 
 /// One light as the compositor sees it.
@@ -191,6 +194,12 @@ pub struct Compositor {
     overlay: Option<(u64, Arc<Vec<Vec3>>)>,
     /// The overlay changed since the last update: re-encode every tile.
     overlay_changed: bool,
+    /// Tiles whose new buffers are not composited yet (the budget).
+    deferred: Vec<bool>,
+    /// Where the next deferred tiles are taken from (round robin).
+    deferred_cursor: usize,
+    /// Composite time per tile, ms (running mean of recent updates).
+    ms_per_tile: f64,
 }
 
 /// Rebuilds of stale groups off the frame clock, on a pool of their own
@@ -307,6 +316,19 @@ fn mark_changes(
     dirty: &mut [bool],
 ) -> usize {
     let n_tiles = dirty.len();
+    mark_changes_by(lights, seen, tiles_x, n_tiles, |t, _| dirty[t] = true)
+}
+
+/// [`mark_changes`], telling `mark(tile, k_changed)` whether the light's
+/// k changed (a desk change: due in this very frame) or only its buffer
+/// (a new build stage: [`Compositor::update`] may defer it).
+fn mark_changes_by(
+    lights: &[CompositeInput],
+    seen: &mut [(Vec3, u64, Vec<u32>)],
+    tiles_x: usize,
+    n_tiles: usize,
+    mut mark: impl FnMut(usize, bool),
+) -> usize {
     let mut changed = 0;
     for (l, (k, generation, covered)) in lights.iter().zip(seen.iter_mut()) {
         // NaN != NaN: the first update always counts as a change.
@@ -314,15 +336,16 @@ fn mark_changes(
             continue;
         }
         changed += 1;
+        let k_changed = *k != l.k;
         // The tiles the light's old buffer covered need recomposing too;
         // its tile list is rebuilt only when the buffer was replaced.
         for &t in covered.iter() {
-            dirty[t as usize] = true;
+            mark(t as usize, k_changed);
         }
         if *generation != l.generation {
             *covered = covered_tiles(l.buffer, tiles_x, n_tiles);
             for &t in covered.iter() {
-                dirty[t as usize] = true;
+                mark(t as usize, k_changed);
             }
         }
         *k = l.k;
@@ -349,8 +372,18 @@ impl Compositor {
             background: None,
             overlay: None,
             overlay_changed: false,
+            deferred: Vec::new(),
+            deferred_cursor: 0,
+            ms_per_tile: 0.0,
         }
     }
+
+    /// The time an update spends on tiles whose only change is a new
+    /// buffer (a build stage, a group's storage): past it the rest wait
+    /// for the next frames ([`Compositor::update`]).
+    pub const DEFERRED_BUDGET_MS: f64 = 6.0;
+    /// Tiles taken from the deferred ones per update, whatever the budget.
+    pub const MIN_DEFERRED_TILES: usize = 64;
 
     /// Sets the dense term added to every pixel after the lights' composite
     /// and before encoding: `(generation, pixels)` (row-major, the frame's
@@ -542,12 +575,28 @@ impl Compositor {
     /// Brings the frame up to date with `lights` (stable order: index i is
     /// the same light every call; a changed count recomposes everything),
     /// plus the overlay ([`Compositor::set_overlay`]).
+    ///
+    /// **Budget.** Tiles a k_i change touches (a desk change) are
+    /// recomposed in this very update. Tiles whose only change is a new
+    /// buffer (a build stage published, a group's storage became current
+    /// or stale) are recomposed up to [`Compositor::DEFERRED_BUDGET_MS`] of
+    /// composite time (at least [`Compositor::MIN_DEFERRED_TILES`]); the
+    /// rest wait for the next updates, taken round robin, and
+    /// [`UpdateStats::deferred`] counts them. On the festival show a batch
+    /// of cells publishing at once dirtied 500 tiles under ~340 buffers
+    /// each: 190 ms on the frame clock. Every tile is recomposed from
+    /// scratch whenever it is taken, so nothing drifts, and a tile shows
+    /// either its old or its new buffers' sum, never a mix within a light.
     pub fn update(&mut self, lights: &[CompositeInput]) -> UpdateStats {
+        let start = std::time::Instant::now();
         let w = self.width as usize;
         let tiles_x = w.div_ceil(TILE);
         let tiles_y = (self.height as usize).div_ceil(TILE);
         let n_tiles = tiles_x * tiles_y;
         let mut dirty = vec![false; n_tiles];
+        if self.deferred.len() != n_tiles {
+            self.deferred = vec![false; n_tiles];
+        }
         self.poll_background(lights);
         // Coming from layers, every entry is new.
         let full = self.layers.take().is_some() || self.seen.len() != lights.len() || self.regrouped;
@@ -556,13 +605,74 @@ impl Compositor {
             self.seen = lights.iter().map(|_| (Vec3::NAN, u64::MAX, Vec::new())).collect();
             self.regrouped = false;
         }
-        let changed = mark_changes(lights, &mut self.seen, tiles_x, &mut dirty);
-        self.mark_group_changes(lights, &mut dirty);
+        let deferred = &mut self.deferred;
+        let changed = mark_changes_by(lights, &mut self.seen, tiles_x, n_tiles, |t, now| {
+            if now { dirty[t] = true } else { deferred[t] = true }
+        });
+        let mut regrouped = vec![false; n_tiles];
+        self.mark_group_changes(lights, &mut regrouped);
+        self.deferred.iter_mut().zip(&regrouped).for_each(|(d, r)| *d |= *r);
+        self.take_deferred(&mut dirty);
         let tiles = dirty.iter().filter(|&&d| d).count();
+        let left = self.deferred.iter().filter(|&&d| d).count();
         let reencode = std::mem::take(&mut self.overlay_changed);
         if tiles == 0 && !reencode {
-            return UpdateStats { tiles, changed_lights: changed };
+            return UpdateStats { tiles, changed_lights: changed, deferred: left };
         }
+        let stats = self.compose(lights, &dirty, tiles, reencode, changed);
+        if tiles > 0 {
+            let ms = start.elapsed().as_secs_f64() * 1e3 / tiles as f64;
+            self.ms_per_tile = if self.ms_per_tile > 0.0 { 0.7 * self.ms_per_tile + 0.3 * ms } else { ms };
+        }
+        UpdateStats { deferred: self.deferred.iter().filter(|&&d| d).count(), ..stats }
+    }
+
+    /// Moves deferred tiles into `dirty`: every one `dirty` already has,
+    /// then round robin up to the budget.
+    fn take_deferred(&mut self, dirty: &mut [bool]) {
+        let n = dirty.len();
+        for (d, now) in self.deferred.iter_mut().zip(dirty.iter()) {
+            if *now {
+                *d = false;
+            }
+        }
+        let waiting = self.deferred.iter().filter(|&&d| d).count();
+        if waiting == 0 {
+            return;
+        }
+        let budget = if self.ms_per_tile > 0.0 {
+            ((Self::DEFERRED_BUDGET_MS / self.ms_per_tile) as usize).max(Self::MIN_DEFERRED_TILES)
+        } else {
+            n
+        };
+        let mut taken = 0;
+        for step in 0..n {
+            let t = (self.deferred_cursor + step) % n;
+            if self.deferred[t] {
+                self.deferred[t] = false;
+                dirty[t] = true;
+                taken += 1;
+                if taken >= budget {
+                    self.deferred_cursor = (t + 1) % n;
+                    return;
+                }
+            }
+        }
+    }
+
+    /// Recomposes the `dirty` tiles (`tiles` of them) and encodes them
+    /// (every tile when `reencode`: the overlay changed).
+    fn compose(
+        &mut self,
+        lights: &[CompositeInput],
+        dirty: &[bool],
+        tiles: usize,
+        reencode: bool,
+        changed: usize,
+    ) -> UpdateStats {
+        let w = self.width as usize;
+        let tiles_x = w.div_ceil(TILE);
+        let n_tiles = dirty.len();
         let parts = frame_parts(&self.groups, &self.group_current, lights);
         let display = self.display;
         let overlay = self.overlay.as_ref().map(|(_, o)| o.as_slice());
@@ -571,7 +681,9 @@ impl Compositor {
             // is cheaper than tile-by-tile recomposing and encoding.
             parts.composite_into(self.width, self.height, &mut self.linear);
             encode_all(&display, &self.linear, overlay, &mut self.srgb);
-            return UpdateStats { tiles: if reencode { n_tiles } else { tiles }, changed_lights: changed };
+            // Every tile is current now.
+            self.deferred.fill(false);
+            return UpdateStats { tiles: if reencode { n_tiles } else { tiles }, changed_lights: changed, deferred: 0 };
         }
         self.linear.par_chunks_mut(w * TILE).zip(self.srgb.par_chunks_mut(w * TILE * 3)).enumerate().for_each(
             |(ty, (band, band_srgb))| {
@@ -594,7 +706,7 @@ impl Compositor {
                 }
             },
         );
-        UpdateStats { tiles: if reencode { n_tiles } else { tiles }, changed_lights: changed }
+        UpdateStats { tiles: if reencode { n_tiles } else { tiles }, changed_lights: changed, deferred: 0 }
     }
 
     /// Brings the frame up to date with lights in weighted layers: I = Σ_j
@@ -677,7 +789,7 @@ impl Compositor {
         state.weights = weights.to_vec();
         let tiles = if all { n_tiles } else { dirty.iter().filter(|&&d| d).count() };
         if tiles == 0 {
-            return UpdateStats { tiles, changed_lights: changed };
+            return UpdateStats { tiles, changed_lights: changed, deferred: 0 };
         }
         // I = Σ_j w_j S_j over the layers that count (in layer order).
         let live: Vec<(f32, &[Vec3])> = weights
@@ -702,7 +814,7 @@ impl Compositor {
                 }
             },
         );
-        UpdateStats { tiles, changed_lights: changed }
+        UpdateStats { tiles, changed_lights: changed, deferred: 0 }
     }
 }
 
@@ -792,7 +904,7 @@ mod tests {
             CompositeInput { buffer: &ba, generation: 0, k: k[0] },
             CompositeInput { buffer: &bb, generation: 0, k: k[1] },
         ]);
-        assert_eq!(idle, UpdateStats { tiles: 0, changed_lights: 0 });
+        assert_eq!(idle, UpdateStats::default());
         // A rebuilt buffer that moved clears its old tiles.
         let empty = LightBuffer::empty(w, h);
         c.update(&[
@@ -860,7 +972,7 @@ mod tests {
         c.update_layers(&entries(k, 0), &[0.5, 0.5, 0.0]);
         close(c.linear(), &full(k, [0.5, 0.5, 0.0]));
         // Nothing changed: nothing recomposed.
-        assert_eq!(c.update_layers(&entries(k, 0), &[0.5, 0.5, 0.0]), UpdateStats { tiles: 0, changed_lights: 0 });
+        assert_eq!(c.update_layers(&entries(k, 0), &[0.5, 0.5, 0.0]), UpdateStats::default());
         // One layer at weight 1 is exactly its sum (a rebuilt buffer: new generation).
         c.update_layers(&entries(k, 1), &[0.0, 0.0, 1.0]);
         assert_eq!(c.linear(), &composite(&[&ba, &bc], &k, w, h)[..]);
@@ -916,5 +1028,52 @@ mod tests {
         c.set_overlay(None);
         c.update(&lights(&k2));
         assert_eq!(c.srgb8(), &display.to_srgb8(&composite(&[&ba, &bb], &k2, w, h))[..], "no overlay");
+    }
+
+    /// New buffers past the budget wait for later updates, round robin,
+    /// until every tile is current (then the frame equals a full
+    /// composite); a k change is composited in the very update even while
+    /// tiles wait.
+    #[test]
+    fn new_buffers_past_the_budget_wait_and_desk_changes_do_not() {
+        let (w, h) = (320u32, 160u32); // 20 × 10 = 200 tiles
+        let dense = |v: f32| LightBuffer::from_dense(w, h, &vec![Vec3::splat(v); (w * h) as usize]);
+        let (a0, a1, b) = (dense(1.0), dense(2.0), dense(0.5));
+        let mut c = Compositor::new(w, h, Display::neutral(100.0));
+        let k = [Vec3::splat(3.0), Vec3::splat(5.0)];
+        fn entries<'a>(a: &'a LightBuffer, ga: u64, b: &'a LightBuffer, k: [Vec3; 2]) -> [CompositeInput<'a>; 2] {
+            [
+                CompositeInput { buffer: a, generation: ga, k: k[0] },
+                CompositeInput { buffer: b, generation: 0, k: k[1] },
+            ]
+        }
+        c.update(&entries(&a0, 0, &b, k));
+        assert_eq!(c.linear(), &composite(&[&a0, &b], &k, w, h)[..]);
+        // Pretend a tile costs 1 ms: the budget is the minimum, 64 tiles.
+        c.ms_per_tile = 1.0;
+        let first = c.update(&entries(&a1, 1, &b, k));
+        assert_eq!((first.tiles, first.deferred), (64, 136), "64 now, the rest later");
+        assert!(c.linear().iter().any(|p| *p == Vec3::splat(3.0 + 2.5)), "old tiles still show");
+        // The desk moves the other light meanwhile: all its tiles now.
+        c.ms_per_tile = 1.0;
+        let k2 = [k[0], Vec3::splat(9.0)];
+        let desk = c.update(&entries(&a1, 1, &b, k2));
+        assert_eq!((desk.tiles, desk.deferred), (200, 0), "a k change is due in this frame");
+        assert_eq!(c.linear(), &composite(&[&a1, &b], &k2, w, h)[..]);
+        // Again, without a desk change: drained over the next updates.
+        c.ms_per_tile = 1.0;
+        assert_eq!(c.update(&entries(&a0, 2, &b, k2)).deferred, 136);
+        let mut updates = 1;
+        loop {
+            c.ms_per_tile = 1.0;
+            let u = c.update(&entries(&a0, 2, &b, k2));
+            updates += 1;
+            if u.deferred == 0 {
+                break;
+            }
+            assert!(updates < 10, "never drained");
+        }
+        assert_eq!(updates, 4, "200 tiles at 64 a frame");
+        assert_eq!(c.linear(), &composite(&[&a0, &b], &k2, w, h)[..]);
     }
 }
