@@ -198,8 +198,11 @@ pub struct Compositor {
     deferred: Vec<bool>,
     /// Where the next deferred tiles are taken from (round robin).
     deferred_cursor: usize,
-    /// Composite time per tile, ms (running mean of recent updates).
-    ms_per_tile: f64,
+    /// Per tile, the buffers covering it: a tile's composite cost.
+    coverage: Vec<u32>,
+    /// Composite time per covering buffer of a recomposed tile, ms
+    /// (running mean of recent updates).
+    ms_per_cover: f64,
 }
 
 /// Rebuilds of stale groups off the frame clock, on a pool of their own
@@ -316,17 +319,19 @@ fn mark_changes(
     dirty: &mut [bool],
 ) -> usize {
     let n_tiles = dirty.len();
-    mark_changes_by(lights, seen, tiles_x, n_tiles, |t, _| dirty[t] = true)
+    mark_changes_by(lights, seen, tiles_x, n_tiles, None, |t, _| dirty[t] = true)
 }
 
 /// [`mark_changes`], telling `mark(tile, k_changed)` whether the light's
 /// k changed (a desk change: due in this very frame) or only its buffer
-/// (a new build stage: [`Compositor::update`] may defer it).
+/// (a new build stage: [`Compositor::update`] may defer it), and keeping
+/// `coverage` (buffers per tile) up to date when given.
 fn mark_changes_by(
     lights: &[CompositeInput],
     seen: &mut [(Vec3, u64, Vec<u32>)],
     tiles_x: usize,
     n_tiles: usize,
+    mut coverage: Option<&mut Vec<u32>>,
     mut mark: impl FnMut(usize, bool),
 ) -> usize {
     let mut changed = 0;
@@ -343,9 +348,15 @@ fn mark_changes_by(
             mark(t as usize, k_changed);
         }
         if *generation != l.generation {
+            if let Some(c) = coverage.as_deref_mut() {
+                covered.iter().for_each(|&t| c[t as usize] = c[t as usize].saturating_sub(1));
+            }
             *covered = covered_tiles(l.buffer, tiles_x, n_tiles);
             for &t in covered.iter() {
                 mark(t as usize, k_changed);
+            }
+            if let Some(c) = coverage.as_deref_mut() {
+                covered.iter().for_each(|&t| c[t as usize] += 1);
             }
         }
         *k = l.k;
@@ -374,7 +385,8 @@ impl Compositor {
             overlay_changed: false,
             deferred: Vec::new(),
             deferred_cursor: 0,
-            ms_per_tile: 0.0,
+            coverage: Vec::new(),
+            ms_per_cover: 0.0,
         }
     }
 
@@ -383,7 +395,7 @@ impl Compositor {
     /// for the next frames ([`Compositor::update`]).
     pub const DEFERRED_BUDGET_MS: f64 = 6.0;
     /// Tiles taken from the deferred ones per update, whatever the budget.
-    pub const MIN_DEFERRED_TILES: usize = 64;
+    pub const MIN_DEFERRED_TILES: usize = 8;
 
     /// Sets the dense term added to every pixel after the lights' composite
     /// and before encoding: `(generation, pixels)` (row-major, the frame's
@@ -580,7 +592,8 @@ impl Compositor {
     /// recomposed in this very update. Tiles whose only change is a new
     /// buffer (a build stage published, a group's storage became current
     /// or stale) are recomposed up to [`Compositor::DEFERRED_BUDGET_MS`] of
-    /// composite time (at least [`Compositor::MIN_DEFERRED_TILES`]); the
+    /// composite time (a tile costs 1 + the buffers covering it, timed per
+    /// buffer over recent updates; at least [`Compositor::MIN_DEFERRED_TILES`]); the
     /// rest wait for the next updates, taken round robin, and
     /// [`UpdateStats::deferred`] counts them. On the festival show a batch
     /// of cells publishing at once dirtied 500 tiles under ~340 buffers
@@ -600,13 +613,14 @@ impl Compositor {
         self.poll_background(lights);
         // Coming from layers, every entry is new.
         let full = self.layers.take().is_some() || self.seen.len() != lights.len() || self.regrouped;
-        if full {
+        if full || self.coverage.len() != n_tiles {
             dirty.fill(true);
             self.seen = lights.iter().map(|_| (Vec3::NAN, u64::MAX, Vec::new())).collect();
+            self.coverage = vec![0; n_tiles];
             self.regrouped = false;
         }
         let deferred = &mut self.deferred;
-        let changed = mark_changes_by(lights, &mut self.seen, tiles_x, n_tiles, |t, now| {
+        let changed = mark_changes_by(lights, &mut self.seen, tiles_x, n_tiles, Some(&mut self.coverage), |t, now| {
             if now { dirty[t] = true } else { deferred[t] = true }
         });
         let mut regrouped = vec![false; n_tiles];
@@ -619,10 +633,11 @@ impl Compositor {
         if tiles == 0 && !reencode {
             return UpdateStats { tiles, changed_lights: changed, deferred: left };
         }
+        let covers: u64 = dirty.iter().zip(&self.coverage).filter(|(d, _)| **d).map(|(_, &c)| u64::from(c) + 1).sum();
         let stats = self.compose(lights, &dirty, tiles, reencode, changed);
-        if tiles > 0 {
-            let ms = start.elapsed().as_secs_f64() * 1e3 / tiles as f64;
-            self.ms_per_tile = if self.ms_per_tile > 0.0 { 0.7 * self.ms_per_tile + 0.3 * ms } else { ms };
+        if covers > 0 {
+            let ms = start.elapsed().as_secs_f64() * 1e3 / covers as f64;
+            self.ms_per_cover = if self.ms_per_cover > 0.0 { 0.7 * self.ms_per_cover + 0.3 * ms } else { ms };
         }
         UpdateStats { deferred: self.deferred.iter().filter(|&&d| d).count(), ..stats }
     }
@@ -640,19 +655,17 @@ impl Compositor {
         if waiting == 0 {
             return;
         }
-        let budget = if self.ms_per_tile > 0.0 {
-            ((Self::DEFERRED_BUDGET_MS / self.ms_per_tile) as usize).max(Self::MIN_DEFERRED_TILES)
-        } else {
-            n
-        };
-        let mut taken = 0;
+        // The budget in covering buffers (a tile's cost: 1 + the buffers covering it).
+        let budget = if self.ms_per_cover > 0.0 { Self::DEFERRED_BUDGET_MS / self.ms_per_cover } else { f64::INFINITY };
+        let (mut taken, mut spent) = (0, 0.0);
         for step in 0..n {
             let t = (self.deferred_cursor + step) % n;
             if self.deferred[t] {
                 self.deferred[t] = false;
                 dirty[t] = true;
                 taken += 1;
-                if taken >= budget {
+                spent += f64::from(self.coverage.get(t).copied().unwrap_or(0)) + 1.0;
+                if spent >= budget && taken >= Self::MIN_DEFERRED_TILES {
                     self.deferred_cursor = (t + 1) % n;
                     return;
                 }
@@ -1049,23 +1062,23 @@ mod tests {
         }
         c.update(&entries(&a0, 0, &b, k));
         assert_eq!(c.linear(), &composite(&[&a0, &b], &k, w, h)[..]);
-        // Pretend a tile costs 1 ms: the budget is the minimum, 64 tiles.
-        c.ms_per_tile = 1.0;
+        // Pretend a covering buffer costs 1/32 ms: a tile (2 buffers + 1) 3/32 ms, 64 tiles in 6 ms.
+        c.ms_per_cover = 0.03125;
         let first = c.update(&entries(&a1, 1, &b, k));
         assert_eq!((first.tiles, first.deferred), (64, 136), "64 now, the rest later");
         assert!(c.linear().iter().any(|p| *p == Vec3::splat(3.0 + 2.5)), "old tiles still show");
         // The desk moves the other light meanwhile: all its tiles now.
-        c.ms_per_tile = 1.0;
+        c.ms_per_cover = 0.03125;
         let k2 = [k[0], Vec3::splat(9.0)];
         let desk = c.update(&entries(&a1, 1, &b, k2));
         assert_eq!((desk.tiles, desk.deferred), (200, 0), "a k change is due in this frame");
         assert_eq!(c.linear(), &composite(&[&a1, &b], &k2, w, h)[..]);
         // Again, without a desk change: drained over the next updates.
-        c.ms_per_tile = 1.0;
+        c.ms_per_cover = 0.03125;
         assert_eq!(c.update(&entries(&a0, 2, &b, k2)).deferred, 136);
         let mut updates = 1;
         loop {
-            c.ms_per_tile = 1.0;
+            c.ms_per_cover = 0.03125;
             let u = c.update(&entries(&a0, 2, &b, k2));
             updates += 1;
             if u.deferred == 0 {
