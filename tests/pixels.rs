@@ -634,7 +634,6 @@ fn a_bars_cells_share_one_photon_stage_within_the_bound() {
 /// pixel from each cell's dense picture (distinct k per cell), to f32
 /// rounding. The bar holds one dense layer, not one per cell.
 fn regrouped_composite_is_the_sum_of_the_cells(tracer: &footlight::live::Tracer, lights: &[footlight::Light]) {
-    use footlight::live::LightInput;
     use footlight::live::clock::frame_entries;
     use footlight::render::composite::composite;
     let n = lights.len();
@@ -645,16 +644,7 @@ fn regrouped_composite_is_the_sum_of_the_cells(tracer: &footlight::live::Tracer,
     assert!(published.iter().all(|p| p.shared.is_some()), "every cell, the leader too, shows the layer");
     let places = tracer.shared_places();
     assert_eq!(*places, (0..n).collect::<Vec<_>>(), "every cell of the bar has a place");
-    let inputs: Vec<LightInput> = lights
-        .iter()
-        .enumerate()
-        .map(|(i, l)| LightInput {
-            light: l.clone(),
-            k: Vec3::new(100.0 + 37.0 * i as f32, 250.0 - 11.0 * i as f32, 3.0 + 19.0 * i as f32),
-            k_full: Vec3::splat(300.0),
-            state: Default::default(),
-        })
-        .collect();
+    let inputs = distinct_k(lights, |i| Vec3::new(100.0 + 37.0 * i, 250.0 - 11.0 * i, 3.0 + 19.0 * i));
     let (w, h) = (published[0].buffer.width, published[0].buffer.height);
     let empty = footlight::render::LightBuffer::empty(w, h);
     let entries = frame_entries(&published, &inputs, None, &places, &empty);
@@ -680,6 +670,17 @@ fn regrouped_composite_is_the_sum_of_the_cells(tracer: &footlight::live::Tracer,
     assert!(own + layer < dense / 2, "the bar holds its indirect light once");
 }
 
+/// Every light with its own k_i = `k(i)` (k at full: 300 cd each).
+fn distinct_k(lights: &[footlight::Light], k: impl Fn(f32) -> Vec3) -> Vec<footlight::live::LightInput> {
+    let input = |(i, l): (usize, &footlight::Light)| footlight::live::LightInput {
+        light: l.clone(),
+        k: k(i as f32),
+        k_full: Vec3::splat(300.0),
+        state: Default::default(),
+    };
+    lights.iter().enumerate().map(input).collect()
+}
+
 /// The frame clock over the same bar: its CPU frame (the cells' own
 /// buffers tile by tile plus the shared layer's sum added before encoding,
 /// `render::layers`) is the encoding of Σ_i k_i (W_i + A) summed here from
@@ -697,16 +698,7 @@ fn the_clock_shows_the_sum_of_the_cells(tracer: &std::sync::Arc<footlight::live:
             self.0.clone()
         }
     }
-    let inputs: Vec<LightInput> = lights
-        .iter()
-        .enumerate()
-        .map(|(i, l)| LightInput {
-            light: l.clone(),
-            k: Vec3::new(40.0 + 9.0 * i as f32, 70.0 - 5.0 * i as f32, 10.0 + 6.0 * i as f32),
-            k_full: Vec3::splat(100.0),
-            state: Default::default(),
-        })
-        .collect();
+    let inputs = distinct_k(lights, |i| Vec3::new(40.0 + 9.0 * i, 70.0 - 5.0 * i, 10.0 + 6.0 * i));
     let published: Vec<_> = (0..lights.len()).map(|i| tracer.published(i)).collect();
     let (w, h) = (published[0].buffer.width, published[0].buffer.height);
     let display = Display::neutral(200.0);

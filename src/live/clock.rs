@@ -358,22 +358,30 @@ impl FrameClock {
             input.k *= input.state.shutter_at(t_seconds);
         }
         let places = self.tracer.shared_places();
-        let mut published: Vec<Published> = Vec::with_capacity(inputs.len());
+        let mut moved: Vec<usize> = Vec::new();
         for (i, input) in inputs.iter().enumerate().take(self.tracer.len()) {
             let priority = priorities[i];
-            let moved = match &self.last[i] {
+            let geometry = match &self.last[i] {
                 None => true,
                 Some(old) => Show::change(old, &input.state) == Change::Geometry,
             };
-            if moved {
-                self.tracer.request(i, input.light.clone(), priority);
+            if geometry {
+                moved.push(i);
             } else if priority.to_bits() != self.told[i].to_bits() {
                 self.tracer.set_priority(i, priority);
             }
             self.told[i] = priority;
             self.last[i] = Some(input.state);
-            published.push(self.tracer.published(i));
         }
+        // Brightest first: the tracer may start a job while the requests
+        // arrive, and a dark light must never be the first it sees (lit
+        // first, issue 38).
+        moved.sort_by(|&a, &b| priorities[b].total_cmp(&priorities[a]).then(a.cmp(&b)));
+        for i in moved {
+            self.tracer.request(i, inputs[i].light.clone(), priorities[i]);
+        }
+        let published: Vec<Published> =
+            (0..inputs.len().min(self.tracer.len())).map(|i| self.tracer.published(i)).collect();
         if let Some((views, display)) = &self.views
             && let Some(camera) = views.preview_camera()
         {

@@ -229,16 +229,7 @@ impl Background {
     /// to lower it, on a platform without per-thread priorities, only costs
     /// that protection).
     fn pool() -> Arc<rayon::ThreadPool> {
-        Arc::new(
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(1)
-                .thread_name(|_| "footlight-groups".into())
-                .start_handler(|_| {
-                    let _ = thread_priority::set_current_thread_priority(thread_priority::ThreadPriority::Min);
-                })
-                .build()
-                .expect("group build pool"),
-        )
+        Arc::new(lowest_priority_pool("footlight-groups"))
     }
 }
 
@@ -275,6 +266,21 @@ fn frame_parts<'a>(groups: &'a [CompositeGroup], current: &[bool], lights: &[Com
         .map(|(l, _)| (l.buffer, l.k))
         .collect();
     Parts { lights, groups: active }
+}
+
+/// A pool of one thread named `name` at the lowest OS priority, for work
+/// kept off the frame clock's cores (group storages, the shared layers'
+/// sum). Failing to lower it, on a platform without per-thread
+/// priorities, only costs that protection.
+pub fn lowest_priority_pool(name: &'static str) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .thread_name(move |_| name.into())
+        .start_handler(|_| {
+            let _ = thread_priority::set_current_thread_priority(thread_priority::ThreadPriority::Min);
+        })
+        .build()
+        .expect("a one-thread pool")
 }
 
 /// Encodes `linear` (plus `overlay`, the same length, when given) into

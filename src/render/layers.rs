@@ -31,7 +31,7 @@
 //! exactly what [`super::composite::composite`] gives for those entries.
 
 use super::buffer::LightBuffer;
-use super::composite::composite;
+use super::composite::{composite, lowest_priority_pool};
 use glam::Vec3;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
@@ -132,19 +132,7 @@ impl LayerSum {
 
     /// Starts a sum of `buffers` with weights `k` on the sum thread.
     fn start(&mut self, key: Key, buffers: Vec<Arc<LightBuffer>>, k: Vec<Vec3>) {
-        let pool = self.pool.get_or_insert_with(|| {
-            Arc::new(
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(1)
-                    .thread_name(|_| "footlight-layer-sum".into())
-                    .start_handler(|_| {
-                        // Failing to lower it (no per-thread priorities) only costs that protection.
-                        let _ = thread_priority::set_current_thread_priority(thread_priority::ThreadPriority::Min);
-                    })
-                    .build()
-                    .expect("layer sum pool"),
-            )
-        });
+        let pool = self.pool.get_or_insert_with(|| Arc::new(lowest_priority_pool("footlight-layer-sum")));
         let (tx, w, h) = (self.tx.clone(), self.width, self.height);
         self.in_flight = Some(key.clone());
         self.last_start = Some(Instant::now());

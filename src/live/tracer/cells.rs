@@ -447,21 +447,31 @@ pub(super) fn lead(
     let leader =
         s.publish_shared(index, id, shows(&lead.whitted), stage, light, Some(published)).then(|| shows(&lead.whitted));
     for &j in &lead.followers {
-        let slot = &s.slots[j];
-        let next = {
-            let st = slot.state.lock().expect("slot lock");
-            st.follow
-                .as_ref()
-                .filter(|f| f.leader == index && f.leader_id == id && slot.latest.load(Ordering::SeqCst) == f.id)
-                .map(|f| (f.id, f.light.clone(), f.at, f.whitted.clone()))
-        };
-        let Some((fid, light, at, own)) = next else { continue };
+        let Some((fid, light, at, own)) = following(s, j, index, id, |f| f.whitted.clone()) else { continue };
         if s.publish_shared(j, fid, shows(&own), stage, &light, None) && stage == Stage::Ready {
-            slot.state.lock().expect("slot lock").follow = None;
+            s.slots[j].state.lock().expect("slot lock").follow = None;
             finished(s, j, fid, &light, shows(&own), at);
         }
     }
     leader
+}
+
+/// Light `j` if it still follows light `index`'s request `id` with its own
+/// latest request: its request id, geometry, request time and `what` of
+/// its [`Follow`].
+fn following<T>(
+    s: &Shared,
+    j: usize,
+    index: usize,
+    id: u64,
+    what: impl FnOnce(&Follow) -> T,
+) -> Option<(u64, Light, Instant, T)> {
+    let slot = &s.slots[j];
+    let st = slot.state.lock().expect("slot lock");
+    st.follow
+        .as_ref()
+        .filter(|f| f.leader == index && f.leader_id == id && slot.latest.load(Ordering::SeqCst) == f.id)
+        .map(|f| (f.id, f.light.clone(), f.at, what(f)))
 }
 
 /// [`lead`] in haze: each follower publishes its own Whitted term plus
@@ -469,13 +479,7 @@ pub(super) fn lead(
 fn publish_dense_followers(s: &Shared, index: usize, id: u64, stage: Stage, lead: &Lead, indirect: &[glam::Vec3]) {
     for &j in &lead.followers {
         let slot = &s.slots[j];
-        let next = {
-            let st = slot.state.lock().expect("slot lock");
-            st.follow
-                .as_ref()
-                .filter(|f| f.leader == index && f.leader_id == id && slot.latest.load(Ordering::SeqCst) == f.id)
-                .map(|f| (f.id, f.light.clone(), f.at, follower_sum(&f.whitted, indirect)))
-        };
+        let next = following(s, j, index, id, |f| follower_sum(&f.whitted, indirect));
         let Some((fid, light, at, buffer)) = next else { continue };
         if let Err(e) = buffer.check() {
             report_bug(s, j, &BuildError::from(e));
