@@ -634,7 +634,7 @@ fn a_bars_cells_share_one_photon_stage_within_the_bound() {
 /// pixel from each cell's dense picture (distinct k per cell), to f32
 /// rounding. The bar holds one dense layer, not one per cell.
 fn regrouped_composite_is_the_sum_of_the_cells(tracer: &footlight::live::Tracer, lights: &[footlight::Light]) {
-    use footlight::live::clock::frame_entries;
+    use footlight::live::clock::FrameEntries;
     use footlight::render::composite::composite;
     let n = lights.len();
     let published: Vec<_> = (0..n).map(|i| tracer.published(i)).collect();
@@ -646,8 +646,9 @@ fn regrouped_composite_is_the_sum_of_the_cells(tracer: &footlight::live::Tracer,
     assert_eq!(*places, (0..n).collect::<Vec<_>>(), "every cell of the bar has a place");
     let inputs = distinct_k(lights, |i| Vec3::new(100.0 + 37.0 * i, 250.0 - 11.0 * i, 3.0 + 19.0 * i));
     let (w, h) = (published[0].buffer.width, published[0].buffer.height);
-    let empty = footlight::render::LightBuffer::empty(w, h);
-    let entries = frame_entries(&published, &inputs, None, &places, &empty);
+    let empty = std::sync::Arc::new(footlight::render::LightBuffer::empty(w, h));
+    let entries = FrameEntries::new(&published, &inputs, None, &places, &empty);
+    let entries = entries.weighted();
     assert_eq!(entries.len(), 2 * n, "n cells, then n places");
     let sum_k: Vec3 = inputs.iter().map(|i| i.k).sum();
     let held: Vec<_> = entries[n..].iter().filter(|e| e.k != Vec3::ZERO).collect();

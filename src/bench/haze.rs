@@ -723,7 +723,7 @@ fn run_rig(scene: &Scene, camera: Camera, lights: &[Light], medium: &Medium) -> 
     let (hazy_ms, _) = super::time_ms(3, || crate::render::composite::composite(&refs, &ks, w, h));
     let ones: Vec<&LightBuffer> = kept.iter().map(|k| &k[1]).collect();
     let (clear_ms, _) = super::time_ms(3, || crate::render::composite::composite(&ones, &ks[..ones.len()], w, h));
-    // The daemon's way (`live::clock::frame_layers`): the knots as layers
+    // The daemon's way (`live::clock::FrameEntries`): the knots as layers
     // of the CPU compositor, a hazer change re-weights the kept sums.
     let empty_surface = LightBuffer::empty(w, h);
     let surface = &empty_surface;

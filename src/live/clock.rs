@@ -93,7 +93,7 @@ pub struct FrameClock {
     /// Fixture bodies over the composite (issue 14 item 5), when shown.
     bodies: Option<super::bodies::LiveBodies>,
     /// An empty buffer of the frame's size: the entry of a shared-layer
-    /// place no layer holds ([`frame_layers`]).
+    /// place no layer holds ([`FrameEntries`]).
     empty: Arc<LightBuffer>,
     /// The CPU compositor's sum of the shared indirect layers, made off
     /// the clock ([`crate::render::layers`]).
@@ -104,24 +104,75 @@ pub struct FrameClock {
 /// haze density, its pixels, and how long it took to make.
 type LastPreview = (crate::scene::Camera, (Vec<(Light, Vec3)>, Option<f32>), Arc<Vec<u8>>, Duration);
 
-/// The eq. 5 entries of a frame ([`frame_layers`] with each layer's
-/// weight folded into its entries' k).
-pub fn frame_entries<'a>(
-    published: &'a [Published],
-    inputs: &[LightInput],
-    density: Option<f32>,
-    places: &[usize],
-    empty: &'a LightBuffer,
-) -> Vec<CompositeInput<'a>> {
-    let (layers, weights) = frame_layers(published, inputs, density, places, empty);
-    weighted(&layers, &weights)
+/// The eq. 5 entries of a frame, made once per frame: the buffers with
+/// their generations (shared, never copied: what the frame carries to the
+/// stream), each entry's own k, and the layers' weights.
+///
+/// In clear air (`density` `None`): every light's own buffer with k_i,
+/// then one entry per place (`places`, [`Tracer::shared_places`]) for the
+/// shared layer its light is the first to show, with the summed k of the
+/// lights showing it (eq. 5 regrouped:
+/// Σ_i k_i (W_i + A_g) = Σ_i k_i W_i + (Σ_i k_i) A_g), `empty` with k = 0
+/// where it shows none; one weight, 1. The count is fixed (N + places),
+/// so the compositor's and the stream's per-entry state stays in place.
+///
+/// In haze (no shared layers there): every light's surface buffer, then
+/// its buffers at the knots ½ and 1, each with k_i itself; weights
+/// w_j(d) ([`crate::render::media::knot_weights`]). A hazer change is then
+/// new weights only: the CPU compositor recombines its three kept sums
+/// instead of recomposing every buffer.
+pub struct FrameEntries {
+    /// Each entry's buffer and generation (a shared layer's: its id).
+    pub buffers: Vec<(u64, Arc<LightBuffer>)>,
+    /// Each entry's k, without its layer's weight.
+    pub k: Vec<Vec3>,
+    /// The layers' weights (one block of entries per weight).
+    pub weights: Vec<f32>,
 }
 
-/// [`frame_layers`]' entries with their layer's weight folded into k_i
-/// (the flat eq. 5 entries of [`frame_entries`]).
-fn weighted<'a>(layers: &[CompositeInput<'a>], weights: &[f32]) -> Vec<CompositeInput<'a>> {
-    let n = (layers.len() / weights.len().max(1)).max(1);
-    layers.iter().zip(0..).map(|(e, i)| CompositeInput { k: e.k * weights[i / n], ..*e }).collect()
+impl FrameEntries {
+    /// The entries of `published` with this frame's `inputs` (see the type).
+    pub fn new(
+        published: &[Published],
+        inputs: &[LightInput],
+        density: Option<f32>,
+        places: &[usize],
+        empty: &Arc<LightBuffer>,
+    ) -> Self {
+        let mut buffers: Vec<(u64, Arc<LightBuffer>)> =
+            published.iter().map(|p| (p.generation, p.buffer.clone())).collect();
+        let mut k: Vec<Vec3> = inputs.iter().take(published.len()).map(|i| i.k).collect();
+        let Some(d) = density else {
+            for slot in shared_layers(published, inputs, places) {
+                let (entry, weight) = match slot {
+                    Some((layer, sum)) => ((layer.id, layer.buffer.clone()), sum),
+                    None => ((0, empty.clone()), Vec3::ZERO),
+                };
+                buffers.push(entry);
+                k.push(weight);
+            }
+            return Self { buffers, k, weights: vec![1.0] };
+        };
+        let own = k.clone();
+        for j in 0..2 {
+            buffers.extend(published.iter().map(|p| (p.generation, p.hazy[j].clone())));
+            k.extend_from_slice(&own);
+        }
+        Self { buffers, k, weights: crate::render::media::knot_weights(d).to_vec() }
+    }
+
+    /// The entries as layers for
+    /// [`crate::render::composite::Compositor::update_layers`]: each with
+    /// its own k (the weights apart).
+    pub fn layers(&self) -> Vec<CompositeInput<'_>> {
+        self.buffers.iter().zip(&self.k).map(|((g, b), &k)| CompositeInput { buffer: b, generation: *g, k }).collect()
+    }
+
+    /// The flat eq. 5 entries: each k times its layer's weight.
+    pub fn weighted(&self) -> Vec<CompositeInput<'_>> {
+        let n = (self.buffers.len() / self.weights.len().max(1)).max(1);
+        self.layers().into_iter().zip(0..).map(|(e, i)| CompositeInput { k: e.k * self.weights[i / n], ..e }).collect()
+    }
 }
 
 /// The shared indirect layers of a frame in clear air (issue 38,
@@ -155,75 +206,6 @@ fn shared_layers<'a>(
         *k += input.k;
     }
     slots
-}
-
-/// The entries of [`frame_entries`] as layers for
-/// [`crate::render::composite::Compositor::update_layers`], and the
-/// layers' weights.
-///
-/// In clear air (`density` `None`): every light's own buffer with k_i,
-/// then one entry per place (`places`, [`Tracer::shared_places`]) for the
-/// shared layer its light is the first to show, with the summed k of the
-/// lights showing it (eq. 5 regrouped:
-/// Σ_i k_i (W_i + A_g) = Σ_i k_i W_i + (Σ_i k_i) A_g), `empty` with k = 0
-/// where it shows none; one weight, 1. The count is fixed (N + places),
-/// so the compositor's and the stream's per-entry state stays in place.
-///
-/// In haze (no shared layers there): every light's surface buffer, then
-/// its buffers at the knots ½ and 1, each with k_i itself; weights
-/// w_j(d) ([`crate::render::media::knot_weights`]). A hazer change is then
-/// new weights only: the CPU compositor recombines its three kept sums
-/// instead of recomposing every buffer.
-pub fn frame_layers<'a>(
-    published: &'a [Published],
-    inputs: &[LightInput],
-    density: Option<f32>,
-    places: &[usize],
-    empty: &'a LightBuffer,
-) -> (Vec<CompositeInput<'a>>, Vec<f32>) {
-    let surface = published.iter().zip(inputs).map(|(p, input)| CompositeInput {
-        buffer: &p.buffer,
-        generation: p.generation,
-        k: input.k,
-    });
-    let Some(d) = density else {
-        let shared = shared_layers(published, inputs, places).into_iter().map(|slot| match slot {
-            Some((layer, k)) => CompositeInput { buffer: &layer.buffer, generation: layer.id, k },
-            None => CompositeInput { buffer: empty, generation: 0, k: Vec3::ZERO },
-        });
-        return (surface.chain(shared).collect(), vec![1.0]);
-    };
-    let haze = (0..2).flat_map(move |j| {
-        published.iter().zip(inputs).map(move |(p, input)| CompositeInput {
-            buffer: &p.hazy[j],
-            generation: p.generation,
-            k: input.k,
-        })
-    });
-    (surface.chain(haze).collect(), crate::render::media::knot_weights(d).to_vec())
-}
-
-/// The buffers of [`frame_entries`] with their generations, shared, in
-/// the same order.
-fn frame_buffers(
-    published: &[Published],
-    inputs: &[LightInput],
-    density: Option<f32>,
-    places: &[usize],
-    empty: &Arc<LightBuffer>,
-) -> Vec<(u64, Arc<LightBuffer>)> {
-    let surface = published.iter().map(|p| (p.generation, p.buffer.clone()));
-    match density {
-        None => surface
-            .chain(shared_layers(published, inputs, places).into_iter().map(|slot| match slot {
-                Some((layer, _)) => (layer.id, layer.buffer.clone()),
-                None => (0, empty.clone()),
-            }))
-            .collect(),
-        Some(_) => surface
-            .chain((0..2).flat_map(|j| published.iter().map(move |p| (p.generation, p.hazy[j].clone()))))
-            .collect(),
-    }
 }
 
 /// Relative luminance of linear sRGB (Rec. 709 weights).
@@ -382,6 +364,7 @@ impl FrameClock {
         }
         let published: Vec<Published> =
             (0..inputs.len().min(self.tracer.len())).map(|i| self.tracer.published(i)).collect();
+        let entries = FrameEntries::new(&published, &inputs, density, &places, &self.empty);
         if let Some((views, display)) = &self.views
             && let Some(camera) = views.preview_camera()
         {
@@ -414,10 +397,8 @@ impl FrameClock {
                 update: UpdateStats::default(),
                 // The buffer stream keeps the last full view while the camera
                 // moves (its clients composite those buffers with this k).
-                k: Arc::new(
-                    frame_entries(&published, &inputs, density, &places, &self.empty).iter().map(|l| l.k).collect(),
-                ),
-                buffers: Arc::new(frame_buffers(&published, &inputs, density, &places, &self.empty)),
+                k: Arc::new(entries.weighted().iter().map(|l| l.k).collect()),
+                buffers: Arc::new(entries.buffers),
                 haze_density: density,
                 display: self.compositor.display(),
                 preview: true,
@@ -428,8 +409,8 @@ impl FrameClock {
         }
         // The layers once: flat weighted entries for the GPU and the frame,
         // the layers themselves for the CPU compositor in haze.
-        let (layers, weights) = frame_layers(&published, &inputs, density, &places, &self.empty);
-        let lights = weighted(&layers, &weights);
+        let layers = entries.layers();
+        let lights = entries.weighted();
         // The GPU path never waits: it submits this frame and takes the
         // newest finished readback (None: keep showing the last picture).
         let mut gpu_rgb = None;
@@ -444,7 +425,6 @@ impl FrameClock {
                 }
             }
         }
-        let buffers = Arc::new(frame_buffers(&published, &inputs, density, &places, &self.empty));
         let t_layers = t0.elapsed();
         let update = match (gpu_rgb.is_none() && !gpu_pending, density) {
             (false, _) => UpdateStats::default(),
@@ -454,17 +434,19 @@ impl FrameClock {
                 // before encoding (`render::layers`).
                 let n = published.len();
                 let shared: Vec<(Vec3, u64, &Arc<LightBuffer>)> =
-                    lights[n..].iter().zip(&buffers[n..]).map(|(l, (g, b))| (l.k, *g, b)).collect();
+                    lights[n..].iter().zip(&entries.buffers[n..]).map(|(l, (g, b))| (l.k, *g, b)).collect();
                 let overlay = self.layer_sum.update(&shared);
                 self.compositor.set_overlay(overlay);
                 self.compositor.update(&lights[..n])
             }
             (true, None) => self.compositor.update(&lights),
             // In haze the knots are layers: a hazer change recombines them.
-            (true, Some(_)) => self.compositor.update_layers(&layers, &weights),
+            (true, Some(_)) => self.compositor.update_layers(&layers, &entries.weights),
         };
         let intensity = inputs.iter().map(|input| luminance(input.k)).collect();
         let k = Arc::new(lights.iter().map(|l| l.k).collect());
+        drop((layers, lights));
+        let buffers = Arc::new(entries.buffers);
         let t_composite = t0.elapsed();
         let mut rgb = self.frame_rgb(gpu_rgb, &update);
         if let Some(bodies) = &mut self.bodies {

@@ -223,7 +223,7 @@ pub struct Published {
     /// The indirect term this cell shares with its photon leader's group
     /// (issue 38; without haze only): the light shows `buffer` (then its
     /// own Whitted term) plus this layer, which the frame composites once
-    /// for the whole group ([`super::clock::frame_layers`]).
+    /// for the whole group ([`super::clock::FrameEntries`]).
     pub shared: Option<SharedLayer>,
 }
 
@@ -600,7 +600,7 @@ impl Tracer {
     /// ([`Published::shared`]), ascending: the cells of a fixture with two
     /// or more, when cells share photon stages in clear air (else none).
     /// The frame gives each a place for the layer it is the first to show
-    /// ([`super::clock::frame_layers`]); fixed once the groups are set.
+    /// ([`super::clock::FrameEntries`]); fixed once the groups are set.
     pub fn shared_places(&self) -> Arc<Vec<usize>> {
         if self.shared.settings.share_indirect && self.shared.haze.is_none() {
             self.shared.cells.places()
@@ -1235,21 +1235,18 @@ impl Shared {
         Some(buffer)
     }
 
-    /// Publishes a cell of a group (clear air only): what it `shows`, its
-    /// own Whitted term with the group's indirect layer ([`Published::shared`]), if
-    /// request `id` still owns the slot and, when `replaces` is given, the
-    /// slot still shows that very buffer (a leader split after its own
-    /// publish: nothing newer is overwritten).
+    /// Publishes a cell of a group (clear air only): its own Whitted term
+    /// `own` with the group's indirect `layer` ([`Published::shared`]), if
+    /// request `id` still owns the slot.
     fn publish_shared(
         &self,
         index: usize,
         id: u64,
-        shows: Finished,
+        own: Arc<LightBuffer>,
+        layer: SharedLayer,
         stage: Stage,
         light: &Light,
-        replaces: Option<&Arc<LightBuffer>>,
     ) -> bool {
-        let Finished { buffer: own, shared: Some(layer), .. } = shows else { return false };
         debug_assert!(self.haze.is_none(), "shared layers are for clear air");
         let slot = &self.slots[index];
         let mut st = slot.state.lock().expect("slot lock");
@@ -1257,16 +1254,11 @@ impl Shared {
             return false;
         }
         let mut p = slot.published.lock().expect("published lock");
-        if replaces.is_some_and(|b| !Arc::ptr_eq(b, &p.buffer)) {
-            return false;
-        }
         st.shown = Some(light.clone());
         st.failed = None;
-        if replaces.is_none() {
-            let n = self.publishes.fetch_add(1, Ordering::SeqCst);
-            st.first_publish.get_or_insert(n);
-            st.last_publish = Some(n);
-        }
+        let n = self.publishes.fetch_add(1, Ordering::SeqCst);
+        st.first_publish.get_or_insert(n);
+        st.last_publish = Some(n);
         // The cell's own buffer unchanged (a follower at its leader's next
         // pass): same generation, so its emitter group's composite storage
         // stays current; the new layer has an id of its own.
@@ -1682,18 +1674,21 @@ fn later_stage(s: &Shared, index: usize) {
     }
     let stage = step.stage;
     let light = build.light().clone();
-    let Some(published) = s.publish(index, id, Arc::new(step.buffer), stage, &light) else {
-        return;
+    // A leader in clear air publishes its own Whitted term with its
+    // indirect term as the group's shared layer; any other light its buffer.
+    let shown = match cells::lead(s, index, id, stage, &light, &step.buffer) {
+        Some(split) => split,
+        None => match s.publish(index, id, Arc::new(step.buffer), stage, &light) {
+            Some(b) => Finished::alone(b),
+            None => return,
+        },
     };
-    // A leader shares its indirect term (and shows its own Whitted term
-    // with it): what it shows finished is then the split pair.
-    let shown = cells::lead(s, index, id, stage, &light, &published);
     match stage {
         Stage::Ready => {
             if build.refined() > 0 {
                 tracing::debug!("light {index}: converged after {} progressive passes", build.refined());
             }
-            finished(s, index, id, &light, shown.unwrap_or_else(|| Finished::alone(published)), at);
+            finished(s, index, id, &light, shown, at);
         }
         _ if next == Some(NextStage::Photons) => start_refining(s, index, id, build, at),
         _ => keep_build(s, index, id, build, at),

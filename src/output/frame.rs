@@ -34,7 +34,7 @@ pub struct Frame {
     /// light, then in clear air one weight per shared-layer place (a
     /// fixture's cells sharing one indirect layer: the summed k of the
     /// cells showing it, 0 where a place holds none;
-    /// `live::clock::frame_layers`); in haze, w_j(d) k_i for the knots
+    /// `live::clock::FrameEntries`); in haze, w_j(d) k_i for the knots
     /// j = 0, ½, 1 (all lights' knot-0 buffers, then all knot-½, then all
     /// knot-1; [`crate::render::media::knot_weights`]). What the browser
     /// stream sends every frame (issue 17).

@@ -732,7 +732,7 @@ impl Compositor {
     /// w_j Σ_i k_i ⊙ buffer_ij. `lights` holds `weights.len()` blocks of the
     /// same number of entries (block j is layer j, entry i the same light in
     /// every block); their k are the layer's own (unweighted). Used for haze,
-    /// whose density knots are the layers (`live::clock::frame_layers`): each
+    /// whose density knots are the layers (`live::clock::FrameEntries`): each
     /// layer's sum is kept, tile-incrementally as in [`Compositor::update`],
     /// so a hazer change (new weights, same k) only recombines the sums,
     /// O(pixels), instead of recomposing every light's buffers. A layer of

@@ -54,7 +54,7 @@ pub struct LayerSum {
     tx: Sender<(Key, Vec<Vec3>)>,
     rx: Receiver<(Key, Vec<Vec3>)>,
     pool: Option<Arc<rayon::ThreadPool>>,
-    /// Sums made on the sum thread, and on the calling thread.
+    /// Sums started on the sum thread.
     pub background_sums: u64,
     /// Sums made on the calling thread.
     pub sync_sums: u64,
@@ -109,10 +109,9 @@ impl LayerSum {
         {
             return Some((*g, sum.clone()));
         }
-        let buffers: Vec<Arc<LightBuffer>> = counted.iter().map(|(.., b)| Arc::clone(b)).collect();
         let k: Vec<Vec3> = counted.iter().map(|(k, ..)| *k).collect();
         if key.len() <= Self::SYNC_LAYERS {
-            let refs: Vec<&LightBuffer> = buffers.iter().map(|b| &**b).collect();
+            let refs: Vec<&LightBuffer> = counted.iter().map(|(.., b)| &***b).collect();
             let sum = composite(&refs, &k, self.width, self.height);
             self.sync_sums += 1;
             self.generation += 1;
@@ -125,6 +124,7 @@ impl LayerSum {
             .is_none_or(|(shown, ..)| shown.len() != key.len() || shown.iter().zip(&key).any(|(a, b)| a.1 != b.1));
         let due = weights_changed || self.last_start.is_none_or(|t| t.elapsed() >= Self::REFRESH);
         if self.in_flight.is_none() && due {
+            let buffers = counted.iter().map(|(.., b)| Arc::clone(b)).collect();
             self.start(key, buffers, k);
         }
         self.shown.as_ref().map(|(_, g, s)| (*g, s.clone()))
@@ -142,11 +142,6 @@ impl LayerSum {
             // The receiver may be gone (the clock ended): nothing to deliver to.
             let _ = tx.send((key, composite(&refs, &k, w, h)));
         });
-    }
-
-    /// True while a sum is being made on the sum thread.
-    pub fn busy(&self) -> bool {
-        self.in_flight.is_some()
     }
 }
 

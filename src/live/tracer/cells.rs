@@ -397,17 +397,19 @@ pub(super) fn gather_followers(s: &Shared, index: usize, id: u64, build: &LightB
     }
 }
 
-/// After light `index` published request `id`'s buffer `published` at
-/// `stage` (photons or later): if it leads, it shares its indirect term.
+/// Light `index`'s request `id` has `buffer` at `stage` (photons or
+/// later): if it leads, it shares its indirect term.
 ///
 /// In clear air the term becomes one [`SharedLayer`] for the group: the
 /// leader and each follower show their own Whitted term with it
 /// ([`Published::shared`](super::Published)); the frame composites the
-/// layer once with the summed weight. A follower's own buffer does not
+/// layer once with the summed weight. A cell's own buffer does not
 /// change, so its generation does not either (its emitter group's
 /// composite storage stays current): each refinement pass costs one dense
-/// layer, not a dense sum per cell. Returns what the leader shows then
-/// (the geometry cache keeps that pair at [`Stage::Ready`]).
+/// layer, not a dense sum per cell. The leader is published here too, and
+/// what it shows is returned (the geometry cache keeps that pair at
+/// [`Stage::Ready`]); `None`: the caller publishes `buffer` itself (not a
+/// leader, haze, or superseded).
 ///
 /// In haze each cell's knot buffers depend on its own position, so each
 /// follower publishes its own Whitted term plus the term, dense, at the
@@ -418,8 +420,11 @@ pub(super) fn lead(
     id: u64,
     stage: Stage,
     light: &Light,
-    published: &Arc<LightBuffer>,
+    buffer: &LightBuffer,
 ) -> Option<Finished> {
+    if s.slots[index].latest.load(Ordering::SeqCst) != id {
+        return None; // superseded: neither it nor its followers publish
+    }
     let hazy = s.haze.is_some();
     // In haze, between the photon estimate and the final picture the
     // followers keep the estimate: each follower publish costs a dense sum
@@ -437,23 +442,24 @@ pub(super) fn lead(
             _ => None,
         }
     }?;
-    let indirect = shared_indirect(published, &lead.whitted);
+    let indirect = shared_indirect(buffer, &lead.whitted);
     if hazy {
         publish_dense_followers(s, index, id, stage, &lead, &indirect);
         return None;
     }
-    let layer = SharedLayer::new(LightBuffer::from_dense(published.width, published.height, &indirect));
+    let layer = SharedLayer::new(LightBuffer::from_dense(buffer.width, buffer.height, &indirect));
     let shows = |own: &Arc<LightBuffer>| Finished { buffer: own.clone(), shared: Some(layer.clone()), knots: None };
-    let leader =
-        s.publish_shared(index, id, shows(&lead.whitted), stage, light, Some(published)).then(|| shows(&lead.whitted));
+    if !s.publish_shared(index, id, lead.whitted.clone(), layer.clone(), stage, light) {
+        return None;
+    }
     for &j in &lead.followers {
         let Some((fid, light, at, own)) = following(s, j, index, id, |f| f.whitted.clone()) else { continue };
-        if s.publish_shared(j, fid, shows(&own), stage, &light, None) && stage == Stage::Ready {
+        if s.publish_shared(j, fid, own.clone(), layer.clone(), stage, &light) && stage == Stage::Ready {
             s.slots[j].state.lock().expect("slot lock").follow = None;
             finished(s, j, fid, &light, shows(&own), at);
         }
     }
-    leader
+    Some(shows(&lead.whitted))
 }
 
 /// Light `j` if it still follows light `index`'s request `id` with its own
