@@ -276,6 +276,18 @@ struct BenchArgs {
     /// browser stream's body bytes per frame, printed as Markdown.
     #[arg(long)]
     bodies_only: bool,
+    /// Only the error-against-time section (issue 34): the renderer's
+    /// picture stage by stage and the reference path tracer's, as relative
+    /// MSE against a converged box-filtered path-traced reference, with the
+    /// speed ratio at equal error, written as report.md, report.json and
+    /// error-time.svg into --out. Runs on its own box stage (--scene and
+    /// --patch are not used).
+    #[arg(long)]
+    converge_only: bool,
+    /// With --converge-only: the reference's samples per pixel (default
+    /// 4096; --quick 256).
+    #[arg(long, requires = "converge_only", value_parser = clap::value_parser!(u32).range(2..=1_000_000))]
+    converge_spp: Option<u32>,
     /// Only the festival section (issue 38: every target on
     /// tests/data/mvr/festival.mvr: renders, the live build, moved heads,
     /// broad cue, pixel chase, RSS, SIGTERM), written as report.md,
@@ -376,6 +388,8 @@ impl BenchArgs {
     fn options(self) -> BenchOptions {
         let section = if self.festival_only {
             BenchSection::Festival { size: self.festival_size, seconds: self.festival_seconds }
+        } else if self.converge_only {
+            BenchSection::Converge { spp: self.converge_spp }
         } else if self.walk_only {
             BenchSection::Walk
         } else if self.haze_only {

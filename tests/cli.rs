@@ -520,6 +520,56 @@ fn render_refine_blends_progressive_passes_into_the_still() {
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--refine"));
 }
 
+/// `footlight bench --converge-only --quick` (issue 34, item 3): the
+/// renderer's picture stage by stage and the path tracer's by samples per
+/// pixel, each against an independent converged path-traced reference.
+/// The figures are measured, not timed here: the path tracer's error falls
+/// as 1/samples (unbiased: 256 spp at most 1/64 of 1 spp's, with slack for
+/// the stratified edges), and ours is within the same bound of the
+/// reference as a 256-spp path tracer (a wrong indirect term, e.g. 10 %
+/// too dark, would be 1e-2 off).
+#[test]
+fn converge_bench_section_races_the_path_tracer() {
+    let dir = temp_dir("converge");
+    let o = footlight().args(["bench", "--converge-only", "--quick", "--out"]).arg(&dir).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap();
+    let errors = |key: &str| -> Vec<f64> {
+        json[key].as_array().unwrap().iter().map(|p| p["rel_mse"].as_f64().unwrap()).collect()
+    };
+    let (ours, path) = (errors("ours"), errors("path"));
+    assert!(ours.len() >= 3 && path.len() >= 2, "{ours:?} {path:?}");
+    assert!(ours.iter().chain(&path).all(|e| e.is_finite() && *e >= 0.0));
+    assert!(path.last().unwrap() * 32.0 < path[0], "path tracer error {path:?}");
+    assert!(*ours.last().unwrap() < 5e-3, "our refined picture {ours:?}");
+    assert!(json["direct"]["rel_mse"].as_f64().unwrap() < 5e-3);
+    let noise = json["reference_noise"].as_f64().unwrap();
+    assert!(noise > 0.0 && noise < path[0] / 100.0, "reference noise {noise}");
+    let svg = std::fs::read_to_string(dir.join("error-time.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.matches("<polyline").count() == 2);
+    assert!(std::fs::read_to_string(dir.join("report.md")).unwrap().contains("| refinement pass 8 |"));
+    // Edge supersampling takes the direct term to the direct-only
+    // reference's own noise (6e-5 at 64 spp; 5e-4 at the Whitted stage).
+    let refined = errors("direct_refined");
+    assert!(refined.len() >= 4 && *refined.last().unwrap() < 2e-4, "direct term by edge batch {refined:?}");
+    // The indirect term by region against the path tracer's (issue 34
+    // item 4), as it stands: wall corners within 5 % after refinement
+    // (they fell to 0.976 before SPPM's gathers were boundary-corrected);
+    // the whole picture ~2 % and the boxes' faces ~9 % dark (the targets,
+    // 0.5 % and 5 %, are not met: docs/rendering.md).
+    let region = |name: &str| -> f64 {
+        let r = json["indirect_by_region"].as_array().unwrap().iter().find(|r| r["name"] == name).unwrap();
+        r["refined"].as_f64().unwrap()
+    };
+    let corners = region("within 0.15 m of a wall corner");
+    assert!((corners - 1.0).abs() <= 0.05, "wall corners' indirect {corners}");
+    let whole = region("whole picture");
+    assert!((whole - 1.0).abs() <= 0.035, "whole picture's indirect {whole}");
+    let faces = region("box faces (vertical)");
+    assert!(faces > 0.85 && faces < 1.05, "box faces' indirect {faces}");
+}
+
 /// `footlight bench --pixels-only --quick`: the pixel-bar rig of the
 /// 150-fixture MVR alone, its 24 bars × 8 cells built and composited.
 #[test]

@@ -14,6 +14,8 @@ mod recursion;
 mod antialiasing;
 // The rim of a hard-edged beam: nine samples and adaptive AA against a box-filtered reference.
 mod beam_rim;
+// Edge pixels (rims, shutter cuts, gobos, geometry) supersampled to the box filter.
+mod edges;
 // NaN vertices, zero-area triangles, empty scenes, lights and cameras inside geometry.
 mod degenerate;
 // Full-size golden image of the default render (guards against change).

@@ -10,6 +10,7 @@ pub mod accuracy;
 pub mod bodies;
 pub mod chase;
 pub mod clients;
+pub mod error_time;
 pub mod festival;
 pub mod gate;
 pub mod harness;

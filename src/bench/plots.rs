@@ -219,6 +219,109 @@ pub fn write(report: &Report, out: &Path) -> std::io::Result<()> {
     Ok(())
 }
 
+/// Lines on log x and log y axes (decades gridded), with a legend and an
+/// optional goal drawn dashed in grey: the error-against-time curves.
+pub fn log_log_svg(title: &str, x_label: &str, y_label: &str, goal: Option<f64>, series: &[Series]) -> String {
+    let (l, r, t, b) = MARGIN;
+    let (pw, ph) = (WIDTH - l - r, HEIGHT - t - b);
+    let points = || {
+        series
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .filter(|p| p.0 > 0.0 && p.1 > 0.0 && p.0.is_finite() && p.1.is_finite())
+    };
+    let decade = |v: f64, up: bool| if up { v.log10().ceil() } else { v.log10().floor() };
+    let (mut x0, mut x1) =
+        (points().map(|p| p.0).fold(f64::INFINITY, f64::min), points().map(|p| p.0).fold(0.0, f64::max));
+    let (mut y0, mut y1) =
+        (points().map(|p| p.1).fold(f64::INFINITY, f64::min), points().map(|p| p.1).fold(0.0, f64::max));
+    if let Some(g) = goal.filter(|g| *g > 0.0) {
+        (y0, y1) = (y0.min(g), y1.max(g));
+    }
+    if !(x1 > 0.0 && x0.is_finite()) {
+        (x0, x1) = (0.1, 10.0);
+    }
+    if !(y1 > 0.0 && y0.is_finite()) {
+        (y0, y1) = (1e-5, 1e-1);
+    }
+    let (dx0, dx1) = (decade(x0, false), decade(x1, true).max(decade(x0, false) + 1.0));
+    let (dy0, dy1) = (decade(y0, false), decade(y1, true).max(decade(y0, false) + 1.0));
+    let x = |v: f64| l + pw * ((v.log10() - dx0) / (dx1 - dx0)).clamp(0.0, 1.0);
+    let y = |v: f64| t + ph * (1.0 - ((v.log10() - dy0) / (dy1 - dy0)).clamp(0.0, 1.0));
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{HEIGHT}" viewBox="0 0 {WIDTH} {HEIGHT}" font-family="sans-serif">"#
+    );
+    let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ =
+        writeln!(s, r#"<text x="{}" y="28" font-size="18" text-anchor="middle">{}</text>"#, WIDTH / 2.0, escape(title));
+    let _ = writeln!(s, r#"<rect x="{l}" y="{t}" width="{pw}" height="{ph}" fill="none" stroke="black"/>"#);
+    for d in (dx0 as i32)..=(dx1 as i32) {
+        let xx = x(10f64.powi(d));
+        let _ = writeln!(
+            s,
+            r##"<line x1="{xx:.1}" y1="{t}" x2="{xx:.1}" y2="{}" stroke="#ddd"/><text x="{xx:.1}" y="{}" font-size="12" text-anchor="middle">1e{d}</text>"##,
+            t + ph,
+            t + ph + 18.0
+        );
+    }
+    for d in (dy0 as i32)..=(dy1 as i32) {
+        let yy = y(10f64.powi(d));
+        let _ = writeln!(
+            s,
+            r##"<line x1="{l}" y1="{yy:.1}" x2="{}" y2="{yy:.1}" stroke="#ddd"/><text x="{}" y="{:.1}" font-size="12" text-anchor="end">1e{d}</text>"##,
+            l + pw,
+            l - 6.0,
+            yy + 4.0
+        );
+    }
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="{}" font-size="14" text-anchor="middle">{}</text>"#,
+        l + pw / 2.0,
+        HEIGHT - 15.0,
+        escape(x_label)
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="20" y="{0}" font-size="14" text-anchor="middle" transform="rotate(-90 20 {0})">{1}</text>"#,
+        t + ph / 2.0,
+        escape(y_label)
+    );
+    if let Some(g) = goal.filter(|g| *g > 0.0) {
+        let _ = writeln!(
+            s,
+            r#"<line x1="{l}" y1="{0:.1}" x2="{1}" y2="{0:.1}" stroke="grey" stroke-dasharray="6 4"/>"#,
+            y(g),
+            l + pw
+        );
+    }
+    for (i, se) in series.iter().enumerate() {
+        let kept: Vec<&(f64, f64)> =
+            se.points.iter().filter(|p| p.0 > 0.0 && p.1 > 0.0 && p.0.is_finite() && p.1.is_finite()).collect();
+        let line: Vec<String> = kept.iter().map(|p| format!("{:.1},{:.1}", x(p.0), y(p.1))).collect();
+        let colour = escape(&se.colour);
+        let _ =
+            writeln!(s, r#"<polyline points="{}" fill="none" stroke="{colour}" stroke-width="2"/>"#, line.join(" "));
+        for p in &kept {
+            let _ = writeln!(s, r#"<circle cx="{:.1}" cy="{:.1}" r="3" fill="{colour}"/>"#, x(p.0), y(p.1));
+        }
+        let ly = t + 18.0 + 16.0 * i as f64;
+        let _ = writeln!(
+            s,
+            r#"<line x1="{0}" y1="{ly:.1}" x2="{1}" y2="{ly:.1}" stroke="{colour}" stroke-width="3"/><text x="{2}" y="{3:.1}" font-size="12">{4}</text>"#,
+            l + pw - 250.0,
+            l + pw - 226.0,
+            l + pw - 220.0,
+            ly + 4.0,
+            escape(&se.name)
+        );
+    }
+    s += "</svg>\n";
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

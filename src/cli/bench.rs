@@ -27,6 +27,12 @@ pub enum BenchSection {
     Pixels,
     /// Fixture bodies (issue 14 item 5).
     Bodies,
+    /// Error against time (issue 34): ours and the reference path tracer
+    /// against a converged reference; `spp` overrides the reference's samples.
+    Converge {
+        /// Samples per pixel of the whole-picture reference.
+        spp: Option<u32>,
+    },
     /// The festival targets (issue 38): picture size and per-phase deadline
     /// (`None`: the festival's own defaults).
     Festival {
@@ -68,6 +74,16 @@ pub fn bench(mut args: BenchOptions) -> Result<()> {
         let report = bench::festival::run(&cfg).map_err(|e| anyhow::anyhow!("festival: {e}"))?;
         report.write(&out)?;
         print!("{}", report.lines());
+        println!("report written to {}", out.display());
+        return Ok(());
+    }
+    if let BenchSection::Converge { spp } = args.section {
+        let mut cfg = bench::error_time::ErrorTimeConfig::new(args.quick);
+        cfg.reference_spp = spp.unwrap_or(cfg.reference_spp);
+        let out = args.out.unwrap_or_else(bench::default_out_dir);
+        let report = bench::error_time::run(&cfg).map_err(|e| anyhow::anyhow!("error against time: {e}"))?;
+        report.write(&out)?;
+        print!("{}", report.markdown());
         println!("report written to {}", out.display());
         return Ok(());
     }
@@ -124,7 +140,7 @@ pub fn bench(mut args: BenchOptions) -> Result<()> {
                 .map_err(|e| anyhow::anyhow!("fixture bodies: {e}"))?;
             println!("{}", report.markdown());
         }
-        BenchSection::All | BenchSection::Festival { .. } => {
+        BenchSection::All | BenchSection::Festival { .. } | BenchSection::Converge { .. } => {
             let out = args.out.clone().unwrap_or_else(bench::default_out_dir);
             let config = bench::BenchConfig::new(quick, scene_path()?);
             let report = bench::run(&scene, &patch, camera, &config, &out)?;

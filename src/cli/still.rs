@@ -109,6 +109,7 @@ pub fn render(args: &StillOptions) -> Result<()> {
                 ..PhotonSettings::default()
             }),
             refine_passes: args.refine,
+            edge_samples: true,
         },
     };
     if args.refine > 0 && args.photons == 0 {

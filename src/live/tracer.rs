@@ -1635,7 +1635,9 @@ fn later_stage(s: &Shared, index: usize) {
     let view = s.view();
     let next = build.next_stage();
     if next == Some(NextStage::Photons) {
-        cells::gather_followers(s, index, id, &build);
+        if cells::gather_followers(s, index, id, &build) {
+            build.set_edge_refinement(false);
+        }
         // Rule 6: the photon stage yields (once) to a lit light that moves
         // meanwhile; only requests from now on count.
         if !build.yielded() {

@@ -32,6 +32,8 @@ use crate::scene::{Facing, Hit, Material, Scene, SurfacePoint, bvh::offset_origi
 use glam::Vec3;
 use rayon::prelude::*;
 
+pub mod path;
+
 /// Renders all `lights` with weights `k` in one pass (eq. 1), row-major linear RGB.
 pub fn render_eq1(
     scene: &Scene,
@@ -109,7 +111,15 @@ fn radiance(
     let Facing { front, geometric: ng, shading: ns } = s.facing(dir);
     let mut total = Vec3::ZERO;
     if m.diffuse.max_element() > 0.0 || m.specular.max_element() > 0.0 {
-        let at = Lit { position: s.position, ns, ng, wo: -dir, material: m, rho_d: scene.diffuse_at(&s) };
+        let at = Lit {
+            position: s.position,
+            ns,
+            ng,
+            wo: -dir,
+            material: m,
+            rho_d: scene.diffuse_at(&s),
+            lambert_only: false,
+        };
         for (light, k) in lights.iter().zip(k) {
             total += *k * light_term(scene, light, &at);
         }
@@ -148,14 +158,17 @@ fn radiance(
 /// A surface point as eq. 1's light term needs it: the shading normal `ns`
 /// and the geometric one `ng`, both on the side the viewer sees, the unit
 /// direction `wo` toward the viewer, the material and its diffuse albedo
-/// ρ_d there (texture included).
-struct Lit<'a> {
-    position: Vec3,
-    ns: Vec3,
-    ng: Vec3,
-    wo: Vec3,
-    material: &'a Material,
-    rho_d: Vec3,
+/// ρ_d there (texture included). `lambert_only`: the BRDF is ρ_d/π alone
+/// (a vertex after a diffuse bounce of [`path`]: the photon model carries
+/// light on from a surface diffusely, never along its Phong lobe).
+pub(super) struct Lit<'a> {
+    pub(super) position: Vec3,
+    pub(super) ns: Vec3,
+    pub(super) ng: Vec3,
+    pub(super) wo: Vec3,
+    pub(super) material: &'a Material,
+    pub(super) rho_d: Vec3,
+    pub(super) lambert_only: bool,
 }
 
 /// Eq. 1's light term for one unit-intensity light at `at`, from the
@@ -163,7 +176,7 @@ struct Lit<'a> {
 /// between ω_i (toward the light) and the shading normal and g the
 /// visibility. Zero for a light behind the surface (either normal), at the
 /// point itself or at infinity.
-fn light_term(scene: &Scene, light: &Light, at: &Lit) -> Vec3 {
+pub(super) fn light_term(scene: &Scene, light: &Light, at: &Lit) -> Vec3 {
     let toward = light.position - at.position;
     let r2 = toward.length_squared();
     let wi = toward / r2.sqrt();
@@ -173,7 +186,9 @@ fn light_term(scene: &Scene, light: &Light, at: &Lit) -> Vec3 {
     if f_e <= 0.0 || !visible(scene, at.position, at.ng, wi, light.position) {
         return Vec3::ZERO;
     }
-    phong(at.material, at.rho_d, at.ns, wi, at.wo) * (f_e * cos_theta / r2)
+    let brdf =
+        if at.lambert_only { at.rho_d / std::f32::consts::PI } else { phong(at.material, at.rho_d, at.ns, wi, at.wo) };
+    brdf * (f_e * cos_theta / r2)
 }
 
 /// g(P → x): no surface along the ray from the point `x` toward the light

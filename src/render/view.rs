@@ -11,6 +11,7 @@
 //! expansions of re-shaded pixels, cached for the next light or rebuild.
 
 pub mod aa;
+pub mod edges;
 pub mod rim;
 
 pub use aa::{
@@ -19,6 +20,7 @@ pub use aa::{
     mark_gradients_with, mark_highlights_into, mark_pairs, mark_pairs_into, mark_rim_into, reference_in_window,
     reference_level, row_spans,
 };
+pub use edges::{EDGE_CONTRAST, EDGE_SAMPLES_PER_PASS, EdgeSamples};
 pub use rim::{BeamEdge, BeamRim};
 
 use super::buffer::LightBuffer;

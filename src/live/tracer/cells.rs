@@ -372,11 +372,13 @@ pub(super) fn leader_of(s: &Shared, index: usize) -> usize {
 /// Before light `index`'s photon stage (request `id`, its Whitted term in
 /// `build`): the settled cells of its fixture that wait for theirs, with
 /// the same beam and aim ([`indirect_alike`]), become its followers.
-pub(super) fn gather_followers(s: &Shared, index: usize, id: u64, build: &LightBuild) {
+/// True when it leads (its own edges then stay at the Whitted stage's:
+/// [`LightBuild::set_edge_refinement`]).
+pub(super) fn gather_followers(s: &Shared, index: usize, id: u64, build: &LightBuild) -> bool {
     if !s.settings.share_indirect || !build.has_photons() {
-        return;
+        return false;
     }
-    let (Some(group), Some(whitted)) = (batch_group(s, index), build.whitted_shared()) else { return };
+    let (Some(group), Some(whitted)) = (batch_group(s, index), build.whitted_shared()) else { return false };
     let now = Instant::now();
     // Leads and follows are made and swept on the worker thread alone.
     s.cells.sharing.store(true, Ordering::SeqCst);
@@ -391,10 +393,12 @@ pub(super) fn gather_followers(s: &Shared, index: usize, id: u64, build: &LightB
         st.follow = Some(Follow { leader: index, leader_id: id, id: fid, light: b.light().clone(), at, whitted });
         followers.push(j);
     }
-    if !followers.is_empty() {
-        s.cells.count_followers(followers.len());
-        s.slots[index].state.lock().expect("slot lock").lead = Some(Lead { id, whitted, followers });
+    if followers.is_empty() {
+        return false;
     }
+    s.cells.count_followers(followers.len());
+    s.slots[index].state.lock().expect("slot lock").lead = Some(Lead { id, whitted, followers });
+    true
 }
 
 /// Light `index`'s request `id` has `buffer` at `stage` (photons or

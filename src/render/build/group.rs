@@ -315,6 +315,12 @@ impl GroupBuild {
             }
         }
         self.followed += follow.len();
+        if !follow.is_empty()
+            && let Some(b) = self.builds[leader].as_mut()
+        {
+            // Its shared term is its buffer less its Whitted term.
+            b.set_edge_refinement(false);
+        }
         self.lead = Some((leader, leader_whitted, follow));
     }
 

@@ -356,18 +356,8 @@ impl PhotonMap {
             offsets += p.position - x;
             count += 1;
         }
-        if self.boundary == BoundaryMode::Measured && count > 0 {
-            for (m, d) in cuts.iter_mut().flatten() {
-                // Toward the other surface, in the tangent plane: against
-                // its normal (which faces the lit side, toward x).
-                let Some(u) = (-(*m - m.dot(n) * n)).try_normalize() else { continue };
-                let away = -offsets.dot(u) / (count as f32 * r);
-                *d = d.max(cut_from_centroid(away) * r);
-            }
-        }
-        // The share of the cone's weight on this surface (1 without cuts).
-        let kept: f32 = cuts.iter().flatten().map(|(_, d)| 1.0 - self.filter.beyond(d / r)).product();
-        let area = self.filter.norm() * std::f32::consts::PI * r2 * kept.max(0.25);
+        let kept = self.kept_share(cuts, offsets, count, n, r, self.filter);
+        let area = self.filter.norm() * std::f32::consts::PI * r2 * kept;
         Estimate { irradiance: sum / area, radius: r, count }
     }
 
@@ -398,22 +388,64 @@ impl PhotonMap {
         }
     }
 
-    /// Photons within `radius` of `x` arriving on the front of `n`:
-    /// Σ power (for progressive photon mapping).
+    /// Photons within `radius` of `x` on the gathering surface ([`same_surface`]):
+    /// their Σ power, divided by the share of the disk on that surface
+    /// where other surfaces cut it ([`BoundaryMode`], uniform weights), and
+    /// their count (for progressive photon mapping).
     pub fn gather(&self, x: Vec3, n: Vec3, radius2: f32) -> (Vec3, usize) {
         let Some(tree) = &self.tree else { return (Vec3::ZERO, 0) };
         let mut sum = Vec3::ZERO;
         let mut count = 0;
         let r = radius2.sqrt();
+        let mut offsets = Vec3::ZERO;
+        let mut cuts: [Option<(Vec3, f32)>; 2] = [None; 2];
         for nb in tree.within_unsorted::<SquaredEuclidean>(&x.to_array(), radius2) {
             let p = &self.photons[nb.item as usize];
             if !same_surface(p, x, n, r) {
+                if self.boundary != BoundaryMode::None {
+                    note_cut(&mut cuts, p, x, n);
+                }
                 continue;
             }
             sum += p.power;
+            offsets += p.position - x;
             count += 1;
         }
-        (sum, count)
+        if count == 0 || r.is_nan() || r <= 0.0 {
+            return (sum, count);
+        }
+        // Per whole disk: the photons on this surface stand for the part
+        // of the disk it covers (issue 34 item 4: without this, SPPM's
+        // passes read low at every edge and corner and pull the photon-map
+        // estimate's boundary correction back down as they take over).
+        (sum / self.kept_share(cuts, offsets, count, n, r, Filter::Disk), count)
+    }
+
+    /// The share of a gather disk's kernel weight (`filter`) that lies on
+    /// the gathering surface ([`BoundaryMode`]): 1 without cuts, at least
+    /// 1/4. `cuts` are the other surfaces' lines ([`note_cut`]), `offsets`
+    /// the sum of this surface's `count` photon offsets from the centre
+    /// (for [`BoundaryMode::Measured`]), `n` the normal, `r` the radius.
+    fn kept_share(
+        &self,
+        mut cuts: [Option<(Vec3, f32)>; 2],
+        offsets: Vec3,
+        count: usize,
+        n: Vec3,
+        r: f32,
+        filter: Filter,
+    ) -> f32 {
+        if self.boundary == BoundaryMode::Measured && count > 0 {
+            for (m, d) in cuts.iter_mut().flatten() {
+                // Toward the other surface, in the tangent plane: against
+                // its normal (which faces the lit side, toward x).
+                let Some(u) = (-(*m - m.dot(n) * n)).try_normalize() else { continue };
+                let away = -offsets.dot(u) / (count as f32 * r);
+                *d = d.max(cut_from_centroid(away) * r);
+            }
+        }
+        let kept: f32 = cuts.iter().flatten().map(|(_, d)| 1.0 - filter.beyond(d / r)).product();
+        kept.max(0.25)
     }
 }
 
