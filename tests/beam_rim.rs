@@ -123,16 +123,6 @@ fn reference(s: &Setup, camera: &Camera) -> (Vec<f64>, Vec<f64>) {
     (value, cover)
 }
 
-/// Relative MSE Σ(x − r)² / Σ r² of the green channel over the pixels `which` selects.
-fn rel_mse(img: &[Vec3], reference: &[f64], which: impl Fn(usize) -> bool) -> f64 {
-    let (mut err, mut norm) = (0.0, 0.0);
-    for (_, (v, r)) in img.iter().zip(reference).enumerate().filter(|(i, _)| which(*i)) {
-        err += (f64::from(v.y) - r).powi(2);
-        norm += r * r;
-    }
-    if norm > 0.0 { err / norm } else { 0.0 }
-}
-
 /// Per set-up: (name, [nine, adaptive 20, 60, 120] × (whole, rim)).
 fn measure() -> Vec<(&'static str, [(f64, f64); 4])> {
     let scene = scene();
@@ -149,18 +139,18 @@ fn measure() -> Vec<(&'static str, [(f64, f64); 4])> {
             let nine = view(&scene, camera, W, H, Sampling::Nine, 0).render_direct(&scene, &light, None).0;
             assert_finite(&nine, s.name);
             let adaptive = view(&scene, camera, W, H, Sampling::Adaptive, 0);
-            let mut rows = [(rel_mse(&nine, &reference, |_| true), rel_mse(&nine, &reference, rim)); 4];
+            let mut rows = [(green_rel_mse(&nine, &reference, |_| true), green_rel_mse(&nine, &reference, rim)); 4];
             let base = adaptive.render_direct(&scene, &light, None).0;
             for (k, t) in [20.0, 60.0, 120.0].into_iter().enumerate() {
                 let (img, reshaded) = adaptive.render_direct(&scene, &light, Some(AaParams::new(t)));
                 assert_finite(&img, s.name);
-                rows[k + 1] = (rel_mse(&img, &reference, |_| true), rel_mse(&img, &reference, rim));
+                rows[k + 1] = (green_rel_mse(&img, &reference, |_| true), green_rel_mse(&img, &reference, rim));
                 // Why the gradient pairs alone fall short: the rim pixels
                 // no pair marks (the edge crosses them at a corner, or its
                 // jump to each 4-neighbour is under the threshold).
                 let flags = adaptive.gradient_flags(&scene, &base, AaParams::new(t));
                 let missed = (0..cover.len()).filter(|&i| rim(i) && !flags[i]).count();
-                let missed_error = rel_mse(&base, &reference, |i| rim(i) && !flags[i]);
+                let missed_error = green_rel_mse(&base, &reference, |i| rim(i) && !flags[i]);
                 eprintln!(
                     "{}: threshold {t}: {reshaded} pixels re-shaded, {rim_pixels} rim pixels, {missed} of them in no \
                      gradient pair (their 1-sample rel. MSE {missed_error:.3e} of their own energy)",

@@ -195,18 +195,6 @@ fn reference(s: &Setup) -> (Vec<f64>, Vec<bool>) {
     (value, edge)
 }
 
-/// Relative MSE Σ(x − r)²/Σ r² of the green channel over the pixels `which` selects.
-fn rel_mse(img: &[Vec3], reference: &[f64], which: impl Fn(usize) -> bool) -> f64 {
-    let (mut err, mut norm) = (0.0, 0.0);
-    for (i, (v, r)) in img.iter().zip(reference).enumerate() {
-        if which(i) {
-            err += (f64::from(v.y) - r).powi(2);
-            norm += r * r;
-        }
-    }
-    if norm > 0.0 { err / norm } else { 0.0 }
-}
-
 #[test]
 fn edge_supersampling_converges_rims_cuts_gobos_and_geometry_edges_to_the_box_filter() {
     for s in setups() {
@@ -225,8 +213,9 @@ fn edge_supersampling_converges_rims_cuts_gobos_and_geometry_edges_to_the_box_fi
         let picked: std::collections::HashSet<u32> = samples.pixels().iter().copied().collect();
         let missed: Vec<usize> =
             (0..edge.len()).filter(|&i| edge[i] && reference[i] > 0.0 && !picked.contains(&(i as u32))).collect();
-        let missed_error = rel_mse(&first, &reference, |i| missed.contains(&i));
-        let error = |img: &[Vec3]| (rel_mse(img, &reference, |_| true), rel_mse(img, &reference, |i| edge[i]));
+        let missed_error = green_rel_mse(&first, &reference, |i| missed.contains(&i));
+        let error =
+            |img: &[Vec3]| (green_rel_mse(img, &reference, |_| true), green_rel_mse(img, &reference, |i| edge[i]));
         let at_first = error(&first);
         let mut rows = vec![("Whitted stage".to_string(), at_first)];
         for pass in 1..=4 {

@@ -55,23 +55,12 @@ pub fn curve_svg(c: &super::sweeps::Curve) -> String {
     let _ = writeln!(s, r#"<rect x="{l}" y="{t}" width="{pw}" height="{ph}" fill="none" stroke="black"/>"#);
     for d in (d0 as i32)..=(d1 as i32) {
         let yy = y(10f64.powi(d));
-        let _ = writeln!(
-            s,
-            r##"<line x1="{l}" y1="{yy:.1}" x2="{}" y2="{yy:.1}" stroke="#ddd"/><text x="{}" y="{:.1}" font-size="12" text-anchor="end">1e{d}</text>"##,
-            l + pw,
-            l - 6.0,
-            yy + 4.0
-        );
+        y_tick(&mut s, yy, &format!("1e{d}"));
     }
     for i in 0..=5 {
         let ms = xmax * i as f64 / 5.0;
         let xx = x(ms);
-        let _ = writeln!(
-            s,
-            r##"<line x1="{xx:.1}" y1="{t}" x2="{xx:.1}" y2="{}" stroke="#ddd"/><text x="{xx:.1}" y="{}" font-size="12" text-anchor="middle">{ms:.0}</text>"##,
-            t + ph,
-            t + ph + 18.0
-        );
+        x_tick(&mut s, xx, &format!("{ms:.0}"));
     }
     let _ = writeln!(
         s,
@@ -136,45 +125,14 @@ pub fn series_svg(title: &str, x_label: &str, y_label: &str, y_max: f64, series:
         series.iter().flat_map(|s| s.points.iter().map(|p| p.1)).filter(finite).fold(y_max, f64::max).max(1.0) * 1.05;
     let x = |v: f64| l + pw * (v / xmax).clamp(0.0, 1.0);
     let y = |v: f64| t + ph * (1.0 - (v / ymax).clamp(0.0, 1.0));
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{HEIGHT}" viewBox="0 0 {WIDTH} {HEIGHT}" font-family="sans-serif">"#
-    );
-    let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
-    let _ =
-        writeln!(s, r#"<text x="{}" y="28" font-size="18" text-anchor="middle">{}</text>"#, WIDTH / 2.0, escape(title));
-    let _ = writeln!(s, r#"<rect x="{l}" y="{t}" width="{pw}" height="{ph}" fill="none" stroke="black"/>"#);
+    let mut s = open_chart(title);
     for i in 0..=5 {
         let (xv, yv) = (xmax * i as f64 / 5.0, ymax * i as f64 / 5.0);
         let (xx, yy) = (x(xv), y(yv));
-        let _ = writeln!(
-            s,
-            r##"<line x1="{xx:.1}" y1="{t}" x2="{xx:.1}" y2="{}" stroke="#ddd"/><text x="{xx:.1}" y="{}" font-size="12" text-anchor="middle">{xv:.0}</text>"##,
-            t + ph,
-            t + ph + 18.0
-        );
-        let _ = writeln!(
-            s,
-            r##"<line x1="{l}" y1="{yy:.1}" x2="{}" y2="{yy:.1}" stroke="#ddd"/><text x="{}" y="{:.1}" font-size="12" text-anchor="end">{yv:.0}</text>"##,
-            l + pw,
-            l - 6.0,
-            yy + 4.0
-        );
+        x_tick(&mut s, xx, &format!("{xv:.0}"));
+        y_tick(&mut s, yy, &format!("{yv:.0}"));
     }
-    let _ = writeln!(
-        s,
-        r#"<text x="{}" y="{}" font-size="14" text-anchor="middle">{}</text>"#,
-        l + pw / 2.0,
-        HEIGHT - 15.0,
-        escape(x_label)
-    );
-    let _ = writeln!(
-        s,
-        r#"<text x="20" y="{0}" font-size="14" text-anchor="middle" transform="rotate(-90 20 {0})">{1}</text>"#,
-        t + ph / 2.0,
-        escape(y_label)
-    );
+    axis_titles(&mut s, x_label, y_label);
     let _ = writeln!(
         s,
         r#"<line x1="{l}" y1="{0:.1}" x2="{1}" y2="{0:.1}" stroke="grey" stroke-dasharray="6 4"/>"#,
@@ -248,47 +206,16 @@ pub fn log_log_svg(title: &str, x_label: &str, y_label: &str, goal: Option<f64>,
     let (dy0, dy1) = (decade(y0, false), decade(y1, true).max(decade(y0, false) + 1.0));
     let x = |v: f64| l + pw * ((v.log10() - dx0) / (dx1 - dx0)).clamp(0.0, 1.0);
     let y = |v: f64| t + ph * (1.0 - ((v.log10() - dy0) / (dy1 - dy0)).clamp(0.0, 1.0));
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{HEIGHT}" viewBox="0 0 {WIDTH} {HEIGHT}" font-family="sans-serif">"#
-    );
-    let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
-    let _ =
-        writeln!(s, r#"<text x="{}" y="28" font-size="18" text-anchor="middle">{}</text>"#, WIDTH / 2.0, escape(title));
-    let _ = writeln!(s, r#"<rect x="{l}" y="{t}" width="{pw}" height="{ph}" fill="none" stroke="black"/>"#);
+    let mut s = open_chart(title);
     for d in (dx0 as i32)..=(dx1 as i32) {
         let xx = x(10f64.powi(d));
-        let _ = writeln!(
-            s,
-            r##"<line x1="{xx:.1}" y1="{t}" x2="{xx:.1}" y2="{}" stroke="#ddd"/><text x="{xx:.1}" y="{}" font-size="12" text-anchor="middle">1e{d}</text>"##,
-            t + ph,
-            t + ph + 18.0
-        );
+        x_tick(&mut s, xx, &format!("1e{d}"));
     }
     for d in (dy0 as i32)..=(dy1 as i32) {
         let yy = y(10f64.powi(d));
-        let _ = writeln!(
-            s,
-            r##"<line x1="{l}" y1="{yy:.1}" x2="{}" y2="{yy:.1}" stroke="#ddd"/><text x="{}" y="{:.1}" font-size="12" text-anchor="end">1e{d}</text>"##,
-            l + pw,
-            l - 6.0,
-            yy + 4.0
-        );
+        y_tick(&mut s, yy, &format!("1e{d}"));
     }
-    let _ = writeln!(
-        s,
-        r#"<text x="{}" y="{}" font-size="14" text-anchor="middle">{}</text>"#,
-        l + pw / 2.0,
-        HEIGHT - 15.0,
-        escape(x_label)
-    );
-    let _ = writeln!(
-        s,
-        r#"<text x="20" y="{0}" font-size="14" text-anchor="middle" transform="rotate(-90 20 {0})">{1}</text>"#,
-        t + ph / 2.0,
-        escape(y_label)
-    );
+    axis_titles(&mut s, x_label, y_label);
     if let Some(g) = goal.filter(|g| *g > 0.0) {
         let _ = writeln!(
             s,
@@ -320,6 +247,69 @@ pub fn log_log_svg(title: &str, x_label: &str, y_label: &str, goal: Option<f64>,
     }
     s += "</svg>\n";
     s
+}
+
+/// The plot area every chart draws in: (left, top, width, height).
+fn plot_area() -> (f64, f64, f64, f64) {
+    let (l, r, t, b) = MARGIN;
+    (l, t, WIDTH - l - r, HEIGHT - t - b)
+}
+
+/// A chart's opening: the svg element, a white page, the title and the
+/// frame of the plot area.
+fn open_chart(title: &str) -> String {
+    let (l, t, pw, ph) = plot_area();
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{HEIGHT}" viewBox="0 0 {WIDTH} {HEIGHT}" font-family="sans-serif">"#
+    );
+    let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ =
+        writeln!(s, r#"<text x="{}" y="28" font-size="18" text-anchor="middle">{}</text>"#, WIDTH / 2.0, escape(title));
+    let _ = writeln!(s, r#"<rect x="{l}" y="{t}" width="{pw}" height="{ph}" fill="none" stroke="black"/>"#);
+    s
+}
+
+/// A vertical grid line at `xx` with its label under the plot area.
+fn x_tick(s: &mut String, xx: f64, label: &str) {
+    let (_, t, _, ph) = plot_area();
+    let _ = writeln!(
+        s,
+        r##"<line x1="{xx:.1}" y1="{t}" x2="{xx:.1}" y2="{}" stroke="#ddd"/><text x="{xx:.1}" y="{}" font-size="12" text-anchor="middle">{label}</text>"##,
+        t + ph,
+        t + ph + 18.0
+    );
+}
+
+/// A horizontal grid line at `yy` with its label left of the plot area.
+fn y_tick(s: &mut String, yy: f64, label: &str) {
+    let (l, _, pw, _) = plot_area();
+    let _ = writeln!(
+        s,
+        r##"<line x1="{l}" y1="{yy:.1}" x2="{}" y2="{yy:.1}" stroke="#ddd"/><text x="{}" y="{:.1}" font-size="12" text-anchor="end">{label}</text>"##,
+        l + pw,
+        l - 6.0,
+        yy + 4.0
+    );
+}
+
+/// The axes' titles: `x_label` under the plot area, `y_label` turned along its left side.
+fn axis_titles(s: &mut String, x_label: &str, y_label: &str) {
+    let (l, t, pw, ph) = plot_area();
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="{}" font-size="14" text-anchor="middle">{}</text>"#,
+        l + pw / 2.0,
+        HEIGHT - 15.0,
+        escape(x_label)
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="20" y="{0}" font-size="14" text-anchor="middle" transform="rotate(-90 20 {0})">{1}</text>"#,
+        t + ph / 2.0,
+        escape(y_label)
+    );
 }
 
 #[cfg(test)]

@@ -226,3 +226,17 @@ pub fn assert_together_equals_alone(
         }
     }
 }
+
+/// Relative MSE Σ(x − r)²/Σ r² of `img`'s green channel against a
+/// per-pixel f64 `reference`, over the pixels `which` selects (0 where the
+/// reference is black there).
+pub fn green_rel_mse(img: &[Vec3], reference: &[f64], which: impl Fn(usize) -> bool) -> f64 {
+    let (mut err, mut norm) = (0.0, 0.0);
+    for (i, (v, r)) in img.iter().zip(reference).enumerate() {
+        if which(i) {
+            err += (f64::from(v.y) - r).powi(2);
+            norm += r * r;
+        }
+    }
+    if norm > 0.0 { err / norm } else { 0.0 }
+}
