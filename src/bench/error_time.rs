@@ -149,12 +149,13 @@ pub struct IndirectRegion {
 }
 
 /// The regions of [`IndirectRegion`], bit r of a pixel's mask for region r.
-pub const REGIONS: [&str; 5] = [
+pub const REGIONS: [&str; 6] = [
     "whole picture",
     "box faces (vertical)",
     "floor within 0.3 m of a box",
     "within 0.15 m of a wall corner",
-    "open floor and walls",
+    "within 0.3 m of an open edge",
+    "the rest of the floor and walls",
 ];
 
 /// Each pixel's region mask ([`REGIONS`]) from its centre sample on
@@ -195,8 +196,14 @@ fn regions(scene: &Scene, view: &View) -> Vec<u8> {
             if !on_box && corners.iter().any(|&c| c) {
                 mask |= 8;
             }
-            if !on_box && mask & (4 | 8) == 0 {
+            // The open edges: the floor's front and right edges, the walls'
+            // tops and free ends (nothing beyond them to mark a cut).
+            let (x1, z1, top) = (6.0f32, 4.0f32, 5.0f32);
+            if !on_box && (p.x > x1 - 0.3 || p.z > z1 - 0.3 || p.y > top - 0.3) {
                 mask |= 16;
+            }
+            if !on_box && mask & (4 | 8 | 16) == 0 {
+                mask |= 32;
             }
             mask
         })
