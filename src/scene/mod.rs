@@ -11,6 +11,7 @@ pub mod camera;
 pub mod gltf_import;
 pub mod material;
 pub mod mvr_scene;
+pub mod open_edges;
 pub mod texture;
 
 pub use bvh::{Accel, Hit};
@@ -96,12 +97,31 @@ pub struct Scene {
     pub report: ImportReport,
     /// Ray queries.
     pub accel: Accel,
+    /// The open edges, found on first use ([`Scene::open_edges`]).
+    open_edges: std::sync::OnceLock<std::sync::Arc<open_edges::OpenEdges>>,
 }
 
 impl Scene {
     /// Number of triangles kept.
     pub fn triangle_count(&self) -> usize {
         self.positions.len()
+    }
+
+    /// The scene's open edges ([`open_edges::OpenEdges`]), found on first
+    /// use with points every 1/80 of the scene's diagonal (a quarter of the
+    /// photon maps' largest gather radius).
+    pub fn open_edges(&self) -> std::sync::Arc<open_edges::OpenEdges> {
+        self.open_edges
+            .get_or_init(|| {
+                let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+                for v in self.positions.iter().flatten().filter(|v| v.is_finite()) {
+                    lo = lo.min(*v);
+                    hi = hi.max(*v);
+                }
+                let spacing = if lo.x <= hi.x { (hi - lo).length() / 80.0 } else { 1.0 };
+                std::sync::Arc::new(open_edges::OpenEdges::find(self, spacing))
+            })
+            .clone()
     }
 
     /// Resolves a BVH hit into a full surface point.
@@ -322,6 +342,7 @@ impl SceneBuilder {
             camera: self.camera,
             report: self.report,
             accel,
+            open_edges: std::sync::OnceLock::new(),
         }
     }
 }

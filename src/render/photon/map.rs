@@ -20,10 +20,12 @@
 //! bias); a lookup that finds no fitting cache point returns `None` and the
 //! caller falls back to the kNN estimate (no black holes).
 
+use crate::scene::open_edges::OpenEdges;
 use glam::Vec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 use std::num::NonZero;
+use std::sync::Arc;
 
 /// Cone filter normalisation for k_cone = 1: 1 − 2/(3 k_cone).
 const CONE_NORM: f32 = 1.0 / 3.0;
@@ -51,15 +53,22 @@ fn note_cut(cuts: &mut [Option<(Vec3, f32)>; 2], p: &Photon, x: Vec3, n: Vec3) {
         return;
     }
     let d = (x - p.position).dot(p.normal).abs() / (1.0 - c * c).sqrt();
+    merge_cut(cuts, p.normal, d);
+}
+
+/// Keeps a cut of the gather disk at in-plane distance `d`, `m` the normal
+/// of the surface beyond it (facing back toward the centre): the nearest
+/// cut per orientation, for at most two orientations.
+fn merge_cut(cuts: &mut [Option<(Vec3, f32)>; 2], m: Vec3, d: f32) {
     for slot in cuts.iter_mut() {
         match slot {
-            Some((m, best)) if m.dot(p.normal) >= 0.9 => {
+            Some((seen, best)) if seen.dot(m) >= 0.9 => {
                 *best = best.min(d);
                 return;
             }
             Some(_) => {}
             None => {
-                *slot = Some((p.normal, d));
+                *slot = Some((m, d));
                 return;
             }
         }
@@ -95,6 +104,8 @@ pub struct PhotonMap {
     boundary: BoundaryMode,
     /// The estimate's kernel.
     filter: Filter,
+    /// The scene's open edges, cuts no photon marks ([`OpenEdges`]).
+    open: Option<Arc<OpenEdges>>,
 }
 
 /// The kernel of a kNN irradiance estimate (issue 13: the indirect term's
@@ -260,13 +271,35 @@ impl PhotonMap {
     /// Builds the map's k-d tree (none for an empty map).
     pub fn new(photons: Vec<Photon>) -> Self {
         let tree = kd_tree(photons.iter().map(|p| p.position));
-        Self { photons, tree, boundary: BoundaryMode::default(), filter: Filter::default() }
+        Self { photons, tree, boundary: BoundaryMode::default(), filter: Filter::default(), open: None }
     }
 
     /// The same map with estimates weighting photons by `filter`.
     pub fn with_filter(mut self, filter: Filter) -> Self {
         self.filter = filter;
         self
+    }
+
+    /// Takes the scene's open edges ([`OpenEdges`]) as cuts of the gather
+    /// disk too (with any [`BoundaryMode`] but `None`): past a floor's lip
+    /// no photon lands to mark one.
+    pub fn with_open_edges(mut self, open: Arc<OpenEdges>) -> Self {
+        self.open = Some(open);
+        self
+    }
+
+    /// The cuts of the scene's open edges in the disk of radius `r` about
+    /// `x` (normal `n`), added to `cuts` ([`merge_cut`]).
+    fn note_open_edges(&self, cuts: &mut [Option<(Vec3, f32)>; 2], x: Vec3, n: Vec3, r: f32) {
+        if self.boundary == BoundaryMode::None {
+            return;
+        }
+        if let Some(open) = &self.open {
+            for (toward, d) in open.near(x, n, r) {
+                // As a wall there would: its normal faces back toward x.
+                merge_cut(cuts, -toward, d);
+            }
+        }
     }
 
     /// The same map with estimates treating edges as `mode` says.
@@ -356,6 +389,7 @@ impl PhotonMap {
             offsets += p.position - x;
             count += 1;
         }
+        self.note_open_edges(&mut cuts, x, n, r);
         let kept = self.kept_share(cuts, offsets, count, n, r, self.filter);
         let area = self.filter.norm() * std::f32::consts::PI * r2 * kept;
         Estimate { irradiance: sum / area, radius: r, count }
@@ -376,7 +410,10 @@ impl PhotonMap {
             .filter(|(i, _)| i % stride != 0)
             .map(|(_, p)| Photon { power: p.power * scale, ..*p })
             .collect();
-        (!rest.is_empty()).then(|| PhotonMap::new(rest).with_boundary(self.boundary).with_filter(self.filter))
+        (!rest.is_empty()).then(|| PhotonMap {
+            open: self.open.clone(),
+            ..PhotonMap::new(rest).with_boundary(self.boundary).with_filter(self.filter)
+        })
     }
 
     /// Distance to the nearest photon (infinite for an empty map): a cheap
@@ -418,6 +455,7 @@ impl PhotonMap {
         // of the disk it covers (issue 34 item 4: without this, SPPM's
         // passes read low at every edge and corner and pull the photon-map
         // estimate's boundary correction back down as they take over).
+        self.note_open_edges(&mut cuts, x, n, r);
         (sum / self.kept_share(cuts, offsets, count, n, r, Filter::Disk), count)
     }
 
@@ -622,6 +660,41 @@ mod tests {
             }
         }
         PhotonMap::new(v)
+    }
+
+    /// The unit square z = 0 as a scene: every edge of it open.
+    fn unit_square_scene() -> crate::scene::Scene {
+        let mut b = crate::scene::SceneBuilder::new();
+        let m = b.add_material(crate::scene::Material::lambert("floor", Vec3::splat(0.5)));
+        b.add_quad(
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+            m,
+        );
+        b.build()
+    }
+
+    #[test]
+    fn an_open_edge_cuts_the_gather_disk() {
+        // Uniform photons on a square with nothing beyond its edges: near
+        // an edge a kNN or SPPM gather reads low unless the edge cuts the
+        // disk (issue 34 item 4: 0.78-0.82 at the box stage's open edges).
+        let plain = uniform(200, 10.0);
+        let open = uniform(200, 10.0).with_open_edges(unit_square_scene().open_edges());
+        for x in [Vec3::new(0.995, 0.5, 0.0), Vec3::new(0.5, 0.004, 0.0), Vec3::new(0.003, 0.996, 0.0)] {
+            let (without, with) = (plain.estimate(x, Vec3::Z, 150, 1.0), open.estimate(x, Vec3::Z, 150, 1.0));
+            assert!(without.irradiance.x < 0.85 * 10.0, "{x}: without the edge {without:?}");
+            assert!((with.irradiance.x - 10.0).abs() < 0.06 * 10.0, "{x}: with the edge {with:?}");
+            let r2 = 0.05f32 * 0.05;
+            let (phi, n) = open.gather(x, Vec3::Z, r2);
+            let e = phi.x / (std::f32::consts::PI * r2);
+            assert!(n > 0 && (e - 10.0).abs() < 0.1 * 10.0, "{x}: SPPM gather {e} from {n} photons");
+        }
+        // Far from every edge nothing changes.
+        let x = Vec3::new(0.5, 0.5, 0.0);
+        assert_eq!(plain.estimate(x, Vec3::Z, 150, 1.0).irradiance, open.estimate(x, Vec3::Z, 150, 1.0).irradiance);
     }
 
     #[test]

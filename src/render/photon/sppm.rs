@@ -188,7 +188,7 @@ impl Progressive {
         let trace_ms = ms(t0);
         let t1 = std::time::Instant::now();
         let stored = photons.len();
-        let map = PhotonMap::new(photons);
+        let map = PhotonMap::new(photons).with_open_edges(scene.open_edges());
         let tree_ms = ms(t1);
         let t2 = std::time::Instant::now();
         let vertices = view.shading.vertices();

@@ -223,8 +223,12 @@ pub fn trace_photons_until(
     }
     let mut times = TraceTimes { trace_ms: ms(t0), ..TraceTimes::default() };
     let t1 = std::time::Instant::now();
-    let global = PhotonMap::new(global).with_boundary(settings.boundary).with_filter(settings.filter);
-    let caustic = PhotonMap::new(caustic).with_boundary(settings.boundary);
+    let open = scene.open_edges();
+    let global = PhotonMap::new(global)
+        .with_boundary(settings.boundary)
+        .with_filter(settings.filter)
+        .with_open_edges(open.clone());
+    let caustic = PhotonMap::new(caustic).with_boundary(settings.boundary).with_open_edges(open);
     times.tree_ms = ms(t1);
     let t2 = std::time::Instant::now();
     let irradiance = IrradianceCache::build_with_caustics(
