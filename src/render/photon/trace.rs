@@ -282,12 +282,7 @@ pub(crate) fn trace_chunk(
                 if specular_only { caustic.push(photon) } else { global.push(photon) }
             }
             // Russian roulette over diffuse / mirror / transmission.
-            let pd = rho.element_sum() / 3.0;
-            let pr = m.k_r.element_sum() / 3.0;
-            let pt = m.k_t.element_sum() / 3.0;
-            let total = pd + pr + pt;
-            let scale = if total > 1.0 { 1.0 / total } else { 1.0 };
-            let (pd, pr, pt) = (pd * scale, pr * scale, pt * scale);
+            let (pd, pr, pt) = scatter_probabilities(rho, m);
             let u: f32 = rng.random();
             if u < pd {
                 power *= rho / pd;
@@ -326,6 +321,17 @@ pub(crate) fn trace_chunk(
         }
     }
     (global, caustic)
+}
+
+/// The probabilities of a diffuse bounce, a mirror reflection and a
+/// transmission at a surface of diffuse albedo `rho` and material `m`
+/// (Russian roulette, Jensen 2001 §5.2): their mean coefficients, scaled
+/// down together when they sum past 1. The photon tracer and the
+/// reference path tracer ([`crate::render::reference::path`]) choose alike.
+pub fn scatter_probabilities(rho: Vec3, m: &crate::scene::Material) -> (f32, f32, f32) {
+    let (pd, pr, pt) = (rho.element_sum() / 3.0, m.k_r.element_sum() / 3.0, m.k_t.element_sum() / 3.0);
+    let scale = (pd + pr + pt).max(1.0).recip();
+    (pd * scale, pr * scale, pt * scale)
 }
 
 /// Cosine-weighted direction about unit normal `n`.

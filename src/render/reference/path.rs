@@ -31,7 +31,7 @@
 
 use super::{Lit, light_term};
 use crate::fixture::Light;
-use crate::render::photon::trace::cosine_hemisphere;
+use crate::render::photon::trace::{cosine_hemisphere, scatter_probabilities};
 use crate::render::whitted::{reflect, refract};
 use crate::scene::{Camera, Facing, Scene, bvh::offset_origin};
 use glam::{DVec3, Vec3};
@@ -151,10 +151,8 @@ fn path(
         }
         // Russian roulette over diffuse / mirror / transmission, as the
         // photon tracer chooses.
-        let pd = if indirect { rho.element_sum() / 3.0 } else { 0.0 };
-        let (pr, pt) = (m.k_r.element_sum() / 3.0, m.k_t.element_sum() / 3.0);
-        let scale = (pd + pr + pt).max(1.0).recip();
-        let (pd, pr, pt) = (pd * scale, pr * scale, pt * scale);
+        // Without the indirect term, no diffuse bounce.
+        let (pd, pr, pt) = scatter_probabilities(if indirect { rho } else { Vec3::ZERO }, m);
         let u: f32 = rng.random();
         if u < pd {
             beta *= rho / pd;
