@@ -158,16 +158,30 @@ pub const REGIONS: [&str; 6] = [
     "the rest of the floor and walls",
 ];
 
+/// The walls' and floor's extent of [`box_stage`] (m): floor x0..x1 ×
+/// z0..z1, back wall at z0 and side wall at x0, both up to `top`.
+struct StageExtent {
+    x0: f32,
+    x1: f32,
+    z0: f32,
+    z1: f32,
+    top: f32,
+}
+
+/// [`box_stage`]'s extent.
+const STAGE: StageExtent = StageExtent { x0: -6.0, x1: 6.0, z0: -4.0, z1: 4.0, top: 5.0 };
+
+/// [`box_stage`]'s boxes (min, max corners): the tall one, the low one.
+const BOXES: [(Vec3, Vec3); 2] =
+    [(Vec3::new(-1.0, 0.0, -1.5), Vec3::new(0.0, 1.0, -0.5)), (Vec3::new(1.0, 0.0, -0.5), Vec3::new(3.0, 0.4, 0.5))];
+
 /// Each pixel's region mask ([`REGIONS`]) from its centre sample on
-/// [`box_stage`] (the boxes' and walls' places are its constants).
+/// [`box_stage`] ([`STAGE`], [`BOXES`]).
 fn regions(scene: &Scene, view: &View) -> Vec<u8> {
     use crate::render::gbuffer::{CENTRE_SAMPLE, NO_HIT};
     use crate::scene::Hit;
-    let boxes = [
-        (Vec3::new(-1.0, 0.0, -1.5), Vec3::new(0.0, 1.0, -0.5)),
-        (Vec3::new(1.0, 0.0, -0.5), Vec3::new(3.0, 0.4, 0.5)),
-    ];
-    let (x0, z0) = (-6.0f32, -4.0f32);
+    let StageExtent { x0, x1, z0, z1, top } = STAGE;
+    let boxes = BOXES;
     view.gbuffer
         .samples
         .iter()
@@ -198,7 +212,6 @@ fn regions(scene: &Scene, view: &View) -> Vec<u8> {
             }
             // The open edges: the floor's front and right edges, the walls'
             // tops and free ends (nothing beyond them to mark a cut).
-            let (x1, z1, top) = (6.0f32, 4.0f32, 5.0f32);
             if !on_box && (p.x > x1 - 0.3 || p.z > z1 - 0.3 || p.y > top - 0.3) {
                 mask |= 16;
             }
@@ -222,12 +235,12 @@ pub fn box_stage() -> (Scene, Vec<Light>, Camera) {
     let side = b.add_material(Material::lambert("side wall", Vec3::new(0.6, 0.3, 0.25)));
     let tall = grey(&mut b, "tall box", 0.7);
     let low = grey(&mut b, "low box", 0.3);
-    let (x0, x1, z0, z1, top) = (-6.0, 6.0, -4.0, 4.0, 5.0);
+    let StageExtent { x0, x1, z0, z1, top } = STAGE;
     b.add_quad(Vec3::new(x0, 0.0, z1), Vec3::new(x1, 0.0, z1), Vec3::new(x1, 0.0, z0), Vec3::new(x0, 0.0, z0), floor);
     b.add_quad(Vec3::new(x0, 0.0, z0), Vec3::new(x1, 0.0, z0), Vec3::new(x1, top, z0), Vec3::new(x0, top, z0), back);
     b.add_quad(Vec3::new(x0, 0.0, z1), Vec3::new(x0, 0.0, z0), Vec3::new(x0, top, z0), Vec3::new(x0, top, z1), side);
-    add_box(&mut b, Vec3::new(-1.0, 0.0, -1.5), Vec3::new(0.0, 1.0, -0.5), tall);
-    add_box(&mut b, Vec3::new(1.0, 0.0, -0.5), Vec3::new(3.0, 0.4, 0.5), low);
+    add_box(&mut b, BOXES[0].0, BOXES[0].1, tall);
+    add_box(&mut b, BOXES[1].0, BOXES[1].1, low);
     let spot = |inner: f32, outer: f32| Beam::Spot(SpotBeam::from_half_angles(inner.to_radians(), outer.to_radians()));
     let lights = vec![
         Light::aimed(Vec3::new(-1.5, 4.5, 0.5), Vec3::new(-0.4, 0.5, -1.0), spot(12.0, 12.0)),

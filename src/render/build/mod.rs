@@ -321,6 +321,11 @@ impl LightBuild {
         self.yielded
     }
 
+    /// This light's edge pixels in its Whitted term `direct` ([`EdgeSamples::select`]).
+    fn select_edges(&self, scene: &Scene, view: &View, direct: &LightBuffer) -> EdgeSamples {
+        EdgeSamples::select(scene, view, &self.light, direct, light_seed(EDGE_SEED, self.index))
+    }
+
     /// Whether refinement passes supersample the direct term's edge pixels
     /// ([`EdgeSamples`], on by default). A photon leader turns it off: the
     /// indirect term it shares is its buffer less its Whitted term
@@ -633,17 +638,16 @@ impl LightBuild {
         };
         let indirect = view.render_vertex_irradiance(scene, &at_vertices);
         self.cancel.check()?;
-        let mut sum = plus_dense(direct, &indirect);
         if self.edges {
-            let mut edges = EdgeSamples::select(scene, view, &self.light, direct, light_seed(EDGE_SEED, self.index));
+            let mut edges = self.select_edges(scene, view, direct);
             for _ in 0..EDGE_PASSES_AT_PHOTONS {
                 if !edges.pass_until(scene, view, &self.light, &stop) {
                     return Err(Cancelled.into());
                 }
             }
-            edges.replace_in(&mut sum, direct);
             self.edge_samples = Some(edges);
         }
+        let sum = direct_plus(direct, self.edge_samples.as_ref(), &indirect);
         self.maps = Some(maps);
         self.start = Some(at_vertices);
         // `next()` goes on to refinement from here; called alone, the stage ends the build.
@@ -748,9 +752,7 @@ impl LightBuild {
         let edges = match (self.edges, self.edge_samples.take(), self.direct.as_deref()) {
             (false, ..) => None,
             (true, Some(edges), _) => Some(edges),
-            (true, None, Some(direct)) => {
-                Some(EdgeSamples::select(scene, view, &self.light, direct, light_seed(EDGE_SEED, self.index)))
-            }
+            (true, None, Some(direct)) => Some(self.select_edges(scene, view, direct)),
             (true, None, None) => None,
         }
         .filter(|e| !e.is_empty());
@@ -892,10 +894,7 @@ impl Refinement {
         let cancel = &self.cancel;
         view.fill_vertex_irradiance_until(scene, &maps, &mut start, &exact, &|| cancel.fired()).ok_or(Cancelled)?;
         let indirect = view.render_vertex_irradiance(scene, &start);
-        let mut sum = plus_dense(&self.direct, &indirect);
-        if let Some(edges) = &self.edges {
-            edges.replace_in(&mut sum, &self.direct);
-        }
+        let sum = direct_plus(&self.direct, self.edges.as_ref(), &indirect);
         let buffer = LightBuffer::from_dense(view.width(), view.height(), &sum);
         buffer.check()?;
         self.sppm = Some(Progressive::new(scene, view, &maps).starting_from(start, maps.settings.estimate as f32));
@@ -929,19 +928,17 @@ impl Refinement {
         // stage's batches (box stage: 3.9e-5 at 32 samples, 4.9e-6 at 128,
         // against 2-3e-4 for the whole picture), so a batch every pass
         // would double a pass's cost for nothing a reference can see.
-        let batch = (self.done + 1).is_power_of_two();
-        let mut edges = self.edges.take();
-        let edges_done = !batch || edges.as_mut().is_none_or(|e| e.pass_until(scene, view, &self.light, &stop));
-        if !edges_done {
-            self.edges = edges;
+        if (self.done + 1).is_power_of_two()
+            && let Some(edges) = self.edges.as_mut()
+            && !edges.pass_until(scene, view, &self.light, &stop)
+        {
             return Err(Cancelled.into());
         }
+        // A cancelled SPPM pass keeps the edge batch: more samples never
+        // hurt, and the next pass goes on from them.
         let indirect = match (self.sppm.as_mut(), self.fixed.as_ref()) {
             (Some(sppm), _) => {
                 if !sppm.pass_until(scene, view, &self.light, &stop) {
-                    // The edge batch stays: more samples never hurt, and
-                    // the next pass goes on from them.
-                    self.edges = edges;
                     return Err(Cancelled.into());
                 }
                 // SPPM from a coarse start: after a pass its picture is the
@@ -950,17 +947,10 @@ impl Refinement {
                 view.render_progressive(scene, sppm)
             }
             (None, Some(fixed)) => fixed.clone(),
-            (None, None) => {
-                self.edges = edges;
-                return Err(Cancelled.into());
-            }
+            (None, None) => return Err(Cancelled.into()),
         };
-        self.edges = edges;
         self.cancel.check()?;
-        let mut sum = plus_dense(&self.direct, &indirect);
-        if let Some(edges) = &self.edges {
-            edges.replace_in(&mut sum, &self.direct);
-        }
+        let sum = direct_plus(&self.direct, self.edges.as_ref(), &indirect);
         let buffer = LightBuffer::from_dense(view.width(), view.height(), &sum);
         buffer.check()?;
         self.done += 1;
@@ -1005,6 +995,16 @@ pub fn shared_indirect(leader: &LightBuffer, leader_whitted: &LightBuffer) -> Ve
 /// [`shared_indirect`] term; each cell keeps its own k_i (eq. 5).
 pub fn follower_sum(own_whitted: &LightBuffer, indirect: &[Vec3]) -> LightBuffer {
     LightBuffer::from_dense(own_whitted.width, own_whitted.height, &plus_dense(own_whitted, indirect))
+}
+
+/// D + A with each of `edges`' pixels' direct term its samples' mean
+/// ([`EdgeSamples::replace_in`]; `None`: the Whitted term as it is).
+fn direct_plus(direct: &LightBuffer, edges: Option<&EdgeSamples>, indirect: &[Vec3]) -> Vec<Vec3> {
+    let mut sum = plus_dense(direct, indirect);
+    if let Some(edges) = edges {
+        edges.replace_in(&mut sum, direct);
+    }
+    sum
 }
 
 /// D + A: the tile-sparse direct term added to a dense indirect term
