@@ -256,6 +256,10 @@ struct BenchArgs {
     /// (without --quick) the 600-fixture rig at 1920×1080.
     #[arg(long)]
     haze_only: bool,
+    /// With --haze-only: the whole hazy picture's reference samples per
+    /// pixel (default 1024; --quick 256).
+    #[arg(long, requires = "haze_only", value_parser = clap::value_parser!(u32).range(2..=1_000_000))]
+    haze_spp: Option<u32>,
     /// Only the accuracy round's section (issue 13: AA cost and error, moved-light
     /// convergence, indirect error), printed as Markdown.
     #[arg(long)]
@@ -393,7 +397,7 @@ impl BenchArgs {
         } else if self.walk_only {
             BenchSection::Walk
         } else if self.haze_only {
-            BenchSection::Haze
+            BenchSection::Haze { spp: self.haze_spp }
         } else if self.accuracy_only {
             BenchSection::Accuracy(self.accuracy_part)
         } else if self.gate_only {

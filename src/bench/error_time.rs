@@ -302,8 +302,9 @@ fn edge_share(img: &[Vec3], reference: &[Vec3], w: u32, h: u32) -> f64 {
 }
 
 /// A converged reference from two independent halves of `spp` / 2 samples
-/// each: (mean, its own relative MSE, seconds).
-fn reference(
+/// each, in `medium` if given: (mean, its own relative MSE, seconds).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn reference(
     scene: &Scene,
     lights: &[Light],
     k: &[Vec3],
@@ -311,11 +312,15 @@ fn reference(
     size: (u32, u32),
     spp: u32,
     indirect: bool,
+    medium: Option<crate::render::media::Medium>,
 ) -> (Vec<Vec3>, f64, f64) {
     let t = Instant::now();
     let half = (spp / 2).max(1);
     let mut a = PathReference::new(camera, size.0, size.1, 0xA11CE, indirect);
     let mut b = PathReference::new(camera, size.0, size.1, 0xB0B, indirect);
+    if let Some(m) = medium {
+        (a, b) = (a.with_medium(m), b.with_medium(m));
+    }
     // In rounds, so that a long reference shows progress in the log.
     let round = half.min(64);
     while a.samples() < half {
@@ -338,7 +343,7 @@ pub fn fitted_scale(a: &[Vec3], b: &[Vec3]) -> f64 {
 }
 
 /// Σ|b|² / Σ|m|²: turns a relative MSE against `b` into one against `m`.
-fn rel_energy(b: &[Vec3], m: &[Vec3]) -> f64 {
+pub(crate) fn rel_energy(b: &[Vec3], m: &[Vec3]) -> f64 {
     let eb: f64 = b.iter().map(|v| f64::from(v.length_squared())).sum();
     let em: f64 = m.iter().map(|v| f64::from(v.length_squared())).sum();
     if em > 0.0 { eb / em } else { 1.0 }
@@ -351,8 +356,8 @@ pub fn run(cfg: &ErrorTimeConfig) -> Result<ErrorTimeReport, crate::render::buil
     let (w, h) = cfg.size;
     tracing::info!("error against time: {w}×{h}, {} lights; the reference first", lights.len());
     let (reference_img, reference_noise, reference_seconds) =
-        reference(&scene, &lights, &k, camera, cfg.size, cfg.reference_spp, true);
-    let (direct_img, direct_noise, _) = reference(&scene, &lights, &k, camera, cfg.size, cfg.direct_spp, false);
+        reference(&scene, &lights, &k, camera, cfg.size, cfg.reference_spp, true, None);
+    let (direct_img, direct_noise, _) = reference(&scene, &lights, &k, camera, cfg.size, cfg.direct_spp, false, None);
     let point = |label: String, seconds: f64, img: &[Vec3], reference: &[Vec3], noise: f64| {
         let rel_mse = rel_mse(img, reference);
         Point { label, seconds, rel_mse, corrected: rel_mse - noise, scale: fitted_scale(img, reference) }

@@ -234,6 +234,9 @@ pub struct HazeReport {
     pub moved: Option<MovedBeam>,
     /// The 600-fixture rig (full runs only).
     pub rig: Option<RigHaze>,
+    /// The whole hazy picture against the volume path tracer
+    /// (`--haze-only` and full runs; [`super::haze_whole`]).
+    pub whole: Option<super::haze_whole::WholeHaze>,
 }
 
 impl HazeReport {
@@ -368,6 +371,9 @@ impl HazeReport {
                     "    600-fixture rig knot tails below {tau:.0e} of each light's peak dropped: {mib:.0} MiB of knots, knot 1 composite rel. L1 {rel:.2e} max/peak {max:.2e}\n"
                 );
             }
+        }
+        if let Some(w) = &self.whole {
+            s += &w.lines();
         }
         s
     }
@@ -515,6 +521,7 @@ pub fn run(
         density_live_quadratic,
         moved: None,
         rig,
+        whole: None,
     })
 }
 
@@ -574,7 +581,8 @@ pub fn run_volume(paths: usize, size: (u32, u32), repeats: usize) -> (Vec<Volume
             m.multiple = true;
             let similarity = f64::from(m.sigma_s * integrate_ray(&empty, &m, &spot, o, d, f32::INFINITY, 128).a1());
             m.multiple = false;
-            let est = f64::from(multiple_along_ray(&m, &photons, o, d, f32::INFINITY));
+            // Grey: no surface tints these photons (an empty scene).
+            let est = f64::from(multiple_along_ray(&m, &photons, o, d, f32::INFINITY).x);
             p.reference += mc.all - mc.single;
             p.estimate += est;
             p.all += mc.all;
@@ -606,7 +614,7 @@ pub fn run_volume(paths: usize, size: (u32, u32), repeats: usize) -> (Vec<Volume
             let (mut num, mut law, mut live, mut den) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
             for &(o, dir) in &rays {
                 let kappa = integrate_ray(&empty, &m, &spot, o, dir, f32::INFINITY, 128).kappa();
-                let at = |med: &Medium, ph| multiple_along_ray(med, ph, o, dir, f32::INFINITY);
+                let at = |med: &Medium, ph| multiple_along_ray(med, ph, o, dir, f32::INFINITY).x;
                 let exact = at(&thin, &rebuilt);
                 let re = at(&thin, &reweighted);
                 let scaled = anchored(at(&m, &full), kappa, 1.0, d);

@@ -15,6 +15,7 @@ pub mod festival;
 pub mod gate;
 pub mod harness;
 pub mod haze;
+pub mod haze_whole;
 pub mod indirect;
 pub mod live;
 pub mod mvr;
@@ -863,6 +864,9 @@ pub fn run(scene: &Scene, patch: &Patch, camera: Camera, cfg: &BenchConfig, out:
     );
     if let Some(report) = &mut haze {
         report.moved = haze::moved_beam(&scene_arc, camera, (w, h), 2, light, if cfg.quick { 2 } else { 10 });
+        report.whole = haze_whole::run(&haze_whole::WholeHazeConfig::new(cfg.quick))
+            .map_err(|e| tracing::error!("whole haze: {e}"))
+            .ok();
     }
     progress.set_message("44 moving heads in a chase");
     let chase = if cfg.quick {

@@ -17,8 +17,12 @@ pub enum BenchSection {
     All,
     /// "Walking the stage" (issue 16), printed as Markdown.
     Walk,
-    /// The haze section (issue 15).
-    Haze,
+    /// The haze section (issue 15; the whole picture: issue 34 item 5);
+    /// `spp` overrides the whole picture's reference samples.
+    Haze {
+        /// Samples per pixel of the whole hazy picture's reference.
+        spp: Option<u32>,
+    },
     /// The accuracy round (issue 13): these parts (empty: all).
     Accuracy(Vec<bench::accuracy::Part>),
     /// Gobos, shutters, prism, frost (issue 14).
@@ -107,7 +111,7 @@ pub fn bench(mut args: BenchOptions) -> Result<()> {
                 .map_err(|e| anyhow::anyhow!("walking the stage: {e}"))?;
             println!("{}", walk.markdown());
         }
-        BenchSection::Haze => {
+        BenchSection::Haze { spp } => {
             let scene = Arc::new(scene);
             let light = patch.fixtures.first().map(|f| f.light.clone()).context("the patch has no fixtures")?;
             let (repeats, paths, moves) = if quick { (1, 20_000, 2) } else { (3, 200_000, 10) };
@@ -115,6 +119,13 @@ pub fn bench(mut args: BenchOptions) -> Result<()> {
             let mut report = bench::haze::run(&scene, camera, size.0, size.1, &light, repeats, paths, rig.as_deref())
                 .context("haze: the scene has no volume for the haze box")?;
             report.moved = bench::haze::moved_beam(&scene, camera, size, 2, &light, moves);
+            report.whole = Some(
+                bench::haze_whole::run(&bench::haze_whole::WholeHazeConfig {
+                    reference_spp: spp.unwrap_or(bench::haze_whole::WholeHazeConfig::new(quick).reference_spp),
+                    ..bench::haze_whole::WholeHazeConfig::new(quick)
+                })
+                .map_err(|e| anyhow::anyhow!("whole haze: {e}"))?,
+            );
             println!("{}", report.lines());
         }
         BenchSection::Accuracy(parts) => {

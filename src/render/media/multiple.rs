@@ -56,7 +56,9 @@ use super::reference::sample_hg;
 use super::single::HazeView;
 use crate::fixture::Light;
 use crate::render::buffer::{HazeBuffer, LightBuffer, TILE};
+use crate::render::photon::trace::{cosine_hemisphere, scatter_probabilities};
 use crate::scene::Scene;
+use crate::scene::bvh::{Hit, offset_origin};
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
@@ -95,8 +97,8 @@ pub struct VolumePhotons {
     pos: Vec<Vec3>,
     /// Propagation directions (unit), arriving at the position.
     dir: Vec<Vec3>,
-    /// Powers (per 1 cd of the light).
-    power: Vec<f32>,
+    /// Powers per channel (per 1 cd of the light; surfaces tint them).
+    power: Vec<Vec3>,
     /// Scattering order of the collision each photon is stored at (≥ 2).
     order: Vec<u16>,
     /// Optical depth (at the traced medium's density) of the photon's path
@@ -144,7 +146,11 @@ impl VolumePhotons {
             .iter()
             .zip(&self.order)
             .zip(&self.tau)
-            .map(|((&p, &k), &tau)| if d > 0.0 { p * d.powi(i32::from(k)) * ((1.0 - d) * tau).exp() } else { 0.0 })
+            .map(
+                |((&p, &k), &tau)| {
+                    if d > 0.0 { p * (d.powi(i32::from(k)) * ((1.0 - d) * tau).exp()) } else { Vec3::ZERO }
+                },
+            )
             .collect();
         VolumePhotons {
             pos: self.pos.clone(),
@@ -165,10 +171,40 @@ impl VolumePhotons {
     }
 
     /// Σ p(ω_p · w_out) Φ_p over the photons within r of `x`.
-    fn gather(&self, x: Vec3, w_out: Vec3, g: f32) -> f32 {
+    fn gather(&self, x: Vec3, w_out: Vec3, g: f32) -> Vec3 {
+        let mut sum = Vec3::ZERO;
+        self.for_each_near(x, |i| sum += hg(g, self.dir[i].dot(w_out)) * self.power[i]);
+        sum
+    }
+
+    /// Σ Φ_p over the surface photons within r of `x` that arrived on the
+    /// side of the surface whose normal is `n` (a corner's other wall, the
+    /// back of a flat, is another surface).
+    fn gather_surface(&self, x: Vec3, n: Vec3) -> Vec3 {
+        let mut sum = Vec3::ZERO;
+        self.for_each_near(x, |i| {
+            if self.dir[i].dot(n) > SAME_SURFACE {
+                sum += self.power[i];
+            }
+        });
+        sum
+    }
+
+    /// True when some photon is in the 3×3×3 cells around `x`.
+    fn any_near(&self, x: Vec3) -> bool {
+        let c = self.cell_of(x);
+        (c[2].saturating_sub(1)..(c[2] + 2).min(self.dims[2])).any(|z| {
+            (c[1].saturating_sub(1)..(c[1] + 2).min(self.dims[1])).any(|y| {
+                let row = (z * self.dims[1] + y) * self.dims[0];
+                self.start[row + (c[0] + 2).min(self.dims[0])] > self.start[row + c[0].saturating_sub(1)]
+            })
+        })
+    }
+
+    /// Calls `f` with every photon within r of `x`.
+    fn for_each_near(&self, x: Vec3, mut f: impl FnMut(usize)) {
         let c = self.cell_of(x);
         let r2 = self.radius * self.radius;
-        let mut sum = 0.0;
         for z in c[2].saturating_sub(1)..(c[2] + 2).min(self.dims[2]) {
             for y in c[1].saturating_sub(1)..(c[1] + 2).min(self.dims[1]) {
                 let row = (z * self.dims[1] + y) * self.dims[0];
@@ -176,38 +212,65 @@ impl VolumePhotons {
                 let x1 = row + (c[0] + 2).min(self.dims[0]);
                 for i in self.start[x0] as usize..self.start[x1] as usize {
                     if (self.pos[i] - x).length_squared() < r2 {
-                        sum += hg(g, self.dir[i].dot(w_out)) * self.power[i];
+                        f(i);
                     }
                 }
             }
         }
-        sum
     }
 }
+
+/// A surface photon counts toward a pixel when its normal and the pixel's
+/// are within ~45°.
+const SAME_SURFACE: f32 = 0.7;
 
 /// One stored photon before gridding.
 #[derive(Clone, Copy)]
 struct Stored {
     pos: Vec3,
     dir: Vec3,
-    power: f32,
+    power: Vec3,
     order: u16,
     tau: f32,
 }
 
 /// Traces `settings.photons` photons of `light` (1 cd) through `medium`
-/// and stores them at every collision after the first scattering (module
-/// doc). Surfaces of `scene` end a photon's path. Seeded, deterministic.
+/// and keeps the volume photons ([`trace_haze_photons`]'s `volume`).
+/// Seeded, deterministic.
 pub fn trace_volume_photons(
     scene: &Scene,
     light: &Light,
     medium: &Medium,
     settings: &MultipleSettings,
 ) -> VolumePhotons {
+    trace_haze_photons(scene, light, medium, settings).volume
+}
+
+/// A light's photons in haze: in the air and on the surfaces.
+pub struct HazePhotons {
+    /// Stored at collisions in the haze, except the light's own first
+    /// collision (the analytic beam): orders ≥ 2, and light a surface
+    /// reflected into the haze (order 1 after a bounce).
+    pub volume: VolumePhotons,
+    /// Stored where light that scattered in the haze at least once lands
+    /// on a diffuse surface (haze light reaching surfaces); `dir` holds the
+    /// surface's normal on the side the photon arrived from.
+    pub surface: VolumePhotons,
+}
+
+/// Traces `settings.photons` photons of `light` (1 cd) through `medium`
+/// and the scene's diffuse surfaces (module doc): every emitted photon
+/// splits at its first segment into the part that collides in the haze
+/// (forced collision, power × (1 − e^(−σ_t L))) and the part that reaches
+/// the first surface (power × e^(−σ_t L)); both walk on, colliding or
+/// reaching the next surface (forced where no surface is in the way),
+/// reflecting diffusely (Russian roulette on the mean albedo), scattering
+/// by Henyey-Greenstein. Seeded, deterministic.
+pub fn trace_haze_photons(scene: &Scene, light: &Light, medium: &Medium, settings: &MultipleSettings) -> HazePhotons {
     let extent = medium.max - medium.min;
     let radius = (settings.radius_frac.max(1e-3) * extent.max_element()).max(extent.max_element() / MAX_CELLS as f32);
     let dims = [0, 1, 2].map(|a| ((extent[a] / radius).ceil() as usize).clamp(1, MAX_CELLS));
-    let empty = VolumePhotons {
+    let empty = || VolumePhotons {
         pos: Vec::new(),
         dir: Vec::new(),
         power: Vec::new(),
@@ -220,9 +283,8 @@ pub fn trace_volume_photons(
     };
     let sigma_t = medium.sigma_t();
     if !(sigma_t > 0.0) || !(medium.sigma_s > 0.0) || settings.photons == 0 {
-        return empty;
+        return HazePhotons { volume: empty(), surface: empty() };
     }
-    let albedo = medium.sigma_s / sigma_t;
     let cos_cut = light.beam.cos_cutoff().clamp(-1.0, 1.0);
     let solid = std::f32::consts::TAU * (1.0 - cos_cut);
     let axis = light.axis();
@@ -230,11 +292,12 @@ pub fn trace_volume_photons(
     let n = settings.photons;
     let per_photon = solid / n as f32;
     let chunks = n.div_ceil(CHUNK);
-    let stored: Vec<Stored> = (0..chunks)
+    let walker = Walker { scene, medium, albedo: medium.sigma_s / sigma_t, max_order: settings.max_order };
+    let stored: Vec<(Vec<Stored>, Vec<Stored>)> = (0..chunks)
         .into_par_iter()
-        .flat_map_iter(|k| {
+        .map(|k| {
             let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(settings.seed.wrapping_add(k as u64));
-            let mut out = Vec::new();
+            let mut out = (Vec::new(), Vec::new());
             for _ in k * CHUNK..((k + 1) * CHUNK).min(n) {
                 // Uniform in the cap cos θ ≥ cos_cut around the axis.
                 let cos = 1.0 - rng.random::<f32>() * (1.0 - cos_cut);
@@ -245,54 +308,179 @@ pub fn trace_volume_photons(
                 if !(f > 0.0) {
                     continue;
                 }
-                walk(scene, medium, light.position, w, f * per_photon, albedo, settings.max_order, &mut rng, &mut out);
+                walker.emit(light.position, w, f * per_photon, &mut rng, &mut out);
             }
             out
         })
         .collect();
-    grid(stored, empty)
+    let (mut volume, mut surface) = (Vec::new(), Vec::new());
+    for (v, s) in stored {
+        volume.extend(v);
+        surface.extend(s);
+    }
+    HazePhotons { volume: grid(volume, empty()), surface: grid(surface, empty()) }
 }
 
-/// One photon's random walk with forced collisions (module doc).
-#[allow(clippy::too_many_arguments)]
-fn walk(
-    scene: &Scene,
-    medium: &Medium,
-    mut x: Vec3,
-    mut w: Vec3,
-    mut power: f32,
+/// What one photon's walk needs (module doc).
+struct Walker<'a> {
+    scene: &'a Scene,
+    medium: &'a Medium,
+    /// σ_s / σ_t.
     albedo: f32,
+    /// Events (collisions and bounces) followed at most.
     max_order: u32,
-    rng: &mut rand_pcg::Pcg64Mcg,
-    out: &mut Vec<Stored>,
-) {
-    let sigma_t = medium.sigma_t();
-    let start = power;
-    let mut tau = 0.0f32;
-    for order in 1..=max_order {
-        let t_surface = scene.accel.intersect(x, w, f32::INFINITY).map_or(f32::INFINITY, |h| h.t);
-        let Some((t0, t1)) = medium.clip(x, w, t_surface) else { return };
-        let p_seg = 1.0 - (-sigma_t * (t1 - t0)).exp();
-        if !(p_seg > 0.0) {
-            return;
-        }
-        let u: f32 = rng.random();
-        let s = (-(1.0 - u * p_seg).ln() / sigma_t).min(t1 - t0);
-        x += w * (t0 + s);
-        power *= p_seg;
-        tau += sigma_t * s;
-        if order >= 2 {
-            out.push(Stored { pos: x, dir: w, power, order: order.min(u32::from(u16::MAX)) as u16, tau });
-        }
-        power *= albedo;
-        // Russian roulette below 1 % of the emitted power.
-        if power < 0.01 * start {
-            if rng.random::<f32>() < 0.5 {
-                return;
+}
+
+/// Where a photon is, where it goes, what it carries.
+#[derive(Clone, Copy)]
+struct Walk {
+    x: Vec3,
+    w: Vec3,
+    /// Power per 1 cd, per channel (surfaces tint it).
+    power: Vec3,
+    /// Collisions in the haze so far (the density law's k).
+    order: u32,
+    /// Optical depth of the path so far, at the traced density.
+    tau: f32,
+    /// Events so far.
+    events: u32,
+    /// The emitted power (the Russian roulette's scale).
+    start: f32,
+}
+
+/// Volume photons and surface photons stored by one chunk.
+type Stores = (Vec<Stored>, Vec<Stored>);
+
+impl Walker<'_> {
+    /// One photon leaving the light at `x` along `w` with `power`: its
+    /// first segment split between a collision (the beam's own, order 1:
+    /// not stored) and the first surface (module doc), both followed.
+    fn emit(&self, x: Vec3, w: Vec3, power: f32, rng: &mut rand_pcg::Pcg64Mcg, out: &mut Stores) {
+        let sigma_t = self.medium.sigma_t();
+        let hit = self.scene.accel.intersect(x, w, f32::INFINITY);
+        let t_surface = hit.as_ref().map_or(f32::INFINITY, |h| h.t);
+        let clip = self.medium.clip(x, w, t_surface);
+        let p_seg = clip.map_or(0.0, |(t0, t1)| 1.0 - (-sigma_t * (t1 - t0)).exp());
+        let start = power;
+        if p_seg > 0.0
+            && let Some((t0, t1)) = clip
+        {
+            let u: f32 = rng.random();
+            let s = (-(1.0 - u * p_seg).ln() / sigma_t).min(t1 - t0);
+            let mut walk = Walk {
+                x: x + w * (t0 + s),
+                w,
+                power: Vec3::splat(power * p_seg * self.albedo),
+                order: 1,
+                tau: sigma_t * s,
+                events: 1,
+                start,
+            };
+            if self.roulette(&mut walk, rng) {
+                walk.w = sample_hg(self.medium.g, w, rng.random(), rng.random());
+                self.follow(walk, rng, out);
             }
-            power *= 2.0;
         }
-        w = sample_hg(medium.g, w, rng.random(), rng.random());
+        if let Some(hit) = hit
+            && p_seg < 1.0
+        {
+            let tau = clip.map_or(0.0, |(t0, t1)| sigma_t * (t1 - t0));
+            let walk = Walk { x, w, power: Vec3::splat(power * (1.0 - p_seg)), order: 0, tau, events: 0, start };
+            if let Some(walk) = self.bounce(walk, &hit, rng, out) {
+                self.follow(walk, rng, out);
+            }
+        }
+    }
+
+    /// Walks on from `walk` until the photon leaves, is absorbed or has
+    /// had `max_order` events.
+    fn follow(&self, mut walk: Walk, rng: &mut rand_pcg::Pcg64Mcg, out: &mut Stores) {
+        let sigma_t = self.medium.sigma_t();
+        while walk.events < self.max_order {
+            let hit = self.scene.accel.intersect(walk.x, walk.w, f32::INFINITY);
+            let t_surface = hit.as_ref().map_or(f32::INFINITY, |h| h.t);
+            if let Some((t0, t1)) = self.medium.clip(walk.x, walk.w, t_surface) {
+                let p_seg = 1.0 - (-sigma_t * (t1 - t0)).exp();
+                // Collide with probability q: forced (q = 1) where no surface
+                // is in the way, at least ½ otherwise (thin haze keeps its
+                // volume photons); the weights keep it unbiased.
+                let q = if hit.is_some() { p_seg.max(0.5) } else { 1.0 };
+                let collide = q >= 1.0 || rng.random::<f32>() < q;
+                if collide && p_seg > 0.0 {
+                    let u: f32 = rng.random();
+                    let s = (-(1.0 - u * p_seg).ln() / sigma_t).min(t1 - t0);
+                    walk.x += walk.w * (t0 + s);
+                    walk.power *= p_seg / q;
+                    walk.tau += sigma_t * s;
+                    walk.order += 1;
+                    walk.events += 1;
+                    out.0.push(Stored {
+                        pos: walk.x,
+                        dir: walk.w,
+                        power: walk.power,
+                        order: walk.order.min(u32::from(u16::MAX)) as u16,
+                        tau: walk.tau,
+                    });
+                    walk.power *= self.albedo;
+                    if !self.roulette(&mut walk, rng) {
+                        return;
+                    }
+                    walk.w = sample_hg(self.medium.g, walk.w, rng.random(), rng.random());
+                    continue;
+                }
+                if q >= 1.0 {
+                    return;
+                }
+                walk.power *= (1.0 - p_seg) / (1.0 - q);
+                walk.tau += sigma_t * (t1 - t0);
+            }
+            let Some(hit) = hit else { return };
+            match self.bounce(walk, &hit, rng, out) {
+                Some(next) => walk = next,
+                None => return,
+            }
+        }
+    }
+
+    /// The photon `walk` arriving at `hit`: stored there if it scattered in
+    /// the haze before (order ≥ 1) on a diffuse surface, then reflected
+    /// diffusely (Russian roulette on the mean albedo), or `None`.
+    fn bounce(&self, mut walk: Walk, hit: &Hit, rng: &mut rand_pcg::Pcg64Mcg, out: &mut Stores) -> Option<Walk> {
+        let s = self.scene.surface(hit);
+        let facing = s.facing(walk.w);
+        let rho = self.scene.diffuse_at(&s);
+        if walk.order >= 1 && rho.max_element() > 0.0 {
+            out.1.push(Stored {
+                pos: s.position,
+                dir: facing.geometric,
+                power: walk.power,
+                order: walk.order.min(u32::from(u16::MAX)) as u16,
+                tau: walk.tau,
+            });
+        }
+        let (pd, _, _) = scatter_probabilities(rho, &self.scene.materials[s.material as usize]);
+        if !(pd > 0.0) || rng.random::<f32>() >= pd {
+            return None;
+        }
+        walk.power *= rho / pd;
+        walk.w = cosine_hemisphere(facing.shading, rng.random(), rng.random());
+        if walk.w.dot(facing.geometric) <= 0.0 {
+            return None;
+        }
+        walk.x = offset_origin(s.position, facing.geometric);
+        walk.events += 1;
+        self.roulette(&mut walk, rng).then_some(walk)
+    }
+
+    /// Russian roulette below 1 % of the emitted power: false ends the walk.
+    fn roulette(&self, walk: &mut Walk, rng: &mut rand_pcg::Pcg64Mcg) -> bool {
+        if walk.power.max_element() < 0.01 * walk.start {
+            if rng.random::<f32>() < 0.5 {
+                return false;
+            }
+            walk.power *= 2.0;
+        }
+        true
     }
 }
 
@@ -331,20 +519,20 @@ fn grid(stored: Vec<Stored>, mut grid: VolumePhotons) -> VolumePhotons {
 /// Multiply scattered radiance (orders ≥ 2, per 1 cd, at `medium`'s
 /// density) reaching `origin` along the ray `origin + t·dir` (unit), t up to
 /// `t_surface` (∞: none): a ray march through the photons (module doc).
-pub fn multiple_along_ray(medium: &Medium, photons: &VolumePhotons, origin: Vec3, dir: Vec3, t_surface: f32) -> f32 {
+pub fn multiple_along_ray(medium: &Medium, photons: &VolumePhotons, origin: Vec3, dir: Vec3, t_surface: f32) -> Vec3 {
     if photons.is_empty() {
-        return 0.0;
+        return Vec3::ZERO;
     }
-    let Some((t0, t1)) = medium.clip(origin, dir, t_surface) else { return 0.0 };
+    let Some((t0, t1)) = medium.clip(origin, dir, t_surface) else { return Vec3::ZERO };
     let r = photons.radius;
     let steps = ((t1 - t0) / r).ceil().clamp(1.0, 4096.0) as usize;
     let step = (t1 - t0) / steps as f32;
     let sigma_t = medium.sigma_t();
-    let mut sum = 0.0;
+    let mut sum = Vec3::ZERO;
     for k in 0..steps {
         let tau = (k as f32 + 0.5) * step;
         let s = photons.gather(origin + dir * (t0 + tau), -dir, medium.g);
-        if s > 0.0 {
+        if s != Vec3::ZERO {
             sum += s * (-sigma_t * tau).exp();
         }
     }
@@ -356,17 +544,17 @@ pub fn multiple_along_ray(medium: &Medium, photons: &VolumePhotons, origin: Vec3
 /// these are for the view `hv` (per 1 cd, at `medium`'s density): dense,
 /// row-major, traced every `scale`-th pixel and upsampled with depth-aware
 /// bilinear weights.
-pub fn render_multiple(hv: &HazeView, medium: &Medium, photons: &VolumePhotons, scale: u32) -> Vec<f32> {
+pub fn render_multiple(hv: &HazeView, medium: &Medium, photons: &VolumePhotons, scale: u32) -> Vec<Vec3> {
     let (w, h) = (hv.width as usize, hv.height as usize);
     if photons.is_empty() || w == 0 || h == 0 {
-        return vec![0.0; w * h];
+        return vec![Vec3::ZERO; w * h];
     }
     let s = scale.max(1) as usize;
     let (cw, ch) = (w.div_ceil(s), h.div_ceil(s));
     let rep = |c: usize, n: usize| (c * s + s / 2).min(n - 1);
     let cam = hv.camera.position;
     let trace = |i: usize| multiple_along_ray(medium, photons, cam, hv.dir(i), hv.t_hit(i));
-    let coarse: Vec<f32> = (0..cw * ch).into_par_iter().map(|k| trace(rep(k / cw, h) * w + rep(k % cw, w))).collect();
+    let coarse: Vec<Vec3> = (0..cw * ch).into_par_iter().map(|k| trace(rep(k / cw, h) * w + rep(k % cw, w))).collect();
     if s == 1 {
         return coarse;
     }
@@ -378,7 +566,7 @@ pub fn render_multiple(hv: &HazeView, medium: &Medium, photons: &VolumePhotons, 
             let (cy0, fy) = cell(y, s, ch, h);
             let (cx1, cy1) = ((cx0 + 1).min(cw - 1), (cy0 + 1).min(ch - 1));
             let t_here = hv.t_hit(i);
-            let mut sum = 0.0;
+            let mut sum = Vec3::ZERO;
             let mut wsum = 0.0;
             for (cx, cy, wb) in [
                 (cx0, cy0, (1.0 - fx) * (1.0 - fy)),
@@ -391,6 +579,37 @@ pub fn render_multiple(hv: &HazeView, medium: &Medium, photons: &VolumePhotons, 
                 wsum += wt;
             }
             if wsum > 1e-3 { sum / wsum } else { trace(i) }
+        })
+        .collect()
+}
+
+/// Haze light reaching the surfaces, seen by the camera (per 1 cd, at
+/// `medium`'s density; dense, row-major): at the surface each pixel's
+/// centre ray hits, the surface photons' irradiance E = Σ Φ / (π r²) over
+/// the disc of the kernel radius r on the same side, reflected by Lambert
+/// ρ_d/π and dimmed by the haze on the camera ray. Pixels with no photon
+/// nearby cost one grid lookup.
+pub fn render_surface_glow(scene: &Scene, hv: &HazeView, medium: &Medium, photons: &VolumePhotons) -> Vec<Vec3> {
+    let (w, h) = (hv.width as usize, hv.height as usize);
+    if photons.is_empty() {
+        return vec![Vec3::ZERO; w * h];
+    }
+    let cam = hv.camera.position;
+    let area = std::f32::consts::PI * photons.radius * photons.radius;
+    (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            if !hv.hit_point(i).is_some_and(|p| photons.any_near(p)) {
+                return Vec3::ZERO;
+            }
+            let dir = hv.dir(i);
+            let Some(hit) = scene.accel.intersect(cam, dir, f32::INFINITY) else { return Vec3::ZERO };
+            let s = scene.surface(&hit);
+            let e = photons.gather_surface(s.position, s.facing(dir).geometric) / area;
+            scene.diffuse_at(&s)
+                * std::f32::consts::FRAC_1_PI
+                * e
+                * (-medium.sigma_t() * medium.length_inside(cam, s.position)).exp()
         })
         .collect()
 }
@@ -427,17 +646,18 @@ pub const TILE_CUTOFF: f32 = 1e-3;
 /// [`TILE_CUTOFF`] of the peak are kept, plus the tiles in `keep` (the
 /// beam's, so the glow inside the beam is never cut). Non-finite or
 /// negative values are stored as they are: the buffer check reports them.
-pub fn multiple_buffer(width: u32, height: u32, multiple: &[f32], keep: &[(usize, usize)]) -> LightBuffer {
+pub fn multiple_buffer(width: u32, height: u32, multiple: &[Vec3], keep: &[(usize, usize)]) -> LightBuffer {
     let (w, h) = (width as usize, height as usize);
     if multiple.len() != w * h {
         return LightBuffer::empty(width, height);
     }
-    let peak = multiple.iter().fold(0.0f32, |a, &m| if m.is_finite() { a.max(m) } else { a });
+    let peak = multiple.iter().fold(0.0f32, |a, m| if m.is_finite() { a.max(m.max_element()) } else { a });
     let mut tiles = keep.to_vec();
     for ty in 0..h.div_ceil(TILE) {
         for tx in 0..w.div_ceil(TILE) {
-            let lit = (ty * TILE..((ty + 1) * TILE).min(h))
-                .any(|y| (tx * TILE..((tx + 1) * TILE).min(w)).any(|x| !(multiple[y * w + x] < TILE_CUTOFF * peak)));
+            let lit = (ty * TILE..((ty + 1) * TILE).min(h)).any(|y| {
+                (tx * TILE..((tx + 1) * TILE).min(w)).any(|x| !(multiple[y * w + x].max_element() < TILE_CUTOFF * peak))
+            });
             if peak > 0.0 && lit {
                 tiles.push((tx, ty));
             }
@@ -448,7 +668,7 @@ pub fn multiple_buffer(width: u32, height: u32, multiple: &[f32], keep: &[(usize
     LightBuffer::from_tiles(width, height, &tiles, |tx, ty, tile| {
         for r in 0..TILE.min(h - ty * TILE) {
             for c in 0..TILE.min(w - tx * TILE) {
-                tile[r * TILE + c] = Vec3::new(multiple[(ty * TILE + r) * w + tx * TILE + c], 0.0, 0.0);
+                tile[r * TILE + c] = multiple[(ty * TILE + r) * w + tx * TILE + c];
             }
         }
     })
@@ -474,7 +694,7 @@ pub fn render_beam_with_multiple(
 ) -> HazeBuffer {
     let air = Medium { multiple: false, ..*medium };
     let beam = super::single::render_inscatter(scene, hv, light, &air, quality);
-    let photons = trace_volume_photons(scene, light, &air, settings);
+    let photons = trace_haze_photons(scene, light, &air, settings);
     let keep = beam.as_light_buffer().occupied();
     let (w, h) = (beam.width(), beam.height());
     densities.iter().fold(beam, |haze, &d| {
@@ -482,7 +702,10 @@ pub fn render_beam_with_multiple(
         if d == 0.0 {
             return haze;
         }
-        let term = render_multiple(hv, &air.at_density(d), &photons.at_density(d), settings.scale);
+        let at = air.at_density(d);
+        let mut term = render_multiple(hv, &at, &photons.volume.at_density(d), settings.scale);
+        let glow = render_surface_glow(scene, hv, &at, &photons.surface.at_density(d));
+        term.iter_mut().zip(&glow).for_each(|(t, g)| *t += *g);
         haze.with_multiple(d, multiple_buffer(w, h, &term, &keep))
     })
 }

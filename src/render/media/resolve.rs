@@ -5,7 +5,7 @@
 //!   buffer_i(d) = S_i · e^(−d κ_s) + d σ_s a0 e^(−d κ_h)
 //!
 //! S_i is the light's surface buffer without haze (direct + indirect, what
-//! Footlight rendered before haze existed), κ_s = σ_t τ_cam + σ_t* τ_light
+//! Footlight rendered before haze existed), κ_s = σ_t (τ_cam + τ_light)
 //! the optical depth from the pixel's surface point to the camera and to
 //! the light (computed here from the view: no ray is traced), and (a0, κ_h)
 //! the haze buffer ([`super::single`]). A haze buffer with multiple
@@ -83,8 +83,8 @@ pub fn resolve(
                     }
                 }
                 if let Some((at, m)) = mt {
-                    let m = m[k].x;
-                    v += Vec3::splat(if at == d { m } else { super::multiple::anchored(m, kappa, at, d) });
+                    let m = m[k];
+                    v += if at == d { m } else { m.map(|m| super::multiple::anchored(m, kappa, at, d)) };
                 }
                 tile[k] = v;
             }
@@ -92,14 +92,17 @@ pub fn resolve(
     })
 }
 
-/// The surface optical depth κ_s = σ_t τ_cam + σ_t* τ_light at density 1 of
+/// The surface optical depth κ_s = σ_t (τ_cam + τ_light) at density 1 of
 /// pixel `i` for a light at `light_position` (0 where the centre ray hits
 /// nothing): [`resolve`] multiplies the surface buffer by e^(−d κ_s).
+/// The light path takes the whole σ_t, also with `multiple`: the light the
+/// haze scatters on its way to the surface comes back as the surface
+/// photons' term ([`super::multiple::render_surface_glow`]), so the
+/// similarity relation's σ_t* would count it twice.
 pub fn surface_depth(hv: &HazeView, medium: &Medium, light_position: Vec3, i: usize) -> f32 {
     match hv.hit_point(i) {
         Some(p) => {
-            medium.sigma_t() * medium.length_inside(hv.camera.position, p)
-                + medium.sigma_t_light() * medium.length_inside(p, light_position)
+            medium.sigma_t() * (medium.length_inside(hv.camera.position, p) + medium.length_inside(p, light_position))
         }
         None => 0.0,
     }
@@ -109,10 +112,5 @@ pub fn surface_depth(hv: &HazeView, medium: &Medium, light_position: Vec3, i: us
 /// at `light_position` (1 where the centre ray hits nothing): what
 /// [`resolve`] multiplies the surface buffer by.
 pub fn surface_transmittance(hv: &HazeView, medium: &Medium, light_position: Vec3, i: usize) -> f32 {
-    match hv.hit_point(i) {
-        Some(p) => (-(medium.sigma_t() * medium.length_inside(hv.camera.position, p)
-            + medium.sigma_t_light() * medium.length_inside(p, light_position)))
-        .exp(),
-        None => 1.0,
-    }
+    (-surface_depth(hv, medium, light_position, i)).exp()
 }
