@@ -357,7 +357,7 @@ mod tests {
         for (i, (c, v)) in clear.iter().zip(&hazy).enumerate() {
             let dir = camera.direction((i % w as usize) as f32 + 0.5, (i / w as usize) as f32 + 0.5, w, h);
             let t = -camera.position.y / dir.y;
-            if !(t > 0.0) {
+            if t.is_nan() || t <= 0.0 {
                 continue;
             }
             let p = camera.position + dir * t;
