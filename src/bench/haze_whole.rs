@@ -79,6 +79,8 @@ pub struct WholeHazeRow {
     pub fitted_scale: f64,
     /// Σ ours / Σ reference per region (air, lit, unlit).
     pub regions: [f64; 3],
+    /// Share of the squared error per region (air, lit, unlit).
+    pub error_share: [f64; 3],
 }
 
 /// The section's figures.
@@ -173,6 +175,11 @@ pub fn run(cfg: &WholeHazeConfig) -> Result<WholeHaze, RenderError> {
         let ours = sums(&img);
         let energy = ours.iter().sum::<f64>() / total.max(1e-30);
         let rel = rel_mse(&img, &reference_img);
+        let mut error = [0.0f64; 3];
+        for ((a, b), r) in img.iter().zip(&reference_img).zip(&regions) {
+            error[index(*r)] += f64::from((*a - *b).length_squared());
+        }
+        let error_total: f64 = error.iter().sum();
         rows.push(WholeHazeRow {
             label: label.into(),
             seconds,
@@ -181,6 +188,7 @@ pub fn run(cfg: &WholeHazeConfig) -> Result<WholeHaze, RenderError> {
             rel_mse_corrected: (rel - reference_noise).max(0.0),
             fitted_scale: fitted_scale(&img, &reference_img),
             regions: [0, 1, 2].map(|r| ours[r] / reference_sums[r].max(1e-30)),
+            error_share: error.map(|e| e / error_total.max(1e-30)),
         });
     }
     Ok(WholeHaze {
@@ -217,7 +225,7 @@ impl WholeHaze {
         );
         for r in &self.rows {
             s += &format!(
-                "    {:<60} {:>6.2} s  energy {:.4}  rel. MSE {:.2e} (corrected {:.2e})  scale {:.4}  air / lit / unlit {:.3} / {:.3} / {:.3}\n",
+                "    {:<60} {:>6.2} s  energy {:.4}  rel. MSE {:.2e} (corrected {:.2e})  scale {:.4}  air / lit / unlit {:.3} / {:.3} / {:.3}, share of the error {:.2} / {:.2} / {:.2}\n",
                 r.label,
                 r.seconds,
                 r.energy,
@@ -226,7 +234,10 @@ impl WholeHaze {
                 r.fitted_scale,
                 r.regions[0],
                 r.regions[1],
-                r.regions[2]
+                r.regions[2],
+                r.error_share[0],
+                r.error_share[1],
+                r.error_share[2]
             );
         }
         s

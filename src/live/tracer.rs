@@ -123,6 +123,7 @@ use crate::output::{LightReport, MemoryUsage, Stage};
 use crate::render::buffer::{HazeBuffer, SharedLayer};
 use crate::render::build::{BuildError, BuildSettings, Cancel, LightBuild, NextStage};
 use crate::render::footprint::DirectQuality;
+use crate::render::media::resolve::surface_medium;
 use crate::render::media::{HazeQuality, HazeView, Medium, knot_buffers, update_knots};
 use crate::render::photon::PhotonMaps;
 use crate::render::{LightBuffer, View};
@@ -288,7 +289,10 @@ struct SlotState {
     /// In haze: the surface buffer and knot buffers last published and
     /// their request (a later stage updates these knots; a finished light
     /// leaves them in the geometry cache).
-    knots: Option<(u64, Arc<LightBuffer>, Knots)>,
+    /// The medium their surfaces were dimmed with
+    /// ([`crate::render::media::resolve::surface_medium`]), which a later
+    /// stage's update keeps.
+    knots: Option<(u64, Arc<LightBuffer>, Knots, Medium)>,
     /// Direct-stage publish times in the last second.
     direct_times: VecDeque<Instant>,
     direct_total: u64,
@@ -1202,31 +1206,34 @@ impl Shared {
                     let mut st = slot.state.lock().expect("slot lock");
                     (st.beam.take().filter(|(bid, _)| *bid == id), st.knots.clone().filter(|(kid, ..)| *kid == id))
                 };
-                let knots = match (beam, previous) {
+                let (knots, surfaces) = match (beam, previous) {
                     // A new beam: resolved at once, then dropped.
-                    (Some((_, beam)), _) => knot_buffers(&hv, m, light.position, &buffer, Some(&beam)),
-                    // A later stage: the knots follow the surface buffer.
-                    (None, Some((_, before, k))) => {
-                        update_knots(&hv, m, light.position, &before, &buffer, [k[0].as_ref(), k[1].as_ref()])
+                    (Some((_, beam)), _) => {
+                        (knot_buffers(&hv, m, light.position, &buffer, Some(&beam)), surface_medium(m, Some(&beam)))
                     }
-                    (None, None) => knot_buffers(&hv, m, light.position, &buffer, None),
+                    // A later stage: the knots follow the surface buffer.
+                    (None, Some((_, before, k, surfaces))) => (
+                        update_knots(&hv, &surfaces, light.position, &before, &buffer, [k[0].as_ref(), k[1].as_ref()]),
+                        surfaces,
+                    ),
+                    (None, None) => (knot_buffers(&hv, m, light.position, &buffer, None), *m),
                 };
-                Some(knots.map(Arc::new))
+                Some((knots.map(Arc::new), surfaces))
             }
             _ => None,
         };
         {
             let mut st = slot.state.lock().expect("slot lock");
             st.shown = Some(light.clone());
-            st.knots = hazy.clone().map(|k| (id, buffer.clone(), k));
+            st.knots = hazy.clone().map(|(k, surfaces)| (id, buffer.clone(), k, surfaces));
             st.failed = None;
             let n = self.publishes.fetch_add(1, Ordering::SeqCst);
             st.first_publish.get_or_insert(n);
             st.last_publish = Some(n);
         }
         let mut p = slot.published.lock().expect("published lock");
-        if let Some(hazy) = hazy {
-            p.hazy = hazy;
+        if let Some((knots, _)) = hazy {
+            p.hazy = knots;
         }
         p.buffer = buffer.clone();
         p.shared = None;
@@ -1752,7 +1759,7 @@ fn finished(s: &Shared, index: usize, id: u64, light: &Light, finished: Finished
     }
     let mut st = s.slots[index].state.lock().expect("slot lock");
     // In haze the entry keeps the knot buffers published with `buffer`.
-    let knots = st.knots.clone().filter(|(kid, ..)| *kid == id).map(|(.., k)| k);
+    let knots = st.knots.clone().filter(|(kid, ..)| *kid == id).map(|(_, _, k, _)| k);
     if s.haze.is_none() || knots.is_some() {
         // Lock order: slot state, then the cache.
         s.cache.lock().expect("cache lock").insert_in(index, light, s.haze, Finished { knots, ..finished });

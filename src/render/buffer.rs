@@ -226,9 +226,9 @@ impl LightBuffer {
 /// medium's full density (single-scattered radiance at density d =
 /// d σ_s a0 e^(−d κ)), z = 0. Pixels whose ray misses the beam hold
 /// (0, 0, 0) and cost no storage. With multiple scattering
-/// (`render::media::multiple`) it also holds the multiply scattered
-/// radiance (orders ≥ 2, per 1 cd) rendered at one or more densities, each
-/// a tile-sparse buffer with the value in x.
+/// (`render::media::multiple`) it also holds the photons' radiance (orders
+/// ≥ 2, surface light into the haze, haze light onto surfaces; per 1 cd,
+/// RGB) rendered at one or more densities, each a tile-sparse buffer.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HazeBuffer {
     beam: LightBuffer,
@@ -252,7 +252,7 @@ impl HazeBuffer {
     }
 
     /// This buffer with the multiply scattered radiance at haze density
-    /// `density` (0-1 of the medium's) added: `term` holds it in x. A term
+    /// `density` (0-1 of the medium's) added: `term` holds it (RGB). A term
     /// already held for that density is replaced; terms stay sorted by density.
     pub fn with_multiple(mut self, density: f32, term: LightBuffer) -> Self {
         self.multiple.retain(|(d, _)| *d != density);

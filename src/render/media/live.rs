@@ -75,6 +75,8 @@ pub fn knot_buffers(
 /// A light's knot buffers ½ and 1 for its new surface buffer `surface`,
 /// from `knots`, those of its previous surface buffer `previous` (same
 /// light, same beam, same view): b_j + (S' − S) e^(−d_j κ_s) (module doc).
+/// `medium` is the one the knots' surfaces were dimmed with
+/// ([`super::resolve::surface_medium`] of the beam they were made with).
 /// A rounding residue below 0 where the surface term cancels is 0; a NaN
 /// stays NaN (the buffer check reports it).
 pub fn update_knots(

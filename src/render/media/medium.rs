@@ -31,8 +31,8 @@ pub struct Medium {
     pub max: Vec3,
     /// Multiple scattering: volume and surface photons where a build adds
     /// them ([`super::multiple`]: orders ≥ 2, surface light into the haze,
-    /// haze light onto surfaces), the similarity relation on the beam's
-    /// light paths where it does not (the live coarse stage and the moving
+    /// haze light onto surfaces), the similarity relation on light paths
+    /// (the beam's and the surfaces') where it does not (the live coarse stage and the moving
     /// camera's preview, [`Medium::sigma_t_light`]); off: single
     /// scattering only.
     pub multiple: bool,
@@ -87,8 +87,8 @@ impl Medium {
         self.sigma_s + self.sigma_a
     }
 
-    /// Extinction along the light paths of a beam whose scattered light is
-    /// not traced. Single scattering: σ_t. With `multiple`, the similarity
+    /// Extinction along light paths whose scattered light is not traced
+    /// (see [`super::resolve::surface_medium`] for the surfaces). Single scattering: σ_t. With `multiple`, the similarity
     /// relation (van de Hulst; Wyman, Patterson
     /// and Hsu): light scattered into the forward lobe stays in the beam,
     /// so the beam decays with σ_t* = σ_a + (1 − g) σ_s (g < 0 counts as 0).

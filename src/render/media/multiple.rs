@@ -1,26 +1,41 @@
-//! Multiple scattering in haze by volume photons (issue 15, item 5).
+//! Multiple scattering in haze by photons (issue 15, item 5; surfaces:
+//! issue 34, item 5).
 //!
 //! The single-scattered beam ([`super::single`]) is light that scattered
-//! once, on the camera ray. Everything scattered two or more times (the
-//! *glow* around and between beams, and the forward-scattered light that
-//! stays in the beam) is estimated here, per light at unit intensity, so it
-//! stays linear in the light (eq. 5).
+//! once, on the camera ray. Everything else the haze does is estimated
+//! here, per light at unit intensity, so it stays linear in the light
+//! (eq. 5): light scattered two or more times (the *glow* around and
+//! between beams, and the forward-scattered light that stays in the beam),
+//! light surfaces reflect into the haze, and haze light reaching surfaces.
 //!
 //! # Volume photons (Jensen and Christensen 1998)
 //! Photons leave the light inside its cut-off cone (uniform in the cap,
 //! power f_ε(ω) Ω / N for Ω the cap's solid angle: 1 cd, the light's own
-//! pattern), fly through the haze box and collide with free-flight
-//! distances drawn from σ_t e^(−σ_t s) *truncated to the segment in the
-//! medium* (forced collisions: the power is multiplied by the probability
-//! 1 − e^(−σ_t L) of colliding in the segment, so thin haze costs no more
-//! photons than thick haze). A segment ends at the box or at the first
-//! surface (the scene's BVH); at a collision the power is multiplied by the
-//! albedo σ_s / σ_t and the direction drawn from Henyey-Greenstein
-//! ([`super::reference::sample_hg`]). Photons are stored at every collision
-//! *after the first scattering* (orders ≥ 2: order 1 is the analytic beam),
-//! with the power arriving there. Russian roulette ends weak paths.
+//! pattern). The first segment, to the first surface (the scene's BVH)
+//! within the haze box, is split: the part 1 − e^(−σ_t L) collides in it
+//! (a *forced collision*: free-flight distance from σ_t e^(−σ_t s)
+//! truncated to the segment, so thin haze costs no more photons than thick
+//! haze); that first collision is the analytic beam's and is not stored.
+//! The rest, e^(−σ_t L), reaches the surface unscattered. Both walk on:
+//! on each later segment a photon collides with probability
+//! q = max(1 − e^(−σ_t L), ½) (forced, q = 1, where no surface is in the
+//! way), its power weighted by the ratio of the true probability to q; a
+//! collision multiplies the power by the albedo σ_s / σ_t and draws the
+//! new direction from Henyey-Greenstein ([`super::reference::sample_hg`]);
+//! a diffuse surface reflects it (cosine-weighted, Russian roulette on the
+//! largest channel's albedo p, power × ρ_d / p: surfaces tint it, so
+//! powers are RGB, and no channel grows).
+//! Russian roulette ends weak paths. Stored:
 //!
-//! The stored powers sum, in expectation, to σ_t L⁽ⁿ⁾ per unit volume and
+//! * *volume photons* at every collision after the first event of the
+//!   path: orders ≥ 2, and light a surface reflected into the haze
+//!   (order 1 after a bounce);
+//! * *surface photons* where light that collided in the haze at least once
+//!   lands on a diffuse surface (haze light reaching surfaces). Light that
+//!   never met the haze is the surface photon maps' (clear air, dimmed by
+//!   [`super::resolve`]).
+//!
+//! The stored volume powers sum, in expectation, to σ_t L⁽ⁿ⁾ per unit volume and
 //! solid angle (collision density), so the in-scattered source toward −ω is
 //!
 //!   S(x, ω) = (σ_s / σ_t) Σ_{|x_p − x| < r} p(ω_p · −ω) Φ_p / (4/3 π r³)
@@ -29,15 +44,23 @@
 //! ray marching with steps of about r through the box (the photons sit in a
 //! uniform grid of cell r, so one step reads 27 cells). Multiple scattering
 //! is smooth, so the screen is traced on a coarse grid (every `scale`-th
-//! pixel) and upsampled bilinearly with depth-aware weights.
+//! pixel) and upsampled bilinearly with depth-aware weights. The surface
+//! photons give the irradiance E = Σ Φ K over the disc of radius r (same
+//! grid, same side of the surface; K the Epanechnikov kernel
+//! 2 (1 − ρ²/r²) / (π r²), soft at the rim), reflected as ρ_d/π E and dimmed
+//! along the camera ray ([`render_surface_glow`], every pixel whose
+//! neighbourhood holds a photon).
 //!
 //! # Left out
-//! Light reflected by surfaces into the haze and haze light reaching
-//! surfaces (photons end at the first surface); secondary camera segments
-//! (mirrors, glass); the blur of the kernel radius r (beam edges of the
-//! glow are r wide). Measured against the volume path tracer
-//! ([`super::reference::path_traced_ray`]) in `footlight bench
-//! --haze-only` ("multiple scattering" rows) and in `tests/haze.rs`.
+//! Mirrors and glass for these photons (a photon ends at a surface that
+//! only reflects specularly or transmits), secondary camera segments
+//! (mirrors, glass), the blur of the kernel radius r (edges of the glow are
+//! r wide), and the boundary bias of the disc at surface edges and
+//! corners. Measured against the volume path tracer
+//! ([`super::reference::path_traced_ray`], one ray) in `footlight bench
+//! --haze-only` ("multiple scattering" rows) and in `tests/haze.rs`, and
+//! the whole picture against [`crate::render::reference::path::PathReference`]
+//! in a medium ([`crate::bench::haze_whole`]).
 //!
 //! # Density
 //! Photons are traced once, at 100 %, and each keeps its scattering order
@@ -56,7 +79,7 @@ use super::reference::sample_hg;
 use super::single::HazeView;
 use crate::fixture::Light;
 use crate::render::buffer::{HazeBuffer, LightBuffer, TILE};
-use crate::render::photon::trace::{cosine_hemisphere, scatter_probabilities};
+use crate::render::photon::trace::cosine_hemisphere;
 use crate::scene::Scene;
 use crate::scene::bvh::{Hit, offset_origin};
 use glam::Vec3;
@@ -177,14 +200,19 @@ impl VolumePhotons {
         sum
     }
 
-    /// Σ Φ_p over the surface photons within r of `x` that arrived on the
-    /// side of the surface whose normal is `n` (a corner's other wall, the
-    /// back of a flat, is another surface).
+    /// The irradiance at `x` from the surface photons within r that arrived
+    /// on the side of the surface whose normal is `n` (a corner's other
+    /// wall, the back of a flat, is another surface): Σ Φ_p K(|x_p − x|)
+    /// with the Epanechnikov kernel K(ρ) = 2 (1 − ρ²/r²) / (π r²), which
+    /// integrates to 1 over the disc and fades to 0 at its rim, so a sparse
+    /// photon shows as a soft spot, not a hard-edged disc.
     fn gather_surface(&self, x: Vec3, n: Vec3) -> Vec3 {
+        let r2 = self.radius * self.radius;
+        let norm = 2.0 / (std::f32::consts::PI * r2);
         let mut sum = Vec3::ZERO;
         self.for_each_near(x, |i| {
             if self.dir[i].dot(n) > SAME_SURFACE {
-                sum += self.power[i];
+                sum += self.power[i] * (norm * (1.0 - (self.pos[i] - x).length_squared() / r2));
             }
         });
         sum
@@ -444,7 +472,7 @@ impl Walker<'_> {
 
     /// The photon `walk` arriving at `hit`: stored there if it scattered in
     /// the haze before (order ≥ 1) on a diffuse surface, then reflected
-    /// diffusely (Russian roulette on the mean albedo), or `None`.
+    /// diffusely (Russian roulette on the largest channel's albedo), or `None`.
     fn bounce(&self, mut walk: Walk, hit: &Hit, rng: &mut rand_pcg::Pcg64Mcg, out: &mut Stores) -> Option<Walk> {
         let s = self.scene.surface(hit);
         let facing = s.facing(walk.w);
@@ -458,7 +486,10 @@ impl Walker<'_> {
                 tau: walk.tau,
             });
         }
-        let (pd, _, _) = scatter_probabilities(rho, &self.scene.materials[s.material as usize]);
+        // Survival with the largest channel's albedo: a saturated surface
+        // (a red curtain) keeps every channel's power at most what arrived
+        // instead of multiplying its one strong channel (the mean's law).
+        let pd = rho.max_element().min(1.0);
         if !(pd > 0.0) || rng.random::<f32>() >= pd {
             return None;
         }
@@ -585,8 +616,8 @@ pub fn render_multiple(hv: &HazeView, medium: &Medium, photons: &VolumePhotons, 
 
 /// Haze light reaching the surfaces, seen by the camera (per 1 cd, at
 /// `medium`'s density; dense, row-major): at the surface each pixel's
-/// centre ray hits, the surface photons' irradiance E = Σ Φ / (π r²) over
-/// the disc of the kernel radius r on the same side, reflected by Lambert
+/// centre ray hits, the surface photons' irradiance E (an Epanechnikov
+/// kernel over the disc of the kernel radius r, same side), reflected by Lambert
 /// ρ_d/π and dimmed by the haze on the camera ray. Pixels with no photon
 /// nearby cost one grid lookup.
 pub fn render_surface_glow(scene: &Scene, hv: &HazeView, medium: &Medium, photons: &VolumePhotons) -> Vec<Vec3> {
@@ -595,7 +626,6 @@ pub fn render_surface_glow(scene: &Scene, hv: &HazeView, medium: &Medium, photon
         return vec![Vec3::ZERO; w * h];
     }
     let cam = hv.camera.position;
-    let area = std::f32::consts::PI * photons.radius * photons.radius;
     (0..w * h)
         .into_par_iter()
         .map(|i| {
@@ -605,7 +635,7 @@ pub fn render_surface_glow(scene: &Scene, hv: &HazeView, medium: &Medium, photon
             let dir = hv.dir(i);
             let Some(hit) = scene.accel.intersect(cam, dir, f32::INFINITY) else { return Vec3::ZERO };
             let s = scene.surface(&hit);
-            let e = photons.gather_surface(s.position, s.facing(dir).geometric) / area;
+            let e = photons.gather_surface(s.position, s.facing(dir).geometric);
             scene.diffuse_at(&s)
                 * std::f32::consts::FRAC_1_PI
                 * e
@@ -640,8 +670,8 @@ fn depth_weight(a: f32, b: f32) -> f32 {
 /// captured fraction includes what this drops).
 pub const TILE_CUTOFF: f32 = 1e-3;
 
-/// The multiply scattered radiance `multiple` (dense, row-major, from
-/// [`render_multiple`]) as a tile-sparse buffer with the value in x
+/// The photons' radiance `multiple` (dense, row-major, RGB: from
+/// [`render_multiple`] and [`render_surface_glow`]) as a tile-sparse buffer
 /// ([`HazeBuffer::with_multiple`]): tiles whose largest value is at least
 /// [`TILE_CUTOFF`] of the peak are kept, plus the tiles in `keep` (the
 /// beam's, so the glow inside the beam is never cut). Non-finite or
@@ -677,12 +707,13 @@ pub fn multiple_buffer(width: u32, height: u32, multiple: &[Vec3], keep: &[(usiz
 /// A light's haze buffer with multiple scattering: the single-scattered
 /// beam at `quality` with σ_t on the light paths (the photons carry what
 /// the similarity relation approximated, so it is not used in the air),
-/// plus the volume-photon term rendered at each of `densities` (0-1 of
+/// plus the photons' term (volume photons ray-marched, surface photons
+/// gathered: module doc) rendered at each of `densities` (0-1 of
 /// `medium`'s) from one set of photons traced at 100 % and re-weighted
 /// ([`VolumePhotons::at_density`]): `render` asks for its own density, the
 /// live tracer for its knots ½ and 1, so [`super::resolve`] finds the term
-/// exactly where it resolves. Surface extinction in [`super::resolve`]
-/// still follows `medium` (`multiple`: the similarity relation).
+/// exactly where it resolves. [`super::resolve`] dims the surfaces with
+/// σ_t on both paths (the light the haze takes from them comes back here).
 pub fn render_beam_with_multiple(
     scene: &Scene,
     hv: &HazeView,

@@ -58,8 +58,9 @@ pub fn render_hazy_eq1(
         |i, kk| {
             let hit = hv.hit_point(i);
             for ((out, light), k) in kk.iter_mut().zip(lights).zip(k) {
-                let tau =
-                    hit.map_or(0.0, |p| m.sigma_t() * (m.length_inside(cam, p) + m.length_inside(p, light.position)));
+                let tau = hit.map_or(0.0, |p| {
+                    m.sigma_t() * m.length_inside(cam, p) + m.sigma_t_light() * m.length_inside(p, light.position)
+                });
                 *out = *k * (-tau).exp();
             }
         },

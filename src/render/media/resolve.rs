@@ -5,8 +5,9 @@
 //!   buffer_i(d) = S_i · e^(−d κ_s) + d σ_s a0 e^(−d κ_h)
 //!
 //! S_i is the light's surface buffer without haze (direct + indirect, what
-//! Footlight rendered before haze existed), κ_s = σ_t (τ_cam + τ_light)
-//! the optical depth from the pixel's surface point to the camera and to
+//! Footlight rendered before haze existed), κ_s = σ_t τ_cam + σ_t' τ_light
+//! (σ_t' = σ_t where the haze buffer carries the photons' term, else the
+//! medium's light-path rule: [`surface_medium`]) the optical depth from the pixel's surface point to the camera and to
 //! the light (computed here from the view: no ray is traced), and (a0, κ_h)
 //! the haze buffer ([`super::single`]). A haze buffer with multiple
 //! scattering carries that term rendered at one or more densities
@@ -61,6 +62,7 @@ pub fn resolve(
     });
     let (w, h) = (hv.width as usize, hv.height as usize);
     let sigma_s = medium.sigma_s;
+    let surfaces = surface_medium(medium, haze);
     LightBuffer::from_tiles(hv.width, hv.height, &candidates, |tx, ty, tile| {
         let src = surface.tile(tx, ty);
         let hz = haze.and_then(|b| b.as_light_buffer().tile(tx, ty));
@@ -73,7 +75,7 @@ pub fn resolve(
                 if let Some(s) = src
                     && s[k] != Vec3::ZERO
                 {
-                    v = s[k] * (-d * surface_depth(hv, medium, light_position, i)).exp();
+                    v = s[k] * (-d * surface_depth(hv, &surfaces, light_position, i)).exp();
                 }
                 let kappa = hz.map_or(0.0, |hz| hz[k].y);
                 if let Some(hz) = hz {
@@ -92,20 +94,31 @@ pub fn resolve(
     })
 }
 
-/// The surface optical depth κ_s = σ_t (τ_cam + τ_light) at density 1 of
+/// The surface optical depth κ_s = σ_t τ_cam + σ_t' τ_light at density 1 of
 /// pixel `i` for a light at `light_position` (0 where the centre ray hits
 /// nothing): [`resolve`] multiplies the surface buffer by e^(−d κ_s).
-/// The light path takes the whole σ_t, also with `multiple`: the light the
-/// haze scatters on its way to the surface comes back as the surface
-/// photons' term ([`super::multiple::render_surface_glow`]), so the
-/// similarity relation's σ_t* would count it twice.
+/// σ_t' is `medium`'s [`Medium::sigma_t_light`]: pass the medium of
+/// [`surface_medium`], which takes the whole σ_t where the photons bring
+/// back the light the haze scatters out of the light path.
 pub fn surface_depth(hv: &HazeView, medium: &Medium, light_position: Vec3, i: usize) -> f32 {
     match hv.hit_point(i) {
         Some(p) => {
-            medium.sigma_t() * (medium.length_inside(hv.camera.position, p) + medium.length_inside(p, light_position))
+            medium.sigma_t() * medium.length_inside(hv.camera.position, p)
+                + medium.sigma_t_light() * medium.length_inside(p, light_position)
         }
         None => 0.0,
     }
+}
+
+/// The medium whose extinction dims a light's surfaces next to its haze
+/// buffer `haze`: where the buffer carries the photons' term (`multiple`'s
+/// refined stage and `render`), the light the haze scatters out of a
+/// surface's light path comes back as the surface photons' glow, so the
+/// light path takes the whole σ_t (the similarity relation's σ_t* would
+/// count it twice); without photons (single scattering, the live coarse
+/// stage) `medium` as it is (with `multiple`: σ_t*, standing in for it).
+pub fn surface_medium(medium: &Medium, haze: Option<&HazeBuffer>) -> Medium {
+    if haze.is_some_and(|h| !h.multiple().is_empty()) { Medium { multiple: false, ..*medium } } else { *medium }
 }
 
 /// The surface transmittance e^(−κ_s) at density 1 of pixel `i` for a light

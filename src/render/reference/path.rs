@@ -23,14 +23,18 @@
 //! pattern, each with closed-form tests of its own.
 //!
 //! With a medium ([`PathReference::with_medium`], issue 34 item 5) the
-//! same paths fly through homogeneous haze: every segment inside the haze
-//! box draws a free-flight distance s ~ σ_t e^(−σ_t s); a collision before
-//! the surface is a volume vertex (next-event estimation with the
-//! Henyey-Greenstein phase, the beam pattern, a shadow ray and the
-//! transmittance e^(−σ_t ℓ) of the ℓ metres of haze toward the lamp; the
-//! walk goes on in a direction drawn from the phase function, surviving
-//! with the albedo σ_s/σ_t), else the ray reaches the surface, whose light
-//! term is dimmed by the transmittance toward each lamp. All orders of
+//! same paths fly through homogeneous haze. On every segment the light
+//! scattered once toward the segment's start is sampled equiangularly
+//! about each lamp (Kulla and Fajardo 2012; the Henyey-Greenstein phase,
+//! the beam pattern, a shadow ray and the transmittance e^(−σ_t ℓ) of the
+//! ℓ metres of haze toward the lamp): unlike next-event estimation at
+//! free-flight vertices, whose 1/r² has infinite variance near a lamp, it
+//! stays finite where a segment passes one. Every segment inside the haze
+//! box also draws a free-flight distance s ~ σ_t e^(−σ_t s): a collision
+//! before the surface is a volume vertex, where the walk goes on in a
+//! direction drawn from the phase function, surviving with the albedo
+//! σ_s/σ_t; else the ray reaches the surface, whose light term is dimmed by
+//! the transmittance toward each lamp. All orders of
 //! surface and volume scattering, in any sequence: the whole hazy picture
 //! the renderer's beam, volume photons and surface terms approximate.
 //! Surfaces reached after a volume vertex reflect ρ_d/π, as after a
@@ -143,22 +147,37 @@ fn collision(m: &Medium, o: Vec3, d: Vec3, t_hit: f32, rng: &mut Pcg64Mcg) -> Op
     (f64::from(t0) + s < f64::from(t1)).then(|| o + d * (t0 + s as f32))
 }
 
-/// The light of `light` (1 cd) at the point `x` in the haze `m`, scattered
-/// toward `w_out`, per unit σ_s/σ_t: phase × pattern / r² × visibility ×
-/// transmittance.
-fn volume_light_term(scene: &Scene, m: &Medium, light: &Light, x: Vec3, w_out: Vec3) -> f32 {
-    let to_x = x - light.position;
-    let r2 = to_x.length_squared();
-    if r2 <= 1e-12 || !r2.is_finite() {
+/// Single scattering of `light` (1 cd) toward `o` along the ray `o + t·d`
+/// up to `t_hit`, one sample: t drawn equiangularly about the lamp (Kulla
+/// and Fajardo 2012: θ uniform between the ends' angles seen from the
+/// lamp, pdf D / ((θ_b − θ_a) r²) for D the lamp's distance from the line),
+/// so the 1/r² of the integrand cancels:
+/// σ_s T_cam · p f g T_light · (θ_b − θ_a) / D.
+fn equiangular_single(scene: &Scene, m: &Medium, light: &Light, o: Vec3, d: Vec3, t_hit: f32, u: f32) -> f32 {
+    let Some((t0, t1)) = m.clip(o, d, t_hit) else { return 0.0 };
+    let delta = (light.position - o).dot(d);
+    let dist = (light.position - o - d * delta).length();
+    if dist <= 1e-6 || !dist.is_finite() {
         return 0.0;
     }
-    let r = r2.sqrt();
+    let (a, b) = (((t0 - delta) / dist).atan(), ((t1 - delta) / dist).atan());
+    let t = delta + dist * (a + (b - a) * u).tan();
+    if t.is_nan() || t < t0 || t > t1 {
+        return 0.0;
+    }
+    let x = o + d * t;
+    let to_x = x - light.position;
+    let r = to_x.length();
+    if r <= 1e-6 {
+        return 0.0;
+    }
     let w_in = to_x / r;
     let f = light.pattern_toward(w_in);
     if f.is_nan() || f <= 0.0 || scene.accel.occluded(x, -w_in, r * (1.0 - 1e-5)) {
         return 0.0;
     }
-    hg(m.g, w_in.dot(w_out)) * f / r2 * (-m.sigma_t() * m.length_inside(x, light.position)).exp()
+    let transmittance = (-m.sigma_t() * ((t - t0) + m.length_inside(x, light.position))).exp();
+    m.sigma_s * hg(m.g, w_in.dot(-d)) * f * transmittance * (b - a) / dist
 }
 
 /// Point `n` of the (0,2)-sequence in base 2: the radical inverse of `n`
@@ -197,24 +216,29 @@ fn path(
     let transmittance = |x: Vec3, p: Vec3| medium.map_or(1.0, |m| (-m.sigma_t() * m.length_inside(x, p)).exp());
     for _ in 0..MAX_VERTICES {
         let hit = scene.accel.intersect(o, d, f32::INFINITY);
-        if let Some(m) = medium
-            && let Some(x) = collision(m, o, d, hit.as_ref().map_or(f32::INFINITY, |h| h.t), rng)
-        {
-            // A volume vertex: σ_s/σ_t times the light scattered toward −d.
-            let albedo = m.sigma_s / m.sigma_t();
+        let t_hit = hit.as_ref().map_or(f32::INFINITY, |h| h.t);
+        if let Some(m) = medium {
+            // Light scattered once on this segment toward its start, sampled
+            // equiangularly about each lamp: finite variance where a
+            // segment passes close to a lamp, whose 1/r² next-event
+            // estimation at free-flight vertices would not have.
             for (light, k) in lights.iter().zip(k) {
                 if *k != Vec3::ZERO {
-                    total += beta * *k * (albedo * volume_light_term(scene, m, light, x, -d));
+                    total += beta * *k * equiangular_single(scene, m, light, o, d, t_hit, rng.random());
                 }
             }
-            if !indirect || rng.random::<f32>() >= albedo {
-                break;
+            if let Some(x) = collision(m, o, d, t_hit, rng) {
+                // A volume vertex carries the walk on (its light was sampled
+                // along the segment), surviving with the albedo σ_s/σ_t.
+                if !indirect || rng.random::<f32>() >= m.sigma_s / m.sigma_t() {
+                    break;
+                }
+                // Light arriving along w_in (HG about −d) came from −w_in.
+                d = -sample_hg(m.g, -d, rng.random(), rng.random());
+                o = x;
+                after_diffuse = true;
+                continue;
             }
-            // Light arriving along w_in (HG about −d) came from −w_in.
-            d = -sample_hg(m.g, -d, rng.random(), rng.random());
-            o = x;
-            after_diffuse = true;
-            continue;
         }
         let Some(hit) = hit else { break };
         let s = scene.surface(&hit);
