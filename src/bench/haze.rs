@@ -16,7 +16,8 @@ use crate::fixture::Light;
 use crate::render::LightBuffer;
 use crate::render::gbuffer::GBuffer;
 use crate::render::media::multiple::{
-    MultipleSettings, anchored, multiple_along_ray, render_multiple, trace_volume_photons,
+    MultipleSettings, anchored, multiple_along_ray, render_multiple, render_surface_glow, trace_haze_photons,
+    trace_volume_photons,
 };
 use crate::render::media::reference::path_traced_ray;
 use crate::render::media::single::radiance_at_full;
@@ -223,7 +224,8 @@ pub struct HazeReport {
     pub volume: Vec<VolumePoint>,
     /// The volume-photon term re-weighted to a density against a rebuild.
     pub volume_density: Vec<VolumeDensityPoint>,
-    /// Volume photons of the bench light on the stage: tracing + screen, ms.
+    /// Photons (air and surfaces) of the bench light on the stage: tracing +
+    /// screen terms at the live knots, ms.
     pub volume_stage_ms: f64,
     /// The live daemon's density knots (0, ½, 1) re-weighted for a hazer
     /// change against an exact rebuild at that density.
@@ -319,7 +321,7 @@ impl HazeReport {
             );
         }
         s += &format!(
-            "      bench light on the stage: volume photons traced + screen term at the knots ½ and 1 {:.0} ms\n",
+            "      bench light on the stage: photons traced (air and surfaces) + screen terms at the knots ½ and 1 {:.0} ms\n",
             self.volume_stage_ms
         );
         if let Some(r) = &self.rig {
@@ -479,11 +481,18 @@ pub fn run(
     let (volume, volume_density) = run_volume(paths, (w, h), repeats);
     let settings = MultipleSettings::default();
     let (volume_stage_ms, _) = time_ms(repeats, || {
-        // As the live refined stage: traced once, rendered at the knots ½ and 1.
-        let photons = trace_volume_photons(scene, light, &medium, &settings);
-        crate::render::media::KNOTS[1..]
+        // As the live refined stage: traced once (air and surfaces),
+        // rendered at the knots ½ and 1.
+        let photons = trace_haze_photons(scene, light, &medium, &settings);
+        let knots = &crate::render::media::KNOTS[1..];
+        let glows = render_surface_glow(scene, &hv, &medium, &photons.surface, knots);
+        knots
             .iter()
-            .map(|&d| render_multiple(&hv, &medium.at_density(d), &photons.at_density(d), settings.scale))
+            .zip(glows)
+            .map(|(&d, glow)| {
+                let air = render_multiple(&hv, &medium.at_density(d), &photons.volume.at_density(d), settings.scale);
+                air.iter().zip(&glow).map(|(a, g)| *a + *g).collect::<Vec<_>>()
+            })
             .collect::<Vec<_>>()
     });
     // The live daemon's knots: weights only, against a rebuild at d.

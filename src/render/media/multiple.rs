@@ -200,24 +200,6 @@ impl VolumePhotons {
         sum
     }
 
-    /// The irradiance at `x` from the surface photons within r that arrived
-    /// on the side of the surface whose normal is `n` (a corner's other
-    /// wall, the back of a flat, is another surface): Σ Φ_p K(|x_p − x|)
-    /// with the Epanechnikov kernel K(ρ) = 2 (1 − ρ²/r²) / (π r²), which
-    /// integrates to 1 over the disc and fades to 0 at its rim, so a sparse
-    /// photon shows as a soft spot, not a hard-edged disc.
-    fn gather_surface(&self, x: Vec3, n: Vec3) -> Vec3 {
-        let r2 = self.radius * self.radius;
-        let norm = 2.0 / (std::f32::consts::PI * r2);
-        let mut sum = Vec3::ZERO;
-        self.for_each_near(x, |i| {
-            if self.dir[i].dot(n) > SAME_SURFACE {
-                sum += self.power[i] * (norm * (1.0 - (self.pos[i] - x).length_squared() / r2));
-            }
-        });
-        sum
-    }
-
     /// True when some photon is in the 3×3×3 cells around `x`.
     fn any_near(&self, x: Vec3) -> bool {
         let c = self.cell_of(x);
@@ -614,35 +596,121 @@ pub fn render_multiple(hv: &HazeView, medium: &Medium, photons: &VolumePhotons, 
         .collect()
 }
 
-/// Haze light reaching the surfaces, seen by the camera (per 1 cd, at
-/// `medium`'s density; dense, row-major): at the surface each pixel's
-/// centre ray hits, the surface photons' irradiance E (an Epanechnikov
-/// kernel over the disc of the kernel radius r, same side), reflected by Lambert
-/// ρ_d/π and dimmed by the haze on the camera ray. Pixels with no photon
+/// Haze light reaching the surfaces, seen by the camera (per 1 cd; dense,
+/// row-major), at each of `densities` (0-1 of `medium`'s, the one the
+/// `photons` were traced in at 100 %): at the surface each pixel's centre
+/// ray hits, the surface photons' irradiance E = Σ Φ_p K(|x_p − x|) over
+/// those within the kernel radius r that arrived on the pixel's side of the
+/// surface (normals within ~45°: a corner's other wall, the back of a flat,
+/// is another surface), with the Epanechnikov kernel
+/// K(ρ) = 2 (1 − ρ²/r²) / (π r²), which integrates to 1 over the disc and
+/// fades to 0 at its rim (a sparse photon shows as a soft spot, not a
+/// hard-edged disc); each photon re-weighted to the density as
+/// [`VolumePhotons::at_density`] does. E is gathered on every
+/// [`GLOW_SCALE`]-th pixel and interpolated between neighbours at the same
+/// depth facing the same way (a pixel with none is gathered itself), then
+/// reflected by each pixel's Lambert ρ_d/π and dimmed by the haze on its
+/// camera ray. One pass for all the densities; pixels with no photon
 /// nearby cost one grid lookup.
-pub fn render_surface_glow(scene: &Scene, hv: &HazeView, medium: &Medium, photons: &VolumePhotons) -> Vec<Vec3> {
+pub fn render_surface_glow(
+    scene: &Scene,
+    hv: &HazeView,
+    medium: &Medium,
+    photons: &VolumePhotons,
+    densities: &[f32],
+) -> Vec<Vec<Vec3>> {
     let (w, h) = (hv.width as usize, hv.height as usize);
-    if photons.is_empty() {
-        return vec![Vec3::ZERO; w * h];
+    let ds: Vec<f32> = densities.iter().map(|&d| super::medium::clean_density(d)).collect();
+    let mut out = vec![vec![Vec3::ZERO; w * h]; ds.len()];
+    if photons.is_empty() || ds.is_empty() {
+        return out;
     }
     let cam = hv.camera.position;
-    (0..w * h)
+    let r2 = photons.radius * photons.radius;
+    let norm = 2.0 / (std::f32::consts::PI * r2);
+    // The surface point and normal of pixel i's centre ray.
+    let surface = |i: usize| {
+        let p = hv.hit_point(i)?;
+        if !photons.any_near(p) {
+            return None;
+        }
+        let s = scene.surface(&hv.centre_hit(scene, i)?);
+        Some((s, s.facing(hv.dir(i)).geometric))
+    };
+    // Irradiance per density at a surface point with normal n.
+    let irradiance = |x: Vec3, n: Vec3| {
+        let mut sums = vec![Vec3::ZERO; ds.len()];
+        photons.for_each_near(x, |p| {
+            if photons.dir[p].dot(n) > SAME_SURFACE {
+                let kernel = norm * (1.0 - (photons.pos[p] - x).length_squared() / r2);
+                let (k, tau) = (i32::from(photons.order[p]), photons.tau[p]);
+                for (sum, &d) in sums.iter_mut().zip(&ds) {
+                    if d > 0.0 {
+                        *sum += photons.power[p] * (kernel * d.powi(k) * ((1.0 - d) * tau).exp());
+                    }
+                }
+            }
+        });
+        sums
+    };
+    // E varies over the kernel radius, not from pixel to pixel: it is
+    // gathered on every GLOW_SCALE-th pixel and interpolated (bilinear
+    // weights, only neighbours at the same depth and facing the same way).
+    let g = GLOW_SCALE;
+    let (cw, ch) = (w.div_ceil(g), h.div_ceil(g));
+    let rep = |c: usize, n: usize| (c * g + g / 2).min(n - 1);
+    let coarse: Vec<Option<(Vec3, f32, Vec<Vec3>)>> = (0..cw * ch)
+        .into_par_iter()
+        .map(|c| {
+            let i = rep(c / cw, h) * w + rep(c % cw, w);
+            let (s, n) = surface(i)?;
+            Some((n, hv.t_hit(i), irradiance(s.position, n)))
+        })
+        .collect();
+    let per_pixel: Vec<Option<(usize, Vec<Vec3>)>> = (0..w * h)
         .into_par_iter()
         .map(|i| {
-            if !hv.hit_point(i).is_some_and(|p| photons.any_near(p)) {
-                return Vec3::ZERO;
+            let (s, n) = surface(i)?;
+            let (x, y) = (i % w, i / w);
+            let (cx0, fx) = cell(x, g, cw, w);
+            let (cy0, fy) = cell(y, g, ch, h);
+            let (cx1, cy1) = ((cx0 + 1).min(cw - 1), (cy0 + 1).min(ch - 1));
+            let t_here = hv.t_hit(i);
+            let mut e = vec![Vec3::ZERO; ds.len()];
+            let mut wsum = 0.0;
+            for (cx, cy, wb) in [
+                (cx0, cy0, (1.0 - fx) * (1.0 - fy)),
+                (cx1, cy0, fx * (1.0 - fy)),
+                (cx0, cy1, (1.0 - fx) * fy),
+                (cx1, cy1, fx * fy),
+            ] {
+                if let Some((nc, tc, ec)) = &coarse[cy * cw + cx]
+                    && nc.dot(n) > SAME_SURFACE
+                {
+                    let wt = wb * depth_weight(t_here, *tc);
+                    for (a, b) in e.iter_mut().zip(ec) {
+                        *a += *b * wt;
+                    }
+                    wsum += wt;
+                }
             }
-            let dir = hv.dir(i);
-            let Some(hit) = scene.accel.intersect(cam, dir, f32::INFINITY) else { return Vec3::ZERO };
-            let s = scene.surface(&hit);
-            let e = photons.gather_surface(s.position, s.facing(dir).geometric);
-            scene.diffuse_at(&s)
-                * std::f32::consts::FRAC_1_PI
-                * e
-                * (-medium.sigma_t() * medium.length_inside(cam, s.position)).exp()
+            let e = if wsum > 1e-3 { e.iter().map(|v| *v / wsum).collect() } else { irradiance(s.position, n) };
+            let rho = scene.diffuse_at(&s) * std::f32::consts::FRAC_1_PI;
+            let cam_depth = medium.sigma_t() * medium.length_inside(cam, s.position);
+            Some((i, e.iter().zip(&ds).map(|(e, &d)| rho * *e * (-d * cam_depth).exp()).collect()))
         })
-        .collect()
+        .collect();
+    for (i, values) in per_pixel.into_iter().flatten() {
+        for (o, v) in out.iter_mut().zip(values) {
+            o[i] = v;
+        }
+    }
+    out
 }
+
+/// The surface glow's irradiance is gathered on every `GLOW_SCALE`-th
+/// pixel in x and y and interpolated ([`render_surface_glow`]).
+const GLOW_SCALE: usize = 4;
 
 /// The coarse cell left of / above full pixel `p` and the bilinear fraction.
 fn cell(p: usize, s: usize, n: usize, full: usize) -> (usize, f32) {
@@ -728,14 +796,10 @@ pub fn render_beam_with_multiple(
     let photons = trace_haze_photons(scene, light, &air, settings);
     let keep = beam.as_light_buffer().occupied();
     let (w, h) = (beam.width(), beam.height());
-    densities.iter().fold(beam, |haze, &d| {
-        let d = super::medium::clean_density(d);
-        if d == 0.0 {
-            return haze;
-        }
-        let at = air.at_density(d);
-        let mut term = render_multiple(hv, &at, &photons.volume.at_density(d), settings.scale);
-        let glow = render_surface_glow(scene, hv, &at, &photons.surface.at_density(d));
+    let densities: Vec<f32> = densities.iter().map(|&d| super::medium::clean_density(d)).filter(|&d| d > 0.0).collect();
+    let glows = render_surface_glow(scene, hv, &air, &photons.surface, &densities);
+    densities.iter().zip(glows).fold(beam, |haze, (&d, glow)| {
+        let mut term = render_multiple(hv, &air.at_density(d), &photons.volume.at_density(d), settings.scale);
         term.iter_mut().zip(&glow).for_each(|(t, g)| *t += *g);
         haze.with_multiple(d, multiple_buffer(w, h, &term, &keep))
     })

@@ -81,6 +81,9 @@ pub struct HazeView {
     dirs: Vec<Vec3>,
     /// Per pixel: distance to the first surface (∞ for a miss).
     t_hit: Vec<f32>,
+    /// Per pixel: the surface the centre ray hits (from the G-buffer; empty
+    /// for a view made from rays).
+    centre: Vec<PrimarySample>,
 }
 
 impl HazeView {
@@ -90,6 +93,7 @@ impl HazeView {
         let camera = gbuffer.camera;
         let mut dirs = Vec::with_capacity((w * h) as usize);
         let mut t_hit = Vec::with_capacity((w * h) as usize);
+        let mut centre = Vec::with_capacity((w * h) as usize);
         for y in 0..h {
             for x in 0..w {
                 let samples = &gbuffer.samples[(y * w + x) as usize];
@@ -106,9 +110,10 @@ impl HazeView {
                     .unwrap_or(f32::INFINITY);
                 dirs.push(d);
                 t_hit.push(t);
+                centre.push(samples[CENTRE_SAMPLE]);
             }
         }
-        Self { width: w, height: h, camera, dirs, t_hit }
+        Self { width: w, height: h, camera, dirs, t_hit, centre }
     }
 
     /// A view from rays already traced (`dirs` unit, `t_hit` ∞ for a miss,
@@ -116,7 +121,7 @@ impl HazeView {
     /// reduced picture (src/live/views.rs), which has no G-buffer.
     pub fn from_rays(camera: Camera, width: u32, height: u32, dirs: Vec<Vec3>, t_hit: Vec<f32>) -> Self {
         assert_eq!((dirs.len(), t_hit.len()), ((width * height) as usize, (width * height) as usize), "rays");
-        Self { width, height, camera, dirs, t_hit }
+        Self { width, height, camera, dirs, t_hit, centre: Vec::new() }
     }
 
     /// Centre-ray direction of pixel `i` (row-major).
@@ -127,6 +132,19 @@ impl HazeView {
     /// Distance to the surface the centre ray of pixel `i` hits (∞: none).
     pub fn t_hit(&self, i: usize) -> f32 {
         self.t_hit[i]
+    }
+
+    /// The surface the centre ray of pixel `i` hits: the G-buffer's centre
+    /// sample, or for a view made from rays a ray traced now (`None`: it
+    /// misses, or a silhouette pixel whose depth came from another sample).
+    pub fn centre_hit(&self, scene: &Scene, i: usize) -> Option<crate::scene::bvh::Hit> {
+        match self.centre.get(i) {
+            Some(s) if s.triangle != NO_HIT => {
+                Some(crate::scene::bvh::Hit { triangle: s.triangle, t: self.t_hit[i], u: s.u, v: s.v })
+            }
+            Some(_) => None,
+            None => scene.accel.intersect(self.camera.position, self.dirs[i], f32::INFINITY),
+        }
     }
 
     /// Point the centre ray of pixel `i` hits, if any.
