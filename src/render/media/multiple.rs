@@ -574,19 +574,10 @@ pub fn render_multiple(hv: &HazeView, medium: &Medium, photons: &VolumePhotons, 
     (0..w * h)
         .into_par_iter()
         .map(|i| {
-            let (x, y) = (i % w, i / w);
-            let (cx0, fx) = cell(x, s, cw, w);
-            let (cy0, fy) = cell(y, s, ch, h);
-            let (cx1, cy1) = ((cx0 + 1).min(cw - 1), (cy0 + 1).min(ch - 1));
             let t_here = hv.t_hit(i);
             let mut sum = Vec3::ZERO;
             let mut wsum = 0.0;
-            for (cx, cy, wb) in [
-                (cx0, cy0, (1.0 - fx) * (1.0 - fy)),
-                (cx1, cy0, fx * (1.0 - fy)),
-                (cx0, cy1, (1.0 - fx) * fy),
-                (cx1, cy1, fx * fy),
-            ] {
+            for (cx, cy, wb) in bilinear_corners(i % w, i / w, s, (cw, ch), (w, h)) {
                 let wt = wb * depth_weight(t_here, hv.t_hit(rep(cy, h) * w + rep(cx, w)));
                 sum += wt * coarse[cy * cw + cx];
                 wsum += wt;
@@ -621,9 +612,9 @@ pub fn render_surface_glow(
 ) -> Vec<Vec<Vec3>> {
     let (w, h) = (hv.width as usize, hv.height as usize);
     let ds: Vec<f32> = densities.iter().map(|&d| super::medium::clean_density(d)).collect();
-    let mut out = vec![vec![Vec3::ZERO; w * h]; ds.len()];
-    if photons.is_empty() || ds.is_empty() {
-        return out;
+    let nd = ds.len();
+    if photons.is_empty() || nd == 0 || w == 0 || h == 0 {
+        return vec![vec![Vec3::ZERO; w * h]; nd];
     }
     let cam = hv.camera.position;
     let r2 = photons.radius * photons.radius;
@@ -637,80 +628,90 @@ pub fn render_surface_glow(
         let s = scene.surface(&hv.centre_hit(scene, i)?);
         Some((s, s.facing(hv.dir(i)).geometric))
     };
-    // Irradiance per density at a surface point with normal n.
-    let irradiance = |x: Vec3, n: Vec3| {
-        let mut sums = vec![Vec3::ZERO; ds.len()];
+    // Irradiance at a surface point with normal n, one per density, into `e`.
+    let irradiance = |x: Vec3, n: Vec3, e: &mut [Vec3]| {
         photons.for_each_near(x, |p| {
             if photons.dir[p].dot(n) > SAME_SURFACE {
                 let kernel = norm * (1.0 - (photons.pos[p] - x).length_squared() / r2);
                 let (k, tau) = (i32::from(photons.order[p]), photons.tau[p]);
-                for (sum, &d) in sums.iter_mut().zip(&ds) {
+                for (sum, &d) in e.iter_mut().zip(&ds) {
                     if d > 0.0 {
                         *sum += photons.power[p] * (kernel * d.powi(k) * ((1.0 - d) * tau).exp());
                     }
                 }
             }
         });
-        sums
     };
     // E varies over the kernel radius, not from pixel to pixel: it is
     // gathered on every GLOW_SCALE-th pixel and interpolated (bilinear
     // weights, only neighbours at the same depth and facing the same way).
+    // Coarse pixel c holds its normal and depth, and E at c·nd + j.
     let g = GLOW_SCALE;
     let (cw, ch) = (w.div_ceil(g), h.div_ceil(g));
     let rep = |c: usize, n: usize| (c * g + g / 2).min(n - 1);
-    let coarse: Vec<Option<(Vec3, f32, Vec<Vec3>)>> = (0..cw * ch)
-        .into_par_iter()
-        .map(|c| {
+    let mut coarse_e = vec![Vec3::ZERO; cw * ch * nd];
+    let coarse: Vec<Option<(Vec3, f32)>> = coarse_e
+        .par_chunks_mut(nd)
+        .enumerate()
+        .map(|(c, e)| {
             let i = rep(c / cw, h) * w + rep(c % cw, w);
             let (s, n) = surface(i)?;
-            Some((n, hv.t_hit(i), irradiance(s.position, n)))
+            irradiance(s.position, n, e);
+            Some((n, hv.t_hit(i)))
         })
         .collect();
-    let per_pixel: Vec<Option<(usize, Vec<Vec3>)>> = (0..w * h)
-        .into_par_iter()
-        .map(|i| {
-            let (s, n) = surface(i)?;
-            let (x, y) = (i % w, i / w);
-            let (cx0, fx) = cell(x, g, cw, w);
-            let (cy0, fy) = cell(y, g, ch, h);
-            let (cx1, cy1) = ((cx0 + 1).min(cw - 1), (cy0 + 1).min(ch - 1));
-            let t_here = hv.t_hit(i);
-            let mut e = vec![Vec3::ZERO; ds.len()];
-            let mut wsum = 0.0;
-            for (cx, cy, wb) in [
-                (cx0, cy0, (1.0 - fx) * (1.0 - fy)),
-                (cx1, cy0, fx * (1.0 - fy)),
-                (cx0, cy1, (1.0 - fx) * fy),
-                (cx1, cy1, fx * fy),
-            ] {
-                if let Some((nc, tc, ec)) = &coarse[cy * cw + cx]
-                    && nc.dot(n) > SAME_SURFACE
-                {
-                    let wt = wb * depth_weight(t_here, *tc);
-                    for (a, b) in e.iter_mut().zip(ec) {
-                        *a += *b * wt;
-                    }
-                    wsum += wt;
+    // Pixel i's value at density j at i·nd + j.
+    let mut flat = vec![Vec3::ZERO; w * h * nd];
+    flat.par_chunks_mut(nd).enumerate().for_each(|(i, out)| {
+        let Some((s, n)) = surface(i) else { return };
+        let t_here = hv.t_hit(i);
+        let mut wsum = 0.0;
+        for (cx, cy, wb) in bilinear_corners(i % w, i / w, g, (cw, ch), (w, h)) {
+            let c = cy * cw + cx;
+            if let Some((nc, tc)) = coarse[c]
+                && nc.dot(n) > SAME_SURFACE
+            {
+                let wt = wb * depth_weight(t_here, tc);
+                for (o, e) in out.iter_mut().zip(&coarse_e[c * nd..(c + 1) * nd]) {
+                    *o += *e * wt;
                 }
+                wsum += wt;
             }
-            let e = if wsum > 1e-3 { e.iter().map(|v| *v / wsum).collect() } else { irradiance(s.position, n) };
-            let rho = scene.diffuse_at(&s) * std::f32::consts::FRAC_1_PI;
-            let cam_depth = medium.sigma_t() * medium.length_inside(cam, s.position);
-            Some((i, e.iter().zip(&ds).map(|(e, &d)| rho * *e * (-d * cam_depth).exp()).collect()))
-        })
-        .collect();
-    for (i, values) in per_pixel.into_iter().flatten() {
-        for (o, v) in out.iter_mut().zip(values) {
-            o[i] = v;
         }
-    }
-    out
+        if wsum > 1e-3 {
+            out.iter_mut().for_each(|o| *o /= wsum);
+        } else {
+            out.fill(Vec3::ZERO);
+            irradiance(s.position, n, out);
+        }
+        let rho = scene.diffuse_at(&s) * std::f32::consts::FRAC_1_PI;
+        let cam_depth = medium.sigma_t() * medium.length_inside(cam, s.position);
+        for (o, &d) in out.iter_mut().zip(&ds) {
+            *o = rho * *o * (-d * cam_depth).exp();
+        }
+    });
+    (0..nd).map(|j| flat.iter().skip(j).step_by(nd).copied().collect()).collect()
 }
 
 /// The surface glow's irradiance is gathered on every `GLOW_SCALE`-th
 /// pixel in x and y and interpolated ([`render_surface_glow`]).
 const GLOW_SCALE: usize = 4;
+
+/// The four coarse cells around full pixel (x, y) of a `full`-sized picture
+/// traced on every `s`-th pixel (`coarse` cells per axis), with their
+/// bilinear weights.
+fn bilinear_corners(
+    x: usize,
+    y: usize,
+    s: usize,
+    coarse: (usize, usize),
+    full: (usize, usize),
+) -> [(usize, usize, f32); 4] {
+    let (cx0, fx) = cell(x, s, coarse.0, full.0);
+    let (cy0, fy) = cell(y, s, coarse.1, full.1);
+    let (cx1, cy1) = ((cx0 + 1).min(coarse.0 - 1), (cy0 + 1).min(coarse.1 - 1));
+    [(cx0, cy0, (1.0 - fx) * (1.0 - fy)), (cx1, cy0, fx * (1.0 - fy)), (cx0, cy1, (1.0 - fx) * fy), (cx1, cy1, fx * fy)]
+}
 
 /// The coarse cell left of / above full pixel `p` and the bilinear fraction.
 fn cell(p: usize, s: usize, n: usize, full: usize) -> (usize, f32) {
