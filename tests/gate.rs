@@ -194,6 +194,33 @@ fn a_spinning_gobo_is_rebuilt_at_a_bounded_rate() {
     assert_eq!(classify(&show.decode(&u)[0].state, &show.decode(&u)[0].state), Change::Unchanged);
 }
 
+/// A rotation with nothing in the beam to turn (an open gobo slot, no
+/// prism in) does not change the beam: the light is never rebuilt for it
+/// (issue 38: the festival show's profiles, prism out with its rotation
+/// channel at 128, were rebuilt 15 times a second and never converged).
+/// The same spin with the ring gobo in turns the beam (the test above).
+#[test]
+fn a_rotation_with_nothing_in_the_beam_is_no_rebuild() {
+    let mut patch = footlight_mvr::load_patch(&root().join("tests/data/gate-patch.toml")).unwrap();
+    let mut u = patch.look_universes.clone();
+    // Fixture 1: gobo wheel on its open slot, gobo1pos 255 = rotation at 360 °/s.
+    u.set_slot(1, 9, 0);
+    u.set_slot(1, 10, 255);
+    patch.fixtures.truncate(1);
+    let show = Show::new(patch).unwrap();
+    let first = show.decode_at(&u, 0.0);
+    assert!(first[0].state.gobo_spin > 300.0, "{}", first[0].state.gobo_spin);
+    for f in 1..=120 {
+        let now = show.decode_at(&u, f as f64 / 60.0);
+        assert_eq!(classify(&first[0].state, &now[0].state), Change::Unchanged, "frame {f}");
+        assert_eq!(now[0].light, first[0].light);
+    }
+    // With the ring in, the same rotation turns the beam within a clock step.
+    u.set_slot(1, 9, 10);
+    let ring = (show.decode_at(&u, 0.0), show.decode_at(&u, 1.5 / SPIN_UPDATE_HZ));
+    assert_eq!(classify(&ring.0[0].state, &ring.1[0].state), Change::Geometry);
+}
+
 #[test]
 fn the_frame_clock_rebuilds_a_spinning_gobo_only_when_its_angle_steps() {
     let mut patch = footlight_mvr::load_patch(&root().join("tests/data/gate-patch.toml")).unwrap();

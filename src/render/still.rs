@@ -4,7 +4,7 @@
 //! same pieces with a scheduler in between.
 
 use super::RenderSettings;
-use super::buffer::LightBuffer;
+use super::buffer::{LightBuffer, SharedLayer};
 use super::build::{BuildError, Cancel, GroupBuild, Haze, LightBuild, NextStage};
 use super::composite::composite;
 use super::footprint::TileBounds;
@@ -62,14 +62,34 @@ pub struct StillTimings {
 pub struct Still {
     /// Camera-dependent state (reusable).
     pub view: View,
-    /// One buffer per light, in job order.
+    /// One buffer per light, in job order: its own. A cell that shares a
+    /// group's indirect term holds its own Whitted term here and the term
+    /// in [`Still::layers`] ([`Still::light_buffer`] adds them).
     pub buffers: Vec<LightBuffer>,
+    /// The groups' shared indirect terms A_g, each with the lights that
+    /// show it (eq. 5 regrouped: Σ_i k_i (W_i + A_g) = Σ_i k_i W_i +
+    /// (Σ_i k_i) A_g; [`GroupBuild::with_shared_layers`]).
+    pub layers: Vec<(SharedLayer, Vec<usize>)>,
     /// Linear composite in cd/m².
     pub linear: Vec<Vec3>,
     /// Pixels re-shaded by adaptive anti-aliasing, summed over lights.
     pub reshaded: usize,
     /// Stage timings.
     pub timings: StillTimings,
+}
+
+impl Still {
+    /// Light `i`'s whole unit buffer: its own plus the shared layer it
+    /// shows, if any (what it adds to eq. 5 at k_i = 1).
+    pub fn light_buffer(&self, i: usize) -> LightBuffer {
+        match self.layers.iter().find(|(_, members)| members.contains(&i)) {
+            Some((layer, _)) => {
+                let own = &self.buffers[i];
+                LightBuffer::from_dense(own.width, own.height, &layer.plus(own))
+            }
+            None => self.buffers[i].clone(),
+        }
+    }
 }
 
 pub use super::build::light_seed;
@@ -137,6 +157,9 @@ pub fn render_still_hazy(
     // daemon's.
     let (w, h) = (settings.width.max(1), settings.height.max(1));
     let mut surfaces: Vec<Option<LightBuffer>> = vec![None; jobs.len()];
+    // Per light: the shared layer it shows beside its own buffer. Not in
+    // haze: there each light's surface buffer is re-weighted whole.
+    let mut shown: Vec<Option<SharedLayer>> = vec![None; jobs.len()];
     let bounds = TileBounds::paths(&view);
     for run in fixture_runs(jobs) {
         // A fixture's lit cells are one group ([`GroupBuild`]): one Whitted
@@ -148,7 +171,8 @@ pub fn render_still_hazy(
         }
         let builds =
             lit.iter().map(|&i| LightBuild::new(jobs[i].light.clone(), i, build_settings, Cancel::never())).collect();
-        let mut group = GroupBuild::new(builds, true);
+        let group = GroupBuild::new(builds, true);
+        let mut group = if haze.is_none() { group.with_shared_layers() } else { group };
         while let Some(stage) = group.next_stage() {
             let t = Instant::now();
             let steps = group
@@ -160,6 +184,7 @@ pub fn render_still_hazy(
             for s in steps {
                 let light = lit[s.member];
                 surfaces[light] = Some(s.step.map_err(|source| RenderError { light, source })?.buffer);
+                shown[light] = s.shared;
             }
         }
         reshaded += group.reshaded();
@@ -179,13 +204,27 @@ pub fn render_still_hazy(
         buffers.push(buffer);
     }
     let t2 = Instant::now();
-    let refs: Vec<&LightBuffer> = buffers.iter().collect();
-    let k: Vec<Vec3> = jobs.iter().map(|j| j.k).collect();
+    let mut layers: Vec<(SharedLayer, Vec<usize>)> = Vec::new();
+    for (i, layer) in shown.into_iter().enumerate() {
+        let Some(layer) = layer else { continue };
+        match layers.iter_mut().find(|(l, _)| l.id == layer.id) {
+            Some((_, members)) => members.push(i),
+            None => layers.push((layer, vec![i])),
+        }
+    }
+    // Eq. 5 regrouped: each light's own buffer at k_i, each layer once at Σ k_i of its lights.
+    let mut refs: Vec<&LightBuffer> = buffers.iter().collect();
+    let mut k: Vec<Vec3> = jobs.iter().map(|j| j.k).collect();
+    for (layer, members) in &layers {
+        refs.push(&layer.buffer);
+        k.push(members.iter().map(|&i| jobs[i].k).sum());
+    }
     let linear = composite(&refs, &k, settings.width.max(1), settings.height.max(1));
     let t3 = Instant::now();
     Ok(Still {
         view,
         buffers,
+        layers,
         linear,
         reshaded,
         timings: StillTimings {

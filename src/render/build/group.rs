@@ -14,6 +14,14 @@
 //!   Whitted term plus the leader's indirect term ([`shared_indirect`],
 //!   [`follower_sum`]), within the bound `tests/pixels.rs` measures.
 //!
+//! With [`GroupBuild::with_shared_layers`] the indirect term is not added
+//! into a dense buffer per cell: the leader and each follower give their
+//! own Whitted term and the group's one [`SharedLayer`] (eq. 5 regrouped,
+//! Σ_i k_i (W_i + A_g) = Σ_i k_i W_i + (Σ_i k_i) A_g), as the live tracer
+//! publishes them: a festival's 3,660 lit cells then hold 3,660
+//! tile-sparse buffers and ~230 dense layers instead of 3,660 dense
+//! buffers (`footlight render` of `festival.mvr`: 10 GB of RSS before).
+//!
 //! `footlight render` drives groups with [`GroupBuild::next`]; the live
 //! tracer schedules cells one by one (each has its own request id and may
 //! move alone) and uses the same passes and the same leader rule.
@@ -21,7 +29,7 @@
 use super::together::{direct_together_at, whitted_together};
 use super::{BuildError, Cancelled, LightBuild, NextStage, Stage, Step, follower_sum, indirect_alike, shared_indirect};
 use crate::fixture::Light;
-use crate::render::buffer::LightBuffer;
+use crate::render::buffer::{LightBuffer, SharedLayer};
 use crate::render::footprint::TileBounds;
 use crate::render::view::{AaParams, View};
 use crate::scene::Scene;
@@ -54,6 +62,10 @@ pub struct GroupStep {
     /// this cell alone in a pass together, whose build is dropped while the
     /// other cells go on.
     pub step: Result<Step, BuildError>,
+    /// With [`GroupBuild::with_shared_layers`], at the leader's photon
+    /// estimate and final picture: the group's indirect term A_g, which the
+    /// cell shows beside `step`'s buffer (its own Whitted term).
+    pub shared: Option<SharedLayer>,
 }
 
 /// A stage of a [`GroupBuild`] failed for one cell.
@@ -79,6 +91,9 @@ pub struct GroupBuild {
     builds: Vec<Option<LightBuild>>,
     /// Whether cells alike share the photon stage.
     share_indirect: bool,
+    /// Whether the shared indirect term is given as a [`SharedLayer`]
+    /// beside each cell's own Whitted term (else added in, dense).
+    layers: bool,
     /// The photon leader, its Whitted term and its followers.
     lead: Option<(usize, LightBuffer, Vec<Follower>)>,
     /// Passes that built two cells or more, and the cells in them.
@@ -96,11 +111,21 @@ impl GroupBuild {
         Self {
             builds: builds.into_iter().map(Some).collect(),
             share_indirect,
+            layers: false,
             lead: None,
             passes: (0, 0),
             reshaded: 0,
             followed: 0,
         }
+    }
+
+    /// The cells alike give their own Whitted term and the group's
+    /// [`SharedLayer`] ([`GroupStep::shared`]) instead of a dense sum each
+    /// (module doc). A cell's picture is the same either way (the
+    /// layer's pixels added to its own buffer's).
+    pub fn with_shared_layers(mut self) -> Self {
+        self.layers = true;
+        self
     }
 
     /// Number of cells.
@@ -196,7 +221,7 @@ impl GroupBuild {
         if stage == NextStage::Whitted {
             self.reshaded += build.reshaded();
         }
-        Ok(step.map(|step| GroupStep { member, step: Ok(step) }).into_iter().collect())
+        Ok(step.map(|step| GroupStep { member, step: Ok(step), shared: None }).into_iter().collect())
     }
 
     /// Runs every stage of every cell; each cell's last buffer.
@@ -241,7 +266,7 @@ impl GroupBuild {
         for (&member, buffer) in due.iter().zip(buffers) {
             if let Err(e) = buffer.check() {
                 self.builds[member] = None;
-                steps.push(GroupStep { member, step: Err(e.into()) });
+                steps.push(GroupStep { member, step: Err(e.into()), shared: None });
                 continue;
             }
             let Some(build) = self.builds[member].as_mut() else { continue };
@@ -254,6 +279,7 @@ impl GroupBuild {
             steps.push(GroupStep {
                 member,
                 step: Ok(Step { stage: Stage::Direct, buffer, footprint: Some(footprint) }),
+                shared: None,
             });
         }
         Ok(steps)
@@ -276,14 +302,14 @@ impl GroupBuild {
         for (&member, (buffer, reshaded)) in due.iter().zip(built) {
             if let Err(e) = buffer.check() {
                 self.builds[member] = None;
-                steps.push(GroupStep { member, step: Err(e.into()) });
+                steps.push(GroupStep { member, step: Err(e.into()), shared: None });
                 continue;
             }
             let Some(build) = self.builds[member].as_mut() else { continue };
             build.set_whitted(&buffer, reshaded);
             self.reshaded += reshaded;
             let stage = if build.has_photons() { Stage::Whitted } else { Stage::Ready };
-            steps.push(GroupStep { member, step: Ok(Step { stage, buffer, footprint: None }) });
+            steps.push(GroupStep { member, step: Ok(Step { stage, buffer, footprint: None }), shared: None });
         }
         Ok(steps)
     }
@@ -341,16 +367,30 @@ impl GroupBuild {
             && let Some((_, leader_whitted, followers)) = self.lead.as_ref()
         {
             let indirect = shared_indirect(&step.buffer, leader_whitted);
+            if self.layers {
+                // Each cell: its own Whitted term and the one layer.
+                let layer = SharedLayer::new(LightBuffer::from_dense(view.width(), view.height(), &indirect));
+                for f in followers {
+                    let own = Step { stage, buffer: f.whitted.clone(), footprint: None };
+                    steps.push(GroupStep { member: f.member, step: Ok(own), shared: Some(layer.clone()) });
+                }
+                let own = Step { stage, buffer: leader_whitted.clone(), footprint: None };
+                steps.insert(0, GroupStep { member, step: Ok(own), shared: Some(layer) });
+                if stage == Stage::Ready {
+                    self.lead = None;
+                }
+                return Ok(steps);
+            }
             for f in followers {
                 let buffer = follower_sum(&f.whitted, &indirect);
                 let step = buffer.check().map(|()| Step { stage, buffer, footprint: None }).map_err(BuildError::from);
-                steps.push(GroupStep { member: f.member, step });
+                steps.push(GroupStep { member: f.member, step, shared: None });
             }
         }
         if stage == Stage::Ready {
             self.lead = None;
         }
-        steps.insert(0, GroupStep { member, step: Ok(step) });
+        steps.insert(0, GroupStep { member, step: Ok(step), shared: None });
         Ok(steps)
     }
 }

@@ -771,6 +771,7 @@ impl LightBuild {
                 sppm: None,
                 fixed: Some(fixed),
                 pending: None,
+                from_coarse: false,
                 passes: self.settings.refine_passes,
                 done: 0,
                 cancel: self.cancel.with_preempt(None),
@@ -784,6 +785,7 @@ impl LightBuild {
             sppm: None,
             fixed: None,
             pending: None,
+            from_coarse: false,
             passes: self.settings.refine_passes,
             done: 0,
             // Refinement passes are short: they never yield.
@@ -793,23 +795,35 @@ impl LightBuild {
         if let (Some(start), Some(exact)) = (start.clone(), self.exact.take()) {
             // A coarse start: finished by the first pass (not here: the
             // tracer serves the other lights' stages first), or blended with
-            // it as it is.
-            if self.from_coarse {
-                let w = maps.settings.estimate as f32;
-                refinement.sppm = Some(Progressive::new(scene, view, &maps).starting_from(start.clone(), w));
-            }
-            refinement.pending = Some((maps, start, exact));
+            // it as it is (`from_coarse`, also set up by the first pass).
+            refinement.from_coarse = self.from_coarse;
+            refinement.pending = Some(PendingStart { maps, start, exact: Some(exact) });
             return Some(refinement);
         }
         // Never worse than the picture on screen: the passes are blended with
-        // the photon-map estimate just shown, weighted by photon counts.
-        let mut sppm = Progressive::new(scene, view, &maps);
-        if let Some(start) = start {
-            sppm = sppm.starting_from(start, maps.settings.estimate as f32);
+        // the photon-map estimate just shown, weighted by photon counts. The
+        // SPPM state is set up by the first pass ([`Refinement::pass`]).
+        match start {
+            Some(start) => refinement.pending = Some(PendingStart { maps, start, exact: None }),
+            None => refinement.sppm = Some(Progressive::new(scene, view, &maps)),
         }
-        refinement.sppm = Some(sppm);
         Some(refinement)
     }
+}
+
+/// A refinement's start before its first pass. SPPM's per-vertex state
+/// (radius, count, flux: 20 bytes a vertex beside the start's 12) is made
+/// only by the first pass, so a light waiting for its turn to refine holds
+/// its start alone (issue 38: the festival show's ~228 photon leaders all
+/// wait after their photon stage; at its 250,444 shading vertices a
+/// waiting leader held 45 bytes a vertex, 11 MB, and now holds 13, 3.3 MB).
+struct PendingStart {
+    /// The light's photon maps (the SPPM start radii come from them).
+    maps: Arc<PhotonMaps>,
+    /// The photon-map irradiance at every shading vertex.
+    start: Vec<Vec3>,
+    /// For a coarse start, which values are exact (`None`: all are).
+    exact: Option<Vec<bool>>,
 }
 
 /// Seed of the edge samples' per-pixel shifts ([`light_seed`] per light).
@@ -830,8 +844,11 @@ pub struct Refinement {
     /// The indirect term, dense, of a light without global photons (its
     /// photon estimate stays; only its edges are refined).
     fixed: Option<Vec<Vec3>>,
-    /// A coarse start still to finish: the maps, its values, which are exact.
-    pending: Option<(Arc<PhotonMaps>, Vec<Vec3>, Vec<bool>)>,
+    /// A start still to set up ([`PendingStart`]).
+    pending: Option<PendingStart>,
+    /// A coarse start's first pass blends with it as it is instead of
+    /// finishing it ([`LightBuild::with_refinement_from_coarse`]).
+    from_coarse: bool,
     passes: u32,
     /// Passes done.
     done: u32,
@@ -854,10 +871,9 @@ impl Refinement {
     /// tracer's memory budget.
     pub fn bytes(&self) -> usize {
         only_here(&self.direct)
-            + self
-                .pending
-                .as_ref()
-                .map_or(0, |(_, start, exact)| start.len() * std::mem::size_of::<Vec3>() + exact.len())
+            + self.pending.as_ref().map_or(0, |PendingStart { start, exact, .. }| {
+                start.len() * std::mem::size_of::<Vec3>() + exact.as_ref().map_or(0, Vec::len)
+            })
             + self.sppm.as_ref().map_or(0, Progressive::bytes)
             + self.edges.as_ref().map_or(0, EdgeSamples::bytes)
             + self.fixed.as_ref().map_or(0, |f| std::mem::size_of_val(&f[..]))
@@ -881,7 +897,7 @@ impl Refinement {
 
     /// True while a coarse start waits for [`Refinement::exact_start`].
     pub fn has_coarse_start(&self) -> bool {
-        self.pending.is_some()
+        self.pending.as_ref().is_some_and(|p| p.exact.is_some())
     }
 
     /// Finishes a coarse photon-map start ([`LightBuild::with_coarse_indirect`]):
@@ -890,14 +906,20 @@ impl Refinement {
     /// when the start was exact already. A tracer that gives a light's
     /// refinement up calls it so the light never stays at the coarse estimate.
     pub fn exact_start(&mut self, scene: &Scene, view: &View) -> Result<Option<LightBuffer>, BuildError> {
-        let Some((maps, mut start, exact)) = self.pending.take() else { return Ok(None) };
+        let Some(PendingStart { maps, mut start, exact }) = self.pending.take() else { return Ok(None) };
+        let weight = maps.settings.estimate as f32;
+        let Some(exact) = exact else {
+            // An exact start: the picture on screen is already this one.
+            self.sppm = Some(Progressive::new(scene, view, &maps).starting_from(start, weight));
+            return Ok(None);
+        };
         let cancel = &self.cancel;
         view.fill_vertex_irradiance_until(scene, &maps, &mut start, &exact, &|| cancel.fired()).ok_or(Cancelled)?;
         let indirect = view.render_vertex_irradiance(scene, &start);
         let sum = direct_plus(&self.direct, self.edges.as_ref(), &indirect);
         let buffer = LightBuffer::from_dense(view.width(), view.height(), &sum);
         buffer.check()?;
-        self.sppm = Some(Progressive::new(scene, view, &maps).starting_from(start, maps.settings.estimate as f32));
+        self.sppm = Some(Progressive::new(scene, view, &maps).starting_from(start, weight));
         Ok(Some(buffer))
     }
 
@@ -919,7 +941,17 @@ impl Refinement {
     pub fn pass(&mut self, scene: &Scene, view: &View) -> Result<LightBuffer, BuildError> {
         self.cancel.check()?;
         if self.sppm.is_none() && self.fixed.is_none() {
-            self.exact_start(scene, view)?;
+            match &self.pending {
+                // Blended as it is; kept until a pass ran, so a refinement
+                // given up before still ends on the exact estimate.
+                Some(PendingStart { maps, start, exact: Some(_) }) if self.from_coarse => {
+                    let w = maps.settings.estimate as f32;
+                    self.sppm = Some(Progressive::new(scene, view, maps).starting_from(start.clone(), w));
+                }
+                _ => {
+                    self.exact_start(scene, view)?;
+                }
+            }
         }
         let cancel = &self.cancel;
         let stop = || cancel.fired();

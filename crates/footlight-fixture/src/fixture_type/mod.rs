@@ -843,9 +843,28 @@ impl FixtureType {
     }
 
     /// The state at frame time `t_seconds` with its gobo/prism spins and
-    /// gobo-wheel spin applied ([`FixtureState::at_time`] over this type's gobo wheel).
+    /// gobo-wheel spin applied ([`FixtureState::at_time`] over this type's
+    /// gobo wheel). A rotation with nothing in the beam to turn (an open
+    /// gobo slot, no prism in) keeps its angle: it does not change the
+    /// beam, so it must not make the light a moving one that is rebuilt at
+    /// [`crate::state::SPIN_UPDATE_HZ`] and never reaches its Whitted and photon
+    /// stages (issue 38: the festival show's 24 profiles, prism out with its
+    /// rotation channel at the default 128, stayed at their direct stage).
     pub fn state_at(&self, state: &FixtureState, t_seconds: f64) -> FixtureState {
-        state.at_time(t_seconds, self.gate.gobo_wheel.len())
+        let mut s = state.at_time(t_seconds, self.gate.gobo_wheel.len());
+        if slot_at(&self.gate.gobo_wheel, s.gobo).is_none_or(Option::is_none) {
+            s.gobo_angle = state.gobo_angle;
+        }
+        if slot_at(&self.gate.prism_wheel, s.prism).is_none_or(Vec::is_empty) {
+            s.prism_angle = state.prism_angle;
+        }
+        if slot_at(&self.gate.gobo_wheel2, s.gobo2[0]).is_none_or(Option::is_none) {
+            s.gobo2[1] = state.gobo2[1];
+        }
+        if slot_at(&self.gate.animation_wheel, s.animation[0]).is_none_or(Option::is_none) {
+            s.animation[1] = state.animation[1];
+        }
+        s
     }
 
     /// Î in candela for a state: zoom and edge focus keep the flux (profile),
