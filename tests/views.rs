@@ -165,6 +165,62 @@ fn photon_maps_survive_a_camera_move_and_a_cached_view_comes_back_with_its_buffe
     assert!(tracer.shutdown(Duration::from_secs(5)));
 }
 
+/// Photon maps kept past `kept_maps_bytes` (issue 38, memory): once the
+/// builds ended, the dimmer light's maps go and the brighter's stay; the
+/// pictures do not change; a camera move re-traces only the light whose
+/// maps went, and its buffer in the new view is still that of a build
+/// from scratch.
+#[test]
+fn kept_photon_maps_past_their_budget_go_dimmest_first() {
+    let scene = scene();
+    let other = Camera::look_at(Vec3::new(5.0, 4.0, 2.0), Vec3::ZERO, 50f32.to_radians());
+    let (va, vb) = (view(&scene, start_camera()), view(&scene, other));
+    let wait_both = |t: &Tracer| {
+        let start = Instant::now();
+        while !(t.idle() && (0..2).all(|i| t.published(i).stage == Stage::Ready)) {
+            assert!(start.elapsed() < Duration::from_secs(60), "tracer stuck");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    };
+    let run = |kept_maps_bytes: u64| {
+        let tracer = Tracer::new(scene.clone(), va.clone(), 2, TracerSettings { kept_maps_bytes, ..tracer_settings() });
+        tracer.request(0, spot(-0.5), 1.0);
+        tracer.request(1, spot(0.5), 0.4);
+        wait_both(&tracer);
+        tracer
+    };
+    let all = run(u64::MAX);
+    let total = all.memory().photon_maps_bytes;
+    assert!(total > 0 && all.keeps_maps(0) && all.keeps_maps(1));
+    // Room for one light's maps (both store the same photon count).
+    let capped = run(total * 3 / 5);
+    let t = Instant::now();
+    // (`memory()` works the usage out, as every finished job does.)
+    while capped.memory().photon_maps_bytes > total * 3 / 5 {
+        assert!(t.elapsed() < Duration::from_secs(10), "kept maps never trimmed");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(!capped.keeps_maps(1), "the dimmer light's maps go");
+    assert!(capped.keeps_maps(0), "the brighter light keeps its maps");
+    let used = capped.memory().photon_maps_bytes;
+    assert!(used <= total * 3 / 5 && used > 0, "{used} of {total}");
+    for i in 0..2 {
+        assert_eq!(capped.published(i).buffer.to_dense(), all.published(i).buffer.to_dense(), "light {i}");
+    }
+    // A camera move: only light 1 traces its photons again.
+    let traces = capped.photon_traces();
+    capped.set_view(vb.clone(), &[]);
+    wait_both(&capped);
+    assert_eq!(capped.photon_traces(), traces + 1);
+    // Light 1 built from scratch (its own index: its photon seed).
+    let mut build = LightBuild::new(spot(0.5), 1, tracer_settings().build, Cancel::never());
+    let scratch = build.photons(&scene, &vb).expect("finite").to_dense();
+    assert_eq!(capped.published(1).buffer.to_dense(), scratch);
+    for t in [all, capped] {
+        assert!(t.shutdown(Duration::from_secs(5)));
+    }
+}
+
 /// The DMX crate's merged frame for dimmer and x (what the daemon reads).
 fn merged(dimmer: u8, x: u8) -> footlight_dmx::Universes {
     let mut slots = [0u8; 512];

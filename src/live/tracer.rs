@@ -150,6 +150,13 @@ pub struct TracerSettings {
     /// Geometry cache budget in bytes (the current view's; the caches kept
     /// for views left behind share another budget of the same size).
     pub cache_bytes: usize,
+    /// Photon maps kept after a light's build ended, in bytes: they serve a
+    /// camera move or a return to the same geometry (no new photon trace)
+    /// and are not needed for the picture, so past this the maps of dark
+    /// lights go first (least recently lit first), then those of the
+    /// dimmest lit lights (issue 38: the festival show's ~228 photon
+    /// leaders kept ~1 GB of maps).
+    pub kept_maps_bytes: u64,
     /// The first indirect estimate of a build is exact every this many
     /// pixels and interpolated in between (0 or 1: exact everywhere); the
     /// first refinement pass finishes it ([`LightBuild::with_coarse_indirect`]).
@@ -192,6 +199,7 @@ impl Default for TracerSettings {
             settle: Duration::from_millis(150),
             max_refining: 4,
             cache_bytes: 512 << 20,
+            kept_maps_bytes: 512 << 20,
             coarse_indirect: 3,
             refine_from_coarse: true,
             batch_cells: true,
@@ -568,6 +576,12 @@ impl Tracer {
     /// geometry: a camera move ([`Tracer::set_view`]) does not add to it.
     pub fn photon_traces(&self) -> u64 {
         self.shared.photon_traces.load(Ordering::SeqCst)
+    }
+
+    /// True when light `index` keeps photon maps (for a camera move or a
+    /// return to the same geometry; [`TracerSettings::kept_maps_bytes`]).
+    pub fn keeps_maps(&self, index: usize) -> bool {
+        self.shared.slots.get(index).is_some_and(|s| s.state.lock().expect("slot lock").maps.is_some())
     }
 
     /// True when the lights are built in haze ([`Tracer::with_haze`]).
@@ -1073,7 +1087,7 @@ impl Shared {
         // Evicting a dark light frees its own buffers; a layer it shares
         // stays counted (freed only with its last light: an upper bound).
         let mut buffers: u64 = held.iter().map(|h| h.0).sum::<u64>() + layers.values().map(|l| l.0).sum::<u64>();
-        let mut maps: u64 = held.iter().map(|h| h.1).sum();
+        let mut maps: u64 = held.iter().map(|h| h.1).sum::<u64>() - self.trim_kept_maps();
         let mut cache = caches(self);
         let lit_bytes: u64 = held.iter().filter(|h| h.2).map(|h| h.0 + h.1).sum::<u64>()
             + layers.values().filter(|l| l.1).map(|l| l.0).sum::<u64>();
@@ -1088,7 +1102,8 @@ impl Shared {
                 }
                 if self.evict(i) {
                     buffers -= held[i].0;
-                    maps -= held[i].1;
+                    // Its maps may have gone already (`trim_kept_maps`).
+                    maps = maps.saturating_sub(held[i].1);
                 }
             }
             // 2. The geometry caches: views left behind first, then this view's.
@@ -1132,6 +1147,42 @@ impl Shared {
         }
         *last = usage.clone();
         usage
+    }
+
+    /// Drops the photon maps of lights without a build in progress past
+    /// [`TracerSettings::kept_maps_bytes`]: dark lights' first (least
+    /// recently lit first), then the dimmest lit lights'. Returns the
+    /// bytes dropped ([`maps_bytes`]).
+    fn trim_kept_maps(&self) -> u64 {
+        // Per light without a build: bytes of its kept maps, lit, priority, last lit.
+        let mut kept: Vec<(usize, u64, bool, f32, Option<Instant>)> = self
+            .slots
+            .iter()
+            .enumerate()
+            .filter_map(|(i, slot)| {
+                let st = slot.state.lock().expect("slot lock");
+                let (_, m) = st.maps.as_ref().filter(|_| st.build.is_none() && st.lead.is_none())?;
+                Some((i, maps_bytes(m), st.priority > 0.0, st.priority, st.last_lit))
+            })
+            .collect();
+        let mut total: u64 = kept.iter().map(|k| k.1).sum();
+        if total <= self.settings.kept_maps_bytes {
+            return 0;
+        }
+        // Dark before lit; dark by when last lit, lit by priority (dimmest first).
+        kept.sort_by(|a, b| a.2.cmp(&b.2).then(if a.2 { a.3.total_cmp(&b.3) } else { a.4.cmp(&b.4) }));
+        let mut dropped = 0;
+        for (i, bytes, ..) in kept {
+            if total <= self.settings.kept_maps_bytes {
+                break;
+            }
+            let mut st = self.slots[i].state.lock().expect("slot lock");
+            if st.build.is_none() && st.lead.is_none() && st.maps.take().is_some() {
+                total -= bytes;
+                dropped += bytes;
+            }
+        }
+        dropped
     }
 
     /// Drops dark light `index`'s buffers, photon maps and build state for
