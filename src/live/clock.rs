@@ -426,6 +426,9 @@ impl FrameClock {
             }
         }
         let t_layers = t0.elapsed();
+        if gpu_rgb.is_none() && !gpu_pending && density.is_none() {
+            self.compositor.share_buffers(entries.buffers.iter().map(|(_, b)| b.clone()).collect());
+        }
         let update = match (gpu_rgb.is_none() && !gpu_pending, density) {
             (false, _) => UpdateStats::default(),
             (true, None) if !places.is_empty() => {

@@ -189,6 +189,10 @@ pub struct Compositor {
     /// Stale groups rebuilt in the background, when asked for
     /// ([`Compositor::with_group_members`]).
     background: Option<Background>,
+    /// The lights' buffers as shared handles, when the caller has them
+    /// ([`Compositor::share_buffers`]): a stale group's rebuild takes them
+    /// instead of a copy of every cell's buffer.
+    shared: Vec<Arc<LightBuffer>>,
     /// A dense term added to every pixel before encoding, with its
     /// generation ([`Compositor::set_overlay`]).
     overlay: Option<(u64, Arc<Vec<Vec3>>)>,
@@ -387,6 +391,7 @@ impl Compositor {
             group_current: Vec::new(),
             regrouped: false,
             background: None,
+            shared: Vec::new(),
             overlay: None,
             overlay_changed: false,
             deferred: Vec::new(),
@@ -400,8 +405,6 @@ impl Compositor {
     /// buffer (a build stage, a group's storage): past it the rest wait
     /// for the next frames ([`Compositor::update`]).
     pub const DEFERRED_BUDGET_MS: f64 = 6.0;
-    /// Tiles taken from the deferred ones per update, whatever the budget.
-    pub const MIN_DEFERRED_TILES: usize = 8;
 
     /// Sets the dense term added to every pixel after the lights' composite
     /// and before encoding: `(generation, pixels)` (row-major, the frame's
@@ -474,18 +477,37 @@ impl Compositor {
             if bg.in_flight[gi] || !lit || g.is_current(lights) || g.members.iter().any(|&m| m >= lights.len()) {
                 continue;
             }
-            let buffers: Vec<LightBuffer> = g.members.iter().map(|&m| lights[m].buffer.clone()).collect();
+            // The caller's shared handle where it is this very buffer, else a
+            // copy. (Copying every cell's buffer on the frame clock took
+            // 100-200 ms frames on the festival show while its direct stages
+            // published: two groups of 40 cells at once.)
+            let buffers: Vec<Arc<LightBuffer>> = g
+                .members
+                .iter()
+                .map(|&m| match self.shared.get(m) {
+                    Some(b) if std::ptr::eq(Arc::as_ptr(b), lights[m].buffer) => b.clone(),
+                    _ => Arc::new(lights[m].buffer.clone()),
+                })
+                .collect();
             let generations: Vec<u64> = g.members.iter().map(|&m| lights[m].generation).collect();
             let (members, settings, tx, epoch) = (g.members.clone(), bg.settings, bg.tx.clone(), bg.epoch);
             bg.in_flight[gi] = true;
             running += 1;
             bg.pool.spawn(move || {
-                let refs: Vec<&LightBuffer> = buffers.iter().collect();
+                let refs: Vec<&LightBuffer> = buffers.iter().map(|b| &**b).collect();
                 let storage = Arc::new(GroupBuffer::build(&refs, settings));
                 // The compositor may be gone: nothing to deliver to then.
                 let _ = tx.send((gi, epoch, CompositeGroup { members, generations, storage }));
             });
         }
+    }
+
+    /// The lights' buffers of the next [`Compositor::update`] as shared
+    /// handles, in the same order (index i is light i): a stale group's
+    /// background rebuild holds them instead of copying every cell's buffer
+    /// on the caller's thread. Optional; a light without one is copied.
+    pub fn share_buffers(&mut self, buffers: Vec<Arc<LightBuffer>>) {
+        self.shared = buffers;
     }
 
     /// Sets the emitter groups (replacing any): each group's cells are
@@ -599,8 +621,9 @@ impl Compositor {
     /// buffer (a build stage published, a group's storage became current
     /// or stale) are recomposed up to [`Compositor::DEFERRED_BUDGET_MS`] of
     /// composite time (a tile costs 1 + the buffers covering it, timed per
-    /// buffer over recent updates; at least [`Compositor::MIN_DEFERRED_TILES`]); the
-    /// rest wait for the next updates, taken round robin, and
+    /// buffer over recent updates); a tile that would pass the budget
+    /// waits, except the first one waiting (so every update makes
+    /// progress). The rest wait for the next updates, taken round robin, and
     /// [`UpdateStats::deferred`] counts them. On the festival show a batch
     /// of cells publishing at once dirtied 500 tiles under ~340 buffers
     /// each: 190 ms on the frame clock. Every tile is recomposed from
@@ -663,18 +686,23 @@ impl Compositor {
         }
         // The budget in covering buffers (a tile's cost: 1 + the buffers covering it).
         let budget = if self.ms_per_cover > 0.0 { Self::DEFERRED_BUDGET_MS / self.ms_per_cover } else { f64::INFINITY };
+        // Until the next tile would pass the budget; the first is always
+        // taken. (Taking at least 8 whatever their cost made 40-164 ms
+        // frames on the festival show while its direct stages published:
+        // tiles under ~3,600 rushed buffers cost ~15 ms each.)
         let (mut taken, mut spent) = (0, 0.0);
         for step in 0..n {
             let t = (self.deferred_cursor + step) % n;
             if self.deferred[t] {
+                let cost = f64::from(self.coverage.get(t).copied().unwrap_or(0)) + 1.0;
+                if taken > 0 && spent + cost > budget {
+                    self.deferred_cursor = t;
+                    return;
+                }
                 self.deferred[t] = false;
                 dirty[t] = true;
                 taken += 1;
-                spent += f64::from(self.coverage.get(t).copied().unwrap_or(0)) + 1.0;
-                if spent >= budget && taken >= Self::MIN_DEFERRED_TILES {
-                    self.deferred_cursor = (t + 1) % n;
-                    return;
-                }
+                spent += cost;
             }
         }
     }
@@ -1094,5 +1122,41 @@ mod tests {
         }
         assert_eq!(updates, 4, "200 tiles at 64 a frame");
         assert_eq!(c.linear(), &composite(&[&a0, &b], &k2, w, h)[..]);
+    }
+
+    /// Tiles dearer than the budget are taken one per update (never a
+    /// batch of them in one frame), and a cheap tile never passes the
+    /// budget to follow a dear one.
+    #[test]
+    fn dear_tiles_past_the_budget_come_one_per_update() {
+        let (w, h) = (64u32, 16u32); // 4 tiles
+        let dense = |v: f32| LightBuffer::from_dense(w, h, &vec![Vec3::splat(v); (w * h) as usize]);
+        let (a0, a1, b) = (dense(1.0), dense(2.0), dense(0.5));
+        let k = [Vec3::ONE, Vec3::ONE];
+        fn entries<'a>(a: &'a LightBuffer, ga: u64, b: &'a LightBuffer) -> [CompositeInput<'a>; 2] {
+            [
+                CompositeInput { buffer: a, generation: ga, k: Vec3::ONE },
+                CompositeInput { buffer: b, generation: 0, k: Vec3::ONE },
+            ]
+        }
+        let mut c = Compositor::new(w, h, Display::neutral(100.0));
+        c.update(&entries(&a0, 0, &b));
+        // At 1 ms per covering buffer a tile (2 buffers + 1) costs 3 ms: two fit the 6 ms budget.
+        c.ms_per_cover = 1.0;
+        assert_eq!(c.update(&entries(&a1, 1, &b)).tiles, 2, "two tiles of 3 ms fill the 6 ms budget");
+        // At 4 ms per covering buffer a tile costs 12 ms, twice the budget: one per update.
+        c.ms_per_cover = 4.0;
+        let mut counts = Vec::new();
+        loop {
+            c.ms_per_cover = 4.0;
+            let u = c.update(&entries(&a0, 2, &b));
+            counts.push(u.tiles);
+            if u.deferred == 0 {
+                break;
+            }
+            assert!(counts.len() < 10, "never drained: {counts:?}");
+        }
+        assert_eq!(counts, vec![1, 1, 1, 1], "one dear tile per update");
+        assert_eq!(c.linear(), &composite(&[&a0, &b], &k, w, h)[..]);
     }
 }
