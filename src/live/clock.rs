@@ -426,9 +426,6 @@ impl FrameClock {
             }
         }
         let t_layers = t0.elapsed();
-        if gpu_rgb.is_none() && !gpu_pending && density.is_none() {
-            self.compositor.share_buffers(entries.buffers.iter().map(|(_, b)| b.clone()).collect());
-        }
         let update = match (gpu_rgb.is_none() && !gpu_pending, density) {
             (false, _) => UpdateStats::default(),
             (true, None) if !places.is_empty() => {
@@ -440,9 +437,9 @@ impl FrameClock {
                     lights[n..].iter().zip(&entries.buffers[n..]).map(|(l, (g, b))| (l.k, *g, b)).collect();
                 let overlay = self.layer_sum.update(&shared);
                 self.compositor.set_overlay(overlay);
-                self.compositor.update(&lights[..n])
+                self.compositor.update_sharing(&lights[..n], &entries.buffers)
             }
-            (true, None) => self.compositor.update(&lights),
+            (true, None) => self.compositor.update_sharing(&lights, &entries.buffers),
             // In haze the knots are layers: a hazer change recombines them.
             (true, Some(_)) => self.compositor.update_layers(&layers, &entries.weights),
         };

@@ -189,10 +189,6 @@ pub struct Compositor {
     /// Stale groups rebuilt in the background, when asked for
     /// ([`Compositor::with_group_members`]).
     background: Option<Background>,
-    /// The lights' buffers as shared handles, when the caller has them
-    /// ([`Compositor::share_buffers`]): a stale group's rebuild takes them
-    /// instead of a copy of every cell's buffer.
-    shared: Vec<Arc<LightBuffer>>,
     /// A dense term added to every pixel before encoding, with its
     /// generation ([`Compositor::set_overlay`]).
     overlay: Option<(u64, Arc<Vec<Vec3>>)>,
@@ -391,7 +387,6 @@ impl Compositor {
             group_current: Vec::new(),
             regrouped: false,
             background: None,
-            shared: Vec::new(),
             overlay: None,
             overlay_changed: false,
             deferred: Vec::new(),
@@ -457,7 +452,7 @@ impl Compositor {
 
     /// Takes the group storages finished in the background and starts
     /// rebuilds of lit stale groups (see [`Compositor::with_group_members`]).
-    fn poll_background(&mut self, lights: &[CompositeInput]) {
+    fn poll_background(&mut self, lights: &[CompositeInput], shared: &[(u64, Arc<LightBuffer>)]) {
         let Some(bg) = self.background.as_mut() else { return };
         while let Ok((gi, epoch, group)) = bg.rx.try_recv() {
             if epoch != bg.epoch || gi >= self.groups.len() {
@@ -484,8 +479,8 @@ impl Compositor {
             let buffers: Vec<Arc<LightBuffer>> = g
                 .members
                 .iter()
-                .map(|&m| match self.shared.get(m) {
-                    Some(b) if std::ptr::eq(Arc::as_ptr(b), lights[m].buffer) => b.clone(),
+                .map(|&m| match shared.get(m) {
+                    Some((_, b)) if std::ptr::eq(Arc::as_ptr(b), lights[m].buffer) => b.clone(),
                     _ => Arc::new(lights[m].buffer.clone()),
                 })
                 .collect();
@@ -500,14 +495,6 @@ impl Compositor {
                 let _ = tx.send((gi, epoch, CompositeGroup { members, generations, storage }));
             });
         }
-    }
-
-    /// The lights' buffers of the next [`Compositor::update`] as shared
-    /// handles, in the same order (index i is light i): a stale group's
-    /// background rebuild holds them instead of copying every cell's buffer
-    /// on the caller's thread. Optional; a light without one is copied.
-    pub fn share_buffers(&mut self, buffers: Vec<Arc<LightBuffer>>) {
-        self.shared = buffers;
     }
 
     /// Sets the emitter groups (replacing any): each group's cells are
@@ -630,6 +617,17 @@ impl Compositor {
     /// scratch whenever it is taken, so nothing drifts, and a tile shows
     /// either its old or its new buffers' sum, never a mix within a light.
     pub fn update(&mut self, lights: &[CompositeInput]) -> UpdateStats {
+        self.update_sharing(lights, &[])
+    }
+
+    /// [`Compositor::update`] where the caller holds the lights' buffers
+    /// as shared handles, `shared[i]` = (generation, buffer) of light i (the
+    /// frame clock's entries): a stale group's background rebuild takes
+    /// its cells' handles instead of copying every cell's buffer on the
+    /// caller's thread (festival show: two groups of 40 cells at once made
+    /// 100-200 ms frames). A light without a handle (or another buffer
+    /// there) is copied.
+    pub fn update_sharing(&mut self, lights: &[CompositeInput], shared: &[(u64, Arc<LightBuffer>)]) -> UpdateStats {
         let start = std::time::Instant::now();
         let w = self.width as usize;
         let tiles_x = w.div_ceil(TILE);
@@ -639,7 +637,7 @@ impl Compositor {
         if self.deferred.len() != n_tiles {
             self.deferred = vec![false; n_tiles];
         }
-        self.poll_background(lights);
+        self.poll_background(lights, shared);
         // Coming from layers, every entry is new.
         let full = self.layers.take().is_some() || self.seen.len() != lights.len() || self.regrouped;
         if full || self.coverage.len() != n_tiles {
