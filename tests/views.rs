@@ -875,9 +875,12 @@ fn a_coarse_first_indirect_estimate_is_made_exact_before_refinement() {
     assert!(r_coarse.finished() && r_exact.finished());
 }
 
-/// A light whose refinement is given up (`max_refining`) after a coarse
-/// first estimate ends on the exact photon-map buffer, the one a build
-/// without the coarse step makes, never on the coarse one.
+/// A light whose refinement is taken (`max_refining` brighter lights hold
+/// it) ends on the exact photon-map buffer, the one a build without the
+/// coarse step makes, never on the coarse one; and it gets there in its
+/// photon stage, with no coarse estimate published first and no exact
+/// finish waiting with its photon maps (issue 38): direct, Whitted and
+/// photon stage are its three publishes.
 #[test]
 fn a_light_dropped_from_refinement_ends_on_the_exact_estimate() {
     let scene = scene();
@@ -897,6 +900,8 @@ fn a_light_dropped_from_refinement_ends_on_the_exact_estimate() {
     let mut exact = LightBuild::new(spot(1.0), 1, tracer_settings().build, Cancel::never());
     let reference = exact.photons(&scene, &va).unwrap().to_dense();
     assert_eq!(tracer.published(1).buffer.to_dense(), reference, "the dimmer light's final picture");
+    assert_eq!(tracer.published(1).generation, 3, "direct, Whitted, exact photon stage");
+    assert!(tracer.published(0).generation > 3, "the brighter light refines");
     assert!(tracer.shutdown(Duration::from_secs(5)));
 }
 

@@ -1696,6 +1696,11 @@ fn later_stage(s: &Shared, index: usize) {
         if cells::gather_followers(s, index, id, &build) {
             build.set_edge_refinement(false);
         }
+        if refinement_taken(s, index) {
+            // It would give its refinement up as soon as its photon stage
+            // ends: the exact estimate now, not a coarse one finished later.
+            build = build.with_coarse_indirect(0);
+        }
         // Rule 6: the photon stage yields (once) to a lit light that moves
         // meanwhile; only requests from now on count.
         if !build.yielded() {
@@ -1761,6 +1766,29 @@ fn keep_build(s: &Shared, index: usize, id: u64, build: LightBuild, at: Instant)
     if slot.latest.load(Ordering::SeqCst) == id {
         st.build = Some((id, build, at));
     }
+}
+
+/// True when `max_refining` other lit lights at least as bright as light
+/// `index` hold refinement state already: its refinement would be given up
+/// the moment its photon stage ends ([`start_refining`]). Its photon stage
+/// then looks every shading vertex up exactly instead of publishing a
+/// coarse estimate first (issue 38). A coarse start given up waits for its
+/// exact finish after every other light's photon stage, holding the
+/// light's photon maps all that time: the festival show's ~224 photon
+/// leaders held 1.07 GB of maps that way, and each did its lookups twice
+/// (the coarse step's, then every vertex anew).
+fn refinement_taken(s: &Shared, index: usize) -> bool {
+    let priority = s.slots[index].state.lock().expect("slot lock").priority;
+    let brighter = s
+        .slots
+        .iter()
+        .enumerate()
+        .filter(|&(i, sl)| {
+            let st = sl.state.lock().expect("slot lock");
+            i != index && st.priority >= priority && st.build.as_ref().is_some_and(|(_, b, _)| b.refining())
+        })
+        .count();
+    brighter >= s.settings.max_refining.max(1)
 }
 
 /// Holds refinement state for at most `max_refining` lights: the dimmest
