@@ -105,7 +105,7 @@ impl GpuFrames {
         for (i, l) in lights.iter().enumerate() {
             if self.generations[i] != Some(l.generation) {
                 let (tiles, slots) = l.buffer.raw();
-                self.compositor.set_light(i, LightTiles { tiles: bytemuck::cast_slice(tiles), slots })?;
+                self.compositor.set_light(i, LightTiles { tiles: bytemuck::cast_slice(&tiles), slots })?;
                 self.generations[i] = Some(l.generation);
             }
         }

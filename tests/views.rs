@@ -875,6 +875,47 @@ fn a_coarse_first_indirect_estimate_is_made_exact_before_refinement() {
     assert!(r_coarse.finished() && r_exact.finished());
 }
 
+/// The live tracer holds its buffers compact (f16 with a power-of-two
+/// scale per buffer, `BuildSettings::compact`, issue 38): a light's final
+/// buffer is the f32 build `footlight render` makes to within f16 rounding
+/// (each value within 2^-10 relative: its Whitted term rounded, then the
+/// sum; values below 2^-20 of the largest within 2^-20 of it, absolute),
+/// at about half the bytes, and the f32 build is not compact.
+#[test]
+fn the_live_tracer_holds_compact_buffers_within_f16_rounding() {
+    let scene = scene();
+    let va = view(&scene, start_camera());
+    let mut settings = tracer_settings();
+    settings.build.compact = true;
+    let tracer = Tracer::new(scene.clone(), va.clone(), 1, settings);
+    tracer.request(0, spot(0.3), 1.0);
+    wait_ready(&tracer);
+    let held = tracer.published(0).buffer.clone();
+    assert!(held.is_compact());
+    let mut build = LightBuild::new(spot(0.3), 0, tracer_settings().build, Cancel::never());
+    let want = build.photons(&scene, &va).unwrap();
+    assert!(!want.is_compact());
+    assert_eq!(held.occupied(), want.occupied(), "the same tiles");
+    let (got, want_dense) = (held.to_dense(), want.to_dense());
+    let max = want_dense.iter().map(|v| v.max_element()).fold(0.0f32, f32::max);
+    assert!(max > 0.0);
+    let mut worst = 0.0f32;
+    for (g, w) in got.iter().zip(&want_dense) {
+        for (g, w) in g.to_array().into_iter().zip(w.to_array()) {
+            let bound = (w.abs() * 2f32.powi(-10)).max(max * 2f32.powi(-20));
+            assert!((g - w).abs() <= bound, "{g} vs {w}");
+            if w > max * 2f32.powi(-20) {
+                worst = worst.max((g - w).abs() / w);
+            }
+        }
+    }
+    eprintln!("compact vs f32: worst relative error {worst:.2e}, {} vs {} bytes", held.bytes(), want.bytes());
+    assert!(worst > 0.0, "rounded, not a copy of the f32 values");
+    let values = want.occupied_tiles() * 16 * 16 * 12;
+    assert_eq!(held.bytes() + values / 2, want.bytes(), "6 bytes a pixel instead of 12");
+    assert!(tracer.shutdown(Duration::from_secs(5)));
+}
+
 /// A light whose refinement is taken (`max_refining` brighter lights hold
 /// it) ends on the exact photon-map buffer, the one a build without the
 /// coarse step makes, never on the coarse one; and it gets there in its

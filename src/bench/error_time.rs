@@ -370,6 +370,7 @@ pub fn run(cfg: &ErrorTimeConfig) -> Result<ErrorTimeReport, crate::render::buil
         photons: Some(PhotonSettings::default()),
         refine_passes: cfg.refine,
         edge_samples: true,
+        compact: false,
     };
     let t = Instant::now();
     let view = View::build(&scene, camera, w, h, defaults.sampling, RecursionLimits::default());

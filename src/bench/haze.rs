@@ -719,7 +719,12 @@ fn run_rig(scene: &Scene, camera: Camera, lights: &[Light], medium: &Medium) -> 
         // Tails: per-tile largest value of either knot against the light's peak.
         let tiles = knots[1].occupied();
         let tile_max = |tx: usize, ty: usize| {
-            knots.iter().filter_map(|k| k.tile(tx, ty)).flatten().map(|v| v.max_element()).fold(0.0f32, f32::max)
+            knots
+                .iter()
+                .filter_map(|k| k.tile(tx, ty))
+                .flat_map(|t| t.into_owned())
+                .map(|v| v.max_element())
+                .fold(0.0f32, f32::max)
         };
         let maxes: Vec<f32> = tiles.iter().map(|&(tx, ty)| tile_max(tx, ty)).collect();
         let peak = maxes.iter().copied().fold(0.0f32, f32::max);

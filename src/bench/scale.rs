@@ -324,7 +324,7 @@ pub fn pixel_chase(show: &std::path::Path, width: u32, height: u32, frames: usiz
             let (got, want) = (g.storage.cell(c), &buffers[m]);
             let (mut err, mut energy) = (0.0f64, 0.0f64);
             for (tx, ty) in want.occupied() {
-                let (a, b) = (got.tile(tx, ty).unwrap_or(&[]), want.tile(tx, ty).unwrap_or(&[]));
+                let (a, b) = (got.tile(tx, ty).unwrap_or_default(), want.tile(tx, ty).unwrap_or_default());
                 energy += b.iter().map(|v| f64::from(v.length_squared())).sum::<f64>();
                 err += b
                     .iter()

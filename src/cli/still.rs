@@ -110,6 +110,7 @@ pub fn render(args: &StillOptions) -> Result<()> {
             }),
             refine_passes: args.refine,
             edge_samples: true,
+            compact: false,
         },
     };
     if args.refine > 0 && args.photons == 0 {

@@ -21,6 +21,9 @@
 //!    spent on a position already stale. All settled lights get their
 //!    Whitted stage before any gets photons, and photons before any
 //!    refinement pass; within a stage, the brightest light goes first.
+//!    Only [`TracerSettings::max_refining`] lights refine; a light whose
+//!    photon stage starts with that many at least as bright refining
+//!    does its exact estimate there and is ready when it ends.
 //! 3. **Lit first, dark in idle time.** A light whose k_i is 0 (priority
 //!    0: dimmer, shutter or colour at zero) is scheduled only when no lit
 //!    light has a direct or later stage due: every stage of every lit
@@ -195,7 +198,8 @@ impl Default for TracerSettings {
     fn default() -> Self {
         Self {
             threads: default_build_threads(),
-            build: BuildSettings::default(),
+            // Compact buffers: the daemon holds one per light of the rig.
+            build: BuildSettings { compact: true, ..BuildSettings::default() },
             settle: Duration::from_millis(150),
             max_refining: 4,
             cache_bytes: 512 << 20,
@@ -1251,6 +1255,11 @@ impl Shared {
         if slot.latest.load(Ordering::SeqCst) != id {
             return None; // superseded: a newer request owns the slot
         }
+        // Held until the light changes: compact (a build's own buffers are already).
+        let buffer = match self.settings.build.compact && !buffer.is_compact() {
+            true => Arc::new(Arc::unwrap_or_clone(buffer).compact()),
+            false => buffer,
+        };
         let hazy = match (&self.haze, self.haze_view()) {
             (Some(m), Some(hv)) => {
                 let (beam, previous) = {

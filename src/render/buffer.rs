@@ -4,13 +4,52 @@
 //! zero. Buffers keep only the 16×16 tiles with any non-zero pixel, so
 //! memory and composite time scale with what the beams reach (a 600-fixture
 //! rig at 1920×1080 would need 15 GB as dense RGB f32 buffers).
+//!
+//! A buffer the live daemon holds may be compact ([`LightBuffer::compact`],
+//! `BuildSettings::compact`): half precision with one power-of-two scale
+//! per buffer, value = f16 · scale, the scale putting the largest value at
+//! most at 2^14 (f16 overflows at 65504). f16 keeps 11 significant bits, a
+//! relative rounding error of at most 2^-11 ≈ 4.9e-4 per value (rel. MSE
+//! ≤ 8e-8 of a buffer: 1/10,000 of the grouped-build bound and below an
+//! 8-bit display step) for every value down to 2^-28 of the buffer's
+//! largest; fainter ones keep an absolute step of 2^-38 of the largest.
+//! The browser stream sends buffers as f16 with the same scale rule
+//! already ([`crate::serve::stream::buffer_scale`]). Issue 38: the
+//! festival show's 3,684 Whitted terms and ~228 indirect layers held
+//! 2.30 GB as f32. `footlight render` and the reference paths keep f32.
+
+use std::borrow::Cow;
 
 use glam::Vec3;
+use half::f16;
+use half::slice::HalfFloatSliceExt;
 
 /// Tile edge in pixels.
 pub const TILE: usize = 16;
 const TILE_PIXELS: usize = TILE * TILE;
+/// Values per tile (RGB).
+const TILE_VALUES: usize = 3 * TILE_PIXELS;
 const EMPTY: u32 = u32::MAX;
+
+/// The power-of-two scale a compact buffer is stored with, so its largest
+/// value is at most 2^14 in f16: value = f16 · scale. 1 when there is no
+/// finite positive value.
+pub fn f16_scale(values: impl IntoIterator<Item = Vec3>) -> f32 {
+    let max = values.into_iter().map(|v| v.max_element()).fold(0.0f32, f32::max);
+    if !(max.is_finite() && max > 0.0) {
+        return 1.0;
+    }
+    2f32.powi((max.log2().ceil() as i32 - 14).clamp(-100, 100))
+}
+
+/// The occupied tiles' values, TILE×TILE row-major each (edge tiles padded with 0).
+#[derive(Clone, Debug, PartialEq)]
+enum Values {
+    /// As computed.
+    F32(Vec<Vec3>),
+    /// Compact ([`LightBuffer::compact`]): RGB as value / `scale` in f16.
+    F16 { bits: Vec<f16>, scale: f32 },
+}
 
 /// One light's unit-intensity RGB buffer, in cd/m² per cd of the source.
 #[derive(Clone, Debug, PartialEq)]
@@ -22,8 +61,8 @@ pub struct LightBuffer {
     tiles_x: usize,
     /// Per tile: index into `data` (in tiles), or EMPTY.
     slot: Vec<u32>,
-    /// Occupied tiles, TILE×TILE row-major each (edge tiles padded with 0).
-    data: Vec<Vec3>,
+    /// Occupied tiles' values.
+    data: Values,
 }
 
 /// An indirect term one photon leader shares with the cells that follow it
@@ -72,7 +111,7 @@ impl LightBuffer {
     pub fn empty(width: u32, height: u32) -> Self {
         let tiles_x = (width as usize).div_ceil(TILE);
         let tiles_y = (height as usize).div_ceil(TILE);
-        Self { width, height, tiles_x, slot: vec![EMPTY; tiles_x * tiles_y], data: Vec::new() }
+        Self { width, height, tiles_x, slot: vec![EMPTY; tiles_x * tiles_y], data: Values::F32(Vec::new()) }
     }
 
     /// Packs a dense row-major buffer, keeping tiles with any non-zero pixel.
@@ -90,14 +129,15 @@ impl LightBuffer {
                 if !any {
                     continue;
                 }
-                buf.slot[ty * buf.tiles_x + tx] = (buf.data.len() / TILE_PIXELS) as u32;
-                let start = buf.data.len();
-                buf.data.resize(start + TILE_PIXELS, Vec3::ZERO);
+                let data = f32_of(&mut buf.data);
+                let start = data.len();
+                data.resize(start + TILE_PIXELS, Vec3::ZERO);
                 for y in rows.clone() {
                     for x in cols.clone() {
-                        buf.data[start + (y - ty * TILE) * TILE + (x - tx * TILE)] = dense[y * w + x];
+                        data[start + (y - ty * TILE) * TILE + (x - tx * TILE)] = dense[y * w + x];
                     }
                 }
+                buf.slot[ty * buf.tiles_x + tx] = (start / TILE_PIXELS) as u32;
             }
         }
         buf
@@ -112,10 +152,28 @@ impl LightBuffer {
             if t >= buf.slot.len() || pixels.len() != TILE_PIXELS || pixels.iter().all(|p| *p == Vec3::ZERO) {
                 continue;
             }
-            buf.slot[t] = (buf.data.len() / TILE_PIXELS) as u32;
-            buf.data.extend_from_slice(&pixels);
+            let data = f32_of(&mut buf.data);
+            buf.slot[t] = (data.len() / TILE_PIXELS) as u32;
+            data.extend_from_slice(&pixels);
         }
         buf
+    }
+
+    /// This buffer in half precision with one power-of-two scale (module
+    /// doc: 2^-11 relative per value), for a buffer held long (the live
+    /// tracer's); a compact buffer is returned as it is.
+    pub fn compact(self) -> Self {
+        let Values::F32(values) = &self.data else { return self };
+        let scale = f16_scale(values.iter().copied());
+        let flat: Vec<f32> = values.iter().flat_map(|v| (*v / scale).to_array()).collect();
+        let mut bits = vec![f16::ZERO; flat.len()];
+        bits.convert_from_f32_slice(&flat);
+        Self { data: Values::F16 { bits, scale }, ..self }
+    }
+
+    /// True for a [`LightBuffer::compact`] buffer.
+    pub fn is_compact(&self) -> bool {
+        matches!(self.data, Values::F16 { .. })
     }
 
     /// Value at pixel (x, y).
@@ -123,27 +181,105 @@ impl LightBuffer {
         let (x, y) = (x as usize, y as usize);
         match self.slot[(y / TILE) * self.tiles_x + x / TILE] {
             EMPTY => Vec3::ZERO,
-            s => self.data[s as usize * TILE_PIXELS + (y % TILE) * TILE + x % TILE],
+            s => {
+                let i = s as usize * TILE_PIXELS + (y % TILE) * TILE + x % TILE;
+                match &self.data {
+                    Values::F32(v) => v[i],
+                    Values::F16 { bits, scale } => {
+                        Vec3::new(bits[3 * i].to_f32(), bits[3 * i + 1].to_f32(), bits[3 * i + 2].to_f32()) * *scale
+                    }
+                }
+            }
         }
     }
 
-    /// The tile at tile coordinates (tx, ty), if occupied.
-    pub fn tile(&self, tx: usize, ty: usize) -> Option<&[Vec3]> {
+    /// True when the tile at tile coordinates (tx, ty) is occupied (no decoding).
+    pub fn has_tile(&self, tx: usize, ty: usize) -> bool {
+        self.slot[ty * self.tiles_x + tx] != EMPTY
+    }
+
+    /// The tile at tile coordinates (tx, ty), if occupied: borrowed from an
+    /// f32 buffer, decoded from a compact one.
+    pub fn tile(&self, tx: usize, ty: usize) -> Option<Cow<'_, [Vec3]>> {
         match self.slot[ty * self.tiles_x + tx] {
             EMPTY => None,
-            s => Some(&self.data[s as usize * TILE_PIXELS..(s as usize + 1) * TILE_PIXELS]),
+            s => Some(match &self.data {
+                Values::F32(v) => Cow::Borrowed(&v[s as usize * TILE_PIXELS..(s as usize + 1) * TILE_PIXELS]),
+                Values::F16 { bits, scale } => {
+                    Cow::Owned(decode(&bits[s as usize * TILE_VALUES..(s as usize + 1) * TILE_VALUES], *scale))
+                }
+            }),
         }
     }
 
-    /// The raw storage: occupied tiles (TILE×TILE row-major each) and the
-    /// per-tile slot table (`u32::MAX` = empty), for the GPU compositor.
-    pub fn raw(&self) -> (&[Vec3], &[u32]) {
-        (&self.data, &self.slot)
+    /// Adds k ⊙ tile (tx, ty) into `band` (the image rows of tile row ty,
+    /// `w` pixels wide): the composite's inner loop (eq. 5), a compact
+    /// buffer decoded a tile row at a time. False when the tile is empty.
+    pub fn add_tile_scaled(&self, tx: usize, ty: usize, k: Vec3, w: usize, band: &mut [Vec3]) -> bool {
+        let s = match self.slot[ty * self.tiles_x + tx] {
+            EMPTY => return false,
+            s => s as usize,
+        };
+        let rows = (band.len() / w.max(1)).min(TILE);
+        let x0 = tx * TILE;
+        let cols = TILE.min(w - x0);
+        // k repeated over a tile row, so the inner loop is a plain
+        // element-wise multiply-add over f32 that the compiler vectorises.
+        match &self.data {
+            Values::F32(v) => {
+                let kk: [f32; 3 * TILE] = std::array::from_fn(|i| k[i % 3]);
+                let tile = &v[s * TILE_PIXELS..(s + 1) * TILE_PIXELS];
+                for r in 0..rows {
+                    let src: &[f32] = bytemuck::cast_slice(&tile[r * TILE..r * TILE + cols]);
+                    let dst: &mut [f32] = bytemuck::cast_slice_mut(&mut band[r * w + x0..r * w + x0 + cols]);
+                    for ((d, s), k) in dst.iter_mut().zip(src).zip(&kk) {
+                        *d += k * s; // Vierjahn 2010, eq. (5)
+                    }
+                }
+            }
+            Values::F16 { bits, scale } => {
+                let ks = k * *scale;
+                let kk: [f32; 3 * TILE] = std::array::from_fn(|i| ks[i % 3]);
+                let tile = &bits[s * TILE_VALUES..(s + 1) * TILE_VALUES];
+                for r in 0..rows {
+                    let src = &tile[r * 3 * TILE..r * 3 * TILE + 3 * cols];
+                    let dst: &mut [f32] = bytemuck::cast_slice_mut(&mut band[r * w + x0..r * w + x0 + cols]);
+                    for ((d, h), k) in dst.iter_mut().zip(src).zip(&kk) {
+                        *d += k * f16_value(h.to_bits()); // Vierjahn 2010, eq. (5)
+                    }
+                }
+            }
+        }
+        true
+    }
+
+    /// The occupied tiles (TILE×TILE row-major each, decoded from a compact
+    /// buffer) and the per-tile slot table (`u32::MAX` = empty), for the
+    /// GPU compositor.
+    pub fn raw(&self) -> (Cow<'_, [Vec3]>, &[u32]) {
+        let values = match &self.data {
+            Values::F32(v) => Cow::Borrowed(&v[..]),
+            Values::F16 { bits, scale } => Cow::Owned(decode(bits, *scale)),
+        };
+        (values, &self.slot)
+    }
+
+    /// Every stored value (the occupied tiles' pixels, padding included).
+    pub fn values(&self) -> Box<dyn Iterator<Item = Vec3> + '_> {
+        match &self.data {
+            Values::F32(v) => Box::new(v.iter().copied()),
+            Values::F16 { bits, scale } => {
+                Box::new(bits.chunks_exact(3).map(|c| Vec3::new(c[0].to_f32(), c[1].to_f32(), c[2].to_f32()) * *scale))
+            }
+        }
     }
 
     /// Number of occupied tiles.
     pub fn occupied_tiles(&self) -> usize {
-        self.data.len() / TILE_PIXELS
+        match &self.data {
+            Values::F32(v) => v.len() / TILE_PIXELS,
+            Values::F16 { bits, .. } => bits.len() / TILE_VALUES,
+        }
     }
 
     /// Total number of tiles in the image.
@@ -153,15 +289,23 @@ impl LightBuffer {
 
     /// Bytes of pixel data held.
     pub fn bytes(&self) -> usize {
-        self.data.len() * std::mem::size_of::<Vec3>() + self.slot.len() * 4
+        let values = match &self.data {
+            Values::F32(v) => v.len() * std::mem::size_of::<Vec3>(),
+            Values::F16 { bits, .. } => bits.len() * std::mem::size_of::<f16>(),
+        };
+        values + self.slot.len() * 4
     }
 
     /// Expands to a dense row-major buffer.
     pub fn to_dense(&self) -> Vec<Vec3> {
-        let mut out = Vec::with_capacity((self.width * self.height) as usize);
-        for y in 0..self.height {
-            for x in 0..self.width {
-                out.push(self.get(x, y));
+        let (w, h) = (self.width as usize, self.height as usize);
+        let mut out = vec![Vec3::ZERO; w * h];
+        for t in 0..self.slot.len() {
+            let (tx, ty) = (t % self.tiles_x, t / self.tiles_x);
+            let Some(tile) = self.tile(tx, ty) else { continue };
+            let cols = TILE.min(w - tx * TILE);
+            for r in 0..TILE.min(h - ty * TILE) {
+                out[(ty * TILE + r) * w + tx * TILE..][..cols].copy_from_slice(&tile[r * TILE..r * TILE + cols]);
             }
         }
         out
@@ -170,12 +314,12 @@ impl LightBuffer {
     /// Checks every stored value is finite and non-negative. Called on each
     /// finished buffer: a NaN is a bug to report, never to clamp away.
     pub fn check(&self) -> Result<(), BadValue> {
-        for (i, v) in self.data.iter().enumerate() {
+        for (i, v) in self.values().enumerate() {
             if !v.is_finite() || v.min_element() < 0.0 {
                 let tile = self.slot.iter().position(|&s| s as usize == i / TILE_PIXELS).unwrap_or(0);
                 let x = (tile % self.tiles_x * TILE + (i % TILE_PIXELS) % TILE) as u32;
                 let y = (tile / self.tiles_x * TILE + (i % TILE_PIXELS) / TILE) as u32;
-                return Err(BadValue { x, y, value: *v });
+                return Err(BadValue { x, y, value: v });
             }
         }
         Ok(())
@@ -204,10 +348,11 @@ impl LightBuffer {
                 tile.iter().any(|p| *p != Vec3::ZERO).then_some((ty * buf.tiles_x + tx, tile))
             })
             .collect();
-        buf.data.reserve(filled.len() * TILE_PIXELS);
+        let data = f32_of(&mut buf.data);
+        data.reserve(filled.len() * TILE_PIXELS);
         for (slot, tile) in filled {
-            buf.slot[slot] = (buf.data.len() / TILE_PIXELS) as u32;
-            buf.data.extend(tile);
+            buf.slot[slot] = (data.len() / TILE_PIXELS) as u32;
+            data.extend(tile);
         }
         buf
     }
@@ -216,6 +361,38 @@ impl LightBuffer {
     pub fn occupied(&self) -> Vec<(usize, usize)> {
         (0..self.slot.len()).filter(|&t| self.slot[t] != EMPTY).map(|t| (t % self.tiles_x, t / self.tiles_x)).collect()
     }
+}
+
+/// The value of a finite non-negative f16 (all a compact buffer holds:
+/// buffers are checked before they are compacted), exactly as `half`
+/// decodes it, in plain integer and float steps the compiler vectorises in
+/// the composite's inner loop (`half`'s slice conversion goes through a
+/// call per 8 values): a normal f16 is its bits moved into f32 place with
+/// the exponent rebiased (+112), a subnormal one (and zero) its 10-bit
+/// mantissa times 2^-24. Neither path makes an f32 subnormal, which x86
+/// computes with microcode assists (a first version, the bits times 2^112,
+/// made the festival show's pixel chase composite 3× slower).
+#[inline(always)]
+fn f16_value(bits: u16) -> f32 {
+    let h = u32::from(bits);
+    let normal = f32::from_bits((h << 13) + (112 << 23));
+    let subnormal = h as f32 * (1.0 / 16_777_216.0);
+    if h < 0x0400 { subnormal } else { normal }
+}
+
+/// The f32 values of a buffer being built (constructors make f32 buffers).
+fn f32_of(data: &mut Values) -> &mut Vec<Vec3> {
+    match data {
+        Values::F32(v) => v,
+        Values::F16 { .. } => unreachable!("constructors build f32 buffers"),
+    }
+}
+
+/// f16 values (RGB, value / `scale`) decoded to pixels.
+fn decode(bits: &[f16], scale: f32) -> Vec<Vec3> {
+    let mut flat = vec![0.0f32; bits.len()];
+    bits.convert_to_f32_slice(&mut flat);
+    flat.chunks_exact(3).map(|c| Vec3::from_slice(c) * scale).collect()
 }
 
 /// One light's haze buffer (issue 15): per pixel the in-scattered light of
@@ -346,6 +523,57 @@ mod tests {
         assert_eq!(b.occupied(), vec![(2, 1)]);
         assert_eq!(b.get(37, 19), Vec3::ONE);
         assert_eq!(b.get(5, 5), Vec3::ZERO);
+    }
+
+    /// Compact buffers (f16, one power-of-two scale): every value within
+    /// 2^-11 relative of the f32 one over a range of 2^26, the same tiles,
+    /// `tile`, `get`, `values`, `raw` and `to_dense` agreeing, the
+    /// composite's multiply-add (its own f16 decoding) exactly k times the
+    /// decoded values,
+    /// values past f16's range kept by the scale, and a NaN still a NaN.
+    #[test]
+    fn compact_buffers_round_to_f16_and_composite_alike() {
+        let (w, h) = (37u32, 21u32);
+        let mut dense = vec![Vec3::ZERO; (w * h) as usize];
+        for (i, v) in dense.iter_mut().enumerate().filter(|(i, _)| i % 3 != 0 && i % 40 < 30) {
+            // 3e5 down to 3e5 · 2^-26 (f16's normal range under the scale).
+            let e = -(((i * 7919) % 27) as f32);
+            *v = Vec3::new(3e5 * 2f32.powf(e), 1.7e5 * 2f32.powf(e - 0.3), 0.0);
+        }
+        let f32s = LightBuffer::from_dense(w, h, &dense);
+        let c = f32s.clone().compact();
+        assert!(c.is_compact() && !f32s.is_compact());
+        assert_eq!(c.occupied(), f32s.occupied());
+        assert!(c.bytes() < f32s.bytes() * 3 / 5);
+        let got = c.to_dense();
+        for (g, want) in got.iter().zip(&dense) {
+            for (g, want) in g.to_array().into_iter().zip(want.to_array()) {
+                assert!((g - want).abs() <= want * 2f32.powi(-11), "{g} vs {want}");
+            }
+        }
+        assert_eq!(c.values().count(), f32s.values().count());
+        assert_eq!(c.raw().0.to_vec(), c.values().collect::<Vec<_>>());
+        for (x, y) in [(0, 0), (36, 20), (17, 5)] {
+            assert_eq!(c.get(x, y), got[(y * w + x) as usize]);
+        }
+        let tx = 1;
+        let tile = c.tile(tx, 0).unwrap();
+        assert_eq!(tile[3 * TILE + 2], got[3 * w as usize + TILE + 2]);
+        // The composite's inner loop over one tile row band, k ⊙ tile.
+        let k = Vec3::new(0.5, 2.0, 3.0);
+        let mut band = vec![Vec3::ZERO; w as usize * TILE];
+        assert!(c.add_tile_scaled(tx, 0, k, w as usize, &mut band));
+        for r in 0..TILE {
+            for col in 0..TILE.min(w as usize - TILE) {
+                let want = k * got[r * w as usize + TILE + col];
+                let have = band[r * w as usize + TILE + col];
+                assert_eq!(have, want, "the decoded value times k");
+            }
+        }
+        assert!(c.clone().compact() == c, "compacting twice changes nothing");
+        let mut bad = dense.clone();
+        bad[5] = Vec3::new(f32::NAN, 1.0, 1.0);
+        assert!(LightBuffer::from_dense(w, h, &bad).compact().check().is_err(), "a NaN is never rounded away");
     }
 
     #[test]

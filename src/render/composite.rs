@@ -88,21 +88,8 @@ fn active_lights<'a>(buffers: &[&'a LightBuffer], k: &[Vec3]) -> Vec<(&'a LightB
 /// Adds every active light's tile (tx, ty) into `band` (the image rows of
 /// tile row ty, `w` pixels wide), which must be zero there beforehand.
 fn accumulate_tile(active: &[(&LightBuffer, Vec3)], tx: usize, ty: usize, w: usize, band: &mut [Vec3]) {
-    let rows = band.len() / w.max(1);
-    let x0 = tx * TILE;
-    let cols = TILE.min(w - x0);
     for (buf, k) in active {
-        let Some(tile) = buf.tile(tx, ty) else { continue };
-        // k repeated over a tile row, so the inner loop is a plain
-        // element-wise multiply-add over f32 that the compiler vectorises.
-        let kk: [f32; 3 * TILE] = std::array::from_fn(|i| k[i % 3]);
-        for r in 0..rows {
-            let dst: &mut [f32] = bytemuck::cast_slice_mut(&mut band[r * w + x0..r * w + x0 + cols]);
-            let src: &[f32] = bytemuck::cast_slice(&tile[r * TILE..r * TILE + cols]);
-            for ((d, s), k) in dst.iter_mut().zip(src).zip(&kk) {
-                *d += k * s; // Vierjahn 2010, eq. (5)
-            }
-        }
+        buf.add_tile_scaled(tx, ty, *k, w, band); // Vierjahn 2010, eq. (5)
     }
 }
 
@@ -312,7 +299,7 @@ fn encode_all(display: &Display, linear: &[Vec3], overlay: Option<&[Vec3]>, out:
 
 /// The tiles a light's buffer covers (its occupied tiles), as tile indices.
 fn covered_tiles(buffer: &LightBuffer, tiles_x: usize, n_tiles: usize) -> Vec<u32> {
-    (0..n_tiles as u32).filter(|&t| buffer.tile(t as usize % tiles_x, t as usize / tiles_x).is_some()).collect()
+    (0..n_tiles as u32).filter(|&t| buffer.has_tile(t as usize % tiles_x, t as usize / tiles_x)).collect()
 }
 
 /// Marks in `dirty` the tiles that `lights` changed since `seen` (their old

@@ -130,8 +130,7 @@ impl GroupBuffer {
         let floor: Vec<f64> = cells
             .iter()
             .map(|b| {
-                let (data, _) = b.raw();
-                let energy: f64 = data.iter().map(|v| f64::from(v.length_squared())).sum();
+                let energy: f64 = b.values().map(|v| f64::from(v.length_squared())).sum();
                 energy / b.occupied_tiles().max(1) as f64
             })
             .collect();
@@ -139,8 +138,9 @@ impl GroupBuffer {
             .into_par_iter()
             .filter_map(|t| {
                 let (tx, ty) = (t % tiles_x, t / tiles_x);
-                let present: Vec<(u32, &[Vec3])> =
+                let tiles: Vec<(u32, std::borrow::Cow<[Vec3]>)> =
                     cells.iter().enumerate().filter_map(|(c, b)| b.tile(tx, ty).map(|s| (c as u32, s))).collect();
+                let present: Vec<(u32, &[Vec3])> = tiles.iter().map(|(c, t)| (*c, &t[..])).collect();
                 (!present.is_empty()).then(|| (t, build_tile(&present, cells.len(), &floor, settings)))
             })
             .collect();

@@ -706,7 +706,7 @@ pub fn encode_buffer(light: u32, generation: u64, buffer: &LightBuffer) -> Bytes
         raw.extend_from_slice(&((ty * tiles_x + tx) as u32).to_le_bytes());
     }
     for &(tx, ty) in &occupied {
-        for p in buffer.tile(tx, ty).unwrap_or(&[]) {
+        for p in buffer.tile(tx, ty).unwrap_or_default().iter() {
             for c in p.to_array() {
                 raw.extend_from_slice(&half::f16::from_f32(c / scale).to_bits().to_le_bytes());
             }

@@ -451,7 +451,8 @@ pub(super) fn lead(
         publish_dense_followers(s, index, id, stage, &lead, &indirect);
         return None;
     }
-    let layer = SharedLayer::new(LightBuffer::from_dense(buffer.width, buffer.height, &indirect));
+    let layer = LightBuffer::from_dense(buffer.width, buffer.height, &indirect);
+    let layer = SharedLayer::new(if s.settings.build.compact { layer.compact() } else { layer });
     let shows = |own: &Arc<LightBuffer>| Finished { buffer: own.clone(), shared: Some(layer.clone()), knots: None };
     if !s.publish_shared(index, id, lead.whitted.clone(), layer.clone(), stage, light) {
         return None;

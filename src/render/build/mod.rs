@@ -107,6 +107,12 @@ pub struct BuildSettings {
     /// The photon stage and refinement supersample the direct term's edge
     /// pixels ([`EdgeSamples`]); off, the Whitted stage's edges stay.
     pub edge_samples: bool,
+    /// Every buffer the build returns or holds is compact
+    /// ([`LightBuffer::compact`]: f16, 2^-11 relative per value): the live
+    /// tracer's builds, which the daemon holds for every light of a rig
+    /// (issue 38: half the festival show's buffer memory). Off for
+    /// `footlight render` and the reference paths.
+    pub compact: bool,
 }
 
 impl BuildSettings {
@@ -129,6 +135,7 @@ impl Default for BuildSettings {
             photons: Some(PhotonSettings::default()),
             refine_passes: 16,
             edge_samples: true,
+            compact: false,
         }
     }
 }
@@ -515,10 +522,15 @@ impl LightBuild {
         self.settings.photons.is_some()
     }
 
-    fn finish(view: &View, dense: &[Vec3]) -> Result<LightBuffer, BuildError> {
+    fn finish(&self, view: &View, dense: &[Vec3]) -> Result<LightBuffer, BuildError> {
         let buffer = LightBuffer::from_dense(view.width(), view.height(), dense);
         buffer.check()?;
-        Ok(buffer)
+        Ok(self.stored(buffer))
+    }
+
+    /// `buffer` as the build stores it ([`BuildSettings::compact`]).
+    fn stored(&self, buffer: LightBuffer) -> LightBuffer {
+        if self.settings.compact { buffer.compact() } else { buffer }
     }
 
     /// Stage 1: direct light on the surfaces the camera sees directly (no
@@ -538,7 +550,7 @@ impl LightBuild {
         self.cancel.check()?;
         buffer.check()?;
         self.direct_done();
-        Ok((buffer, stats))
+        Ok((self.stored(buffer), stats))
     }
 
     /// Stage 2: the full Whitted direct term (eq. 1: k_R, k_T recursion)
@@ -552,7 +564,7 @@ impl LightBuild {
         let (dense, reshaded) =
             view.render_direct_until(scene, &self.light, Some(aa), &|| cancel.fired()).ok_or(Cancelled)?;
         self.reshaded = reshaded;
-        let buffer = Self::finish(view, &dense)?;
+        let buffer = self.finish(view, &dense)?;
         self.direct = Some(Arc::new(buffer.clone()));
         self.after_whitted();
         Ok(buffer)
@@ -581,7 +593,7 @@ impl LightBuild {
 
     /// [`LightBuild::with_whitted`] in place.
     pub fn set_whitted(&mut self, buffer: &LightBuffer, reshaded: usize) {
-        self.direct = Some(Arc::new(buffer.clone()));
+        self.direct = Some(Arc::new(self.stored(buffer.clone())));
         self.reshaded = reshaded;
         self.after_whitted();
     }
@@ -652,7 +664,7 @@ impl LightBuild {
         self.start = Some(at_vertices);
         // `next()` goes on to refinement from here; called alone, the stage ends the build.
         self.phase = Phase::Ended;
-        Self::finish(view, &sum)
+        self.finish(view, &sum)
     }
 
     /// The haze stage (issue 15): the light's single-scattered beam at unit
@@ -775,6 +787,7 @@ impl LightBuild {
                 passes: self.settings.refine_passes,
                 done: 0,
                 cancel: self.cancel.with_preempt(None),
+                compact: self.settings.compact,
             });
         }
         let (maps, direct) = (self.maps.clone()?, self.direct.take()?);
@@ -790,6 +803,7 @@ impl LightBuild {
             done: 0,
             // Refinement passes are short: they never yield.
             cancel: self.cancel.with_preempt(None),
+            compact: self.settings.compact,
         };
         let start = self.start.take();
         if let (Some(start), Some(exact)) = (start.clone(), self.exact.take()) {
@@ -853,6 +867,8 @@ pub struct Refinement {
     /// Passes done.
     done: u32,
     cancel: Cancel,
+    /// Its buffers are compact ([`BuildSettings::compact`]).
+    compact: bool,
 }
 
 impl Refinement {
@@ -938,6 +954,7 @@ impl Refinement {
         let sum = direct_plus(&self.direct, self.edges.as_ref(), &indirect);
         let buffer = LightBuffer::from_dense(view.width(), view.height(), &sum);
         buffer.check()?;
+        let buffer = if self.compact { buffer.compact() } else { buffer };
         if !self.finishing() {
             self.sppm = Some(Progressive::new(scene, view, &maps).starting_from(start, weight));
         }
@@ -1006,6 +1023,7 @@ impl Refinement {
         let sum = direct_plus(&self.direct, self.edges.as_ref(), &indirect);
         let buffer = LightBuffer::from_dense(view.width(), view.height(), &sum);
         buffer.check()?;
+        let buffer = if self.compact { buffer.compact() } else { buffer };
         self.done += 1;
         Ok(buffer)
     }

@@ -97,8 +97,11 @@ pub fn update_knots(
         candidates.sort_unstable();
         candidates.dedup();
         LightBuffer::from_tiles(hv.width, hv.height, &candidates, |tx, ty, tile| {
-            let old = knot.tile(tx, ty).unwrap_or(&zero_tile);
-            let (s0, s1) = (previous.tile(tx, ty).unwrap_or(&zero_tile), surface.tile(tx, ty).unwrap_or(&zero_tile));
+            let old = knot.tile(tx, ty).unwrap_or(std::borrow::Cow::Borrowed(&zero_tile[..]));
+            let (s0, s1) = (
+                previous.tile(tx, ty).unwrap_or(std::borrow::Cow::Borrowed(&zero_tile[..])),
+                surface.tile(tx, ty).unwrap_or(std::borrow::Cow::Borrowed(&zero_tile[..])),
+            );
             for r in 0..TILE.min(h - ty * TILE) {
                 for c in 0..TILE.min(w - tx * TILE) {
                     let k = r * TILE + c;

@@ -64,9 +64,9 @@ pub fn resolve(
     let sigma_s = medium.sigma_s;
     let surfaces = surface_medium(medium, haze);
     LightBuffer::from_tiles(hv.width, hv.height, &candidates, |tx, ty, tile| {
-        let src = surface.tile(tx, ty);
-        let hz = haze.and_then(|b| b.as_light_buffer().tile(tx, ty));
+        let (src, hz) = (surface.tile(tx, ty), haze.and_then(|b| b.as_light_buffer().tile(tx, ty)));
         let mt = multiple.and_then(|(at, m)| m.tile(tx, ty).map(|t| (*at, t)));
+        let (src, hz, mt) = (src.as_deref(), hz.as_deref(), mt.as_ref().map(|(at, t)| (*at, &t[..])));
         for r in 0..TILE.min(h - ty * TILE) {
             for c in 0..TILE.min(w - tx * TILE) {
                 let k = r * TILE + c;

@@ -71,7 +71,7 @@ impl EdgeSamples {
     /// when they were resampled).
     pub fn select(scene: &Scene, view: &View, light: &Light, direct: &LightBuffer, seed: u64) -> Self {
         let (w, h) = (view.width() as usize, view.height() as usize);
-        let level = super::aa::reference_level(direct.raw().0).unwrap_or(0.0);
+        let level = super::aa::reference_level(&direct.raw().0).unwrap_or(0.0);
         let mut pixels: Vec<u32> = Vec::new();
         if level > 0.0 && level.is_finite() && direct.width as usize == w && direct.height as usize == h {
             let jump = EDGE_CONTRAST * level;
