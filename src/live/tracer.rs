@@ -1256,9 +1256,10 @@ impl Shared {
             return None; // superseded: a newer request owns the slot
         }
         // Held until the light changes: compact (a build's own buffers are already).
-        let buffer = match self.settings.build.compact && !buffer.is_compact() {
-            true => Arc::new(Arc::unwrap_or_clone(buffer).compact()),
-            false => buffer,
+        let buffer = if self.settings.build.compact && !buffer.is_compact() {
+            Arc::new(Arc::unwrap_or_clone(buffer).compact())
+        } else {
+            buffer
         };
         let hazy = match (&self.haze, self.haze_view()) {
             (Some(m), Some(hv)) => {

@@ -14,7 +14,8 @@
 //! 8-bit display step) for every value down to 2^-28 of the buffer's
 //! largest; fainter ones keep an absolute step of 2^-38 of the largest.
 //! The browser stream sends buffers as f16 with the same scale rule
-//! already ([`crate::serve::stream::buffer_scale`]). Issue 38: the
+//! ([`crate::serve::stream::buffer_scale`]): a compact buffer goes out
+//! with its own values. Issue 38: the
 //! festival show's 3,684 Whitted terms and ~228 indirect layers held
 //! 2.30 GB as f32. `footlight render` and the reference paths keep f32.
 

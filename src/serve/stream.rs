@@ -682,14 +682,13 @@ fn push_display(b: &mut Vec<u8>, d: &Display) {
     }
 }
 
-/// The power-of-two scale a buffer is stored with, so its largest value is
-/// at most 2^14 in f16 (f16 overflows at 65504): value = f16 · scale.
+/// The power-of-two scale a buffer is sent with, so its largest value is
+/// at most 2^14 in f16 (f16 overflows at 65504): value = f16 · scale. The
+/// rule the live tracer's compact buffers are stored with
+/// ([`crate::render::buffer::f16_scale`]), so a compact buffer goes out
+/// with its own scale and its own f16 values.
 pub fn buffer_scale(buffer: &LightBuffer) -> f32 {
-    let max = buffer.raw().0.iter().map(|v| v.max_element()).fold(0.0f32, f32::max);
-    if !(max.is_finite() && max > 0.0) {
-        return 1.0;
-    }
-    2f32.powi((max.log2().ceil() as i32 - 14).clamp(-100, 100))
+    crate::render::buffer::f16_scale(buffer.values())
 }
 
 /// Buffer: header `[2, flags, 0, 0, light u32, generation u64, tiles u32,
@@ -933,6 +932,12 @@ mod tests {
                     assert!(z[c].is_finite());
                 }
             }
+            // A compact buffer (the live tracer's) goes out with its own
+            // scale and exactly its own values.
+            let c = b.clone().compact();
+            assert_eq!(buffer_scale(&c), scale);
+            let (_, _, back) = decode_buffer(&encode_buffer(3, 42, &c), w, h).unwrap();
+            assert_eq!(back.to_dense(), c.to_dense(), "peak {peak}");
         }
     }
 

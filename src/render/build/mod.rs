@@ -530,7 +530,7 @@ impl LightBuild {
 
     /// `buffer` as the build stores it ([`BuildSettings::compact`]).
     fn stored(&self, buffer: LightBuffer) -> LightBuffer {
-        if self.settings.compact { buffer.compact() } else { buffer }
+        stored(buffer, self.settings.compact)
     }
 
     /// Stage 1: direct light on the surfaces the camera sees directly (no
@@ -840,6 +840,11 @@ struct PendingStart {
     exact: Option<Vec<bool>>,
 }
 
+/// `buffer`, compact when `compact` ([`BuildSettings::compact`]).
+fn stored(buffer: LightBuffer, compact: bool) -> LightBuffer {
+    if compact { buffer.compact() } else { buffer }
+}
+
 /// Seed of the edge samples' per-pixel shifts ([`light_seed`] per light).
 const EDGE_SEED: u64 = 0xED6E_5000;
 
@@ -954,7 +959,7 @@ impl Refinement {
         let sum = direct_plus(&self.direct, self.edges.as_ref(), &indirect);
         let buffer = LightBuffer::from_dense(view.width(), view.height(), &sum);
         buffer.check()?;
-        let buffer = if self.compact { buffer.compact() } else { buffer };
+        let buffer = stored(buffer, self.compact);
         if !self.finishing() {
             self.sppm = Some(Progressive::new(scene, view, &maps).starting_from(start, weight));
         }
@@ -1023,7 +1028,7 @@ impl Refinement {
         let sum = direct_plus(&self.direct, self.edges.as_ref(), &indirect);
         let buffer = LightBuffer::from_dense(view.width(), view.height(), &sum);
         buffer.check()?;
-        let buffer = if self.compact { buffer.compact() } else { buffer };
+        let buffer = stored(buffer, self.compact);
         self.done += 1;
         Ok(buffer)
     }
