@@ -296,8 +296,9 @@ async fn orbit_through_a_recorded_camera_path_with_dmx_ends_on_the_render_and_re
             tokio::time::sleep(Duration::from_millis(10)).await;
             pause_real(5).await;
         }
-        // Two ticks: the frame after the last publish.
-        tokio::time::sleep(period * 2).await;
+        // Three ticks: the frame made after the last publish, presented a
+        // tick after it was made.
+        tokio::time::sleep(period * 3).await;
     };
     wait_settled().await;
     let mut frames = handle.frames.clone();
@@ -312,14 +313,17 @@ async fn orbit_through_a_recorded_camera_path_with_dmx_ends_on_the_render_and_re
         tokio::time::sleep_until(t0 + Duration::from_millis(*t_ms)).await;
         let camera = pose.camera().unwrap();
         handle.views.move_to_pose(*pose).unwrap();
-        let dimmer = 255 - 10 * i as u8;
+        // A level new at every step (the start is at 255), so the frame that
+        // shows it was made after the write.
+        let dimmer = 250 - 10 * i as u8;
         dmx_tx.send(merged(dimmer, 128)).unwrap();
         frames.borrow_and_update();
-        // A tick that read the DMX just before the send may publish once;
-        // the frame after it must show the new level: at most one tick behind.
+        // Frames are presented on the tick one period after they are made
+        // (`run_clock`): the frame in the making at the write may go out
+        // first; the one made at the next tick shows the new level.
         let k = Vec3::splat(1000.0 * f32::from(dimmer) / 255.0);
         let mut f = None;
-        for _ in 0..2 {
+        for _ in 0..3 {
             frames.changed().await.unwrap();
             let next = frames.borrow_and_update().clone();
             if (next.intensity[0] - 1000.0 * f32::from(dimmer) / 255.0).abs() < 1e-3 {
@@ -327,7 +331,7 @@ async fn orbit_through_a_recorded_camera_path_with_dmx_ends_on_the_render_and_re
                 break;
             }
         }
-        let f = f.unwrap_or_else(|| panic!("step {i}: the frame is more than one tick behind the DMX"));
+        let f = f.unwrap_or_else(|| panic!("step {i}: the frame is more than two ticks behind the DMX"));
         assert_eq!(status().view.phase, Phase::Moving, "step {i}");
         // The frame is the moving preview of this pose at this level, and finite.
         let linear = preview(&scene, &camera, W, H, 2, &[(&spot(x), k)]);
@@ -342,7 +346,7 @@ async fn orbit_through_a_recorded_camera_path_with_dmx_ends_on_the_render_and_re
     assert_eq!(s.view.cache.misses, 1, "the orbit's last pose was built");
     assert_eq!(s.view.cache.entries, 1, "the start view is cached");
     let last = path.last().unwrap().1.camera().unwrap();
-    let k = Vec3::splat(1000.0 * f32::from(255 - 10 * 11u8) / 255.0);
+    let k = Vec3::splat(1000.0 * f32::from(250 - 10 * 11u8) / 255.0);
     let settings = RenderSettings {
         width: W,
         height: H,

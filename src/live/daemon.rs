@@ -504,6 +504,7 @@ impl Daemon {
                     input,
                     cache: CacheSummary { entries, bytes, budget_bytes: cache_budget },
                     memory,
+                    builds: tracer.build_threads(),
                     view: views.status(),
                     warnings,
                     lights,
@@ -697,12 +698,23 @@ fn task_error(task: &'static str, e: tokio::task::JoinError) -> DaemonError {
     DaemonError::Task { task, message }
 }
 
-/// The frame clock task: one tick per display frame until `stop`. Each
-/// tick (decode, k_i, composite) runs on the blocking pool, so the async
-/// workers serving HTTP and DMX never wait for a composite. Missed ticks
-/// are skipped (a slow frame never causes a burst).
+/// The frame clock task: one tick per display frame until `stop`.
+///
+/// Each tick (decode, k_i, composite) runs on the blocking pool, so the
+/// async workers serving HTTP and DMX never wait for a composite. Frames are
+/// *presented on the tick*, one period after they were made, as a display
+/// presents on vertical sync: at every tick the frame composited during the
+/// last period is sent, then the next one is started. So frames go out at
+/// the clock's own cadence whatever each composite took (issue 38 item 4:
+/// while a festival rig built, composites of 2-19 ms made the intervals of
+/// a send-when-done clock vary by as much, p99 21-42 ms), at the cost of a
+/// fixed period of latency (16.7 ms at 60 Hz) from the DMX a tick read to
+/// its picture. A composite longer than a period delays its frame to when
+/// it ends (the interval shows it), and missed ticks are skipped (a slow
+/// frame never causes a burst). Intervals over 20 ms are logged at trace
+/// level (`footlight::live::daemon=trace`) with where the time went.
 pub async fn run_clock(
-    mut clock: FrameClock,
+    clock: FrameClock,
     fps: f64,
     inputs: watch::Receiver<Universes>,
     frames: watch::Sender<Arc<Frame>>,
@@ -720,44 +732,59 @@ pub async fn run_clock(
     let mut last = tokio::time::Instant::now();
     let stopped = stop.clone().fired();
     tokio::pin!(stopped);
+    // The clock is on the blocking pool while a frame is being made.
+    let mut idle = Some(clock);
+    let mut making: Option<tokio::task::JoinHandle<(FrameClock, Frame)>> = None;
     loop {
-        tokio::select! {
-            _ = interval.tick() => {}
+        let due = tokio::select! {
+            due = interval.tick() => due,
             _ = &mut stopped => return ("frame clock", Ok(())),
+        };
+        if let Some(handle) = making.take() {
+            // Normally finished a while ago; a composite longer than a
+            // period is waited for here (this frame is late).
+            let (back, frame) = match handle.await {
+                Ok(r) => r,
+                Err(e) => return ("frame clock", Err(task_error("frame clock", e).to_string())),
+            };
+            let composite_ms = frame.composite_time.as_secs_f64() * 1e3;
+            let group_bytes = back.group_storage_bytes() as u64;
+            idle = Some(back);
+            let number = frame.number;
+            let _ = frames.send(Arc::new(frame));
+            let now = tokio::time::Instant::now();
+            let interval_ms = now.duration_since(last).as_secs_f64() * 1e3;
+            if interval_ms > 20.0 {
+                tracing::trace!(
+                    "frame {number} sent {interval_ms:.1} ms after the one before ({:.1} ms after its tick; composite {composite_ms:.1} ms)",
+                    now.duration_since(due).as_secs_f64() * 1e3
+                );
+            }
+            if intervals.len() == 600 {
+                intervals.pop_front();
+            }
+            intervals.push_back(interval_ms);
+            last = now;
+            window.1 += 1;
+            let elapsed = window.0.elapsed();
+            let mut s = status.lock().expect("clock status lock");
+            s.composite_ms = composite_ms;
+            s.group_storage_bytes = group_bytes;
+            if elapsed >= Duration::from_secs(1) {
+                s.fps = f64::from(window.1) / elapsed.as_secs_f64();
+                s.frame_interval_p99_ms = percentile(intervals.iter().copied(), 0.99);
+                window = (now, 0);
+            }
         }
+        let mut clock = idle.take().expect("the clock is back before the next frame starts");
         let rx = inputs.clone();
-        let ticked = tokio::task::spawn_blocking(move || {
+        making = Some(tokio::task::spawn_blocking(move || {
             let frame = {
                 let universes = rx.borrow();
                 clock.tick(&LiveSlots(&universes))
             };
             (clock, frame)
-        })
-        .await;
-        let (back, frame) = match ticked {
-            Ok(r) => r,
-            Err(e) => return ("frame clock", Err(task_error("frame clock", e).to_string())),
-        };
-        clock = back;
-        let composite_ms = frame.composite_time.as_secs_f64() * 1e3;
-        let group_bytes = clock.group_storage_bytes() as u64;
-        let _ = frames.send(Arc::new(frame));
-        let now = tokio::time::Instant::now();
-        if intervals.len() == 600 {
-            intervals.pop_front();
-        }
-        intervals.push_back(now.duration_since(last).as_secs_f64() * 1e3);
-        last = now;
-        window.1 += 1;
-        let elapsed = window.0.elapsed();
-        let mut s = status.lock().expect("clock status lock");
-        s.composite_ms = composite_ms;
-        s.group_storage_bytes = group_bytes;
-        if elapsed >= Duration::from_secs(1) {
-            s.fps = f64::from(window.1) / elapsed.as_secs_f64();
-            s.frame_interval_p99_ms = percentile(intervals.iter().copied(), 0.99);
-            window = (now, 0);
-        }
+        }));
     }
 }
 

@@ -240,3 +240,31 @@ pub fn green_rel_mse(img: &[Vec3], reference: &[f64], which: impl Fn(usize) -> b
     }
     if norm > 0.0 { err / norm } else { 0.0 }
 }
+
+/// Sends `input` and waits for the first frame where `shows` holds: it must
+/// come within two frame periods of the packet (made at the next tick,
+/// presented at the one after), and every frame from `before` on is
+/// numbered in sequence (none skipped, none sent twice).
+pub async fn first_frame_where(
+    out_rx: &mut tokio::sync::watch::Receiver<std::sync::Arc<footlight::output::Frame>>,
+    in_tx: &tokio::sync::watch::Sender<footlight_dmx::Universes>,
+    input: footlight_dmx::Universes,
+    period: std::time::Duration,
+    before: &footlight::output::Frame,
+    shows: impl Fn(&footlight::output::Frame) -> bool,
+) -> std::sync::Arc<footlight::output::Frame> {
+    in_tx.send(input).unwrap();
+    let sent = tokio::time::Instant::now();
+    let mut number = before.number;
+    loop {
+        out_rx.changed().await.unwrap();
+        let frame = out_rx.borrow_and_update().clone();
+        assert_eq!(frame.number, number + 1, "frames are presented in sequence");
+        number = frame.number;
+        if shows(&frame) {
+            assert!(sent.elapsed() <= period * 2, "shown {:?} after the packet", sent.elapsed());
+            return frame;
+        }
+        assert!(sent.elapsed() < period * 2, "not shown within two frame periods of the packet");
+    }
+}
