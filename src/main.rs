@@ -130,6 +130,11 @@ struct RunArgs {
     /// at least 1, so the frame clock keeps a core).
     #[arg(long, default_value_t = footlight::live::tracer::default_build_threads(), value_parser = flags::build_threads)]
     build_threads: usize,
+    /// Build threads added while the frame clock is quiet (no frame over 8 ms for a
+    /// second), 0-256 (default: the cores --build-threads leaves, so a still look builds
+    /// on every core; 0: never more than --build-threads).
+    #[arg(long, value_parser = flags::quiet_build_threads)]
+    quiet_build_threads: Option<usize>,
     /// Illuminance (lx) on a white Lambert surface shown as display white.
     #[arg(long, default_value_t = footlight::render::display::DEFAULT_WHITE_LUX, value_parser = flags::white_lux)]
     white_lux: f32,
@@ -351,6 +356,7 @@ impl RunArgs {
             photons: self.photons,
             memory: self.memory,
             build_threads: self.build_threads,
+            quiet_build_threads: self.quiet_build_threads,
             white_lux: self.white_lux,
             rolloff: self.rolloff.map(|r| r.0),
             white_balance: self.white_balance,

@@ -256,3 +256,47 @@ fn memory_budgets_parse_bytes_suffixes_and_percentages() {
     assert!(parse_budget("0%", Some(gib)).is_err() && parse_budget("101%", Some(gib)).is_err());
     assert!(parse_budget("lots", None).is_err() && parse_budget("100K", None).is_err());
 }
+
+/// Issue 38 item 4, both ways: a stage that starts while the frame clock is
+/// quiet runs with the quiet threads added, and once a tick took longer
+/// than `quiet_tick` the stages within `quiet_hold` run on the build
+/// threads alone (the clock has its core back). A short tick does not make
+/// the clock busy. The pool a stage runs on never changes its picture: the
+/// buffers are bit for bit those of a tracer with no quiet threads.
+#[test]
+fn stages_take_the_clocks_core_only_while_the_clock_is_quiet() {
+    let quiet = TracerSettings {
+        quiet_threads: 1,
+        quiet_tick: Duration::from_millis(8),
+        quiet_hold: Duration::from_secs(3600),
+        ..settings()
+    };
+    let a = tracer(2, quiet);
+    let b = tracer(2, TracerSettings { quiet_threads: 0, ..settings() });
+    let ready = |t: &Tracer, i: usize| t.published(i).stage == Stage::Ready;
+    for t in [&a, &b] {
+        t.request(0, spot(-1.0), 1.0);
+        wait_until(|| ready(t, 0), || format!("{:?}", t.report(0)));
+    }
+    let quiet_stages = a.quiet_stages();
+    assert!(quiet_stages >= 2, "direct and Whitted stages with the quiet threads: {quiet_stages}");
+    assert_eq!(b.quiet_stages(), 0, "no quiet threads, no quiet stages");
+    assert_eq!(a.published(0).buffer.to_dense(), b.published(0).buffer.to_dense(), "same picture on more threads");
+
+    // A short tick leaves the clock quiet.
+    a.clock_tick(Duration::from_millis(5));
+    a.request(1, spot(1.0), 1.0);
+    wait_until(|| ready(&a, 1), || format!("{:?}", a.report(1)));
+    let after_short = a.quiet_stages();
+    assert!(after_short >= quiet_stages + 2, "still quiet after a 5 ms tick: {after_short}");
+
+    // A long tick (a broad cue's composite): no stage takes the clock's core.
+    a.clock_tick(Duration::from_millis(30));
+    a.request(0, spot(0.5), 1.0);
+    a.request(1, spot(-0.5), 1.0);
+    wait_until(|| ready(&a, 0) && ready(&a, 1), || format!("{:?} {:?}", a.report(0), a.report(1)));
+    assert_eq!(a.quiet_stages(), after_short, "busy clock: the build threads alone");
+    b.request(0, spot(0.5), 1.0);
+    wait_until(|| ready(&b, 0), || format!("{:?}", b.report(0)));
+    assert_eq!(a.published(0).buffer.to_dense(), b.published(0).buffer.to_dense(), "same picture either way");
+}

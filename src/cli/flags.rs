@@ -65,6 +65,12 @@ pub fn build_threads(v: &str) -> Result<usize, String> {
         .and_then(|x| if x.fract() == 0.0 { Ok(x as usize) } else { Err("must be a whole number of threads".into()) })
 }
 
+/// `--quiet-build-threads`: 0-256, whole.
+pub fn quiet_build_threads(v: &str) -> Result<usize, String> {
+    number(v, 0.0, 256.0, " threads")
+        .and_then(|x| if x.fract() == 0.0 { Ok(x as usize) } else { Err("must be a whole number of threads".into()) })
+}
+
 /// `--width`/`--height`: 1-16384 pixels.
 pub fn pixels(v: &str) -> Result<u32, String> {
     number(v, 1.0, 16384.0, " pixels")

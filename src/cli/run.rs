@@ -116,6 +116,9 @@ pub struct RunOptions {
     pub memory: u64,
     /// Threads of the light-build pool.
     pub build_threads: usize,
+    /// Build threads added while the frame clock is quiet (`None`: the
+    /// cores `build_threads` leaves, [`crate::live::tracer::quiet_threads_for`]).
+    pub quiet_build_threads: Option<usize>,
     /// Illuminance (lx) shown as display white.
     pub white_lux: f32,
     /// Highlight roll-off: `None` keeps the daemon's default (on),
@@ -148,6 +151,9 @@ impl RunOptions {
             tracer: TracerSettings {
                 build: BuildSettings { photons, ..defaults.tracer.build },
                 threads: self.build_threads,
+                quiet_threads: self
+                    .quiet_build_threads
+                    .unwrap_or_else(|| crate::live::tracer::quiet_threads_for(self.build_threads)),
                 memory: self.memory,
                 ..defaults.tracer
             },

@@ -381,6 +381,7 @@ impl FrameClock {
                     let lights: Vec<(&Light, Vec3)> = inputs.iter().map(|i| (&i.light, i.k)).collect();
                     let rgb = Arc::new(views.preview(&camera, &lights, display, density));
                     let made_in = t0.elapsed();
+                    self.tracer.clock_tick(made_in);
                     self.last_preview = Some((camera, key, rgb.clone(), made_in));
                     (rgb, made_in)
                 }
@@ -466,6 +467,8 @@ impl FrameClock {
             intensity: Arc::new(intensity),
             composite_time: {
                 let total = t0.elapsed();
+                // A long tick keeps the build pool off the clock's core.
+                self.tracer.clock_tick(total);
                 if total > Duration::from_millis(20) {
                     tracing::debug!(
                         "slow frame {}: {:.1} ms (decode and entries {:.1}, composite {:.1}: {} tiles, {} changed)",

@@ -49,11 +49,22 @@
 //!    tracing. Each build yields once ([`LightBuild::yielded`]), so lights
 //!    that move again and again cannot starve it
 //!    ([`Tracer::photon_yields`] counts them).
+//! 7. **Every core while the clock is quiet.** The build pool leaves the
+//!    frame clock a core ([`TracerSettings::threads`]). A stage that starts
+//!    while the clock is quiet (no tick longer than
+//!    [`TracerSettings::quiet_tick`] in the last
+//!    [`TracerSettings::quiet_hold`], as [`Tracer::clock_tick`] reports)
+//!    runs on a second pool with [`TracerSettings::quiet_threads`] more: a
+//!    look that holds still builds on every core, and while the desk plays
+//!    (a broad cue, a pixel chase: 25-60 ms composites on the festival show)
+//!    the composite has its core back when the stage in progress ends.
+//!    The choice is per stage (a photon stage of a festival leader takes
+//!    about a second), so a cue waits at most one stage for its core.
 //!
 //! A newer request for a light cancels its build in progress (the
 //! [`Cancel`] token compares request ids) at the next stage boundary; a
 //! geometry state found in the [`GeometryCache`] is published at once.
-//! Builds run on the tracer's own rayon pool, so the frame clock's composite
+//! Builds run on the tracer's own rayon pools, so the frame clock's composite
 //! never queues behind them; the frame clock only reads published buffers
 //! (an `Arc` swap under a short lock).
 //!
@@ -144,6 +155,18 @@ pub struct TracerSettings {
     /// ([`default_build_threads`]), so the frame clock keeps a core (issue 38
     /// item 4); `footlight run --build-threads N`.
     pub threads: usize,
+    /// Build threads added while the frame clock is quiet: a stage that
+    /// starts when no frame of the last [`TracerSettings::quiet_hold`] took
+    /// more than [`TracerSettings::quiet_tick`] runs on `threads` + this many
+    /// threads, any other on `threads` alone (by default the cores the clock
+    /// keeps: [`quiet_threads_for`]). A look that holds still builds on
+    /// every core; while the desk plays (a cue, a pixel chase) the composite
+    /// has its core back within one stage. `footlight run --quiet-build-threads N`.
+    pub quiet_threads: usize,
+    /// A frame tick longer than this makes the clock busy (module doc, rule 7).
+    pub quiet_tick: Duration,
+    /// The clock is quiet once no busy tick came for this long.
+    pub quiet_hold: Duration,
     /// What each light build does (AA threshold, photons, refinement passes).
     pub build: BuildSettings,
     /// How long a light must be still before its later stages start.
@@ -198,6 +221,11 @@ impl Default for TracerSettings {
     fn default() -> Self {
         Self {
             threads: default_build_threads(),
+            quiet_threads: quiet_threads_for(default_build_threads()),
+            // Half a 60 Hz frame: a static look's ticks take 2-3 ms on the
+            // festival show, a broad cue's or a pixel chase's 25-60 ms.
+            quiet_tick: Duration::from_millis(8),
+            quiet_hold: Duration::from_secs(1),
             // Compact buffers: the daemon holds one per light of the rig.
             build: BuildSettings { compact: true, ..BuildSettings::default() },
             settle: Duration::from_millis(150),
@@ -218,6 +246,15 @@ impl Default for TracerSettings {
 /// frame clock, at least 1 (on 2 cores: 1 build thread).
 pub fn default_build_threads() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get().saturating_sub(1).max(1))
+}
+
+/// Build threads added while the frame clock is quiet
+/// ([`TracerSettings::quiet_threads`]) to a pool of `threads`: the cores it
+/// leaves to the clock (on 2 cores with the default 1 build thread: 1; on
+/// 1 core: 0).
+pub fn quiet_threads_for(threads: usize) -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    cores.saturating_sub(threads)
 }
 
 /// What the frame clock sees of a light.
@@ -359,6 +396,16 @@ struct Shared {
     /// one's address); given back when [`Tracer::set_view`] returns to it.
     kept_caches: Mutex<Vec<(std::sync::Weak<View>, GeometryCache)>>,
     pool: rayon::ThreadPool,
+    /// `threads` + `quiet_threads` build threads, for stages that start
+    /// while the clock is quiet; `None` without quiet threads.
+    quiet_pool: Option<rayon::ThreadPool>,
+    /// The clock's last busy tick (`Tracer::clock_tick`), as nanoseconds
+    /// after `epoch`; 0: none yet.
+    busy_at: AtomicU64,
+    /// The origin of `busy_at`.
+    epoch: Instant,
+    /// Stages run on `quiet_pool`.
+    quiet_stages: AtomicU64,
     /// The haze at 100 % density, if the patch has one.
     haze: Option<Medium>,
     /// The haze geometry of the current view (rebuilt when the view changes).
@@ -501,20 +548,9 @@ impl Tracer {
                 }),
             })
             .collect();
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(settings.threads.max(1))
-            .thread_name(|i| format!("footlight-build-{i}"))
-            // Builds yield to the frame clock, the network tasks and the
-            // preview server: on 2 cores a build at normal priority delays
-            // frame ticks (p99 21-26 ms with no client at all). At the lowest
-            // OS priority (nice 19 on Linux) a build still takes every idle
-            // cycle. Failure (a platform without per-thread priorities) only
-            // costs that protection, so it is ignored.
-            .start_handler(|_| {
-                let _ = thread_priority::set_current_thread_priority(thread_priority::ThreadPriority::Min);
-            })
-            .build()
-            .expect("build thread pool");
+        let pool = build_pool(settings.threads.max(1), "footlight-build");
+        let quiet_pool = (settings.quiet_threads > 0)
+            .then(|| build_pool(settings.threads.max(1) + settings.quiet_threads, "footlight-quiet"));
         let shared = Arc::new(Shared {
             scene,
             view: Mutex::new(view),
@@ -529,6 +565,10 @@ impl Tracer {
             cache: Mutex::new(GeometryCache::new(settings.cache_bytes)),
             kept_caches: Mutex::new(Vec::new()),
             pool,
+            quiet_pool,
+            busy_at: AtomicU64::new(0),
+            epoch: Instant::now(),
+            quiet_stages: AtomicU64::new(0),
             haze: haze.filter(|m| !m.is_clear()),
             haze_view: Mutex::new(None),
             builds: AtomicU64::new(0),
@@ -574,6 +614,33 @@ impl Tracer {
     /// Number of [`Tracer::set_view`] calls so far.
     pub fn view_generation(&self) -> u64 {
         self.shared.view_generation.load(Ordering::SeqCst)
+    }
+
+    /// The frame clock reports each tick's duration: one longer than
+    /// [`TracerSettings::quiet_tick`] makes the clock busy, and stages that
+    /// start within [`TracerSettings::quiet_hold`] of it leave the clock its
+    /// core (module doc, rule 7).
+    pub fn clock_tick(&self, took: Duration) {
+        if took > self.shared.settings.quiet_tick {
+            let at = self.shared.epoch.elapsed().as_nanos().clamp(1, u128::from(u64::MAX)) as u64;
+            self.shared.busy_at.store(at, Ordering::Relaxed);
+        }
+    }
+
+    /// Stages run with the quiet threads added ([`TracerSettings::quiet_threads`]).
+    pub fn quiet_stages(&self) -> u64 {
+        self.shared.quiet_stages.load(Ordering::Relaxed)
+    }
+
+    /// The build threads for `/api/status`.
+    pub fn build_threads(&self) -> crate::output::BuildThreads {
+        let s = &self.shared;
+        crate::output::BuildThreads {
+            threads: s.pool.current_num_threads(),
+            quiet_threads: s.quiet_pool.as_ref().map_or(0, |p| p.current_num_threads() - s.pool.current_num_threads()),
+            clock_quiet: s.quiet_pool.is_some() && clock_quiet(s.last_busy(), Instant::now(), s.settings.quiet_hold),
+            quiet_stages: self.quiet_stages(),
+        }
     }
 
     /// Photon traces run since start. A light's maps are traced once per
@@ -1045,6 +1112,25 @@ impl Drop for Tracer {
 }
 
 impl Shared {
+    /// The pool a stage starting now runs on: every build thread while the
+    /// frame clock is quiet, else the ones that leave it its core (module
+    /// doc, rule 7).
+    fn stage_pool(&self) -> &rayon::ThreadPool {
+        let Some(quiet) = &self.quiet_pool else { return &self.pool };
+        if clock_quiet(self.last_busy(), Instant::now(), self.settings.quiet_hold) {
+            self.quiet_stages.fetch_add(1, Ordering::Relaxed);
+            quiet
+        } else {
+            &self.pool
+        }
+    }
+
+    /// The frame clock's last busy tick ([`Tracer::clock_tick`]), if any.
+    fn last_busy(&self) -> Option<Instant> {
+        let busy = self.busy_at.load(Ordering::Relaxed);
+        (busy > 0).then(|| self.epoch + Duration::from_nanos(busy))
+    }
+
     fn notify(&self) {
         let (lock, cv) = &self.wake;
         *lock.lock().expect("wake lock") += 1;
@@ -1360,7 +1446,7 @@ impl Shared {
     fn haze_stage(&self, index: usize, id: u64, build: &LightBuild, quality: HazeQuality) {
         let (Some(medium), Some(hv)) = (&self.haze, self.haze_view()) else { return };
         self.haze_stages.fetch_add(1, Ordering::SeqCst);
-        let result = self.pool.install(|| build.haze_beam(&self.scene, &hv, medium, quality));
+        let result = self.stage_pool().install(|| build.haze_beam(&self.scene, &hv, medium, quality));
         let beam = match result {
             Ok(b) => b,
             Err(e) => return report_bug(self, index, &e),
@@ -1495,6 +1581,27 @@ fn panic_message(panic: &(dyn std::any::Any + Send)) -> String {
         .unwrap_or_else(|| "a panic without a message".into())
 }
 
+/// A build pool of `threads` threads named `name-i`. Builds yield to the
+/// frame clock, the network tasks and the preview server: on 2 cores a
+/// build at normal priority delays frame ticks (p99 21-26 ms with no client
+/// at all). At the lowest OS priority
+/// ([`crate::render::composite::lower_current_thread`]) a build still
+/// takes every idle cycle.
+fn build_pool(threads: usize, name: &'static str) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .thread_name(move |i| format!("{name}-{i}"))
+        .start_handler(|_| crate::render::composite::lower_current_thread())
+        .build()
+        .expect("build thread pool")
+}
+
+/// Whether the frame clock is quiet at `now`: its last busy tick (None:
+/// none yet) is at least `hold` old (module doc, rule 7).
+pub fn clock_quiet(last_busy: Option<Instant>, now: Instant, hold: Duration) -> bool {
+    last_busy.is_none_or(|t| now.saturating_duration_since(t) >= hold)
+}
+
 fn worker(s: &Shared) {
     while !s.stopped() {
         if s.panic_worker.swap(false, Ordering::SeqCst) {
@@ -1609,7 +1716,7 @@ fn direct_stage(s: &Shared, index: usize, rush: bool) {
     let mut build = new_build(s, index, &req).with_direct_first(quality);
     let view = s.view();
     s.builds.fetch_add(1, Ordering::SeqCst);
-    let step = match s.pool.install(|| build.next(&s.scene, &view)) {
+    let step = match s.stage_pool().install(|| build.next(&s.scene, &view)) {
         Ok(Some(step)) => step,
         Ok(None) => return,
         Err(e) => return report_bug(s, index, &e),
@@ -1718,7 +1825,7 @@ fn later_stage(s: &Shared, index: usize) {
             build.set_preempt(Some(s.urgent.clone()));
         }
     }
-    let result = s.pool.install(|| build.next(&s.scene, &view));
+    let result = s.stage_pool().install(|| build.next(&s.scene, &view));
     if next == Some(NextStage::Photons) && build.cancel().preempted() {
         // Not done, still good: it waits for its turn again, after the direct stage.
         build.set_preempt(None);
@@ -1862,6 +1969,19 @@ fn finished(s: &Shared, index: usize, id: u64, light: &Light, finished: Finished
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The clock is quiet with no busy tick yet, busy for `hold` after one
+    /// (at its very instant too), and quiet again from `hold` on.
+    #[test]
+    fn the_clock_is_quiet_a_hold_after_its_last_busy_tick() {
+        let t = Instant::now();
+        let hold = Duration::from_secs(1);
+        assert!(clock_quiet(None, t, hold), "no busy tick yet");
+        assert!(!clock_quiet(Some(t), t, hold));
+        assert!(!clock_quiet(Some(t), t + Duration::from_millis(999), hold));
+        assert!(clock_quiet(Some(t), t + hold, hold));
+        assert!(!clock_quiet(Some(t + Duration::from_secs(5)), t, hold), "a tick after now: busy");
+    }
 
     /// A backlog of more than `rush_backlog` waiting lights of a class
     /// (lit, or dark) rushes that class's direct stages; the other class,

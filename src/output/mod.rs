@@ -26,6 +26,6 @@ pub use camera::{
 };
 pub use frame::{BodyTile, BodyTiles, Frame};
 pub use status::{
-    CacheSummary, ClockStatus, DaemonStatus, ImportStatus, InputSummary, LightLabel, LightPatch, LightReport,
-    LightStatus, MemoryUsage, Stage, StatusFn, StreamCounters,
+    BuildThreads, CacheSummary, ClockStatus, DaemonStatus, ImportStatus, InputSummary, LightLabel, LightPatch,
+    LightReport, LightStatus, MemoryUsage, Stage, StatusFn, StreamCounters,
 };

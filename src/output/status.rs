@@ -34,6 +34,21 @@ pub struct ClockStatus {
     pub compositor: String,
 }
 
+/// The tracer's build threads (`footlight run --build-threads`,
+/// `--quiet-build-threads`), in `/api/status` as `builds`.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct BuildThreads {
+    /// Threads every stage may use (the frame clock keeps the other cores).
+    pub threads: usize,
+    /// Threads added to a stage that starts while the frame clock is quiet.
+    pub quiet_threads: usize,
+    /// Whether the clock is quiet now (no tick over `quiet_tick` within
+    /// `quiet_hold`): the next stage gets the quiet threads.
+    pub clock_quiet: bool,
+    /// Stages run with the quiet threads so far.
+    pub quiet_stages: u64,
+}
+
 /// A light in `/api/status`.
 #[derive(Clone, Debug, Serialize)]
 pub struct LightStatus {
@@ -101,6 +116,8 @@ pub struct DaemonStatus {
     /// The memory budget and what the tracer holds against it (light
     /// buffers, photon maps, caches; `--memory`).
     pub memory: MemoryUsage,
+    /// The build threads and how many stages had the quiet ones.
+    pub builds: BuildThreads,
     /// The camera: current view, its build stage, the view cache.
     pub view: ViewStatus,
     /// Problems a user should see (stale universes, unpatched DMX).
@@ -149,6 +166,7 @@ impl Default for DaemonStatus {
             input: InputSummary { kind: "none", ..InputSummary::default() },
             cache: CacheSummary::default(),
             memory: MemoryUsage::default(),
+            builds: BuildThreads::default(),
             view: ViewStatus::default(),
             warnings: Vec::new(),
             lights: Vec::new(),

@@ -255,19 +255,27 @@ fn frame_parts<'a>(groups: &'a [CompositeGroup], current: &[bool], lights: &[Com
     Parts { lights, groups: active }
 }
 
-/// A pool of one thread named `name` at the lowest OS priority, for work
-/// kept off the frame clock's cores (group storages, the shared layers'
-/// sum). Failing to lower it, on a platform without per-thread
-/// priorities, only costs that protection.
+/// A pool of one thread named `name` at the lowest OS priority
+/// ([`lower_current_thread`]), for work kept off the frame clock's cores
+/// (group storages, the shared layers' sum).
 pub fn lowest_priority_pool(name: &'static str) -> rayon::ThreadPool {
     rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .thread_name(move |_| name.into())
-        .start_handler(|_| {
-            let _ = thread_priority::set_current_thread_priority(thread_priority::ThreadPriority::Min);
-        })
+        .start_handler(|_| lower_current_thread())
         .build()
         .expect("a one-thread pool")
+}
+
+/// Puts the calling thread at the lowest OS priority, for background work
+/// (light builds, group storages, the shared layers' sum): nice 19 on
+/// Linux, via the `thread-priority` crate. It still takes every idle cycle.
+/// (`SCHED_IDLE`, which a waking normal thread preempts at once, was
+/// measured on the festival show and did not lower the frame clock's p99:
+/// 18.9-22.1 ms against 18.4-22.7 ms.) Failure (a platform without
+/// per-thread priorities) only costs that protection, so it is ignored.
+pub fn lower_current_thread() {
+    let _ = thread_priority::set_current_thread_priority(thread_priority::ThreadPriority::Min);
 }
 
 /// Encodes `linear` (plus `overlay`, the same length, when given) into

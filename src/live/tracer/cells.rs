@@ -209,7 +209,7 @@ pub(super) fn direct_batch(s: &Shared, index: usize, rush: bool) -> bool {
     let mut group = GroupBuild::new(builds, false);
     let bounds = s.cells.bounds(&view);
     // Every cell superseded (their newer requests wait) or shutdown.
-    let Ok(steps) = s.pool.install(|| group.next(&s.scene, &view, &bounds)) else { return true };
+    let Ok(steps) = s.stage_pool().install(|| group.next(&s.scene, &view, &bounds)) else { return true };
     let mut builds = group.into_builds();
     for step in steps {
         let (j, req, since, _) = &mut taken[step.member];
@@ -265,7 +265,7 @@ pub(super) fn whitted_batch(s: &Shared, index: usize) -> bool {
     s.cells.count(taken.len());
     let ids: Vec<(usize, u64, Instant)> = taken.iter().map(|t| (t.0, t.1, t.3)).collect();
     let mut group = GroupBuild::new(taken.into_iter().map(|t| t.2).collect(), false);
-    let Ok(steps) = s.pool.install(|| group.next(&s.scene, &view, &bounds)) else { return true };
+    let Ok(steps) = s.stage_pool().install(|| group.next(&s.scene, &view, &bounds)) else { return true };
     let mut builds = group.into_builds();
     for step in steps {
         let (j, id, at) = ids[step.member];
