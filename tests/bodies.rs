@@ -312,9 +312,13 @@ async fn a_dmx_pan_moves_one_body_in_the_next_frame_and_rebuilds_only_its_light(
     // A dimmer change: the same tiles (no body bytes), but the lens glow follows k.
     let mut dark = panned;
     dark[4] = 0;
-    in_tx.send(merged(universe, dark)).unwrap();
-    out_rx.changed().await.unwrap();
-    let dimmed = out_rx.borrow_and_update().clone();
+    // The first frame made after the packet (nothing else changes: the
+    // tracer is held) is the first that differs.
+    let last = out_rx.borrow_and_update().clone();
+    let dimmed = crate::common::first_frame_where(&mut out_rx, &in_tx, merged(universe, dark), period, &last, |f| {
+        f.rgb != last.rgb
+    })
+    .await;
     assert!(Arc::ptr_eq(dimmed.bodies.as_ref().unwrap(), tn), "a dimmer change sends no body tile");
     let lens: Vec<usize> =
         (0..(LW * LH) as usize).filter(|&i| new.hits[i].is_some_and(|h| h.body == 0 && h.lens)).collect();
