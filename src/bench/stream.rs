@@ -19,7 +19,7 @@
 
 use crate::live::{Daemon, DmxSource, Show};
 use crate::scene::{Camera, Scene};
-use crate::serve::stream::{MSG_BUFFER, MSG_CLEARED, MSG_FRAME, MSG_PICTURE};
+use crate::serve::stream::{FRAME_HEADER_BYTES, MSG_BUFFER, MSG_CLEARED, MSG_FRAME, MSG_PICTURE};
 use futures_util::{SinkExt, StreamExt};
 use serde::Serialize;
 use std::net::SocketAddr;
@@ -154,8 +154,11 @@ async fn viewer(
             Some(&MSG_BUFFER | &MSG_CLEARED) => {
                 rx.buffers.fetch_add(1, Ordering::Relaxed);
             }
-            Some(&MSG_FRAME) if probe && b.len() >= 36 => {
-                let k0 = f32::from_le_bytes([b[32], b[33], b[34], b[35]]);
+            Some(&MSG_FRAME) if probe && b.len() >= FRAME_HEADER_BYTES + 4 => {
+                // The first light's k (red): the header grew with the
+                // display's roll-off, and a fixed offset read a constant.
+                let h = FRAME_HEADER_BYTES;
+                let k0 = f32::from_le_bytes([b[h], b[h + 1], b[h + 2], b[h + 3]]);
                 if k0 != last_k {
                     last_k = k0;
                     rx.k_changed_ns.store(epoch.elapsed().as_nanos() as u64, Ordering::Relaxed);

@@ -73,6 +73,8 @@ pub const MSG_HELLO: u8 = 1;
 pub const MSG_BUFFER: u8 = 2;
 /// Message type: the k vector and display settings of a frame.
 pub const MSG_FRAME: u8 = 3;
+/// Bytes before the first light's k in a frame message ([`encode_frame`]).
+pub const FRAME_HEADER_BYTES: usize = 40;
 /// Message type: a light's buffer is empty (it reaches nothing in view).
 pub const MSG_CLEARED: u8 = 4;
 /// Message type: a server-encoded picture (PNG), pictures mode.
@@ -741,11 +743,12 @@ pub fn encode_cleared(light: u32, generation: u64) -> Bytes {
 /// knee f32, white f32]` (40 bytes), then per light k_i R, G, B and a time factor (strobe phase
 /// placeholder, always 1), f32 each (16 bytes per light).
 pub fn encode_frame(frame: &Frame) -> Bytes {
-    let mut b = Vec::with_capacity(40 + 16 * frame.k.len());
+    let mut b = Vec::with_capacity(FRAME_HEADER_BYTES + 16 * frame.k.len());
     b.extend_from_slice(&[MSG_FRAME, 0, 0, 0]);
     b.extend_from_slice(&(frame.k.len() as u32).to_le_bytes());
     b.extend_from_slice(&frame.number.to_le_bytes());
     push_display(&mut b, &frame.display);
+    debug_assert_eq!(b.len(), FRAME_HEADER_BYTES);
     for k in frame.k.iter() {
         for v in [k.x, k.y, k.z, 1.0] {
             b.extend_from_slice(&v.to_le_bytes());
