@@ -61,13 +61,17 @@ pub fn memory(v: &str) -> Result<u64, String> {
 
 /// `--build-threads`: 1-256, whole.
 pub fn build_threads(v: &str) -> Result<usize, String> {
-    number(v, 1.0, 256.0, " threads")
-        .and_then(|x| if x.fract() == 0.0 { Ok(x as usize) } else { Err("must be a whole number of threads".into()) })
+    threads(v, 1.0)
 }
 
 /// `--quiet-build-threads`: 0-256, whole.
 pub fn quiet_build_threads(v: &str) -> Result<usize, String> {
-    number(v, 0.0, 256.0, " threads")
+    threads(v, 0.0)
+}
+
+/// A whole number of threads from `min` to 256.
+fn threads(v: &str, min: f64) -> Result<usize, String> {
+    number(v, min, 256.0, " threads")
         .and_then(|x| if x.fract() == 0.0 { Ok(x as usize) } else { Err("must be a whole number of threads".into()) })
 }
 

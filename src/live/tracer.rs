@@ -638,7 +638,7 @@ impl Tracer {
         crate::output::BuildThreads {
             threads: s.pool.current_num_threads(),
             quiet_threads: s.quiet_pool.as_ref().map_or(0, |p| p.current_num_threads() - s.pool.current_num_threads()),
-            clock_quiet: s.quiet_pool.is_some() && clock_quiet(s.last_busy(), Instant::now(), s.settings.quiet_hold),
+            clock_quiet: s.quiet_pool.is_some() && s.clock_quiet_now(),
             quiet_stages: self.quiet_stages(),
         }
     }
@@ -1117,7 +1117,7 @@ impl Shared {
     /// doc, rule 7).
     fn stage_pool(&self) -> &rayon::ThreadPool {
         let Some(quiet) = &self.quiet_pool else { return &self.pool };
-        if clock_quiet(self.last_busy(), Instant::now(), self.settings.quiet_hold) {
+        if self.clock_quiet_now() {
             self.quiet_stages.fetch_add(1, Ordering::Relaxed);
             quiet
         } else {
@@ -1125,10 +1125,12 @@ impl Shared {
         }
     }
 
-    /// The frame clock's last busy tick ([`Tracer::clock_tick`]), if any.
-    fn last_busy(&self) -> Option<Instant> {
+    /// Whether the frame clock is quiet now: its last busy tick
+    /// ([`Tracer::clock_tick`]), if any, is at least `quiet_hold` old.
+    fn clock_quiet_now(&self) -> bool {
         let busy = self.busy_at.load(Ordering::Relaxed);
-        (busy > 0).then(|| self.epoch + Duration::from_nanos(busy))
+        let last_busy = (busy > 0).then(|| self.epoch + Duration::from_nanos(busy));
+        clock_quiet(last_busy, Instant::now(), self.settings.quiet_hold)
     }
 
     fn notify(&self) {
